@@ -1,0 +1,1 @@
+"""chatterlab: chatter stability from structural models (placeholder, filled below)."""
