@@ -211,7 +211,16 @@ class System:
                 xi = np.clip((x[sel] - el.start) / el.length, 0.0, 1.0)
                 sec = el.beam.section
                 P = beam_point_matrix(
-                    el.xy_i, el.xy_j, xi, c.offset, E=sec.E, G=sec.G, A=sec.A, I=sec.I, kappa=sec.kappa, order=order
+                    el.xy_i,
+                    el.xy_j,
+                    xi,
+                    c.offset,
+                    E=sec.E,
+                    G=sec.G,
+                    A=sec.A,
+                    I=sec.I,
+                    kappa=sec.kappa,
+                    order=order,
                 )
                 scale = (c.rate**order * (inside[sel] if order else 1.0)) if order else 1.0
                 G[np.ix_(sel, np.arange(rows.start, rows.stop), el.cols)] -= P * np.reshape(scale, (-1, 1, 1))
@@ -333,7 +342,9 @@ class System:
                 break
         xi = min(max((ref.distance - el.start) / el.length, 0.0), 1.0)
         sec = el.beam.section
-        P = beam_point_matrix(el.xy_i, el.xy_j, xi, ref.offset[1], E=sec.E, G=sec.G, A=sec.A, I=sec.I, kappa=sec.kappa)
+        P = beam_point_matrix(
+            el.xy_i, el.xy_j, xi, ref.offset[1], E=sec.E, G=sec.G, A=sec.A, I=sec.I, kappa=sec.kappa
+        )
         T[:, el.cols] = P[0]
         return T
 
@@ -564,7 +575,9 @@ def assemble(model: Model) -> System:
         x_ref = float((body_centre(model, c.follows, s_ref) - p0) @ e) + c.shift
         rate = float(np.array(mv.direction) @ e) if mv is not None else 0.0
         contact_rows.append(
-            _ContactRows(cols(c.id), tuple(track), x_ref, s_ref, rate, c.offset, start, c.id, c.outside == "clamp")
+            _ContactRows(
+                cols(c.id), tuple(track), x_ref, s_ref, rate, c.offset, start, c.id, c.outside == "clamp"
+            )
         )
 
     overlap = sorted(set(dependent) & given)

@@ -15,7 +15,14 @@ import numpy as np
 from .errors import ModelError
 from .model import Beam, Contact, Model, PointRef
 
-__all__ = ["TrackPosition", "body_centre", "contact_track_position", "point_xy", "check_geometry", "is_movable"]
+__all__ = [
+    "TrackPosition",
+    "body_centre",
+    "contact_track_position",
+    "point_xy",
+    "check_geometry",
+    "is_movable",
+]
 
 _TOL = 1e-6  # m: two points closer than this coincide
 

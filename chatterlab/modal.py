@@ -198,7 +198,9 @@ def modes(
     -------
     Modes
     """
-    if count is not None and (isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 1):
+    if count is not None and (
+        isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 1
+    ):
         raise InputError(f"count must be a positive integer, got {count!r}")
     if rigid not in ("error", "report"):
         raise InputError(f"rigid must be 'error' or 'report', got {rigid!r}")

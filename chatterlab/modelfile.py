@@ -143,9 +143,7 @@ class _Item:
                 )
 
     def err(self, field: str | None, msg: str) -> ModelError:
-        return ModelError(
-            f"{field}: {msg}" if field else msg, source=self.src, item=self.label, field=field
-        )
+        return ModelError(f"{field}: {msg}" if field else msg, source=self.src, item=self.label, field=field)
 
     def has(self, key: str) -> bool:
         return key in self.t
@@ -223,7 +221,9 @@ def _id_of(src: str, kind: str, k: int, table: Any, required: bool = True) -> st
     if isinstance(table, dict) and "id" in table:
         v = table["id"]
         if not isinstance(v, str) or not v.strip():
-            raise ModelError(f"id must be a non-empty string, got {v!r}", source=src, item=f"[[{kind}]] #{k + 1}")
+            raise ModelError(
+                f"id must be a non-empty string, got {v!r}", source=src, item=f"[[{kind}]] #{k + 1}"
+            )
         return v
     if required:
         raise ModelError(
@@ -246,7 +246,9 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
                     it[fld] = value
                     break
             else:
-                known = [it.get("id") for it in items if isinstance(it, dict)] if isinstance(items, list) else []
+                known = (
+                    [it.get("id") for it in items if isinstance(it, dict)] if isinstance(items, list) else []
+                )
                 raise ModelError(
                     f"{what} '{path}': there is no [[{kind}]] with id '{iid}'"
                     f" (known: {', '.join(map(str, known)) or 'none'})",
@@ -314,7 +316,11 @@ def build_model(
 
     def register(kind: str, iid: str) -> None:
         if iid == GROUND:
-            raise ModelError(f"'{GROUND}' is reserved for the foundation; choose another id", source=src, item=f'[[{kind}]] "{iid}"')
+            raise ModelError(
+                f"'{GROUND}' is reserved for the foundation; choose another id",
+                source=src,
+                item=f'[[{kind}]] "{iid}"',
+            )
         if iid in seen:
             raise ModelError(
                 f"duplicate id '{iid}' (already used by a [[{seen[iid]}]]); ids must be unique",
@@ -347,7 +353,9 @@ def build_model(
     bodies: list[Body] = []
     for k, t in enumerate(raw.get("body", [])):
         iid = _id_of(src, "body", k, t)
-        it = _Item(src, f'[[body]] "{iid}"', t, ("id", "mass", "inertia", "centre", "angle_deg", "description"))
+        it = _Item(
+            src, f'[[body]] "{iid}"', t, ("id", "mass", "inertia", "centre", "angle_deg", "description")
+        )
         register("body", iid)
         m = it.num("mass", unit="kg", nonneg=True)
         J = it.num("inertia", unit="kg m^2", nonneg=True)
@@ -397,12 +405,17 @@ def build_model(
             raise it.err("nodes", f"must be a list of two node ids, got {nl!r}")
         for n in nl:
             if n not in node_xy:
-                raise it.err("nodes", f"node '{n}' is not defined (known: {', '.join(sorted(node_xy)) or 'none'})")
+                raise it.err(
+                    "nodes", f"node '{n}' is not defined (known: {', '.join(sorted(node_xy)) or 'none'})"
+                )
         if nl[0] == nl[1]:
             raise it.err("nodes", "the two nodes must differ")
         L = float(np.hypot(*(node_xy[nl[1]] - node_xy[nl[0]])))
         if L <= 1e-12:
-            raise it.err("nodes", f"beam has zero length: nodes '{nl[0]}' and '{nl[1]}' are at the same place; move one")
+            raise it.err(
+                "nodes",
+                f"beam has zero length: nodes '{nl[0]}' and '{nl[1]}' are at the same place; move one",
+            )
         E = it.num("E", unit="Pa", positive=True)
         if it.has("G") and it.has("nu"):
             raise it.err("G", "give either G or nu, not both")
@@ -433,7 +446,12 @@ def build_model(
     contacts: list[Contact] = []
     for k, t in enumerate(raw.get("contact", [])):
         iid = _id_of(src, "contact", k, t)
-        it = _Item(src, f'[[contact]] "{iid}"', t, ("id", "beams", "follows", "offset", "shift", "outside", "description"))
+        it = _Item(
+            src,
+            f'[[contact]] "{iid}"',
+            t,
+            ("id", "beams", "follows", "offset", "shift", "outside", "description"),
+        )
         register("contact", iid)
         bl = it.raw("beams")
         if isinstance(bl, str):
@@ -442,18 +460,27 @@ def build_model(
             raise it.err("beams", f"must be a beam id or a list of collinear beam ids, got {bl!r}")
         for b in bl:
             if b not in beam_by_id:
-                raise it.err("beams", f"beam '{b}' is not defined (known: {', '.join(sorted(beam_by_id)) or 'none'})")
+                raise it.err(
+                    "beams", f"beam '{b}' is not defined (known: {', '.join(sorted(beam_by_id)) or 'none'})"
+                )
         _check_track(it, [beam_by_id[b] for b in bl], node_xy)
         fol = it.str("follows")
         if fol not in body_ids:
             raise it.err("follows", f"body '{fol}' is not defined (known: {', '.join(sorted(body_ids))})")
         if fol not in mov_bodies:
-            raise it.err("follows", f"body '{fol}' is not in [movable] bodies; a contact follows a moving body")
+            raise it.err(
+                "follows", f"body '{fol}' is not in [movable] bodies; a contact follows a moving body"
+            )
         outside = it.raw("outside", "error")
         if outside not in ("error", "clamp"):
-            raise it.err("outside", f"must be 'error' (the contact may not leave its track) or 'clamp' (it waits at the track end), got {outside!r}")
+            raise it.err(
+                "outside",
+                f"must be 'error' (the contact may not leave its track) or 'clamp' (it waits at the track end), got {outside!r}",
+            )
         contacts.append(
-            Contact(iid, tuple(bl), fol, it.num("offset", 0.0, unit="m"), it.num("shift", 0.0, unit="m"), outside)
+            Contact(
+                iid, tuple(bl), fol, it.num("offset", 0.0, unit="m"), it.num("shift", 0.0, unit="m"), outside
+            )
         )
     contact_ids = {c.id for c in contacts}
 
@@ -474,7 +501,12 @@ def build_model(
     points: list[Point] = []
     for k, t in enumerate(raw.get("point", [])):
         iid = _id_of(src, "point", k, t)
-        it = _Item(src, f'[[point]] "{iid}"', t, ("id", "body", "node", "beam", "distance", "offset", "coords", "description"))
+        it = _Item(
+            src,
+            f'[[point]] "{iid}"',
+            t,
+            ("id", "body", "node", "beam", "distance", "offset", "coords", "description"),
+        )
         register("point", iid)
         ref = ctx.ref_from_table(it, None, dict(t))
         points.append(Point(iid, ref))
@@ -493,10 +525,18 @@ def build_model(
         register("spring", iid)
         a = ctx.ref(it, "a")
         b = ctx.ref(it, "b")
-        c = tuple(it.num(f, 0.0, unit=u, nonneg=True) for f, u in (("c1", "N/m"), ("c2", "N/m"), ("c6", "N m/rad")))
-        d = tuple(it.num(f, 0.0, unit=u, nonneg=True) for f, u in (("d1", "N s/m"), ("d2", "N s/m"), ("d6", "N m s/rad")))
+        c = tuple(
+            it.num(f, 0.0, unit=u, nonneg=True) for f, u in (("c1", "N/m"), ("c2", "N/m"), ("c6", "N m/rad"))
+        )
+        d = tuple(
+            it.num(f, 0.0, unit=u, nonneg=True)
+            for f, u in (("d1", "N s/m"), ("d2", "N s/m"), ("d6", "N m s/rad"))
+        )
         if not any(c) and not any(d):
-            raise it.err("c1", "a spring needs a stiffness (c1, c2 or c6 > 0) or a damping (d1, d2, d6 > 0); all are zero")
+            raise it.err(
+                "c1",
+                "a spring needs a stiffness (c1, c2 or c6 > 0) or a damping (d1, d2, d6 > 0); all are zero",
+            )
         if a.kind == "ground" and b.kind == "ground":
             raise it.err("b", "both ends are on the ground; connect at least one end to the structure")
         springs.append(Spring(iid, a, b, c, d, math.radians(it.num("angle_deg", 0.0))))  # type: ignore[arg-type]
@@ -513,14 +553,24 @@ def build_model(
             raise it.err("node", f"node '{n}' is not defined (known: {', '.join(sorted(node_xy)) or 'none'})")
         b = it.str("body")
         if b != GROUND and b not in body_ids:
-            raise it.err("body", f"body '{b}' is not defined (known: {', '.join(sorted(body_ids | {GROUND}))})")
+            raise it.err(
+                "body", f"body '{b}' is not defined (known: {', '.join(sorted(body_ids | {GROUND}))})"
+            )
         if b in mov_bodies:
-            raise it.err("body", f"body '{b}' is movable and node '{n}' is not; attach moving parts through a [[contact]]")
+            raise it.err(
+                "body",
+                f"body '{b}' is movable and node '{n}' is not; attach moving parts through a [[contact]]",
+            )
         attachments.append(Attachment(iid, n, b))
     att_nodes = [a.node for a in attachments]
     for n in set(att_nodes):
         if att_nodes.count(n) > 1:
-            raise ModelError(f"node '{n}' is attached twice; a node can be clamped to one body only", source=src, item="[[attachment]]", field="node")
+            raise ModelError(
+                f"node '{n}' is attached twice; a node can be clamped to one body only",
+                source=src,
+                item="[[attachment]]",
+                field="node",
+            )
 
     supports: list[Support] = []
     for k, t in enumerate(raw.get("support", [])):
@@ -554,7 +604,10 @@ def build_model(
             raise it.err("dependent", f"must be a non-empty list of coordinate names, got {dep!r}")
         for x in dep:
             if x not in all_coords:
-                raise it.err("dependent", f"'{x}' is not a coordinate of the model (e.g. {', '.join(list(all_coords)[:6])}, ...)")
+                raise it.err(
+                    "dependent",
+                    f"'{x}' is not a coordinate of the model (e.g. {', '.join(list(all_coords)[:6])}, ...)",
+                )
         eqs = it.raw("equations")
         if not isinstance(eqs, list) or not eqs or not all(isinstance(e, dict) and e for e in eqs):
             raise it.err("equations", 'must be a list of tables {"coordinate" = coefficient, ...}')
@@ -565,7 +618,9 @@ def build_model(
                 if cname not in all_coords:
                     raise it.err("equations", f"'{cname}' is not a coordinate of the model")
                 if isinstance(coef, bool) or not isinstance(coef, int | float) or not math.isfinite(coef):
-                    raise it.err("equations", f"coefficient of '{cname}' must be a finite number, got {coef!r}")
+                    raise it.err(
+                        "equations", f"coefficient of '{cname}' must be a finite number, got {coef!r}"
+                    )
                 row.append((cname, float(coef)))
             rows.append(tuple(row))
         constraints.append(Constraint(iid, tuple(dep), tuple(rows)))
@@ -616,7 +671,9 @@ def build_model(
         raw=frozen_raw,
     )
     if not matrices and not bodies and not beams:
-        raise ModelError("the model has no [[body]], no [[beam]] and no [matrices]; nothing to analyse", source=src)
+        raise ModelError(
+            "the model has no [[body]], no [[beam]] and no [matrices]; nothing to analyse", source=src
+        )
     if movable is not None or contacts:
         _check_movable(model)
     from .geometry import check_geometry
@@ -688,11 +745,16 @@ class _RefContext:
                 return PointRef("body", v, label=v)
             if v in self.node_xy:
                 return PointRef("node", v, label=v)
-            raise it.err(key, f"'{v}' is not a point, body, contact, node or '{GROUND}' (known: {self.known()})")
+            raise it.err(
+                key, f"'{v}' is not a point, body, contact, node or '{GROUND}' (known: {self.known()})"
+            )
         if isinstance(v, dict):
             sub = _Item(self.src, it.label, v, ("body", "node", "beam", "distance", "offset", "coords"))
             return self.ref_from_table(sub, key, v)
-        raise it.err(key, f"must be a point name or an inline table like {{ body = \"frame\", offset = [0.0, -0.5] }}, got {v!r}")
+        raise it.err(
+            key,
+            f'must be a point name or an inline table like {{ body = "frame", offset = [0.0, -0.5] }}, got {v!r}',
+        )
 
     def ref_from_table(self, it: _Item, key: str | None, t: dict[str, Any]) -> PointRef:
         f = (lambda s: f"{key}.{s}") if key else (lambda s: s)
@@ -704,21 +766,33 @@ class _RefContext:
         if kind == "coords":
             cs = t["coords"]
             if not isinstance(cs, dict) or not cs or any(d not in DIRECTIONS for d in cs):
-                raise it.err(f("coords"), f'must be a table like {{ x = "q1", y = "q2" }} with keys from {list(DIRECTIONS)}')
-            for d, c in cs.items():
+                raise it.err(
+                    f("coords"),
+                    f'must be a table like {{ x = "q1", y = "q2" }} with keys from {list(DIRECTIONS)}',
+                )
+            for c in cs.values():
                 if c not in self.coord_names:
-                    raise it.err(f("coords"), f"'{c}' is not in [matrices] coordinates (known: {', '.join(sorted(self.coord_names))})")
+                    raise it.err(
+                        f("coords"),
+                        f"'{c}' is not in [matrices] coordinates (known: {', '.join(sorted(self.coord_names))})",
+                    )
             return PointRef("coords", "", coords=tuple(cs.get(d, "") for d in DIRECTIONS), label=label)  # type: ignore[arg-type]
         target = t[kind]
         if not isinstance(target, str):
             raise it.err(f(kind), f"must be an id string, got {target!r}")
         if kind == "beam":
             if target not in self.beam_len:
-                raise it.err(f("beam"), f"beam '{target}' is not defined (known: {', '.join(sorted(self.beam_len)) or 'none'})")
+                raise it.err(
+                    f("beam"),
+                    f"beam '{target}' is not defined (known: {', '.join(sorted(self.beam_len)) or 'none'})",
+                )
             dist = it.num("distance", unit="m")
             L = self.beam_len[target]
             if not (-1e-12 <= dist <= L + 1e-12):
-                raise it.err(f("distance"), f"point is outside its beam: distance must be in [0, {L:g}] m (the beam's length), got {dist:g} m")
+                raise it.err(
+                    f("distance"),
+                    f"point is outside its beam: distance must be in [0, {L:g}] m (the beam's length), got {dist:g} m",
+                )
             off = it.num("offset", 0.0, unit="m")
             return PointRef("beam", target, (0.0, off), min(max(dist, 0.0), L), label=label)
         off2 = it.vec("offset", 2, (0.0, 0.0), unit="m")
@@ -728,10 +802,16 @@ class _RefContext:
             if target == GROUND:
                 return PointRef("ground", GROUND, off2, label=label)
             if target not in self.body_ids and target not in self.contact_ids:
-                raise it.err(f("body"), f"body '{target}' is not defined (known: {', '.join(sorted(self.body_ids | self.contact_ids | {GROUND}))})")
+                raise it.err(
+                    f("body"),
+                    f"body '{target}' is not defined (known: {', '.join(sorted(self.body_ids | self.contact_ids | {GROUND}))})",
+                )
             return PointRef("body", target, off2, label=label)
         if target not in self.node_xy:
-            raise it.err(f("node"), f"node '{target}' is not defined (known: {', '.join(sorted(self.node_xy)) or 'none'})")
+            raise it.err(
+                f("node"),
+                f"node '{target}' is not defined (known: {', '.join(sorted(self.node_xy)) or 'none'})",
+            )
         return PointRef("node", target, off2, label=label)
 
 
@@ -746,7 +826,10 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
     }
     if model_kind not in extra:
         raise ModelError(
-            f"model: must be one of {', '.join(extra)} (got {model_kind!r})", source=src, item=label, field="model"
+            f"model: must be one of {', '.join(extra)} (got {model_kind!r})",
+            source=src,
+            item=label,
+            field="model",
         )
     it = _Item(src, label, t, base + extra[model_kind])
     a = ctx.ref(it, "a")
@@ -772,7 +855,12 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
         Kv = it.num("Kv", 0.0, unit="N s/m^2", nonneg=True)
         fa = math.radians(it.num("force_angle_deg", 0.0))
         na = math.radians(it.num("normal_angle_deg", 0.0))
-        params = (("Kf", Kf), ("Kv", Kv), ("force_angle_deg", math.degrees(fa)), ("normal_angle_deg", math.degrees(na)))
+        params = (
+            ("Kf", Kf),
+            ("Kv", Kv),
+            ("force_angle_deg", math.degrees(fa)),
+            ("normal_angle_deg", math.degrees(na)),
+        )
         f = np.array([math.cos(fa), math.sin(fa), 0.0])
         n = np.array([math.cos(na), math.sin(na), 0.0])
         G = np.outer(f, n)
@@ -786,19 +874,34 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
 def _read_process(src: str, t: Any) -> Process:
     kind = t.get("kind") if isinstance(t, dict) else None
     allowed = {
-        "shaping": ("kind", "speed", "return_speed", "run_in", "cut", "coast", "start", "direction", "description"),
+        "shaping": (
+            "kind",
+            "speed",
+            "return_speed",
+            "run_in",
+            "cut",
+            "coast",
+            "start",
+            "direction",
+            "description",
+        ),
         "turning": ("kind", "rpm", "description"),
         "delay": ("kind", "delay", "description"),
     }
     if kind not in allowed:
         raise ModelError(
-            f"kind: must be one of {', '.join(allowed)} (got {kind!r})", source=src, item="[process]", field="kind"
+            f"kind: must be one of {', '.join(allowed)} (got {kind!r})",
+            source=src,
+            item="[process]",
+            field="kind",
         )
     it = _Item(src, "[process]", t, allowed[kind])
     if kind == "shaping":
         direction = it.num("direction", -1.0)
         if direction not in (-1.0, 1.0):
-            raise it.err("direction", f"must be +1 or -1 (the sign of ds/dt in the work stroke), got {direction:g}")
+            raise it.err(
+                "direction", f"must be +1 or -1 (the sign of ds/dt in the work stroke), got {direction:g}"
+            )
         return Process(
             "shaping",
             speed=it.num("speed", unit="m/s", positive=True),
@@ -811,7 +914,11 @@ def _read_process(src: str, t: Any) -> Process:
         )
     if kind == "turning":
         return Process("turning", speed=it.num("rpm", unit="rpm", positive=True))
-    return Process("delay", speed=it.num("delay", unit="s", positive=True), delay_value=it.num("delay", unit="s", positive=True))
+    return Process(
+        "delay",
+        speed=it.num("delay", unit="s", positive=True),
+        delay_value=it.num("delay", unit="s", positive=True),
+    )
 
 
 def _check_movable(model: Model) -> None:
@@ -820,7 +927,11 @@ def _check_movable(model: Model) -> None:
     mv = model.movable
     src = model.source
     if model.contacts and mv is None:
-        raise ModelError("a [[contact]] needs a [movable] table naming the moving bodies", source=src, item=f'[[contact]] "{model.contacts[0].id}"')
+        raise ModelError(
+            "a [[contact]] needs a [movable] table naming the moving bodies",
+            source=src,
+            item=f'[[contact]] "{model.contacts[0].id}"',
+        )
     assert mv is not None
     for c in model.contacts:
         for s in (mv.range[0], mv.position, mv.range[1]):
@@ -828,7 +939,10 @@ def _check_movable(model: Model) -> None:
                 contact_track_position(model, c, s)
             except ValueError as exc:
                 raise ModelError(
-                    f"{exc}; narrow [movable] range or extend the track", source=src, item=f'[[contact]] "{c.id}"', field="beams"
+                    f"{exc}; narrow [movable] range or extend the track",
+                    source=src,
+                    item=f'[[contact]] "{c.id}"',
+                    field="beams",
                 ) from None
 
 
@@ -861,7 +975,9 @@ def _read_matrices(src: str, t: Any, base_dir: Path) -> MatrixBlock:
                     raise it.err(key, "must be a list of rows of numbers, or a .mtx/.npy file name") from None
                 arrays[key] = arr
     if "M" not in arrays or "K" not in arrays:
-        raise it.err("M" if "M" not in arrays else "K", "missing: a matrix-level model needs M and K (L optional)")
+        raise it.err(
+            "M" if "M" not in arrays else "K", "missing: a matrix-level model needs M and K (L optional)"
+        )
     n = arrays["M"].shape[0] if arrays["M"].ndim == 2 else -1
     if not isinstance(coords, list) or not all(isinstance(c, str) for c in coords):
         raise it.err("coordinates", "must be a list of coordinate names, one per row of M")
@@ -871,7 +987,9 @@ def _read_matrices(src: str, t: Any, base_dir: Path) -> MatrixBlock:
     arrays.setdefault("L", np.zeros_like(arrays["M"]))
     for key, arr in arrays.items():
         if arr.ndim != 2 or arr.shape != (len(coords), len(coords)):
-            raise it.err(key, f"must be {len(coords)}x{len(coords)} (one row per coordinate), got shape {arr.shape}")
+            raise it.err(
+                key, f"must be {len(coords)}x{len(coords)} (one row per coordinate), got shape {arr.shape}"
+            )
         if not np.all(np.isfinite(arr)):
             raise it.err(key, "holds non-finite entries")
         if not np.allclose(arr, arr.T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(arr).max())):
