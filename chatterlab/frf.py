@@ -164,12 +164,14 @@ class FRF:
                 fh.write(s)
         return s
 
-    def to_csv(self, path: str) -> None:
+    def to_csv(self, path: Any) -> None:
         """One row per frequency: ``frequency [Hz]`` then, per (output, input)
         pair, magnitude, phase (deg), real and imaginary part."""
         import csv
 
-        with open(path, "w", newline="") as fh:
+        from ._io import text_out
+
+        with text_out(path) as fh:
             w = csv.writer(fh)
             head = ["frequency [Hz]"]
             for o in self.outputs:

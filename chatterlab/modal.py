@@ -117,11 +117,13 @@ class Modes:
             lines.append(f"rigid-body mode: {r}")
         return "\n".join(lines)
 
-    def to_csv(self, path: str) -> None:
+    def to_csv(self, path: Any) -> None:
         """Write mode, frequency (Hz), period (s), damping ratio as CSV."""
         import csv
 
-        with open(path, "w", newline="") as fh:
+        from ._io import text_out
+
+        with text_out(path) as fh:
             w = csv.writer(fh)
             w.writerow(["mode", "frequency [Hz]", "period [s]", "damping ratio [-]"])
             for k in range(len(self)):
