@@ -1,0 +1,626 @@
+"""Tests of the generic sweep engine (chatterlab.sweep) and labelled files (chatterlab.netcdf)."""
+
+from __future__ import annotations
+
+import csv
+import functools
+import itertools
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import chatterlab
+from chatterlab.errors import InputError, SweepError
+from chatterlab.netcdf import read_netcdf, write_csv, write_netcdf
+from chatterlab.sweep import Axis, Grid, SweepInterrupted, SweepResult, sweep
+
+ROOT = Path(chatterlab.__file__).resolve().parent.parent
+FIXED = {"created": "2000-01-01T00:00:00+00:00", "command_line": "test"}
+OUTS = {"abscissa": "1/s", "freq": "Hz"}
+
+
+# --------------------------------------------------------------------------- swept functions
+# Module-level so that loky and dask workers can import them.
+
+
+def model(width: float, speed: float, k: float = 1e6) -> dict[str, float]:
+    """Deterministic but rounding-sensitive numerics (eigenvalues, long sums)."""
+    a = np.array([[-k * width, 1.0, 0.3], [speed, -2.0 - width, 0.1], [0.5, speed * width, -1.0]])
+    ev = np.linalg.eigvals(a)
+    s = np.sum(np.sin(np.arange(1, 200) * speed * width * 1e3) / np.arange(1, 200))
+    return {"abscissa": float(np.max(ev.real)), "freq": float(s + abs(ev.imag).max())}
+
+
+def flaky(width: float, speed: float) -> dict[str, float]:
+    if width == 2e-3 and speed == 2.0:
+        raise np.linalg.LinAlgError("singular at this point")
+    return {"abscissa": width * speed, "freq": width + speed}
+
+
+def wrong_keys(width: float, speed: float) -> dict[str, float]:
+    return {"abscissa": 1.0, "frq": 2.0}
+
+
+def blas_env(x: float) -> dict[str, float]:
+    return {
+        "omp": float(os.environ.get("OMP_NUM_THREADS", "nan")),
+        "openblas": float(os.environ.get("OPENBLAS_NUM_THREADS", "nan")),
+    }
+
+
+def small_grid() -> Grid:
+    return Grid({"width": (np.linspace(1e-3, 4e-3, 4), "m"), "speed": ([1.0, 2.0, 3.0, 4.0, 5.0], "m/s")})
+
+
+# --------------------------------------------------------------------------- grid
+
+
+def test_grid_order_units_and_points() -> None:
+    g = small_grid()
+    assert g.names == ("width", "speed") and g.shape == (4, 5) and g.size == 20
+    assert g.units == {"width": "m", "speed": "m/s"}
+    pts = [g.point(i) for i in range(g.size)]
+    expected = [{"width": w, "speed": s} for w, s in itertools.product(g["width"].values, g["speed"].values)]
+    assert pts == expected  # C order: last axis fastest
+    assert g.unravel(7) == (1, 2)
+    with pytest.raises(IndexError):
+        g.point(20)
+    assert Grid([Axis("width", g["width"].values, "m"), Axis("speed", [1, 2, 3, 4, 5], "m/s")]) == g
+    assert hash(Grid.from_spec("a=0:1:3")) == hash(Grid({"a": [0.0, 0.5, 1.0]}))
+    with pytest.raises(ValueError):  # read-only values
+        g["width"].values[0] = 1.0
+
+
+def test_grid_from_spec() -> None:
+    g = Grid.from_spec("k[N/m]=1e6:1e7:10", "c=5; z=0:1:3", units={"c": "N s/m"})
+    assert g.names == ("k", "c", "z") and g.shape == (10, 1, 3)
+    np.testing.assert_array_equal(g["k"].values, np.linspace(1e6, 1e7, 10))
+    assert g.units == {"k": "N/m", "c": "N s/m", "z": ""}
+    assert Grid.from_spec("k=2:2:1")["k"].values.tolist() == [2.0]
+
+
+@pytest.mark.parametrize(
+    ("spec", "fragment"),
+    [
+        ("k=1e7:1e6:10", "reversed range"),
+        ("k=1:1:5", "empty range"),
+        ("k=0:1:0", "N must be >= 1"),
+        ("k=0:1:-2", "whole number"),
+        ("k=0:1:2.5", "whole number"),
+        ("k=a:1:3", "not a number"),
+        ("k=0:nan:3", "finite"),
+        ("k=1:2", "expected NAME=MIN:MAX:N"),
+        ("k", "expected NAME=MIN:MAX:N"),
+        ("1k=1:2:3", "not a valid axis name"),
+        ("k=1:2:3 k=1:2:4", "given twice"),
+        ("k=1:2:1", "ambiguous"),
+    ],
+)
+def test_grid_spec_errors(spec: str, fragment: str) -> None:
+    with pytest.raises(InputError) as err:
+        Grid.from_spec(spec)
+    assert fragment in str(err.value)
+    assert spec.split()[-1] in str(err.value)  # the message names the spec
+
+
+def test_grid_construction_errors() -> None:
+    for bad in ({}, {"a": []}, {"a": [1.0, np.inf]}, {"a b": [1.0]}, {"a": [[1.0, 2.0]]}):
+        with pytest.raises(InputError):
+            Grid(bad)
+    with pytest.raises(InputError, match="duplicate"):
+        Grid([Axis("a", [1.0]), Axis("a", [2.0])])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(1, 4), min_size=1, max_size=4), st.data())
+def test_flat_index_maps_to_c_order(shape: list[int], data: st.DataObject) -> None:
+    g = Grid({f"x{i}": np.arange(n) * (i + 1.5) for i, n in enumerate(shape)})
+    i = data.draw(st.integers(0, g.size - 1))
+    expected = list(itertools.product(*(a.values for a in g.axes)))[i]
+    assert tuple(g.point(i).values()) == expected
+    assert np.ravel_multi_index(g.unravel(i), g.shape) == i
+
+
+# --------------------------------------------------------------------------- backends
+
+
+def test_serial_and_loky_identical_bitwise(tmp_path: Path) -> None:
+    g = Grid.from_spec("width=1e-3:5e-3:7", "speed=0.5:40:9", units={"width": "m", "speed": "m/s"})
+    f = functools.partial(model, k=2.5e6)
+    ser = sweep(f, g, outputs=OUTS, backend="serial", progress=False, attrs={"model": "demo µ"})
+    lok = sweep(
+        f, g, outputs=OUTS, backend="loky", jobs=2, chunk_size=5, progress=False, attrs={"model": "demo µ"}
+    )
+    for name in OUTS:
+        assert ser[name].shape == g.shape
+        assert np.array_equal(ser[name], lok[name])
+        assert ser[name].tobytes() == lok[name].tobytes()
+    assert ser.status == lok.status == "ok" and lok.n_computed == g.size
+    ser2 = SweepResult(**{**ser.__dict__, "attrs": {**ser.attrs, **FIXED}})
+    lok2 = SweepResult(**{**lok.__dict__, "attrs": {**lok.attrs, **FIXED}})
+    ser2.to_netcdf(tmp_path / "s.nc")
+    lok2.to_netcdf(tmp_path / "l.nc")
+    assert (tmp_path / "s.nc").read_bytes() == (tmp_path / "l.nc").read_bytes()
+
+
+def test_loky_workers_run_blas_single_threaded() -> None:
+    r = sweep(
+        blas_env, Grid({"x": np.arange(8.0)}), outputs={"omp": "", "openblas": ""}, jobs=2, progress=False
+    )
+    assert np.all(r["omp"] == 1) and np.all(r["openblas"] == 1)
+
+
+def test_dask_local_cluster_identical(tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    g = Grid.from_spec("width=1e-3:5e-3:5", "speed=0.5:40:6")
+    f = functools.partial(model, k=2.5e6)
+    ref = sweep(f, g, outputs=OUTS, backend="serial", progress=False, attrs=FIXED)
+    with distributed.LocalCluster(
+        n_workers=2, processes=True, host="127.0.0.1", threads_per_worker=1, dashboard_address=None
+    ) as cluster:
+        r = sweep(
+            f,
+            g,
+            outputs=OUTS,
+            backend="dask",
+            scheduler=cluster.scheduler_address,
+            chunk_size=4,
+            progress=False,
+            attrs=FIXED,
+            out=tmp_path / "d.nc",
+        )
+    for name in OUTS:
+        assert np.array_equal(ref[name], r[name])
+    ref.to_netcdf(tmp_path / "s.nc")
+    assert (tmp_path / "s.nc").read_bytes() == (tmp_path / "d.nc").read_bytes()
+
+
+def test_dask_unreachable_scheduler_fails_fast() -> None:
+    pytest.importorskip("distributed")
+    t0 = time.monotonic()
+    with pytest.raises(SweepError, match=r"cannot reach the dask scheduler at 'tcp://127.0.0.1:1'"):
+        sweep(
+            model,
+            small_grid(),
+            outputs=OUTS,
+            backend="dask",
+            scheduler="tcp://127.0.0.1:1",
+            connect_timeout=2,
+            progress=False,
+        )
+    assert time.monotonic() - t0 < 15
+
+
+# --------------------------------------------------------------------------- failures
+
+
+@pytest.mark.parametrize("backend", ["serial", "loky"])
+def test_task_failure_is_recorded_and_others_kept(backend: str, tmp_path: Path) -> None:
+    g = small_grid()
+    r = sweep(
+        flaky, g, outputs=OUTS, backend=backend, chunk_size=3, progress=False, checkpoint=tmp_path / "ck"
+    )
+    assert r.status == "partial" and r.n_failed == 1
+    assert "width=0.002 m, speed=2 m/s" in r.message and "LinAlgError" in r.message
+    [fail] = r.failures
+    assert fail.point == {"width": 2e-3, "speed": 2.0} and fail.error_type == "LinAlgError"
+    assert "singular" in fail.message and g.point(fail.index) == fail.point
+    bad = np.isnan(r["abscissa"])
+    assert bad.sum() == 1 and bad[1, 1]
+    assert np.allclose(r["abscissa"][~bad], np.multiply.outer(g["width"].values, g["speed"].values)[~bad])
+    # the failure survives a resume from the checkpoint, and reaches the file
+    again = sweep(
+        flaky, g, outputs=OUTS, backend="serial", checkpoint=tmp_path / "ck", resume=True, progress=False
+    )
+    assert again.n_computed == 0 and again.failures == r.failures
+    back = SweepResult.from_netcdf(again.to_netcdf(tmp_path / "r.nc"))
+    assert back.status == "partial" and back.failures[0].point == fail.point
+
+
+def test_on_error_raise_keeps_finished_chunks(tmp_path: Path) -> None:
+    g = small_grid()  # the failing task is index 6, in chunk 3 of chunk_size=2
+    ck = tmp_path / "ck"
+    with pytest.raises(SweepError, match=r"task 6 failed at width=0.002 m, speed=2 m/s: LinAlgError"):
+        sweep(
+            flaky,
+            g,
+            outputs=OUTS,
+            backend="serial",
+            chunk_size=2,
+            on_error="raise",
+            checkpoint=ck,
+            fingerprint="v1",
+            progress=False,
+        )
+    assert sorted(p.name for p in ck.glob("chunk_*.npz")) == [f"chunk_{i:06d}.npz" for i in range(3)]
+    fixed = sweep(
+        flaky_fixed,
+        g,
+        outputs=OUTS,
+        backend="serial",
+        checkpoint=ck,
+        resume=True,
+        fingerprint="v1",
+        progress=False,
+    )
+    assert fixed.ok and fixed.n_resumed == 6 and fixed.n_computed == 14
+
+
+def flaky_fixed(width: float, speed: float) -> dict[str, float]:
+    return {"abscissa": width * speed, "freq": width + speed}
+
+
+def test_output_contract_names_the_point() -> None:
+    with pytest.raises(SweepError, match=r"missing \['freq'\], unexpected \['frq'\]") as err:
+        sweep(wrong_keys, small_grid(), outputs=OUTS, backend="serial", progress=False)
+    assert "'width': 0.001" in str(err.value)
+
+
+def test_bad_arguments() -> None:
+    g = small_grid()
+    with pytest.raises(InputError, match="backend"):
+        sweep(model, g, outputs=OUTS, backend="threads", progress=False)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="resume=True needs checkpoint"):
+        sweep(model, g, outputs=OUTS, resume=True, progress=False)
+    with pytest.raises(InputError, match="same name as a grid axis"):
+        sweep(model, g, outputs={"width": "m"}, progress=False)
+    with pytest.raises(InputError, match="jobs"):
+        sweep(model, g, outputs=OUTS, jobs=0, progress=False)
+
+
+# --------------------------------------------------------------------------- checkpoint / resume
+
+
+def test_checkpoint_refusals(tmp_path: Path) -> None:
+    ck = tmp_path / "ck"
+    g = small_grid()
+    sweep(flaky_fixed, g, outputs=OUTS, backend="serial", checkpoint=ck, fingerprint="m1", progress=False)
+    with pytest.raises(InputError, match="not empty: pass resume=True"):
+        sweep(flaky_fixed, g, outputs=OUTS, backend="serial", checkpoint=ck, fingerprint="m1", progress=False)
+    other = Grid({"width": (np.linspace(1e-3, 4e-3, 4), "m"), "speed": ([1.0, 2.0, 3.0, 4.0, 6.0], "m/s")})
+    with pytest.raises(InputError, match=r"different sweep: grid .*axis 'speed' differs"):
+        sweep(
+            flaky_fixed,
+            other,
+            outputs=OUTS,
+            backend="serial",
+            checkpoint=ck,
+            resume=True,
+            fingerprint="m1",
+            progress=False,
+        )
+    with pytest.raises(InputError, match="fingerprint differs"):
+        sweep(
+            flaky_fixed,
+            g,
+            outputs=OUTS,
+            backend="serial",
+            checkpoint=ck,
+            resume=True,
+            fingerprint="m2",
+            progress=False,
+        )
+    with pytest.raises(InputError, match="outputs"):
+        sweep(
+            flaky_fixed,
+            g,
+            outputs={"abscissa": "1/s", "freq": "rad/s"},
+            backend="serial",
+            checkpoint=ck,
+            resume=True,
+            fingerprint="m1",
+            progress=False,
+        )
+    with pytest.raises(InputError, match="chunk_size"):
+        sweep(
+            flaky_fixed,
+            g,
+            outputs=OUTS,
+            backend="serial",
+            checkpoint=ck,
+            resume=True,
+            fingerprint="m1",
+            chunk_size=7,
+            progress=False,
+        )
+    # the automatic fingerprint tells partial arguments apart
+    ck2 = tmp_path / "ck2"
+    sweep(functools.partial(model, k=1e6), g, outputs=OUTS, backend="serial", checkpoint=ck2, progress=False)
+    with pytest.raises(InputError, match="fingerprint"):
+        sweep(
+            functools.partial(model, k=2e6),
+            g,
+            outputs=OUTS,
+            backend="serial",
+            checkpoint=ck2,
+            resume=True,
+            progress=False,
+        )
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "x.txt").write_text("x")
+    with pytest.raises(InputError, match="not a chatterlab sweep checkpoint"):
+        sweep(
+            model,
+            g,
+            outputs=OUTS,
+            backend="serial",
+            checkpoint=tmp_path / "junk",
+            resume=True,
+            progress=False,
+        )
+
+
+def test_keyboard_interrupt_then_resume(tmp_path: Path) -> None:
+    g = small_grid()
+    ref = sweep(model, g, outputs=OUTS, backend="serial", progress=False)
+    calls = {"n": 0}
+
+    def interrupted(width: float, speed: float) -> dict[str, float]:
+        calls["n"] += 1
+        if calls["n"] == 8:  # inside chunk 2 (tasks 6-8)
+            raise KeyboardInterrupt
+        return model(width, speed)
+
+    ck = tmp_path / "ck"
+    with pytest.raises(SweepInterrupted) as err:
+        sweep(
+            interrupted,
+            g,
+            outputs=OUTS,
+            backend="serial",
+            chunk_size=3,
+            checkpoint=ck,
+            fingerprint="model-v1",
+            progress=False,
+        )
+    msg = str(err.value)
+    assert "2 of 7 chunks done (6 of 20 points)" in msg and "resume=True" in msg and str(ck) in msg
+    assert isinstance(err.value, KeyboardInterrupt) and err.value.done == 2
+
+    calls["n"] = -1000  # no more interrupts; count the resumed calls
+    r = sweep(
+        interrupted,
+        g,
+        outputs=OUTS,
+        backend="serial",
+        checkpoint=ck,
+        resume=True,
+        fingerprint="model-v1",
+        progress=False,
+    )
+    assert calls["n"] == -1000 + 14 and r.n_computed == 14 and r.n_resumed == 6
+    for name in OUTS:
+        assert np.array_equal(ref[name], r[name])
+
+
+SCRIPT = textwrap.dedent(
+    """
+    import sys, time
+    import numpy as np
+    from chatterlab.sweep import Grid, sweep
+
+    def slow(x, y):
+        time.sleep(0.06)
+        return {"u": np.sin(x) * y, "v": x + y}
+
+    if __name__ == "__main__":
+        g = Grid.from_spec("x=0:3:6", "y=1:2:4")
+        try:
+            sweep(slow, g, outputs={"u": "", "v": ""}, backend="loky", jobs=2, chunk_size=2,
+                  checkpoint=sys.argv[1], fingerprint="slow-v1", progress=True)
+        except KeyboardInterrupt as exc:
+            print("INTERRUPTED:", exc, file=sys.stderr)
+            sys.exit(130)
+    """
+)
+
+
+def fast(x: float, y: float, log: Path) -> dict[str, float]:
+    """Same values as the script's ``slow``; leaves one file per call."""
+    (log / f"{x!r}_{y!r}").touch()
+    return {"u": np.sin(x) * y, "v": x + y}
+
+
+def _start_script(tmp_path: Path, ck: Path) -> subprocess.Popen[str]:
+    script = tmp_path / "run_sweep.py"
+    script.write_text(SCRIPT)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.Popen(
+        [sys.executable, str(script), str(ck)],
+        env=env,
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def _wait_for_chunks(proc: subprocess.Popen[str], ck: Path, n: int, timeout: float = 60) -> int:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        k = len(list(ck.glob("chunk_*.npz"))) if ck.exists() else 0
+        if k >= n:
+            return k
+        if proc.poll() is not None:
+            pytest.fail(f"sweep script ended early: {proc.communicate()[1]}")
+        time.sleep(0.02)
+    _kill_group(proc)
+    pytest.fail("no chunks written in time")
+
+
+def _kill_group(proc: subprocess.Popen[str]) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.communicate()
+
+
+def _resume_and_check(tmp_path: Path, ck: Path) -> None:
+    done = len(list(ck.glob("chunk_*.npz")))
+    assert 0 < done < 12
+    log = tmp_path / "calls"
+    log.mkdir()
+    g = Grid.from_spec("x=0:3:6", "y=1:2:4")
+    f = functools.partial(fast, log=log)
+    r = sweep(
+        f,
+        g,
+        outputs={"u": "", "v": ""},
+        backend="serial",
+        checkpoint=ck,
+        resume=True,
+        fingerprint="slow-v1",
+        progress=False,
+    )
+    ref = sweep(
+        functools.partial(fast, log=tmp_path), g, outputs={"u": "", "v": ""}, backend="serial", progress=False
+    )
+    assert r.n_resumed == 2 * done and r.n_computed == 24 - 2 * done
+    assert len(list(log.iterdir())) == r.n_computed  # only the missing chunks were computed
+    assert not [p for p in ck.iterdir() if ".tmp-" in p.name]
+    for name in ("u", "v"):
+        assert np.array_equal(ref[name], r[name])
+    a = SweepResult(**{**r.__dict__, "attrs": FIXED})
+    b = SweepResult(**{**ref.__dict__, "attrs": FIXED})
+    assert a.to_netcdf(tmp_path / "a.nc").read_bytes() == b.to_netcdf(tmp_path / "b.nc").read_bytes()
+
+
+def test_sigkill_midway_then_resume(tmp_path: Path) -> None:
+    ck = tmp_path / "ck"
+    proc = _start_script(tmp_path, ck)
+    try:
+        _wait_for_chunks(proc, ck, 3)
+    finally:
+        _kill_group(proc)  # the sweep and its loky workers
+    assert proc.returncode == -signal.SIGKILL
+    _resume_and_check(tmp_path, ck)
+
+
+@pytest.mark.slow
+def test_sigint_midway_stops_cleanly_then_resume(tmp_path: Path) -> None:
+    ck = tmp_path / "ck"
+    proc = _start_script(tmp_path, ck)
+    try:
+        _wait_for_chunks(proc, ck, 3)
+        os.kill(proc.pid, signal.SIGINT)  # Ctrl-C in the main process
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            _kill_group(proc)
+    assert proc.returncode == 130, err
+    assert "INTERRUPTED: sweep interrupted:" in err and "of 12 chunks done" in err
+    assert "resume=True (CLI: --resume)" in err
+    assert "24 points in 12 chunks of 2" in err  # progress header on a non-TTY stderr
+    _resume_and_check(tmp_path, ck)
+
+
+# --------------------------------------------------------------------------- files
+
+
+def test_netcdf_round_trip(tmp_path: Path) -> None:
+    coords = {"width": (np.array([1e-3, 2e-3, 3e-3]), "m"), "speed": (np.array([1.0, 2.5]), "m/s")}
+    freq = np.arange(6.0).reshape(3, 2) / 7
+    data = {
+        "freq": (freq, "Hz", "chatter frequency"),
+        "stable": (freq > 0.3, ""),
+        "lobe": (np.arange(8.0).reshape(4, 2), "m", "lobe depth", ("lobe", "speed")),
+    }
+    attrs = {"model": "beam µm °C\nline 2", "n": 3, "tol": 1e-9, "big": 2**40, "weights": [0.5, 1.5]}
+    p = write_netcdf(tmp_path / "r.nc", coords, data, attrs)
+    assert not [q for q in tmp_path.iterdir() if ".tmp-" in q.name]
+    f = read_netcdf(p)
+    assert list(f.coords) == ["width", "speed"]
+    assert f.coords["speed"][1] == "m/s" and np.array_equal(f.coords["width"][0], coords["width"][0])
+    arr, unit, long_name = f.data["freq"]
+    assert arr.tobytes() == freq.tobytes() and unit == "Hz" and long_name == "chatter frequency"
+    assert f.dims["lobe"] == ("lobe", "speed") and f.data["stable"][0].dtype == np.int8
+    assert f.attrs["model"] == attrs["model"] and f.attrs["n"] == 3 and f.attrs["tol"] == 1e-9
+    assert f.attrs["big"] == 2**40 and f.attrs["weights"].tolist() == [0.5, 1.5]
+    assert {"chatterlab_version", "created", "command_line"} <= set(f.attrs)
+    m = read_netcdf(p, mmap=True)
+    assert isinstance(m.data["freq"][0], np.memmap) and np.array_equal(m.data["freq"][0], freq)
+    with pytest.raises(InputError, match="complex"):
+        write_netcdf(tmp_path / "c.nc", coords, {"h": (freq + 1j, "")})
+    with pytest.raises(InputError, match="shape"):
+        write_netcdf(tmp_path / "c.nc", coords, {"h": (freq.T, "")})
+    xr = pytest.importorskip("xarray")
+    with xr.open_dataset(p) as ds:
+        assert ds["freq"].attrs["units"] == "Hz" and ds["width"].attrs["units"] == "m"
+        assert ds.attrs["model"] == attrs["model"]
+        np.testing.assert_array_equal(ds["freq"].values, freq)
+
+
+def test_csv_long_format(tmp_path: Path) -> None:
+    g = small_grid()
+    r = sweep(flaky, g, outputs=OUTS, backend="serial", progress=False)
+    p = r.to_csv(tmp_path / "r.csv")
+    rows = list(csv.reader(p.open()))
+    assert rows[0] == ["width [m]", "speed [m/s]", "abscissa [1/s]", "freq [Hz]"]
+    assert len(rows) == 1 + g.size
+    for i, row in enumerate(rows[1:]):
+        pt = g.point(i)
+        assert [float(v) for v in row[:2]] == [pt["width"], pt["speed"]]
+        if i == 6:
+            assert row[2] == "nan"
+        else:
+            assert float(row[2]) == r["abscissa"].reshape(-1)[i]  # exact round trip
+    write_csv(tmp_path / "t.csv", {"time": (np.array([0.0, 0.5]), "s")}, {"x": (np.array([1.0, 2.0]), "m")})
+    assert (tmp_path / "t.csv").read_text() == "time [s],x [m]\n0.0,1.0\n0.5,2.0\n"
+
+
+def test_streaming_out_file(tmp_path: Path) -> None:
+    g = small_grid()
+    out = tmp_path / "sub" / "sweep.nc"
+    r = sweep(flaky, g, outputs=OUTS, backend="loky", chunk_size=3, out=out, attrs=FIXED, progress=False)
+    assert isinstance(r["freq"], np.memmap) and r.status == "partial"
+    assert sorted(p.name for p in out.parent.iterdir()) == ["sweep.nc"]  # scratch removed
+    ref = sweep(flaky, g, outputs=OUTS, backend="serial", attrs=FIXED, progress=False)
+    assert ref.to_netcdf(tmp_path / "ref.nc").read_bytes() == out.read_bytes()
+    back = SweepResult.from_netcdf(out)
+    assert back.grid == g and back.units == OUTS and back.status == "partial" and back.n_failed == 1
+    assert np.array_equal(back["abscissa"], ref["abscissa"], equal_nan=True)
+
+
+def test_progress_lines_on_non_tty(capsys: pytest.CaptureFixture[str]) -> None:
+    sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="serial", chunk_size=2, progress=True)
+    err = capsys.readouterr().err
+    assert "20 points in 10 chunks of 2, 1 process" in err
+    lines = [ln for ln in err.splitlines() if "%" in ln]
+    assert 5 <= len(lines) <= 11 and "100% (20/20 points" in lines[-1]
+    sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="serial", progress=False)
+    assert capsys.readouterr().err == ""
+
+
+def test_plot_and_dataset(tmp_path: Path) -> None:
+    mpl = pytest.importorskip("matplotlib")
+    mpl.use("Agg")
+    r = sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="serial", progress=False)
+    ax = r.plot("freq")
+    assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "width [m]"
+    assert ax.figure.axes[-1].get_ylabel() == "freq [Hz]"  # the colour bar
+    ax = r.plot("freq", at={"width": 2e-3})
+    assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "freq [Hz]"
+    xr = pytest.importorskip("xarray")
+    ds = r.to_dataset()
+    assert isinstance(ds, xr.Dataset) and ds["freq"].attrs["units"] == "Hz" and ds.attrs["status"] == "ok"
+
+
+def test_import_is_light() -> None:
+    code = (
+        "import sys, chatterlab.sweep, chatterlab.netcdf; "
+        "print(sorted(m for m in ('joblib', 'dask', 'distributed', 'matplotlib', 'tqdm', 'xarray') "
+        "if m in sys.modules))"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert out.stdout.strip() == "[]"
