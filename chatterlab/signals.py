@@ -1,0 +1,375 @@
+"""Post-processing of time histories: amplitude spectra, peaks and growth rates.
+
+The paper's results (Wittbrodt & Kaliński, figs. 4-11) are time plots of the
+tool-workpiece contact point vibration and their spectra; chatter itself shows
+as an oscillation whose envelope grows.  This module turns a sampled signal
+``x(t)`` into
+
+* a single-sided **amplitude spectrum** scaled so that a sine of amplitude
+  ``a`` shows a peak of height ``a`` (:func:`amplitude_spectrum`), and its
+  largest **peaks** with sub-bin refinement (:func:`peaks`);
+* an exponential **growth rate** ``sigma`` [1/s] of the oscillation envelope,
+  ``|x| ~ exp(sigma t)``, with a decaying / steady / growing classification
+  (:func:`growth_rate`).  For a linear (delay) system after the transient,
+  ``sigma`` is the real part of the rightmost characteristic root.
+
+References
+----------
+.. [1] F. J. Harris, "On the use of windows for harmonic analysis with the
+   discrete Fourier transform", Proc. IEEE 66(1), 51-83, 1978 (coherent gain).
+.. [2] N. M. Newmark, J. Eng. Mech. Div. ASCE 85(EM3), 67-94, 1959, and
+   K.-J. Bathe and E. L. Wilson, *Numerical methods in finite element
+   analysis*, Prentice Hall 1976 (the integrator producing the histories).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from chatterlab.errors import InputError
+
+__all__ = ["GrowthEstimate", "amplitude_spectrum", "growth_rate", "peaks"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _uniform_time(t: ArrayLike, x: ArrayLike, min_len: int = 4) -> tuple[FloatArray, FloatArray, float]:
+    tt = np.asarray(t, dtype=float).reshape(-1)
+    xx = np.asarray(x, dtype=float)
+    if xx.shape[-1:] != (tt.size,):
+        raise InputError(
+            f"x must have the time axis last with len(t) = {tt.size} samples (got shape {xx.shape})"
+        )
+    if tt.size < min_len:
+        raise InputError(f"need at least {min_len} samples (got {tt.size})")
+    if not (np.all(np.isfinite(tt)) and np.all(np.isfinite(xx))):
+        raise InputError("t and x must be finite (no NaN/inf)")
+    dt = np.diff(tt)
+    step = (tt[-1] - tt[0]) / (tt.size - 1)
+    if step <= 0 or np.max(np.abs(dt - step)) > 1e-6 * step:
+        raise InputError("t must be increasing and uniformly spaced (resample first)")
+    return tt, xx, float(step)
+
+
+def amplitude_spectrum(
+    t: ArrayLike,
+    x: ArrayLike,
+    *,
+    window: str | None = "hann",
+    detrend: bool | str = True,
+    pad: int = 4,
+) -> tuple[FloatArray, FloatArray]:
+    """Single-sided amplitude spectrum with coherent-gain correction.
+
+    Parameters
+    ----------
+    t : array_like, shape (n_t,)
+        Uniformly spaced times [s].
+    x : array_like, shape (..., n_t)
+        Signal(s), time along the last axis, any unit.
+    window : str or None, default "hann"
+        Any :func:`scipy.signal.get_window` name (periodic form); ``None`` or
+        ``"boxcar"`` for no window.
+    detrend : bool or {"linear", "constant"}, default True
+        Remove a linear trend (``True``/``"linear"``), the mean
+        (``"constant"``) or nothing (``False``) before windowing -- the static
+        deflection under the mean cutting force would otherwise leak into the
+        low frequencies.
+    pad : int, default 4
+        Zero-padding factor: the FFT length is at least ``pad * n_t``.  It
+        interpolates the spectrum (finer frequency grid, smaller
+        picket-fence error of the peak height: below 1 % for the Hann window
+        with ``pad = 4``) without changing the resolution ``1/(n_t dt)``.
+
+    Returns
+    -------
+    freq : ndarray, shape (n_f,)
+        Frequencies [Hz], from 0 to the Nyquist frequency.
+    amplitude : ndarray, shape (..., n_f)
+        Peak amplitude in the units of ``x``: a component
+        ``a sin(2 pi f t)`` with ``f`` on the frequency grid gives
+        ``amplitude = a`` at ``f`` (the sum of the window normalises the DFT,
+        which is the coherent-gain correction; the non-DC bins are doubled
+        for the single-sided spectrum).
+    """
+    from scipy import fft
+    from scipy import signal as sps
+
+    tt, xx, dt = _uniform_time(t, x)
+    if isinstance(pad, bool) or not isinstance(pad, (int, np.integer)) or pad < 1:
+        raise InputError(f"pad must be an integer >= 1 (got {pad!r})")
+    n_t = tt.size
+    if detrend is True or detrend == "linear":
+        xx = sps.detrend(xx, axis=-1, type="linear")
+    elif detrend == "constant":
+        xx = xx - xx.mean(axis=-1, keepdims=True)
+    elif detrend not in (False, None):
+        raise InputError(f"detrend must be True, False, 'linear' or 'constant' (got {detrend!r})")
+    if window is None or window == "boxcar":
+        w = np.ones(n_t)
+    else:
+        try:
+            w = sps.get_window(window, n_t, fftbins=True)
+        except ValueError as exc:
+            raise InputError(f"unknown window {window!r}: {exc}") from None
+    nfft = fft.next_fast_len(int(pad) * n_t, real=True)
+    spec = np.abs(fft.rfft(xx * w, n=nfft, axis=-1)) * (2.0 / np.sum(w))
+    spec[..., 0] *= 0.5
+    if nfft % 2 == 0:
+        spec[..., -1] *= 0.5
+    freq = fft.rfftfreq(nfft, dt)
+    return freq, spec
+
+
+def peaks(
+    freq: ArrayLike,
+    amp: ArrayLike,
+    n: int = 5,
+    *,
+    min_separation: float | None = None,
+    fmin: float = 0.0,
+    refine: bool = True,
+) -> tuple[FloatArray, FloatArray]:
+    """The ``n`` largest local maxima of an amplitude spectrum.
+
+    Parameters
+    ----------
+    freq, amp : array_like, shape (n_f,)
+        Frequencies [Hz] and amplitudes, e.g. from :func:`amplitude_spectrum`.
+    n : int, default 5
+        Number of peaks wanted (fewer are returned when there are fewer).
+    min_separation : float, optional
+        Minimum distance between two reported peaks [Hz].
+    fmin : float, default 0
+        Ignore frequencies below ``fmin`` [Hz] (e.g. the static part).
+    refine : bool, default True
+        Refine each peak by a parabola through the logarithm of the three
+        samples around it (exact for a Gaussian-shaped lobe, a good model of
+        the Hann main lobe): corrects most of the picket-fence error of the
+        frequency and height.
+
+    Returns
+    -------
+    f_peaks, a_peaks : ndarray
+        Peak frequencies [Hz] and heights (units of ``amp``), by decreasing
+        height.
+    """
+    from scipy.signal import find_peaks
+
+    f = np.asarray(freq, dtype=float).reshape(-1)
+    a = np.asarray(amp, dtype=float).reshape(-1)
+    if f.shape != a.shape or f.size < 3:
+        raise InputError(f"freq and amp must be 1-D of equal length >= 3 (got {f.shape}, {a.shape})")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise InputError(f"n must be a positive integer (got {n!r})")
+    df = (f[-1] - f[0]) / (f.size - 1)
+    dist = None
+    if min_separation is not None:
+        if not min_separation > 0:
+            raise InputError(f"min_separation must be > 0 Hz (got {min_separation!r})")
+        dist = max(1, int(round(min_separation / df)))
+    idx, _ = find_peaks(a, distance=dist)
+    idx = idx[f[idx] >= fmin]
+    idx = idx[np.argsort(a[idx])[::-1]][:n]
+    fp = f[idx].copy()
+    ap = a[idx].copy()
+    if refine:
+        for k, i in enumerate(idx):
+            y0, y1, y2 = a[i - 1], a[i], a[i + 1]
+            if min(y0, y1, y2) <= 0:
+                continue
+            l0, l1, l2 = np.log(y0), np.log(y1), np.log(y2)
+            den = l0 - 2.0 * l1 + l2
+            if den >= 0:
+                continue
+            p = 0.5 * (l0 - l2) / den
+            fp[k] = f[i] + p * df
+            ap[k] = math.exp(l1 - 0.25 * (l0 - l2) * p)
+        order = np.argsort(ap)[::-1]
+        fp, ap = fp[order], ap[order]
+    return fp, ap
+
+
+@dataclass(frozen=True)
+class GrowthEstimate:
+    """Result of :func:`growth_rate`.
+
+    Attributes
+    ----------
+    rate : float
+        Envelope growth rate ``sigma`` [1/s] (``nan`` when undetermined).
+    classification : str
+        ``"decaying"``, ``"steady"``, ``"growing"`` or ``"undetermined"``.
+    r2 : float
+        Coefficient of determination of the straight-line fit of
+        ``log(envelope)`` against time (1 = perfectly exponential).
+    message : str
+        How the estimate was made, or why it failed.
+    t_fit : tuple of float
+        Time window actually fitted [s].
+    n_points : int
+        Envelope points fitted.
+    """
+
+    rate: float
+    classification: str
+    r2: float
+    message: str
+    t_fit: tuple[float, float] = (math.nan, math.nan)
+    n_points: int = 0
+
+
+def _extrema(x: FloatArray) -> tuple[np.ndarray, FloatArray, np.ndarray]:
+    """Alternating local extrema: (sample index, refined value, +1 max / -1 min)."""
+    d = np.diff(x)
+    up = d[:-1] > 0
+    dn = d[:-1] < 0
+    imax = np.nonzero(up & (d[1:] <= 0))[0] + 1
+    imin = np.nonzero(dn & (d[1:] >= 0))[0] + 1
+    idx = np.concatenate([imax, imin])
+    kind = np.concatenate([np.ones(imax.size, int), -np.ones(imin.size, int)])
+    order = np.argsort(idx, kind="stable")
+    idx, kind = idx[order], kind[order]
+    # parabolic refinement of the extreme value
+    y0, y1, y2 = x[idx - 1], x[idx], x[idx + 1]
+    den = y0 - 2.0 * y1 + y2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.where(den != 0, 0.5 * (y0 - y2) / den, 0.0)
+    p = np.clip(p, -0.5, 0.5)
+    val = y1 - 0.25 * (y0 - y2) * p
+    tpos = idx + p
+    # enforce alternation: in a run of same-kind extrema keep the most extreme
+    keep_i: list[int] = []
+    for k in range(idx.size):
+        if keep_i and kind[keep_i[-1]] == kind[k]:
+            if kind[k] * val[k] > kind[k] * val[keep_i[-1]]:
+                keep_i[-1] = k
+        else:
+            keep_i.append(k)
+    sel = np.asarray(keep_i, dtype=int)
+    return tpos[sel], val[sel], kind[sel]
+
+
+def growth_rate(
+    t: ArrayLike,
+    x: ArrayLike,
+    *,
+    skip: float = 0.2,
+    t_min: float | None = None,
+    t_max: float | None = None,
+    method: str = "extrema",
+    tol: float = 0.05,
+) -> GrowthEstimate:
+    """Exponential growth rate of the envelope of an oscillating signal.
+
+    The envelope is fitted as ``log env(t) = log c + sigma t`` by least squares.
+
+    * ``method="extrema"`` (default): envelope points are half the
+      peak-to-peak swings between consecutive local extrema (each refined by
+      a parabola through three samples), at the mid time of the swing.  The
+      half-swing does not see a constant or slowly varying offset (static
+      deflection), and for ``exp(sigma t) sin(w t)`` its logarithm is exactly
+      linear with slope ``sigma``.
+    * ``method="hilbert"``: magnitude of the analytic signal
+      (:func:`scipy.signal.hilbert`) of the mean-removed signal, with 10 % of
+      the window trimmed at each end (edge effects).
+
+    Parameters
+    ----------
+    t : array_like, shape (n_t,)
+        Uniformly spaced times [s].
+    x : array_like, shape (n_t,)
+        Signal (any unit).
+    skip : float, default 0.2
+        Fraction of the time span discarded at the start (the transient of
+        the non-dominant modes).  Ignored when ``t_min`` is given.
+    t_min, t_max : float, optional
+        Explicit fitting window [s].
+    method : {"extrema", "hilbert"}
+        Envelope estimate, see above.
+    tol : float, default 0.05
+        Classification tolerance, relative to the fitted time span ``D``:
+        ``"steady"`` when the fitted envelope changes by less than a factor
+        ``1 + tol`` over ``D`` (``|sigma| D < log(1 + tol)``), otherwise
+        ``"growing"`` (``sigma > 0``) or ``"decaying"``.
+
+    Returns
+    -------
+    GrowthEstimate
+        ``rate`` [1/s], ``classification``, ``r2`` and ``message``; the rate is
+        ``nan`` and the classification ``"undetermined"`` when fewer than two
+        oscillations (4 envelope points) are in the window.
+
+    Notes
+    -----
+    Envelope points below ``1e-10`` times the largest one are dropped (a
+    decay into round-off would flatten the fit).  A signal with several
+    comparable modes gives a beating envelope: ``r2`` well below 1 warns of
+    it.
+    """
+    from scipy.signal import hilbert
+
+    tt, xx, dt = _uniform_time(t, x)
+    if xx.ndim != 1:
+        raise InputError(f"x must be 1-D (got shape {xx.shape})")
+    if not 0 <= skip < 1:
+        raise InputError(f"skip must be a fraction in [0, 1) (got {skip!r})")
+    if not tol > 0:
+        raise InputError(f"tol must be > 0 (got {tol!r})")
+    lo = tt[0] + skip * (tt[-1] - tt[0]) if t_min is None else float(t_min)
+    hi = tt[-1] if t_max is None else float(t_max)
+    sel = (tt >= lo) & (tt <= hi)
+    if np.count_nonzero(sel) < 8:
+        raise InputError(f"the window [{lo:.6g}, {hi:.6g}] s holds fewer than 8 samples")
+    ts, xs = tt[sel], xx[sel]
+
+    if method == "extrema":
+        pos, val, _ = _extrema(xs)
+        if pos.size < 2:
+            return GrowthEstimate(
+                math.nan, "undetermined", math.nan, "fewer than two extrema in the window: no oscillation"
+            )
+        env = 0.5 * np.abs(np.diff(val))
+        te = ts[0] + dt * 0.5 * (pos[1:] + pos[:-1])
+    elif method == "hilbert":
+        z = hilbert(xs - xs.mean())
+        m = xs.size // 10
+        env = np.abs(z[m : xs.size - m])
+        te = ts[m : xs.size - m]
+    else:
+        raise InputError(f"method must be 'extrema' or 'hilbert' (got {method!r})")
+
+    good = env > 1e-10 * (env.max() if env.size else 0.0)
+    dropped = env.size - int(np.count_nonzero(good))
+    env, te = env[good], te[good]
+    if env.size < 4:
+        return GrowthEstimate(
+            math.nan, "undetermined", math.nan, f"only {env.size} envelope points in the window (need >= 4)"
+        )
+    y = np.log(env)
+    tc = te - te.mean()
+    rate = float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
+    resid = y - y.mean() - rate * tc
+    ss_tot = float(np.dot(y - y.mean(), y - y.mean()))
+    r2 = 1.0 - float(np.dot(resid, resid)) / ss_tot if ss_tot > 0 else 1.0
+    span = float(te[-1] - te[0])
+    change = rate * span
+    thr = math.log1p(tol)
+    if change > thr:
+        cls = "growing"
+    elif change < -thr:
+        cls = "decaying"
+    else:
+        cls = "steady"
+    msg = (
+        f"{method} envelope, {env.size} points over [{te[0]:.6g}, {te[-1]:.6g}] s: "
+        f"sigma = {rate:.6g} 1/s, envelope factor exp(sigma D) = {math.exp(change):.4g} "
+        f"over D = {span:.4g} s (steady within {tol:.0%}), r2 = {r2:.4f}"
+    )
+    if dropped:
+        msg += f"; {dropped} points below 1e-10 of the maximum dropped"
+    return GrowthEstimate(rate, cls, r2, msg, (float(te[0]), float(te[-1])), int(env.size))
