@@ -651,12 +651,21 @@ def _check_constraints(sy: System) -> None:
     if w.min() <= tol:
         v = V[:, 0]
         culprits = [sy.names[sy.d[k]] for k in np.argsort(-np.abs(v))[:4] if abs(v[k]) > 1e-3]
+        # name the [[constraint]] items that declared the undetermined coordinates
+        owners = [
+            f'[[constraint]] "{c.id}"'
+            for c in sy.model.constraints
+            if any(x in c.dependent for x in culprits)
+        ]
         raise ModelError(
-            "the constraint equations do not determine the dependent coordinates"
+            ("dependent: " if owners else "")
+            + "the constraint equations do not determine the dependent coordinates"
             f" {', '.join(culprits)} (W_d^T W_d of Eq. 2.6 is singular); give each dependent"
             " coordinate an equation in which it appears, and no dependent coordinate twice",
             source=sy.model.source,
-            item="[[constraint]]" if sy.model.constraints else "[[contact]]/[[attachment]]",
+            item=", ".join(owners)
+            or ("[[constraint]]" if sy.model.constraints else "[[contact]]/[[attachment]]"),
+            field="dependent" if owners else None,
         )
 
 
