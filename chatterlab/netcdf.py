@@ -45,6 +45,7 @@ from chatterlab.errors import InputError
 __all__ = [
     "LabelledData",
     "atomic_write",
+    "check_attrs",
     "provenance_attrs",
     "read_netcdf",
     "write_csv",
@@ -293,6 +294,16 @@ def _attr_value(name: str, value: Any) -> Any:
         f"attribute {name!r}: cannot store {type(value).__name__} {value!r:.60} as a netCDF "
         "attribute (use a string, a number or a 1-D list of numbers; e.g. json.dumps a dict)"
     )
+
+
+def check_attrs(attrs: Mapping[str, Any]) -> None:
+    """Raise :class:`~chatterlab.errors.InputError` if an attribute cannot be stored.
+
+    Use it before a long computation whose result will be written with
+    :func:`write_netcdf`, so that a bad attribute fails early.
+    """
+    for k, v in attrs.items():
+        _attr_value(k, v)
 
 
 def _decode_attr(value: Any) -> Any:

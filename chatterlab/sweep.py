@@ -64,7 +64,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from chatterlab.errors import InputError, SweepError
-from chatterlab.netcdf import atomic_write, read_netcdf, write_csv, write_netcdf
+from chatterlab.netcdf import atomic_write, check_attrs, read_netcdf, write_csv, write_netcdf
 
 __all__ = [
     "Axis",
@@ -1028,13 +1028,20 @@ class _Progress:
 
 
 def _auto_fingerprint(func: Callable[..., Any]) -> str:
-    """A hash of the function's identity and bound arguments (best effort)."""
+    """A hash of the function's identity and of the data bound to it (best effort).
+
+    Covers the module and qualified name, the bytecode and simple constants,
+    ``functools.partial`` arguments, the instance of a bound method, closure
+    cells and defaults, or the object itself for a callable instance.  Bound
+    data are hashed through pickle (their ``repr``, with memory addresses
+    removed, when they do not pickle).
+    """
 
     def blob(obj: Any) -> bytes:
         try:
             return pickle.dumps(obj, protocol=4)
         except Exception:  # noqa: BLE001 - unpicklable: fall back to the repr
-            return repr(obj).encode()
+            return re.sub(r"0x[0-9a-fA-F]+", "0x?", repr(obj)).encode()
 
     h = hashlib.sha256()
     f: Any = func
@@ -1043,12 +1050,25 @@ def _auto_fingerprint(func: Callable[..., Any]) -> str:
         f = f.func
     ident = f"{getattr(f, '__module__', '')}.{getattr(f, '__qualname__', type(f).__qualname__)}"
     h.update(ident.encode())
+    owner = getattr(f, "__self__", None)
+    if owner is not None and not isinstance(owner, type(sys)):
+        h.update(b"self:" + blob(owner))  # a bound method: the model instance matters
     code = getattr(f, "__code__", None)
     if code is not None:
         h.update(code.co_code)
         simple = [c for c in code.co_consts if isinstance(c, int | float | str | bytes | None)]
         h.update(repr(simple).encode())
-    elif not isinstance(f, type):
+        cells = getattr(f, "__closure__", None) or ()
+        bound = []
+        for cell in cells:
+            try:
+                bound.append(cell.cell_contents)
+            except ValueError:  # an empty cell
+                bound.append(None)
+        h.update(
+            b"bound:" + blob((bound, getattr(f, "__defaults__", None), getattr(f, "__kwdefaults__", None)))
+        )
+    elif owner is None and not isinstance(f, type):
         h.update(blob(f))  # a callable object, e.g. a frozen model with __call__
     return h.hexdigest()
 
@@ -1202,6 +1222,8 @@ def sweep(
     if not (isinstance(connect_timeout, int | float) and connect_timeout > 0):
         raise InputError(f"connect_timeout must be > 0 seconds (got {connect_timeout!r})")
     user_attrs = dict(attrs or {})
+    if out is not None:
+        check_attrs(user_attrs)  # fail now, not after the computation
     size = grid.size
 
     # --- checkpoint: decides the chunk size when resuming
@@ -1289,12 +1311,16 @@ def sweep(
         n_done = len(done)
         n_computed = 0
 
-        def where() -> str:
+        def where(counts: bool = True) -> str:
             if ckpt_dir is None:
-                return "no checkpoint was given, so nothing was kept"
+                return (
+                    "no checkpoint was given, so nothing is kept: pass checkpoint=DIR "
+                    "(CLI: --checkpoint DIR) to be able to resume"
+                )
+            done = f"{n_done} of {n_chunks} chunks " if counts else ""
             return (
-                f"{n_done} of {n_chunks} chunks are saved in {str(ckpt_dir)!r}; run again "
-                "with resume=True (CLI: --resume) to compute only the missing ones"
+                f"{done}saved in {str(ckpt_dir)!r}; run again with resume=True (CLI: --resume) "
+                f"to compute only the {n_chunks - n_done} missing ones"
             )
 
         try:
@@ -1319,7 +1345,7 @@ def sweep(
             bar.close()
             msg = (
                 f"sweep interrupted: {n_done} of {n_chunks} chunks done "
-                f"({n_resumed + n_computed} of {size} points); {where()}"
+                f"({n_resumed + n_computed} of {size} points); {where(counts=False)}"
             )
             raise SweepInterrupted(
                 msg, done=n_done, total=n_chunks, checkpoint=None if ckpt_dir is None else str(ckpt_dir)
@@ -1327,8 +1353,11 @@ def sweep(
         except (SweepError, InputError):
             raise
         except Exception as exc:
+            hint = ""
+            if backend != "serial" and "pickl" in f"{type(exc).__name__} {exc}".lower():
+                hint = " (the process backends need a picklable func; try backend='serial')"
             raise SweepError(
-                f"the {backend} backend failed ({type(exc).__name__}: {exc}); {where()}"
+                f"the {backend} backend failed ({type(exc).__name__}: {exc}){hint}; {where()}"
             ) from exc
         finally:
             runner.close()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import functools
 import itertools
 import os
@@ -145,8 +146,8 @@ def test_serial_and_loky_identical_bitwise(tmp_path: Path) -> None:
         assert np.array_equal(ser[name], lok[name])
         assert ser[name].tobytes() == lok[name].tobytes()
     assert ser.status == lok.status == "ok" and lok.n_computed == g.size
-    ser2 = SweepResult(**{**ser.__dict__, "attrs": {**ser.attrs, **FIXED}})
-    lok2 = SweepResult(**{**lok.__dict__, "attrs": {**lok.attrs, **FIXED}})
+    ser2 = dataclasses.replace(ser, attrs={**ser.attrs, **FIXED})
+    lok2 = dataclasses.replace(lok, attrs={**lok.attrs, **FIXED})
     ser2.to_netcdf(tmp_path / "s.nc")
     lok2.to_netcdf(tmp_path / "l.nc")
     assert (tmp_path / "s.nc").read_bytes() == (tmp_path / "l.nc").read_bytes()
@@ -178,6 +179,15 @@ def test_dask_local_cluster_identical(tmp_path: Path) -> None:
             attrs=FIXED,
             out=tmp_path / "d.nc",
         )
+        env = sweep(
+            blas_env,
+            Grid({"x": np.arange(4.0)}),
+            outputs={"omp": "", "openblas": ""},
+            backend="dask",
+            scheduler=cluster.scheduler_address,
+            progress=False,
+        )
+    assert np.all(env["omp"] == 1) and np.all(env["openblas"] == 1)  # distributed's nanny defaults
     for name in OUTS:
         assert np.array_equal(ref[name], r[name])
     ref.to_netcdf(tmp_path / "s.nc")
@@ -257,6 +267,34 @@ def test_on_error_raise_keeps_finished_chunks(tmp_path: Path) -> None:
 
 def flaky_fixed(width: float, speed: float) -> dict[str, float]:
     return {"abscissa": width * speed, "freq": width + speed}
+
+
+def test_retry_failed_recomputes_only_failed_chunks(tmp_path: Path) -> None:
+    g = small_grid()
+    ck = tmp_path / "ck"
+    r = sweep(
+        flaky, g, outputs=OUTS, backend="serial", chunk_size=4, checkpoint=ck, fingerprint="v", progress=False
+    )
+    assert r.status == "partial"
+    again = sweep(
+        flaky_fixed,
+        g,
+        outputs=OUTS,
+        backend="serial",
+        checkpoint=ck,
+        resume=True,
+        retry_failed=True,
+        fingerprint="v",
+        progress=False,
+    )
+    assert again.ok and again.n_computed == 4 and again.n_resumed == 16
+    assert not np.isnan(again["abscissa"]).any()
+
+
+def test_dask_missing_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    with pytest.raises(SweepError, match=r"pip install chatterlab\[dask\]"):
+        sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="dask", progress=False)
 
 
 def test_output_contract_names_the_point() -> None:
@@ -383,7 +421,7 @@ def test_keyboard_interrupt_then_resume(tmp_path: Path) -> None:
             progress=False,
         )
     msg = str(err.value)
-    assert "2 of 7 chunks done (6 of 20 points)" in msg and "resume=True" in msg and str(ck) in msg
+    assert "2 of 7 chunks done (6 of 20 points); saved in" in msg and "resume=True" in msg and str(ck) in msg
     assert isinstance(err.value, KeyboardInterrupt) and err.value.done == 2
 
     calls["n"] = -1000  # no more interrupts; count the resumed calls
@@ -490,8 +528,8 @@ def _resume_and_check(tmp_path: Path, ck: Path) -> None:
     assert not [p for p in ck.iterdir() if ".tmp-" in p.name]
     for name in ("u", "v"):
         assert np.array_equal(ref[name], r[name])
-    a = SweepResult(**{**r.__dict__, "attrs": FIXED})
-    b = SweepResult(**{**ref.__dict__, "attrs": FIXED})
+    a = dataclasses.replace(r, attrs=FIXED)
+    b = dataclasses.replace(ref, attrs=FIXED)
     assert a.to_netcdf(tmp_path / "a.nc").read_bytes() == b.to_netcdf(tmp_path / "b.nc").read_bytes()
 
 
@@ -506,13 +544,12 @@ def test_sigkill_midway_then_resume(tmp_path: Path) -> None:
     _resume_and_check(tmp_path, ck)
 
 
-@pytest.mark.slow
 def test_sigint_midway_stops_cleanly_then_resume(tmp_path: Path) -> None:
     ck = tmp_path / "ck"
     proc = _start_script(tmp_path, ck)
     try:
         _wait_for_chunks(proc, ck, 3)
-        os.kill(proc.pid, signal.SIGINT)  # Ctrl-C in the main process
+        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the sweep and its workers get SIGINT
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
