@@ -106,9 +106,10 @@ def test_shear_strain_is_constant_and_stiffness_is_the_strain_energy(phi):
 @pytest.mark.parametrize("phi", [0.0, 0.37, 4.0])
 def test_mass_matrix_equals_closed_form(phi):
     """The consistent mass of the Timoshenko element in closed form
-    (Przemieniecki, Theory of Matrix Structural Analysis, 1968, Sec. 11.6;
-    Friedman & Kosmatka 1993, Eqs. 28-29): translational rho A part and
-    rotary rho I part, polynomials in phi over (1 + phi)^2."""
+    (Przemieniecki, Theory of Matrix Structural Analysis, 1968, the beam
+    with shear deformation and rotary inertia; the same matrices follow from
+    the shape functions of Friedman & Kosmatka 1993): translational rho A
+    part and rotary rho I part, polynomials in phi over (1 + phi)^2."""
     rho, A, I, L = RHO, 0.005, 4.2e-6, 0.6
     p = phi
     f = 1.0 / (1.0 + p) ** 2
