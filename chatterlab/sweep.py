@@ -55,13 +55,14 @@ import sys
 import tempfile
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from chatterlab.errors import InputError, SweepError
 from chatterlab.netcdf import atomic_write, check_attrs, read_netcdf, write_csv, write_netcdf
@@ -90,7 +91,7 @@ _FILE_FAILURES = 100  # failures written to the netCDF ``failures`` attribute
 # =========================================================================== grid
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, init=False, eq=False)
 class Axis:
     """One named axis of a :class:`Grid`.
 
@@ -108,19 +109,18 @@ class Axis:
 
     name: str
     values: np.ndarray
-    unit: str = ""
+    unit: str
 
-    def __post_init__(self) -> None:
-        name = self.name
+    def __init__(self, name: str, values: ArrayLike, unit: str = "") -> None:
         if not isinstance(name, str) or not (name.isidentifier() and name.isascii()):
             raise InputError(
                 f"axis name {name!r} must be an ASCII identifier (letters, digits, "
                 "underscores; not starting with a digit)"
             )
-        if not isinstance(self.unit, str):
-            raise InputError(f"axis {name!r}: unit must be a string (got {self.unit!r})")
+        if not isinstance(unit, str):
+            raise InputError(f"axis {name!r}: unit must be a string (got {unit!r})")
         try:
-            arr = np.array(self.values, dtype=np.float64)
+            arr = np.array(values, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise InputError(f"axis {name!r}: values must be numbers ({exc})") from None
         if arr.ndim == 0:
@@ -130,7 +130,9 @@ class Axis:
         if not np.all(np.isfinite(arr)):
             raise InputError(f"axis {name!r}: values must be finite (got {arr[~np.isfinite(arr)][0]})")
         arr.flags.writeable = False
+        object.__setattr__(self, "name", name)
         object.__setattr__(self, "values", arr)
+        object.__setattr__(self, "unit", unit)
 
     def __len__(self) -> int:
         return int(self.values.size)
@@ -356,7 +358,7 @@ def _parse_axis_spec(tok: str, units: Mapping[str, str]) -> Axis:
         return x
 
     if len(parts) == 1:
-        return Axis(name, [number(parts[0], "VALUE")], unit)
+        return Axis(name, np.array([number(parts[0], "VALUE")]), unit)
     lo, hi = number(parts[0], "MIN"), number(parts[1], "MAX")
     if not re.fullmatch(r"\s*[+]?\d+\s*", parts[2]):
         raise InputError(f"grid spec {tok!r}: N {parts[2]!r} must be a whole number of points >= 1; {hint}")
@@ -385,8 +387,8 @@ class TaskFailure(NamedTuple):
     """The exception class name, e.g. ``"LinAlgError"``."""
     message: str
     """``str(exception)`` (truncated to 500 characters)."""
-    index: int
-    """The flat task index."""
+    task_index: int
+    """The flat task index (``grid.point(task_index) == point``)."""
 
     def describe(self, grid: Grid | None = None) -> str:
         """``"at width=0.003 m, speed=2 m/s: ZeroDivisionError: division by zero"``."""
@@ -477,7 +479,12 @@ class SweepResult:
         if self.failures:
             out["failures"] = json.dumps(
                 [
-                    {"index": f.index, "point": f.point, "error_type": f.error_type, "message": f.message}
+                    {
+                        "task_index": f.task_index,
+                        "point": f.point,
+                        "error_type": f.error_type,
+                        "message": f.message,
+                    }
                     for f in self.failures[:_FILE_FAILURES]
                 ]
             )
@@ -516,7 +523,7 @@ class SweepResult:
         if "failures" in attrs:
             try:
                 failures = tuple(
-                    TaskFailure(d["point"], d["error_type"], d["message"], d["index"])
+                    TaskFailure(d["point"], d["error_type"], d["message"], d["task_index"])
                     for d in json.loads(attrs.pop("failures"))
                 )
             except (ValueError, KeyError, TypeError):
@@ -709,13 +716,17 @@ def _blas_limit() -> AbstractContextManager[Any]:
     return threadpool_limits(limits=1)
 
 
-def _serial_runner(payload: _Payload, chunks: Iterator[tuple[int, int, int]]) -> Iterator[_ChunkOut]:
+def _serial_runner(
+    payload: _Payload, chunks: Iterator[tuple[int, int, int]]
+) -> Generator[_ChunkOut, None, None]:
     with _blas_limit():
         for c, s, e in chunks:
             yield _run_chunk(payload, c, s, e)
 
 
-def _loky_runner(payload: _Payload, chunks: Iterator[tuple[int, int, int]], jobs: int) -> Iterator[_ChunkOut]:
+def _loky_runner(
+    payload: _Payload, chunks: Iterator[tuple[int, int, int]], jobs: int
+) -> Generator[_ChunkOut, None, None]:
     from joblib import Parallel, delayed, parallel_config
 
     # inner_max_num_threads=1: loky starts its workers with OMP/OPENBLAS/MKL/...
@@ -737,7 +748,7 @@ def _dask_runner(
     jobs: int,
     scheduler: Any,
     timeout: float,
-) -> Iterator[_ChunkOut]:
+) -> Generator[_ChunkOut, None, None]:
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -1229,7 +1240,7 @@ def sweep(
     # --- checkpoint: decides the chunk size when resuming
     ckpt_dir = Path(checkpoint) if checkpoint is not None else None
     if ckpt_dir is not None:
-        manifest = {
+        manifest: dict[str, Any] = {
             "format": _CHECKPOINT_FORMAT,
             "version": _CHECKPOINT_VERSION,
             "grid": grid.to_json(),
@@ -1250,6 +1261,7 @@ def sweep(
 
     # --- storage: plain arrays, or memmaps when streaming to a file
     scratch: Path | None = None
+    data: dict[str, np.ndarray]
     out_path = Path(out) if out is not None else None
     if out_path is not None:
         if out_path.is_dir():
@@ -1301,6 +1313,7 @@ def sweep(
             f"{size} points in {n_chunks} chunks of {cs}, {workers}"
             + (f", {len(done)} chunks from checkpoint" if done else "")
         )
+        runner: Generator[_ChunkOut, None, None]
         if backend == "serial":
             runner = _serial_runner(payload, pending)
         elif backend == "loky":
@@ -1364,7 +1377,9 @@ def sweep(
             bar.close()
 
         # --- summary
-        fails = sorted((TaskFailure(grid.point(-i), t, m, -i) for i, t, m in failures), key=lambda f: f.index)
+        fails = sorted(
+            (TaskFailure(grid.point(-i), t, m, -i) for i, t, m in failures), key=lambda f: f.task_index
+        )
         if fails and on_error == "raise":  # failures loaded from the checkpoint
             raise SweepError(
                 f"{n_failed} task(s) failed (saved in the checkpoint), the first "

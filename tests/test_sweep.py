@@ -13,6 +13,7 @@ import sys
 import textwrap
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -114,7 +115,8 @@ def test_grid_spec_errors(spec: str, fragment: str) -> None:
 
 
 def test_grid_construction_errors() -> None:
-    for bad in ({}, {"a": []}, {"a": [1.0, np.inf]}, {"a b": [1.0]}, {"a": [[1.0, 2.0]]}):
+    bads: list[dict[str, Any]] = [{}, {"a": []}, {"a": [1.0, np.inf]}, {"a b": [1.0]}, {"a": [[1.0, 2.0]]}]
+    for bad in bads:
         with pytest.raises(InputError):
             Grid(bad)
     with pytest.raises(InputError, match="duplicate"):
@@ -214,7 +216,7 @@ def test_dask_unreachable_scheduler_fails_fast() -> None:
 
 
 @pytest.mark.parametrize("backend", ["serial", "loky"])
-def test_task_failure_is_recorded_and_others_kept(backend: str, tmp_path: Path) -> None:
+def test_task_failure_is_recorded_and_others_kept(backend: Any, tmp_path: Path) -> None:
     g = small_grid()
     r = sweep(
         flaky, g, outputs=OUTS, backend=backend, chunk_size=3, progress=False, checkpoint=tmp_path / "ck"
@@ -223,7 +225,7 @@ def test_task_failure_is_recorded_and_others_kept(backend: str, tmp_path: Path) 
     assert "width=0.002 m, speed=2 m/s" in r.message and "LinAlgError" in r.message
     [fail] = r.failures
     assert fail.point == {"width": 2e-3, "speed": 2.0} and fail.error_type == "LinAlgError"
-    assert "singular" in fail.message and g.point(fail.index) == fail.point
+    assert "singular" in fail.message and g.point(fail.task_index) == fail.point
     bad = np.isnan(r["abscissa"])
     assert bad.sum() == 1 and bad[1, 1]
     assert np.allclose(r["abscissa"][~bad], np.multiply.outer(g["width"].values, g["speed"].values)[~bad])
