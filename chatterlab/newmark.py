@@ -110,8 +110,13 @@ class TimeVaryingProblem(Protocol):
         Number of generalised coordinates.
 
     Optional attributes read with ``getattr``: ``names`` (sequence of ``n``
-    coordinate names) and ``time_invariant`` (``True`` when ``A, B, C, G``
-    do not depend on time: the effective stiffness is then factored once).
+    coordinate names), ``time_invariant`` (``True`` when ``A, B, C, G``
+    do not depend on time: the effective stiffness is then factored once) and
+    ``breakpoints()`` (times [s] where the matrices or the force jump, e.g.
+    the tool entering the cut; the functions must be right-continuous there).
+    A breakpoint on the step grid is crossed with left limits and a restart
+    of the acceleration, which keeps the second order; one off the grid costs
+    a first-order error at the jump (reported in the result message).
     """
 
     n: int
@@ -157,6 +162,15 @@ def _check_delay(delay: float | None, has_g: bool, who: str) -> float | None:
     return d
 
 
+def _as_breakpoints(b: Sequence[float] | None) -> tuple[float, ...]:
+    if b is None:
+        return ()
+    arr = np.asarray(b, dtype=float).reshape(-1)
+    if not np.all(np.isfinite(arr)):
+        raise InputError("breakpoints must be finite times in s")
+    return tuple(sorted(set(arr.tolist())))
+
+
 def _eval_force(
     force: Callable[[FloatArray], ArrayLike] | ArrayLike | None, t: FloatArray, n: int, who: str
 ) -> FloatArray:
@@ -198,6 +212,8 @@ class ConstantProblem:
         The delay ``T`` [s]; required with ``G``.
     names : sequence of str, optional
         Names of the ``n`` coordinates.
+    breakpoints : sequence of float, optional
+        Times [s] where ``force`` jumps (see :class:`TimeVaryingProblem`).
     """
 
     time_invariant = True
@@ -212,8 +228,10 @@ class ConstantProblem:
         delay: float | None = None,
         *,
         names: Sequence[str] | None = None,
+        breakpoints: Sequence[float] | None = None,
     ) -> None:
         self.M = _as_square("M", M)
+        self._breakpoints = _as_breakpoints(breakpoints)
         self.n = int(self.M.shape[0])
         self.C = _as_square("C (damping)", C, self.n)
         self.K = _as_square("K (stiffness)", K, self.n)
@@ -241,6 +259,9 @@ class ConstantProblem:
     def delay(self) -> float | None:
         return self._delay
 
+    def breakpoints(self) -> tuple[float, ...]:
+        return self._breakpoints
+
 
 class CallbackProblem:
     """Adapter turning user functions of time into a :class:`TimeVaryingProblem`.
@@ -266,6 +287,9 @@ class CallbackProblem:
         See above.
     names : sequence of str, optional
         Coordinate names.
+    breakpoints : sequence of float, optional
+        Times [s] where a coefficient or the force jumps; the functions must
+        be right-continuous there (see :class:`TimeVaryingProblem`).
     """
 
     time_invariant = False
@@ -282,7 +306,9 @@ class CallbackProblem:
         force: Callable[..., ArrayLike] | ArrayLike | None = None,
         vectorized: bool = False,
         names: Sequence[str] | None = None,
+        breakpoints: Sequence[float] | None = None,
     ) -> None:
+        self._breakpoints = _as_breakpoints(breakpoints)
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise InputError(f"n must be a positive integer (got {n!r})")
         self.n = int(n)
@@ -307,7 +333,12 @@ class CallbackProblem:
         else:
             out = np.empty((k, n, n))
             for i, ti in enumerate(t):
-                out[i] = spec(float(ti))
+                val = np.asarray(spec(float(ti)), dtype=float)
+                if val.shape != (n, n):
+                    raise InputError(
+                        f"CallbackProblem: {key}(t) must return shape ({n}, {n}) per time (got {val.shape})"
+                    )
+                out[i] = val
         if out.shape == (n, n):
             out = np.broadcast_to(out, (k, n, n))
         if out.shape != (k, n, n):
@@ -329,18 +360,28 @@ class CallbackProblem:
             return _eval_force(self._force, t, self.n, "CallbackProblem")
         out = np.empty((t.size, self.n))
         for i, ti in enumerate(t):
-            out[i] = self._force(float(ti))
+            val = np.asarray(self._force(float(ti)), dtype=float)
+            if val.shape != (self.n,):
+                raise InputError(
+                    f"CallbackProblem: force(t) must return shape ({self.n},) per time (got {val.shape})"
+                )
+            out[i] = val
         return out
 
     def delay(self) -> float | None:
         return self._delay
+
+    def breakpoints(self) -> tuple[float, ...]:
+        return self._breakpoints
 
 
 class PiecewiseProblem:
     """A sequence of problems, each valid between two breakpoints.
 
     Piece ``i`` applies on ``[breakpoints[i-1], breakpoints[i])`` (the first
-    from ``-inf``, the last up to ``+inf``).  Useful for a slide that stops at
+    from ``-inf``, the last up to ``+inf``): right-continuous, and the
+    switching times are reported by :meth:`breakpoints` so that a switch on
+    the step grid keeps second-order accuracy.  Useful for a slide that stops at
     a few positions, or for switching a feedback on and off.  Consecutive
     identical effective stiffness matrices are inverted only once, so
     piecewise-constant pieces cost about as little as a :class:`ConstantProblem`.
@@ -357,16 +398,16 @@ class PiecewiseProblem:
     time_invariant = False
 
     def __init__(self, breakpoints: Sequence[float], pieces: Sequence[TimeVaryingProblem]) -> None:
-        self.breakpoints = np.asarray(breakpoints, dtype=float).reshape(-1)
+        self.breakpoints_switch = np.asarray(breakpoints, dtype=float).reshape(-1)
         self.pieces = list(pieces)
         if not self.pieces:
             raise InputError("PiecewiseProblem needs at least one piece")
-        if self.breakpoints.size != len(self.pieces) - 1:
+        if self.breakpoints_switch.size != len(self.pieces) - 1:
             raise InputError(
                 f"PiecewiseProblem: {len(self.pieces)} pieces need {len(self.pieces) - 1} "
-                f"breakpoints (got {self.breakpoints.size})"
+                f"breakpoints (got {self.breakpoints_switch.size})"
             )
-        if np.any(np.diff(self.breakpoints) <= 0) or not np.all(np.isfinite(self.breakpoints)):
+        if np.any(np.diff(self.breakpoints_switch) <= 0) or not np.all(np.isfinite(self.breakpoints_switch)):
             raise InputError("PiecewiseProblem: breakpoints must be finite and increasing")
         self.n = int(self.pieces[0].n)
         if any(int(p.n) != self.n for p in self.pieces):
@@ -378,7 +419,7 @@ class PiecewiseProblem:
         self.names = getattr(self.pieces[0], "names", None)
 
     def _index(self, t: FloatArray) -> np.ndarray:
-        return np.searchsorted(self.breakpoints, t, side="right")
+        return np.searchsorted(self.breakpoints_switch, t, side="right")
 
     def matrices(self, t: FloatArray) -> Matrices:
         t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -406,6 +447,15 @@ class PiecewiseProblem:
 
     def delay(self) -> float | None:
         return self._delay
+
+    def breakpoints(self) -> tuple[float, ...]:
+        """The switching times and the breakpoints of the pieces."""
+        out = set(self.breakpoints_switch)
+        for p in self.pieces:
+            fn = getattr(p, "breakpoints", None)
+            if callable(fn):
+                out.update(float(b) for b in fn())
+        return tuple(sorted(out))
 
 
 # =========================================================================== options & result
@@ -1033,8 +1083,10 @@ def newmark(
     n_hist = 0
     hist_vals = np.zeros((0, n))
     if has_delay:
-        # steps i whose delayed time t_i - T lies before t0 (i = 0 included)
-        n_hist = min(shift, n_total + 1)
+        # steps i whose delayed time t_i - T lies before t0 (i = 0 included); with a whole
+        # number m of steps per delay, step m (delayed time exactly t0) also reads the
+        # history: the left limit, the step that lands on the breakpoint t0 + T
+        n_hist = min(shift + 1 if exact else shift, n_total + 1)
         th = t0 + h * np.arange(n_hist) - T
         hist_vals = np.ascontiguousarray(hist_f(th), dtype=float)  # type: ignore[misc]
         if not np.all(np.isfinite(hist_vals)):
@@ -1051,6 +1103,37 @@ def newmark(
             f"A(t0) is singular at t0 = {t0} s: the initial acceleration cannot be computed; "
             "A must be positive definite (no massless coordinates: condense them first)"
         ) from None
+
+    # ---- breakpoints: times where the coefficients or the force jump ---------------------
+    # The step landing on a breakpoint uses the left limits (data at t_b - delta), then the
+    # acceleration is recomputed from the equation of motion with the right limits: a
+    # restart, which keeps second order across the jump.
+    bp_times: list[float] = []
+    bp_fn = getattr(problem, "breakpoints", None)
+    if callable(bp_fn):
+        bp_times.extend(float(b) for b in np.asarray(bp_fn(), dtype=float).reshape(-1))
+    if has_delay:
+        # an inconsistent history (history(t0) != q0) makes G q(t - T) jump at t0 + T
+        h_t0 = hist_f(np.array([t0]))[0]  # type: ignore[misc]
+        if np.any(np.abs(h_t0 - q0v) > 1e-12 * (np.abs(q0v) + np.abs(h_t0)) + 1e-300):
+            bp_times.append(t0 + T)  # type: ignore[operator]
+    bp_steps: set[int] = set()
+    off_grid: list[float] = []
+    for tb in sorted(set(bp_times)):
+        x = (tb - t0) / h
+        if not (0.0 < x <= n_total + 1e-9):
+            continue
+        if abs(x - round(x)) <= 1e-6:
+            bp_steps.add(int(round(x)))
+        else:
+            off_grid.append(tb)
+    if off_grid:
+        notes.append(
+            "breakpoint(s) at t = "
+            + ", ".join(f"{b:.9g}" for b in off_grid[:3])
+            + (" ..." if len(off_grid) > 3 else "")
+            + " s not on the step grid: first-order error at the jump; choose h dividing t_b - t0"
+        )
 
     if opts.critical_omega_h < math.inf:
         try:
@@ -1128,6 +1211,8 @@ def newmark(
     def prepare(i0: int, c: int) -> tuple[FloatArray, FloatArray, FloatArray | None]:
         """Matrices for steps i0+1 .. i0+c: (Kinv or None, F or Kinv F, blocks)."""
         tt = t0 + h * np.arange(i0 + 1, i0 + c + 1)
+        if i0 + c in bp_steps:  # left limit at the breakpoint
+            tt[-1] -= max(1e-9 * h, 8 * np.spacing(abs(tt[-1])))
         F = _force_at(problem, tt, n)
         if tinv:
             return np.empty(0), np.ascontiguousarray(F @ Kinv0.T), None
@@ -1141,6 +1226,25 @@ def newmark(
         Kinv = _inverse(c0 * A + c1 * B + C, tt)
         return Kinv, np.ascontiguousarray(F), np.concatenate(mats, axis=2)
 
+    def restart(ib: int) -> None:
+        """Acceleration at breakpoint step ib from the equation of motion, right limits."""
+        tb = np.array([t0 + ib * h])
+        Ab, Bb, Cb, Gb = problem.matrices(tb)
+        Ab, Bb, Cb = (_stack(nm, m, 1, n, tb)[0] for nm, m in zip("ABC", (Ab, Bb, Cb), strict=True))
+        r = ib - off
+        q, v = S[r, 1], S[r, 2]
+        rhs_b = _force_at(problem, tb, n)[0] - Bb @ v - Cb @ q
+        if has_delay and Gb is not None:
+            j = ib - shift
+            if j < 0:
+                qd_b = hist_vals[ib]
+            elif exact:
+                qd_b = S[j - off, 1]
+            else:
+                qd_b = w8 @ S[j - off : j - off + 2].reshape(8, n)
+            rhs_b = rhs_b + _stack("G", Gb, 1, n, tb)[0] @ qd_b
+        S[r, 3] = np.linalg.solve(Ab, rhs_b)
+
     # ---- main loop ---------------------------------------------------------------------
     status, reason = "ok", ""
     i_done = 0  # global index of the last completed step
@@ -1148,19 +1252,19 @@ def newmark(
     limit = float(opts.divergence_limit)
     n_workers = int(opts.workers) if (not tinv and n_total > chunk) else 0
     pool = ThreadPoolExecutor(max_workers=n_workers) if n_workers else None
-    starts = range(0, n_total, chunk)
+    bounds = sorted(set(range(0, n_total, chunk)) | {b for b in bp_steps if b < n_total})
+    bounds.append(n_total)
+    chunks = [(a, b - a) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
     futures: deque[Any] = deque()
     try:
         if pool is not None:
-            for i0 in starts[:n_workers]:
-                futures.append(pool.submit(prepare, i0, min(chunk, n_total - i0)))
-        for ci, i0 in enumerate(starts):
-            c = min(chunk, n_total - i0)
+            for ch in chunks[:n_workers]:
+                futures.append(pool.submit(prepare, *ch))
+        for ci, (i0, c) in enumerate(chunks):
             if pool is not None:
                 data = futures.popleft().result()
-                if ci + n_workers < len(starts):
-                    nxt = starts[ci + n_workers]
-                    futures.append(pool.submit(prepare, nxt, min(chunk, n_total - nxt)))
+                if ci + n_workers < len(chunks):
+                    futures.append(pool.submit(prepare, *chunks[ci + n_workers]))
             else:
                 data = prepare(i0, c)
             Kinv, F, Blk = data
@@ -1178,7 +1282,7 @@ def newmark(
                         matmul(coefX, Sk, out=X3)
                         if has_delay:
                             j = i0 + k + 1 - shift
-                            if j < 0:
+                            if i0 + k + 1 < n_hist:
                                 copyto(qd, hist_vals[i0 + k + 1])
                             elif exact:
                                 copyto(qd, S[j - off, 1])
@@ -1193,6 +1297,8 @@ def newmark(
                             dot(Kinv[k], rhs, out=Sk[0])
                         matmul(Mupd, Sk, out=S[r0 + k + 1, 1:])
                     k = c
+                    if i0 + c in bp_steps:
+                        restart(i0 + c)
                 except KeyboardInterrupt:
                     status = "interrupted"
                 # rows r0+1 .. r0+k are complete (k steps of this chunk)
@@ -1261,5 +1367,11 @@ def newmark(
         n_steps=i_done,
         wall_time=wall,
         h=h,
-        attrs={"gamma": gam, "beta": bet, "delay": T, "t_span": (t0, t1)},
+        attrs={
+            "gamma": gam,
+            "beta": bet,
+            "delay": T,
+            "t_span": (t0, t1),
+            "breakpoints": tuple(t0 + b * h for b in sorted(bp_steps)),
+        },
     )
