@@ -667,6 +667,28 @@ def _check_constraints(sy: System) -> None:
             or ("[[constraint]]" if sy.model.constraints else "[[contact]]/[[attachment]]"),
             field="dependent" if owners else None,
         )
+    # Eq. 2.6 is the least-squares solution of W_i + W_d W = 0; it solves the
+    # constraints only if they are consistent.  More equations than dependent
+    # coordinates that also tie independent coordinates together would
+    # otherwise give a silent compromise W.
+    W = sy.W(None)
+    res = np.abs(G[:, sy.i] + Gd @ W).max(axis=1) if len(sy.i) else np.zeros(G.shape[0])
+    scale = np.abs(G).max(axis=1) * max(1.0, float(np.abs(W).max(initial=0.0)))
+    bad = np.nonzero(res > 1e-9 * scale)[0]
+    if bad.size:
+        mdl = sy.model
+        owners = [f'[[attachment]] "{a.id}"' for a in mdl.attachments if a.body != GROUND for _ in range(3)]
+        owners += [f'[[constraint]] "{c.id}"' for c in mdl.constraints for _ in c.equations]
+        owners += [f'[[contact]] "{c.id}"' for c in mdl.contacts for _ in range(3)]
+        items = list(dict.fromkeys(owners[k] for k in bad if k < len(owners)))
+        raise ModelError(
+            "equations: the constraint equations cannot all hold: together they also tie"
+            " independent coordinates to each other, so no W satisfies W_i + W_d W = 0 (Eq. 2.6);"
+            " drop the redundant equation or declare one more coordinate dependent",
+            source=mdl.source,
+            item=", ".join(items) or "[[constraint]]",
+            field="equations",
+        )
 
 
 def _check_mass(sy: System) -> None:

@@ -403,3 +403,109 @@ def test_spring_damping_assembles_like_stiffness():
     k = [sy.index[f"puck.{d}"] for d in DIRECTIONS]
     R = rotation3(np.radians(20.0))
     np.testing.assert_allclose(sy.L[np.ix_(k, k)], R @ np.diag([50.0, 70.0, 3.0]) @ R.T, atol=1e-12 * 70)
+
+
+def test_W_on_a_track_running_against_the_slide():
+    """The same rail with its nodes listed from right to left: the contact's
+    along-track coordinate now decreases as s grows (d distance/ds = -1), so
+    W' changes sign relative to the track; the direct map and FD agree."""
+    text = SUBDIVIDED.replace("at = [0.0, 0.0]", "at = [9.0, 9.0]").replace(
+        "at = [1.2, 0.0]", "at = [0.0, 0.0]"
+    )
+    text = text.replace("at = [9.0, 9.0]", "at = [1.2, 0.0]").replace("offset = 0.05", "offset = -0.05")
+    sy = cl.assemble(cl.loads_model(text))
+    for s in (0.3, 0.95):
+        for order in (0, 1, 2):
+            T = direct_map(sy, s, order)[sy.d]
+            np.testing.assert_allclose(sy.W(s, order), T, atol=1e-12 * max(1.0, np.abs(T).max()))
+        h = 1e-3
+        # truncation h^2/6 |W'''| < 1e-4 as in test_W_on_a_subdivided_beam
+        np.testing.assert_allclose((sy.W(s + h) - sy.W(s - h)) / (2 * h), sy.W(s, 1), atol=1e-4)
+
+
+# --------------------------------------------------------------------------- general constraints
+
+GHOST = """
+[[body]]
+id = "block"
+mass = 100.0
+inertia = 2.0
+centre = [0.0, 0.0]
+
+[[body]]
+id = "ghost"
+mass = 0.0
+inertia = 0.0
+centre = [0.0, -0.5]
+
+[[spring]]
+id = "s"
+a = "ghost"
+b = "ground"
+c1 = 1.0e6
+c2 = 2.0e6
+c6 = 3.0e4
+d1 = 10.0
+
+[[constraint]]
+id = "arm"
+dependent = ["ghost.x", "ghost.y", "ghost.rz"]
+equations = [
+    { "ghost.x" = 1.0, "block.x" = -1.0, "block.rz" = -0.5 },
+    { "ghost.y" = 1.0, "block.y" = -1.0 },
+    { "ghost.rz" = 1.0, "block.rz" = -1.0 },
+]
+"""
+
+OFFSET = """
+[[body]]
+id = "block"
+mass = 100.0
+inertia = 2.0
+centre = [0.0, 0.0]
+
+[[spring]]
+id = "s"
+a = { body = "block", offset = [0.0, -0.5] }
+b = "ground"
+c1 = 1.0e6
+c2 = 2.0e6
+c6 = 3.0e4
+d1 = 10.0
+"""
+
+
+def test_massless_body_on_a_constraint_equals_a_rigid_offset():
+    """A massless body tied to the block by [[constraint]] equations of a rigid
+    arm (u = x + 0.5 theta for the arm (0, -0.5), v = y, theta = theta) is
+    the block's point at offset (0, -0.5): the reduced matrices coincide."""
+    a = cl.assemble(cl.loads_model(GHOST)).at()
+    b = cl.assemble(cl.loads_model(OFFSET)).at()
+    assert a.names == b.names == ("block.x", "block.y", "block.rz")
+    np.testing.assert_allclose(a.W, [[1, 0, 0.5], [0, 1, 0], [0, 0, 1]], atol=1e-15)
+    for X, Y in ((a.A, b.A), (a.B, b.B), (a.C, b.C)):
+        np.testing.assert_allclose(X, Y, rtol=1e-14, atol=1e-14 * np.abs(Y).max())
+
+
+def test_redundant_but_consistent_constraint_is_accepted():
+    """An extra equation that repeats another (scaled) changes nothing: Eq. 2.6
+    is the least-squares solution, exact when the equations are consistent."""
+    text = GHOST.replace(
+        '    { "ghost.rz" = 1.0, "block.rz" = -1.0 },\n',
+        '    { "ghost.rz" = 1.0, "block.rz" = -1.0 },\n    { "ghost.y" = 2.0, "block.y" = -2.0 },\n',
+    )
+    W = cl.assemble(cl.loads_model(text)).W()
+    np.testing.assert_allclose(W, [[1, 0, 0.5], [0, 1, 0], [0, 0, 1]], atol=1e-14)
+
+
+def test_body_angle_rotates_point_offsets():
+    """A body at 90 degrees: the offset (0.5, 0) in body axes is (0, 0.5) in
+    global axes, so a horizontal spring there couples x and rz by -0.5."""
+    text = OFFSET.replace("centre = [0.0, 0.0]", "centre = [0.0, 0.0]\nangle_deg = 90.0")
+    text = text.replace("offset = [0.0, -0.5]", "offset = [0.5, 0.0]").replace("c2 = 2.0e6\nc6 = 3.0e4\n", "")
+    sy = cl.assemble(cl.loads_model(text))
+    kx, kr = sy.index["block.x"], sy.index["block.rz"]
+    # u = x - 0.5 theta at the global arm (0, 0.5): K = c1 [[1, -0.5], [-0.5, 0.25]]
+    np.testing.assert_allclose(
+        sy.K[np.ix_([kx, kr], [kx, kr])], 1e6 * np.array([[1, -0.5], [-0.5, 0.25]]), atol=1e-9
+    )

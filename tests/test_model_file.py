@@ -323,3 +323,17 @@ def test_matrix_model_refuses_a_missing_matrix_file(tmp_path):
 
 def test_matrix_model_refuses_structural_items_too(block_text):
     refuse(block_text(_matrix_text(M3, K3)), "[matrices]", "either structural")
+
+
+def test_inconsistent_constraints(block_text):
+    """Four equations for three dependent coordinates that cannot all hold
+    (ghost.y = block.y and ghost.y = block.x would tie block.x to block.y):
+    Eq. 2.6 would return a silent least-squares compromise."""
+    text = block_text(
+        '[[body]]\nid = "ghost"\nmass = 0.0\ninertia = 0.0\ncentre = [0.0, -0.5]\n'
+        '[[constraint]]\nid = "arm"\ndependent = ["ghost.x", "ghost.y", "ghost.rz"]\n'
+        'equations = [{ "ghost.x" = 1.0, "block.x" = -1.0, "block.rz" = -0.5 },'
+        ' { "ghost.y" = 1.0, "block.y" = -1.0 }, { "ghost.rz" = 1.0, "block.rz" = -1.0 },'
+        ' { "ghost.y" = 1.0, "block.x" = -1.0 }]\n'
+    )
+    refuse(text, '[[constraint]] "arm"', "equations", "cannot all hold", stage="assemble")
