@@ -89,7 +89,7 @@ __all__ = [
     "newmark",
 ]
 
-FloatArray = NDArray[np.float64]
+FloatArray = NDArray[Any]
 Matrices = tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]
 
 
@@ -414,7 +414,9 @@ class PiecewiseProblem:
             raise InputError("PiecewiseProblem: all pieces must have the same n")
         delays = {p.delay() for p in self.pieces} - {None}
         if len(delays) > 1:
-            raise InputError(f"PiecewiseProblem: pieces have different delays {sorted(delays)}")
+            raise InputError(
+                f"PiecewiseProblem: pieces have different delays {sorted(float(d) for d in delays if d is not None)}"
+            )
         self._delay = delays.pop() if delays else None
         self.names = getattr(self.pieces[0], "names", None)
 
@@ -804,8 +806,8 @@ def _outputs(
     if arr.ndim == 1 and arr.dtype.kind in "iu":
         if arr.size == 0 or arr.min() < -n or arr.max() >= n:
             raise InputError(f"outputs: indices must be in 0..{n - 1} (got {arr.tolist()})")
-        idx = arr % n
-        return idx, None, (tuple(names[i] for i in idx) if names is not None else None)
+        out_i = arr % n
+        return out_i, None, (tuple(names[i] for i in out_i) if names is not None else None)
     if arr.ndim == 2 and arr.shape[1] == n and arr.shape[0] >= 1:
         sel = arr.astype(float)
         if not np.all(np.isfinite(sel)):
@@ -1087,7 +1089,7 @@ def newmark(
         # number m of steps per delay, step m (delayed time exactly t0) also reads the
         # history: the left limit, the step that lands on the breakpoint t0 + T
         n_hist = min(shift + 1 if exact else shift, n_total + 1)
-        th = t0 + h * np.arange(n_hist) - T
+        th = t0 + h * np.arange(n_hist) - T  # type: ignore[operator]
         hist_vals = np.ascontiguousarray(hist_f(th), dtype=float)  # type: ignore[misc]
         if not np.all(np.isfinite(hist_vals)):
             raise InputError("history(t) returned NaN or infinite values")
@@ -1095,7 +1097,7 @@ def newmark(
     f0 = _force_at(problem, t0a, n)[0]
     rhs0 = f0 - B0 @ v0v - C0 @ q0v
     if has_delay:
-        rhs0 = rhs0 + G0 @ hist_vals[0]  # type: ignore[operator]
+        rhs0 = rhs0 + G0 @ hist_vals[0]
     try:
         a0 = np.linalg.solve(A0, rhs0)
     except np.linalg.LinAlgError:
@@ -1159,7 +1161,7 @@ def newmark(
     nb = 4 if has_delay else 3
     xfull = np.zeros(nb * n)
     X3 = xfull[: 3 * n].reshape(3, n)
-    qd = xfull[3 * n :] if has_delay else None
+    qd = xfull[3 * n :]  # empty without a delay
     rhs = np.zeros(n)
     coefX = np.array(
         [
@@ -1195,14 +1197,14 @@ def newmark(
             if out_idx is not None:
                 dst[:, j_first : j_first + k] = blk[:, out_idx].T
             else:
-                dst[:, j_first : j_first + k] = out_sel @ blk.T  # type: ignore[operator]
+                dst[:, j_first : j_first + k] = out_sel @ blk.T
 
     record(S[0:1, 1:4], 0)
     n_recorded = 1
 
     # ---- precomputation ----------------------------------------------------------------
     tinv = bool(getattr(problem, "time_invariant", False))
-    P = None
+    P = np.empty((0, 0))
     if tinv:
         Kinv0 = _inverse((c0 * A0 + c1 * B0 + C0)[None], t0a)[0]
         blocks = [C0, A0, B0] + ([G0] if has_delay else [])
@@ -1292,7 +1294,7 @@ def newmark(
                             dot(P, xfull, out=rhs)
                             add(rhs, F[k], out=Sk[0])
                         else:
-                            dot(Blk[k], xfull, out=rhs)  # type: ignore[index]
+                            dot(Blk[k], xfull, out=rhs)
                             rhs += F[k]
                             dot(Kinv[k], rhs, out=Sk[0])
                         matmul(Mupd, Sk, out=S[r0 + k + 1, 1:])

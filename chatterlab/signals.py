@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -34,7 +35,7 @@ from chatterlab.errors import InputError
 
 __all__ = ["GrowthEstimate", "amplitude_spectrum", "growth_rate", "peaks"]
 
-FloatArray = NDArray[np.float64]
+FloatArray = NDArray[Any]
 
 
 def _uniform_time(t: ArrayLike, x: ArrayLike, min_len: int = 4) -> tuple[FloatArray, FloatArray, float]:
