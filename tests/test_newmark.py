@@ -522,6 +522,17 @@ def test_history_forms_agree():
     assert one.status == "ok"
 
 
+def test_history_memory_is_bounded_by_the_delay_not_the_run():
+    # 5e4 steps with T/h = 100: the stored history is ~T/h + chunk rows (a few 10 kB),
+    # far below the 1.6 MB a full record of q, v, a would take; the output is thinned.
+    prob = sdof(1.0, 0.5, 1e3, G=[[-20.0]], delay=0.01)
+    opts = NewmarkOptions(max_history_bytes=200_000, max_output_bytes=100_000)
+    r = newmark(prob, (0, 5.0), 1e-4, q0=[1e-3], record_every=100, options=opts)
+    assert r.status == "ok" and r.n_steps == 50_000 and r.q.shape == (1, 501)
+    ref = newmark(prob, (0, 5.0), 1e-4, q0=[1e-3])
+    np.testing.assert_array_equal(r.q, ref.q[:, ::100])
+
+
 # --------------------------------------------------------------------------- status
 
 
@@ -657,6 +668,11 @@ def test_time_response_csv_and_plot(tmp_path):
     assert open(p).readline().strip() == "t [s],q:tip,v:tip"
     np.testing.assert_array_equal(data[:, 0], r.t)
     np.testing.assert_array_equal(data[:, 1], r.q[0])
+    netcdf = pytest.importorskip("chatterlab.netcdf")
+    back = netcdf.read_netcdf(r.to_netcdf(tmp_path / "r.nc"))
+    np.testing.assert_array_equal(back.data["q"][0], r.q)
+    np.testing.assert_array_equal(back.coords["time"][0], r.t)
+    assert back.attrs["output_names"] == "tip" and back.attrs["status"] == "ok"
     pytest.importorskip("matplotlib")
     import matplotlib
 
