@@ -64,6 +64,7 @@ References
 from __future__ import annotations
 
 import math
+import threading
 import time
 import warnings
 from collections import deque
@@ -487,7 +488,9 @@ class NewmarkOptions:
         Background threads preparing the next chunks (matrices, batched
         inverse) while the current one is stepped; 0 prepares them in the
         calling thread.  The batched LAPACK calls release the GIL, so two
-        workers keep two cores busy.
+        workers keep two cores busy.  The problem's ``matrices``/``force``
+        are called under a lock (one call at a time), so a
+        problem object need not be thread-safe.
     divergence_limit : float, default 1e12
         ``max |q|`` (units of ``q``: m, rad) beyond which the run stops with
         ``status="diverged"``.
@@ -1210,15 +1213,18 @@ def newmark(
         blocks = [C0, A0, B0] + ([G0] if has_delay else [])
         P = np.ascontiguousarray(Kinv0 @ np.concatenate(blocks, axis=1))
 
+    problem_lock = threading.Lock()
+
     def prepare(i0: int, c: int) -> tuple[FloatArray, FloatArray, FloatArray | None]:
         """Matrices for steps i0+1 .. i0+c: (Kinv or None, F or Kinv F, blocks)."""
         tt = t0 + h * np.arange(i0 + 1, i0 + c + 1)
         if i0 + c in bp_steps:  # left limit at the breakpoint
             tt[-1] -= max(1e-9 * h, 8 * np.spacing(abs(tt[-1])))
-        F = _force_at(problem, tt, n)
-        if tinv:
-            return np.empty(0), np.ascontiguousarray(F @ Kinv0.T), None
-        A, B, C, G = problem.matrices(tt)
+        with problem_lock:  # the problem's own code is never called concurrently
+            F = _force_at(problem, tt, n)
+            if tinv:
+                return np.empty(0), np.ascontiguousarray(F @ Kinv0.T), None
+            A, B, C, G = problem.matrices(tt)
         A, B, C = (_stack(nm, m, c, n, tt) for nm, m in zip("ABC", (A, B, C), strict=True))
         mats = [C, A, B]
         if has_delay:
@@ -1231,11 +1237,13 @@ def newmark(
     def restart(ib: int) -> None:
         """Acceleration at breakpoint step ib from the equation of motion, right limits."""
         tb = np.array([t0 + ib * h])
-        Ab, Bb, Cb, Gb = problem.matrices(tb)
+        with problem_lock:
+            Ab, Bb, Cb, Gb = problem.matrices(tb)
+            fb = _force_at(problem, tb, n)[0]
         Ab, Bb, Cb = (_stack(nm, m, 1, n, tb)[0] for nm, m in zip("ABC", (Ab, Bb, Cb), strict=True))
         r = ib - off
         q, v = S[r, 1], S[r, 2]
-        rhs_b = _force_at(problem, tb, n)[0] - Bb @ v - Cb @ q
+        rhs_b = fb - Bb @ v - Cb @ q
         if has_delay and Gb is not None:
             j = ib - shift
             if j < 0:
