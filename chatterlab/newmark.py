@@ -848,7 +848,8 @@ def _check_problem(problem: Any) -> int:
     return int(n)
 
 
-def _stack(name: str, m: Any, k: int, n: int, t: FloatArray) -> FloatArray:
+def _stack(name: str, m: Any, k: int, n: int, t: FloatArray, check: bool = True) -> FloatArray:
+    """Validate one coefficient stack; ``check=False`` skips the NaN scan (done later)."""
     arr = np.asarray(m, dtype=float)
     if arr.shape == (n, n):
         arr = np.broadcast_to(arr, (k, n, n))
@@ -857,7 +858,7 @@ def _stack(name: str, m: Any, k: int, n: int, t: FloatArray) -> FloatArray:
             f"problem.matrices(t) returned {name} of shape {arr.shape}; expected "
             f"(len(t), n, n) = ({k}, {n}, {n})"
         )
-    if not np.all(np.isfinite(arr)):
+    if check and not np.all(np.isfinite(arr)):
         bad = int(np.argmax(~np.all(np.isfinite(arr), axis=(1, 2))))
         raise InputError(f"problem.matrices(t): {name} has NaN/inf entries at t = {t[bad]:.9g} s")
     return arr
@@ -1225,13 +1226,19 @@ def newmark(
             if tinv:
                 return np.empty(0), np.ascontiguousarray(F @ Kinv0.T), None
             A, B, C, G = problem.matrices(tt)
-        A, B, C = (_stack(nm, m, c, n, tt) for nm, m in zip("ABC", (A, B, C), strict=True))
+        A, B, C = (_stack(nm, m, c, n, tt, False) for nm, m in zip("ABC", (A, B, C), strict=True))
         mats = [C, A, B]
         if has_delay:
             if G is None:
                 G = np.zeros((c, n, n))
             mats.append(_stack("G", G, c, n, tt))
-        Kinv = _inverse(c0 * A + c1 * B + C, tt)
+        K = np.multiply(A, c0)
+        K += c1 * B
+        K += C
+        if not np.all(np.isfinite(K)):  # a NaN/inf in A, B or C shows in K: name it
+            for nm, m in zip("ABC", (A, B, C), strict=True):
+                _stack(nm, m, c, n, tt)
+        Kinv = _inverse(K, tt)
         return Kinv, np.ascontiguousarray(F), np.concatenate(mats, axis=2)
 
     def restart(ib: int) -> None:
