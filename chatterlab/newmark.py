@@ -1076,7 +1076,7 @@ def newmark(
     chunk = int(min(chunk, n_total))
     span = max(chunk, keep)
     cap = keep + span + 1
-    hist_bytes = cap * 4 * n * 8
+    hist_bytes = (cap * 4 + (shift + 1 if has_delay else 0)) * n * 8  # buffer + history samples
     if hist_bytes > opts.max_history_bytes:
         raise InputError(
             f"the delay T = {T:.6g} s at step h = {h:.6g} s needs {keep} stored steps of {n} "
