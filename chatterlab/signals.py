@@ -150,8 +150,10 @@ def peaks(
     refine : bool, default True
         Refine each peak by a parabola through the logarithm of the three
         samples around it (exact for a Gaussian-shaped lobe, a good model of
-        the Hann main lobe): corrects most of the picket-fence error of the
-        frequency and height.
+        the top of the Hann main lobe): with the default ``pad = 4`` of
+        :func:`amplitude_spectrum` the refined height of an isolated sine is
+        within 1e-4 of its amplitude and the frequency within 1e-4 bins'
+        width (without padding: 3.5 % and 2 %).
 
     Returns
     -------
