@@ -152,8 +152,8 @@ def peaks(
         samples around it (exact for a Gaussian-shaped lobe, a good model of
         the top of the Hann main lobe): with the default ``pad = 4`` of
         :func:`amplitude_spectrum` the refined height of an isolated sine is
-        within 1e-4 of its amplitude and the frequency within 1e-4 bins'
-        width (without padding: 3.5 % and 2 %).
+        within 1e-4 of its amplitude and its frequency within 2e-4 of the
+        resolution ``1/(n_t dt)`` (without padding: 3.5 % and 2 %).
 
     Returns
     -------
