@@ -313,3 +313,26 @@ def test_matrix_model_refuses_a_wrong_shaped_file(tmp_path):
 
 def test_directions_are_x_y_rz():
     assert DIRECTIONS == ("x", "y", "rz")
+
+
+def test_soft_mounts_on_a_fine_mesh_are_not_mistaken_for_rigid_modes(beam_model_text):
+    """A stocky beam in 64 elements on two soft springs (1e3 N/m at each end,
+    x and y): its lowest omega^2 is 4e-11 of the largest (short elements are
+    stiff), far above the round-off of a true zero (~1e-16) but below the
+    former bound 1e-10, which called these mounting modes rigid and refused
+    the model.  Against the rigid beam on springs: horizontal and bounce
+    omega^2 = 2k/m, rocking omega^2 = 2k (L/2)^2 / J with J = rho A L^3/12 +
+    rho I L.  Tolerance 1e-4: round-off of an eigenvalue 4e-11 of the
+    largest is ~1e-6 relative (measured <= 9e-6 in omega), and the beam's
+    flexibility shifts them by ~k L^3/EI x (a small coefficient) ~ 1e-5."""
+    L, h, b, k = 1.0, 0.1, 0.05, 1.0e3
+    A, I = b * h, b * h**3 / 12
+    text = beam_model_text(L, h, b=b, elements=64, clamp=None)
+    for end in ("a", "b"):
+        text += f'\n[[spring]]\nid = "mount-{end}"\na = "{end}"\nb = "ground"\nc1 = {k}\nc2 = {k}\n'
+    md = cl.modes(cl.assemble(cl.loads_model(text)), count=3)
+    m, J = RHO * A * L, RHO * A * L**3 / 12 + RHO * I * L
+    expect = np.sqrt(sorted([2 * k / m, 2 * k / m, 2 * k * (L / 2) ** 2 / J]))
+    np.testing.assert_allclose(md.omega, expect, rtol=1e-4)
+    lam_ratio = (md.omega[0] / cl.modes(cl.assemble(cl.loads_model(text))).omega[-1]) ** 2
+    assert lam_ratio < 1e-10  # the case the former bound got wrong
