@@ -237,6 +237,12 @@ def _id_of(src: str, kind: str, k: int, table: Any, required: bool = True) -> st
 
 def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any], what: str) -> None:
     for path, value in overrides.items():
+        # values from a numpy grid (np.int64 elements, np.float32 ...) are
+        # the Python numbers a TOML file would hold
+        if isinstance(value, np.generic):
+            value = value.item()
+        elif isinstance(value, np.ndarray):
+            value = value.tolist()
         parts = str(path).split(".")
         if len(parts) == 3 and parts[0] in _LISTS:
             kind, iid, fld = parts

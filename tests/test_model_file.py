@@ -337,3 +337,16 @@ def test_inconsistent_constraints(block_text):
         ' { "ghost.y" = 1.0, "block.x" = -1.0 }]\n'
     )
     refuse(text, '[[constraint]] "arm"', "equations", "cannot all hold", stage="assemble")
+
+
+def test_with_parameter_accepts_numpy_scalars(beam_model_text):
+    """Sweep grids hold numpy scalars (np.int64 from arange, np.float32...):
+    they are the same numbers as in a file."""
+    m = cl.loads_model(beam_model_text(1.0, 0.1))
+    m2 = m.with_parameters({"beam.beam.elements": np.arange(1, 5)[2], "beam.beam.A": np.float32(0.25)})
+    assert m2.item("beam").elements == 3 and isinstance(m2.item("beam").elements, int)
+    assert m2.item("beam").section.A == float(np.float32(0.25))
+    with pytest.raises(ModelError, match="elements"):
+        m.with_parameter("beam.beam.elements", np.float64(2.5))
+    with pytest.raises(ModelError, match="A"):
+        m.with_parameter("beam.beam.A", np.bool_(True))
