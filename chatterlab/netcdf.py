@@ -267,9 +267,21 @@ def _normalise_data(
     return out, dim_sizes
 
 
+# Instance attributes of scipy's netcdf_file: a global attribute of the same name
+# would overwrite them when the file is read back (scipy sets them with setattr).
+_RESERVED_ATTRS = frozenset(
+    {"dimensions", "filename", "fp", "maskandscale", "mode", "use_mmap", "variables", "version_byte"}
+)
+
+
 def _attr_value(name: str, value: Any) -> Any:
     """Convert one attribute to something scipy writes losslessly."""
     _check_name(name, "attribute")
+    if name in _RESERVED_ATTRS or name.startswith("_"):
+        raise InputError(
+            f"attribute name {name!r} is reserved (scipy's netCDF reader uses it); rename it, "
+            f"e.g. 'chatterlab_{name.lstrip('_')}'"
+        )
     if isinstance(value, str):
         return value.encode("utf-8")
     if isinstance(value, bytes):

@@ -574,7 +574,13 @@ def test_netcdf_round_trip(tmp_path: Path) -> None:
         "stable": (freq > 0.3, ""),
         "lobe": (np.arange(8.0).reshape(4, 2), "m", "lobe depth", ("lobe", "speed")),
     }
-    attrs = {"model": "beam µm °C\nline 2", "n": 3, "tol": 1e-9, "big": 2**40, "weights": [0.5, 1.5]}
+    attrs = {
+        "model": "beam µm °C\nline 2",
+        "n": 3,
+        "tol": 1e-9,
+        "big": 2**40,
+        "weights": [0.5, 1.5],
+    }
     p = write_netcdf(tmp_path / "r.nc", coords, data, attrs)
     assert not [q for q in tmp_path.iterdir() if ".tmp-" in q.name]
     f = read_netcdf(p)
@@ -588,6 +594,8 @@ def test_netcdf_round_trip(tmp_path: Path) -> None:
     assert {"chatterlab_version", "created", "command_line"} <= set(f.attrs)
     m = read_netcdf(p, mmap=True)
     assert isinstance(m.data["freq"][0], np.memmap) and np.array_equal(m.data["freq"][0], freq)
+    with pytest.raises(InputError, match="'filename' is reserved"):
+        write_netcdf(tmp_path / "c.nc", coords, data, {"filename": "x.toml"})
     with pytest.raises(InputError, match="complex"):
         write_netcdf(tmp_path / "c.nc", coords, {"h": (freq + 1j, "")})
     with pytest.raises(InputError, match="shape"):
