@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import chatterlab as cl
 from chatterlab.elements import beam_point_matrix, rigid_point_matrix, rotation3
@@ -136,6 +138,15 @@ def test_W_equals_direct_substitution(shaper, s):
         # and element-map blocks (condition ~ 10); the error is round-off,
         # ~1e-15 of |q|, bounded here by 1e-12.
         np.testing.assert_allclose(W @ qi, qd_direct, atol=1e-12 * np.abs(qi).max() * 10)
+
+
+@settings(max_examples=60, deadline=None)
+@given(s=st.floats(0.55, 1.15))
+def test_W_equals_direct_substitution_anywhere_in_the_range(shaper, s):
+    """Property form over the whole movable range (run-in, both shear beams,
+    coasting): W(s) = direct map, to round-off (see above)."""
+    T = direct_map(shaper, s)[shaper.d]
+    np.testing.assert_allclose(shaper.W(s), T, atol=1e-12 * max(1.0, np.abs(T).max()))
 
 
 def test_W_on_the_track_joint_is_continuous(shaper):

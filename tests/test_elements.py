@@ -504,3 +504,29 @@ def test_simply_supported_beam_against_the_closed_form(beam_model_text):
     predicted = (math.pi / (2 * L) * he) ** 2 / 24
     # linear elements with consistent mass: w_h^2 = w^2 (1 + (k h)^2/12 + O(h^4)); measured 1.0000 of it
     assert (axial[0] / w_axial - 1) / predicted == pytest.approx(1.0, abs=1e-3)
+
+
+@pytest.mark.parametrize("elements", [1, 3])
+@pytest.mark.parametrize("x", [0.13, 0.3, 0.5])
+def test_cantilever_interior_points_are_exact(beam_model_text, elements, x):
+    """Inside the elements too, the shape functions are the exact static
+    solution under an end load: for the tip load P, the section rotation is
+    psi(x) = P (L x - x^2/2) / EI and the deflection
+    v(x) = P (L x^2/2 - x^3/6) / EI + P x / (kappa G A); a material point at
+    transverse offset y0 moves axially by -y0 psi(x).  Read through a
+    [[point]] on the beam (FrozenSystem.point), stocky beam, round-off only."""
+    L, h, b = 0.5, 0.25, 0.05
+    A, I = b * h, b * h**3 / 12
+    y0 = h / 2
+    text = beam_model_text(L, h, b=b, elements=elements)
+    text += f'\n[[point]]\nid = "p"\nbeam = "beam"\ndistance = {x}\noffset = {y0}\n'
+    fz = cl.assemble(cl.loads_model(text)).at()
+    P = 1.0e4
+    q = np.linalg.solve(fz.C, fz.point("b").T @ np.array([0.0, P, 0.0]))
+    u, v, th = fz.point("p") @ q
+    psi = P * (L * x - x * x / 2) / (E * I)
+    v_ex = P * (L * x * x / 2 - x**3 / 6) / (E * I) + P * x / (KAPPA * G * A)
+    # condition of the stocky model ~1e4: 1e-10 relative is round-off with margin
+    assert th == pytest.approx(psi, rel=1e-10)
+    assert v == pytest.approx(v_ex, rel=1e-10)
+    assert u == pytest.approx(-y0 * psi, rel=1e-10)
