@@ -59,9 +59,10 @@ def test_shape_functions_interpolate_nodal_values(phi):
 def test_shape_derivatives_match_central_differences(phi, order):
     L = 0.7
     xi = np.linspace(0.1, 0.9, 9)
-    hx = 1e-4  # step in x (m); the functions are cubics, so the central
-    # difference of a derivative of order k-1 has error h^2/6 * (k+2)-th... at
-    # most h^2/6 * max|N'''| ~ 1e-8/6 * 12/L^3 ~ 6e-8 relative; round-off eps/h ~ 2e-12.
+    hx = 1e-4  # step in x (m).  The functions are cubics (v) and quadratics
+    # (psi), so the central difference of the order-(k-1) derivative has the
+    # error h^2/6 * (its third derivative), at most h^2/6 * 12/L^3 * L ~ 6e-8
+    # relative to the O(1/L^k) values; round-off eps/h ~ 2e-12.  Bound: 1e-7.
     for fn in (beam_shape, beam_rotation):
         exact = fn(xi, L, phi, order)
         up = fn(xi + hx / L, L, phi, order - 1)
