@@ -219,6 +219,7 @@ def bench_memory(n: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smaller sizes")
+    ap.add_argument("--only", choices=["speedup", "overhead", "memory"], help="run one part")
     ap.add_argument("--memory-child", nargs=2, metavar=("N", "OUT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.memory_child:
@@ -226,9 +227,12 @@ def main() -> None:
         return
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"cpu count {os.cpu_count()}, load average {load:.2f} (other processes skew the timings)")
-    bench_speedup(60 if args.quick else 200)
-    bench_overhead(20_000 if args.quick else 200_000)
-    bench_memory(100_000 if args.quick else 1_000_000)
+    if args.only in (None, "speedup"):
+        bench_speedup(60 if args.quick else 200)
+    if args.only in (None, "overhead"):
+        bench_overhead(20_000 if args.quick else 200_000)
+    if args.only in (None, "memory"):
+        bench_memory(100_000 if args.quick else 1_000_000)
 
 
 if __name__ == "__main__":
