@@ -336,3 +336,24 @@ def test_soft_mounts_on_a_fine_mesh_are_not_mistaken_for_rigid_modes(beam_model_
     np.testing.assert_allclose(md.omega, expect, rtol=1e-4)
     lam_ratio = (md.omega[0] / cl.modes(cl.assemble(cl.loads_model(text))).omega[-1]) ** 2
     assert lam_ratio < 1e-10  # the case the former bound got wrong
+
+
+def test_support_of_some_body_coordinates():
+    """A body whose rotation is given by a [[support]] (fix = ["rz"]) on an
+    x/y spring: two modes, sqrt(c1/m) and sqrt(c2/m)."""
+    text = (
+        '[[body]]\nid = "puck"\nmass = 4.0\ninertia = 0.5\ncentre = [0.0, 0.0]\n'
+        '[[spring]]\nid = "s"\na = "puck"\nb = "ground"\nc1 = 4.0e4\nc2 = 9.0e4\n'
+        '[[support]]\nid = "no-spin"\nbody = "puck"\nfix = ["rz"]\n'
+    )
+    sy = cl.assemble(cl.loads_model(text))
+    assert sy.names_i == ("puck.x", "puck.y")
+    np.testing.assert_allclose(cl.modes(sy).omega, [100.0, 150.0], rtol=1e-14)
+
+
+def test_matrix_model_support_of_a_coordinate():
+    """[[support]] coordinate = "q3" removes q3 like [matrices] given."""
+    M, _, K = _matrices()
+    names = ", ".join(f'"{c}"' for c in COORDS)
+    text = f'[matrices]\ncoordinates = [{names}]\nM = {_rows(M)}\nK = {_rows(K)}\n[[support]]\ncoordinate = "q3"\n'
+    _check_modes(cl.loads_model(text), M, K, keep=[0, 1, 3, 4])
