@@ -1,0 +1,656 @@
+"""Stability lobes by D-subdivision in the coupling-element coordinates.
+
+On the stability boundary a characteristic root sits on the imaginary axis,
+s = j w.  With the cutting process D(s) = -(b/b_ref) J^T Dl(s) J and the
+structure's FRF between the CE coordinates H(jw) = J G(jw) J^T, Sylvester's
+identity turns det Delta(jw) = 0 into
+
+    det(I + beta H (A + z O)) = 0,   beta = b / b_ref,  A = D_P + jw D_V,  z = e^{-jwT}.
+
+Factor the delayed matrix O = U V^T (rank r, 1 for the usual chip-thickness
+regeneration).  The matrix determinant lemma gives, for each w,
+
+    det(I + beta H A) det(I_r + z N(beta)),   N(beta) = beta V^T (I + beta H A)^-1 H U,
+
+so the boundary is where an eigenvalue nu of N(beta) has |nu| = 1, and then
+z = -1/nu fixes the delay: wT = -arg z + 2 pi k, k = 0, 1, 2, ... (one lobe
+per k).  chatterlab solves |nu(beta)| = 1 for every w of a grid (all real
+positive beta up to the width range, by bracketing and bisection), which
+gives every lobe as a curve (T_k(w), b(w)); the lower envelope at each
+requested speed is then refined to round-off by regula falsi on the phase
+condition, re-solving beta exactly at each trial frequency.
+
+For the classical regenerative model (D_P = K_f b f n^T, D_O = -D_P, D_V = 0)
+this reduces to Tlusty's b_lim = -1/(2 K_f Re[n^T G f]) with the phase
+condition; for the paper's D_P + s D_V + D_O e^{-sT} (Eq. 2.23, 3.7-3.9) it is
+the small eigenvalue problem above at each frequency.
+
+References
+----------
+.. [1] J. Tlusty, M. Polacek, "The stability of machine tools against self
+   excited vibrations in machining", Int. Res. Prod. Eng., ASME, 465-474, 1963.
+.. [2] Y. Altintas, E. Budak, "Analytical prediction of stability lobes in
+   milling", CIRP Annals 44(1), 357-362, 1995 (eigenvalue form of the boundary).
+.. [3] T. Insperger, G. Stépán, *Semi-Discretization for Time-Delay Systems*,
+   Springer, 2011, ch. 1-2 (D-subdivision).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from .assembly import FrozenSystem
+from .cutting import Feedback, feedback
+from .errors import InputError
+from .frf import _cached_modes, _modal_response
+from .model import Process
+
+__all__ = ["Lobe", "LobeDiagram", "lobes", "boundary"]
+
+_LOG_SPAN = 9.0  # decades of width searched below the maximum width
+
+
+@dataclass(frozen=True, eq=False)
+class Lobe:
+    """One lobe: the boundary for one integer k (and one solution branch)."""
+
+    k: int
+    branch: int
+    delay: np.ndarray  #: s
+    speed: np.ndarray  #: in the process unit (m/s or rpm)
+    width: np.ndarray  #: b_lim, m
+    frequency_hz: np.ndarray  #: chatter frequency, Hz
+
+
+@dataclass(frozen=True, eq=False)
+class LobeDiagram:
+    """Result of :func:`lobes`: b_lim against speed.
+
+    Attributes
+    ----------
+    speed : ndarray, shape (n,)
+        The requested speeds, in ``speed_unit`` (shaping: m/s; turning: rpm;
+        delay: s).
+    delay : ndarray, shape (n,)
+        The delay T (s) at each speed.
+    b_lim : ndarray, shape (n,)
+        Largest chatter-free width of cut (m) at each speed; ``inf`` where no
+        boundary lies below ``width_max``.
+    chatter_hz : ndarray, shape (n,)
+        Chatter frequency (Hz) on the envelope.
+    lobe : ndarray of int, shape (n,)
+        The lobe number k forming the envelope (-1 where none).
+    lobes : tuple of Lobe
+        Every lobe in the speed range (curves sampled on the frequency grid).
+    minimum : dict
+        The smallest b_lim over the speed range: ``width`` (m), ``speed``,
+        ``chatter_hz``.
+    absolute_minimum : dict
+        The smallest boundary width over all delays: ``width`` (m),
+        ``chatter_hz`` (the asymptote the lobes approach at low speed).
+    checks : list of dict
+        Characteristic-root verdicts at points 10 % below and above the
+        boundary (see ``verify``); ``verified`` says whether all agree.
+    """
+
+    speed: np.ndarray
+    delay: np.ndarray
+    b_lim: np.ndarray
+    chatter_hz: np.ndarray
+    lobe: np.ndarray
+    lobes: tuple[Lobe, ...]
+    minimum: dict[str, float]
+    absolute_minimum: dict[str, float]
+    speed_unit: str
+    speed_name: str
+    width_max: float
+    terms: str
+    position: float | None
+    model: str
+    checks: tuple[dict[str, Any], ...] = ()
+    elapsed: float = 0.0
+    n_frequencies: int = 0
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def verified(self) -> bool | None:
+        """True if every spot check agreed with the boundary, None if none ran."""
+        if not self.checks:
+            return None
+        return all(c["agrees"] for c in self.checks)
+
+    def summary(self) -> str:
+        m, a = self.minimum, self.absolute_minimum
+        lines = [
+            f"stability lobes of {self.model} ({self.terms} feedback"
+            + (f", position {self.position:g} m" if self.position is not None else "")
+            + ")",
+            f"  speeds {self.speed.min():g} .. {self.speed.max():g} {self.speed_unit} ({self.speed.size} points),"
+            f" {len(self.lobes)} lobes, {self.n_frequencies} chatter frequencies, {self.elapsed:.2f} s",
+        ]
+        if np.isfinite(m["width"]):
+            lines.append(
+                f"  minimum b_lim in range: {m['width'] * 1e3:.4g} mm at {m['speed']:.5g} {self.speed_unit},"
+                f" chatter {m['chatter_hz']:.2f} Hz"
+            )
+        else:
+            lines.append(f"  no chatter below {self.width_max * 1e3:g} mm in this speed range")
+        if np.isfinite(a["width"]):
+            lines.append(
+                f"  absolute minimum (all speeds): {a['width'] * 1e3:.4g} mm at {a['chatter_hz']:.2f} Hz"
+            )
+        if self.checks:
+            ok = sum(c["agrees"] for c in self.checks)
+            lines.append(f"  verified by characteristic roots: {ok}/{len(self.checks)} spot checks agree")
+        return "\n".join(lines)
+
+    def to_csv(self, path: Any) -> None:
+        """Envelope: speed, delay, b_lim (mm), chatter frequency (Hz), lobe."""
+        import csv
+
+        from ._io import text_out
+
+        with text_out(path) as fh:
+            w = csv.writer(fh)
+            w.writerow(
+                [
+                    f"speed [{self.speed_unit}]",
+                    "delay [s]",
+                    "b_lim [mm]",
+                    "chatter frequency [Hz]",
+                    "lobe [-]",
+                ]
+            )
+            for k in range(self.speed.size):
+                w.writerow(
+                    [
+                        f"{self.speed[k]:.9g}",
+                        f"{self.delay[k]:.9g}",
+                        f"{self.b_lim[k] * 1e3:.9g}",
+                        f"{self.chatter_hz[k]:.9g}",
+                        int(self.lobe[k]),
+                    ]
+                )
+
+    def to_netcdf(self, path: str, attrs: dict[str, Any] | None = None) -> None:
+        """Labelled netCDF (speed as coordinate; b_lim in m, chatter frequency
+        in Hz, delay in s, lobe number as data; the model text as attribute)."""
+        from .netcdf import write_netcdf
+
+        a = {
+            "title": "chatterlab stability lobe diagram",
+            "model": self.model,
+            "terms": self.terms,
+            "position_m": float("nan") if self.position is None else self.position,
+            "width_max_m": self.width_max,
+            "min_b_lim_m": self.minimum["width"],
+            "min_b_lim_speed": self.minimum["speed"],
+            "min_b_lim_chatter_hz": self.minimum["chatter_hz"],
+            "absolute_min_b_lim_m": self.absolute_minimum["width"],
+            "verified": str(self.verified),
+        }
+        a.update(self.meta)
+        a.update(attrs or {})
+        write_netcdf(
+            path,
+            coords={"speed": (self.speed, self.speed_unit)},
+            data={
+                "b_lim": (self.b_lim, "m", "largest chatter-free width of cut"),
+                "chatter_frequency": (self.chatter_hz, "Hz", "chatter frequency on the envelope"),
+                "delay": (self.delay, "s", "delay between passes"),
+                "lobe": (self.lobe.astype(float), "1", "lobe number k"),
+            },
+            attrs=a,
+        )
+
+    def plot(self, axes: Any = None, *, lobe_numbers: int = 8, title: str | None = None) -> Any:
+        """Lobe diagram (b_lim in mm against speed, unstable region shaded,
+        lobe numbers) over the chatter frequency panel; returns the Axes."""
+        from .plot import plot_lobes
+
+        return plot_lobes(self, axes=axes, lobe_numbers=lobe_numbers, title=title)
+
+
+# ============================================================================ inner solve
+
+
+def _cfrf(frozen: FrozenSystem, fb: Feedback, omega: np.ndarray) -> np.ndarray:
+    """H(jw) = J G(jw) J^T, shape (n_w, m, m), by complex modes."""
+    cm = _cached_modes(frozen)
+    keep = np.arange(cm.lam.size)
+    G = _modal_response(cm, fb.J, fb.J.T, 1j * omega, keep, False)
+    return np.transpose(G, (2, 0, 1))
+
+
+@dataclass(frozen=True)
+class _Ops:
+    """Per-frequency operators of the boundary equation (reference width)."""
+
+    omega: np.ndarray  # (N,)
+    HA: np.ndarray  # (N, m, m)  H (P + jw V)
+    HU: np.ndarray  # (N, m, r)
+    Vt: np.ndarray  # (r, m)
+
+
+def _ops(frozen: FrozenSystem, fb: Feedback, omega: np.ndarray) -> _Ops:
+    H = _cfrf(frozen, fb, omega)
+    A = fb.Dl_P[None] + 1j * omega[:, None, None] * fb.Dl_V[None]
+    u, sv, vt = np.linalg.svd(fb.Dl_O)
+    r = int(np.sum(sv > 1e-12 * max(sv[0], 1e-300)))
+    Uo = u[:, :r] * sv[:r]
+    return _Ops(omega, H @ A, H @ Uo, vt[:r])
+
+
+def _nu(ops: _Ops, beta: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+    """Eigenvalues of N(beta) (..., r), sorted by magnitude; ``beta`` has
+    shape (N, K) (or (len(idx), K) with ``idx`` selecting frequencies)."""
+    HA = ops.HA if idx is None else ops.HA[idx]
+    HU = ops.HU if idx is None else ops.HU[idx]
+    m = HA.shape[-1]
+    Mx = np.eye(m) + beta[..., None, None] * HA[:, None]
+    X = np.linalg.solve(Mx, np.broadcast_to(HU[:, None], Mx.shape[:-1] + (HU.shape[-1],)))
+    Nm = beta[..., None, None] * (ops.Vt @ X)
+    if Nm.shape[-1] == 1:
+        return Nm[..., 0, :]
+    ev = np.linalg.eigvals(Nm)
+    return np.take_along_axis(ev, np.argsort(np.abs(ev), axis=-1), axis=-1)
+
+
+def _solve_beta(
+    ops: _Ops, lo: np.ndarray, hi: np.ndarray, idx: np.ndarray | None = None, n_grid: int = 48
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All beta in [lo, hi] (per frequency) with some |nu_j(beta)| = 1.
+
+    Returns (freq index, beta, z) of every solution, z = -1/nu.
+    """
+    N = ops.omega.size if idx is None else idx.size
+    fidx = np.arange(N)
+    t = np.linspace(0.0, 1.0, n_grid)
+    lb = np.log(lo)[:, None] + (np.log(hi) - np.log(lo))[:, None] * t[None, :]
+    mag = np.log(np.abs(_nu(ops, np.exp(lb), idx)))  # (N, K, r)
+    sgn = np.sign(mag)
+    ch = np.nonzero(sgn[:, :-1, :] * sgn[:, 1:, :] < 0)
+    fi, ki, ri = ch
+    if fi.size == 0:
+        return np.zeros(0, int), np.zeros(0), np.zeros(0, complex)
+    a = lb[fi, ki]
+    b = lb[fi, ki + 1]
+    fa = mag[fi, ki, ri]
+    sel = fidx[fi] if idx is None else idx[fi]
+    # bisection on log beta (60 halvings: relative precision ~1e-16 of the bracket)
+    for _ in range(60):
+        c = 0.5 * (a + b)
+        fc = np.log(np.abs(_nu_pick(ops, np.exp(c), sel, ri)))
+        left = np.sign(fc) == np.sign(fa)
+        a = np.where(left, c, a)
+        fa = np.where(left, fc, fa)
+        b = np.where(left, b, c)
+    beta = np.exp(0.5 * (a + b))
+    nu = _nu_pick(ops, beta, sel, ri)
+    return fi, beta, -1.0 / nu
+
+
+def _nu_pick(ops: _Ops, beta: np.ndarray, freq: np.ndarray, branch: np.ndarray) -> np.ndarray:
+    nu = _nu(ops, beta[:, None], freq)[:, 0, :]
+    return nu[np.arange(beta.size), branch]
+
+
+# ============================================================================ boundary curve
+
+
+@dataclass(frozen=True)
+class _Segment:
+    branch: int
+    omega: np.ndarray
+    beta: np.ndarray
+    z: np.ndarray
+    idx: np.ndarray  # frequency indices into the grid
+
+
+def boundary(
+    frozen: FrozenSystem, fb_ref: Feedback, omega: np.ndarray, beta_max: float
+) -> tuple[_Ops, list[_Segment]]:
+    """Boundary solutions (beta, z) on a frequency grid, organised into
+    continuous branches (segments)."""
+    ops = _ops(frozen, fb_ref, omega)
+    N = omega.size
+    hi = np.full(N, beta_max)
+    lo = hi * 10.0**-_LOG_SPAN
+    fi, beta, z = _solve_beta(ops, lo, hi)
+    segs: list[_Segment] = []
+    if fi.size == 0:
+        return ops, segs
+    order = np.lexsort((beta, fi))
+    fi, beta, z = fi[order], beta[order], z[order]
+    # rank of each solution among those at the same frequency
+    starts = np.searchsorted(fi, fi, side="left")
+    rank = np.arange(fi.size) - starts
+    for j in np.unique(rank):
+        sel = rank == j
+        f, b, zz = fi[sel], beta[sel], z[sel]
+        # split where frequencies are not consecutive or beta jumps
+        brk = np.nonzero((np.diff(f) != 1) | (np.abs(np.diff(np.log(b))) > 0.7))[0] + 1
+        for part in np.split(np.arange(f.size), brk):
+            if part.size >= 2:
+                segs.append(_Segment(int(j), omega[f[part]], b[part], zz[part], f[part]))
+    return ops, segs
+
+
+def _refine_crossings(
+    frozen: FrozenSystem,
+    fb_ref: Feedback,
+    T: np.ndarray,
+    w0: np.ndarray,
+    w1: np.ndarray,
+    g0: np.ndarray,
+    g1: np.ndarray,
+    b0: np.ndarray,
+    b1: np.ndarray,
+    iters: int = 40,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Regula falsi (Illinois) on g(w) = arg(z(w) e^{jwT}) in [w0, w1], with
+    beta re-solved exactly near the branch at each trial frequency."""
+    blo = np.minimum(b0, b1) / 1.5
+    bhi = np.maximum(b0, b1) * 1.5
+    wa, wb, ga, gb = w0.copy(), w1.copy(), g0.copy(), g1.copy()
+    beta = 0.5 * (b0 + b1)
+    w = 0.5 * (wa + wb)
+    side = np.zeros(T.size)
+    ok = np.ones(T.size, bool)
+    for _ in range(iters):
+        w = np.where(gb != ga, wb - gb * (wb - wa) / (gb - ga), 0.5 * (wa + wb))
+        w = np.clip(w, np.minimum(wa, wb), np.maximum(wa, wb))
+        ops = _ops(frozen, fb_ref, w)
+        fi, bb, zz = _solve_beta(ops, blo, bhi, n_grid=12)
+        # pick the solution nearest the interpolated guess at each point
+        best_b = np.full(T.size, np.nan)
+        best_z = np.full(T.size, np.nan + 0j)
+        target = b0 + (b1 - b0) * (w - w0) / np.where(w1 != w0, w1 - w0, 1.0)
+        dist = np.abs(np.log(bb / target[fi]))
+        ordr = np.argsort(-dist)  # later writes (smaller distance) win
+        best_b[fi[ordr]] = bb[ordr]
+        best_z[fi[ordr]] = zz[ordr]
+        ok &= np.isfinite(best_b)
+        beta = np.where(np.isfinite(best_b), best_b, beta)
+        gw = np.angle(best_z * np.exp(1j * w * T))
+        gw = np.where(np.isfinite(gw), gw, 0.0)
+        same = np.sign(gw) == np.sign(ga)
+        # Illinois modification: halve the stale end's value
+        ga_new = np.where(same, gw, ga)
+        gb_new = np.where(same, gb, gw)
+        wa_new = np.where(same, w, wa)
+        wb_new = np.where(same, wb, w)
+        gb_new = np.where(same & (side == 1), gb_new * 0.5, gb_new)
+        ga_new = np.where(~same & (side == -1), ga_new * 0.5, ga_new)
+        side = np.where(same, 1, -1)
+        wa, wb, ga, gb = wa_new, wb_new, ga_new, gb_new
+        if np.all(np.abs(wb - wa) <= 1e-13 * np.abs(w)):
+            break
+    return w, beta, ok
+
+
+# ============================================================================ lobes
+
+
+def _band(frozen: FrozenSystem, fmin: float | None, fmax: float | None) -> tuple[float, float]:
+    cm = _cached_modes(frozen)
+    wn = np.sort(np.abs(cm.lam[cm.lam.imag > 0]))
+    w1 = float(wn[0]) if wn.size else 1.0
+    wk = float(wn[min(len(wn) - 1, 11)]) if wn.size else 10.0
+    lo = 2 * np.pi * fmin if fmin is not None else 0.25 * w1
+    hi = 2 * np.pi * fmax if fmax is not None else 1.6 * wk
+    if not hi > lo > 0:
+        raise InputError(
+            f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
+        )
+    return lo, hi
+
+
+def lobes(
+    frozen: FrozenSystem,
+    speeds: np.ndarray,
+    *,
+    width_max: float = 0.02,
+    terms: Literal["pdo", "o"] = "pdo",
+    process: Process | None = None,
+    fmin: float | None = None,
+    fmax: float | None = None,
+    n_frequencies: int | None = None,
+    verify: int = 2,
+    couplings: list[str] | None = None,
+) -> LobeDiagram:
+    """Stability lobe diagram b_lim(speed) at a frozen configuration.
+
+    Parameters
+    ----------
+    frozen : FrozenSystem
+        The structure with the slide held at a position (``system.at(s)``).
+    speeds : array, shape (n,)
+        Cutting speeds in the process's unit (shaping: work speed m/s;
+        turning: rpm; ``process.kind == "delay"``: the delay in s).
+    width_max : float
+        Largest width of cut considered, m; b_lim = inf above it.
+    terms : {"pdo", "o"}
+        All feedback terms (the paper's case c) or the delayed term only.
+    process : Process, optional
+        Kinematics mapping speed to delay (default: the model's ``[process]``).
+    fmin, fmax : float, optional
+        Chatter frequency band searched, Hz (default: from the modes).
+    n_frequencies : int, optional
+        Frequency grid size (default: enough that w T turns < pi/2 per step).
+    verify : int
+        Number of speeds spot-checked with characteristic roots at 0.9 and
+        1.1 b_lim (0 to skip).
+
+    Returns
+    -------
+    LobeDiagram
+    """
+    t0 = time.perf_counter()
+    proc = process if process is not None else frozen.model.process
+    if proc is None:
+        raise InputError(
+            f"{frozen.model.source} has no [process] table: add one (shaping, turning or delay) so that"
+            " speeds map to delays"
+        )
+    speeds = np.asarray(speeds, dtype=float)
+    if speeds.ndim != 1 or speeds.size == 0:
+        raise InputError("speeds must be a non-empty 1-D array")
+    if not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
+        raise InputError(f"speeds must be > 0 {proc.speed_unit}")
+    if not (np.isfinite(width_max) and width_max > 0):
+        raise InputError(f"width_max must be > 0 m (got {width_max!r})")
+    if terms not in ("pdo", "o"):
+        raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
+    fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+    b_ref = 1.0  # feedback built at b = 1 m: beta is the width in m
+    if not np.any(fb_ref.Dl_O):
+        raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
+    T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
+    lo, hi = _band(frozen, fmin, fmax)
+    Tmax = float(T.max())
+    n = n_frequencies or int(min(200_000, max(3000, np.ceil(4.0 * (hi - lo) * Tmax / np.pi))))
+    omega = np.linspace(lo, hi, n)
+    beta_max = width_max / b_ref
+    ops, segs = boundary(frozen, fb_ref, omega, beta_max)
+
+    nT = T.size
+    best = np.full(nT, np.inf)
+    info = np.zeros((nT, 7))  # w0, w1, g0, g1, b0, b1, seg
+    for si, sg in enumerate(segs):
+        phase = np.angle(sg.z[None, :] * np.exp(1j * sg.omega[None, :] * T[:, None]))  # (nT, L)
+        g0, g1 = phase[:, :-1], phase[:, 1:]
+        cross = (np.sign(g0) != np.sign(g1)) & (np.abs(g1 - g0) < np.pi)
+        ti, li = np.nonzero(cross)
+        if ti.size == 0:
+            continue
+        frac = g0[ti, li] / (g0[ti, li] - g1[ti, li])
+        bint = sg.beta[li] + frac * (sg.beta[li + 1] - sg.beta[li])
+        # keep the smallest crossing per speed
+        order = np.argsort(-bint)
+        tsel, lsel, bsel = ti[order], li[order], bint[order]
+        upd = bsel < best[tsel]
+        tsel, lsel, bsel = tsel[upd], lsel[upd], bsel[upd]
+        best[tsel] = bsel
+        info[tsel] = np.stack(
+            [
+                sg.omega[lsel],
+                sg.omega[lsel + 1],
+                g0[tsel, lsel],
+                g1[tsel, lsel],
+                sg.beta[lsel],
+                sg.beta[lsel + 1],
+                np.full(lsel.size, si),
+            ],
+            axis=1,
+        )
+    has = np.isfinite(best)
+    b_lim = np.full(nT, np.inf)
+    chatter = np.full(nT, np.nan)
+    lobe_k = np.full(nT, -1)
+    if np.any(has):
+        h = np.nonzero(has)[0]
+        w, beta, ok = _refine_crossings(frozen, fb_ref, T[h], *[info[h, j] for j in range(6)])
+        beta = np.where(ok, beta, best[h])
+        b_lim[h] = beta * b_ref
+        chatter[h] = w / (2 * np.pi)
+        zc = np.exp(-1j * w * T[h])
+        lobe_k[h] = np.round((w * T[h] + np.angle(zc)) / (2 * np.pi)).astype(int)
+
+    # every lobe in the range of delays, as curves on the frequency grid
+    lobe_list: list[Lobe] = []
+    Tlo, Thi = float(T.min()), float(T.max())
+    for sg in segs:
+        phi = -np.unwrap(np.angle(sg.z))  # w T = phi + 2 pi k
+        kmin = int(np.floor((sg.omega * Tlo - phi).min() / (2 * np.pi)))
+        kmax = int(np.ceil((sg.omega * Thi - phi).max() / (2 * np.pi)))
+        kmin = max(kmin, 0)
+        if kmax - kmin > 2000:  # a dense diagram: keep the lobes near the envelope's numbers
+            ks = np.unique(lobe_k[lobe_k >= 0])
+            krange = ks if ks.size else np.arange(kmin, kmin + 50)
+        else:
+            krange = np.arange(kmin, kmax + 1)
+        for k in krange:
+            Tk = (phi + 2 * np.pi * k) / sg.omega
+            inside = (Tk >= Tlo) & (Tk <= Thi) & (Tk > proc.min_delay)
+            if np.count_nonzero(inside) < 2:
+                continue
+            Ts = Tk[inside]
+            lobe_list.append(
+                Lobe(
+                    int(k),
+                    sg.branch,
+                    Ts,
+                    np.asarray(proc.speed_for_delay(Ts)) if proc.kind != "delay" else Ts,
+                    sg.beta[inside] * b_ref,
+                    sg.omega[inside] / (2 * np.pi),
+                )
+            )
+
+    # minima
+    if np.any(np.isfinite(b_lim)):
+        j = int(np.nanargmin(b_lim))
+        minimum = {"width": float(b_lim[j]), "speed": float(speeds[j]), "chatter_hz": float(chatter[j])}
+    else:
+        minimum = {"width": float("inf"), "speed": float("nan"), "chatter_hz": float("nan")}
+    absolute = _absolute_minimum(frozen, fb_ref, segs, b_ref)
+
+    diagram = LobeDiagram(
+        speed=speeds,
+        delay=T,
+        b_lim=b_lim,
+        chatter_hz=chatter,
+        lobe=lobe_k,
+        lobes=tuple(lobe_list),
+        minimum=minimum,
+        absolute_minimum=absolute,
+        speed_unit=proc.speed_unit,
+        speed_name=proc.speed_name,
+        width_max=width_max,
+        terms=terms,
+        position=frozen.position,
+        model=frozen.model.source,
+        elapsed=0.0,
+        n_frequencies=n,
+    )
+    checks = _verify(frozen, diagram, verify, couplings) if verify else ()
+    object.__setattr__(diagram, "checks", checks)
+    object.__setattr__(diagram, "elapsed", time.perf_counter() - t0)
+    return diagram
+
+
+def _absolute_minimum(
+    frozen: FrozenSystem, fb_ref: Feedback, segs: list[_Segment], b_ref: float
+) -> dict[str, float]:
+    if not segs:
+        return {"width": float("inf"), "chatter_hz": float("nan")}
+    cand = [(float(sg.beta.min()), sg, int(np.argmin(sg.beta))) for sg in segs]
+    bmin, sg, j = min(cand, key=lambda c: c[0])
+    # golden-section refinement of min over w of beta(w) on the bracketing samples
+    if 0 < j < sg.omega.size - 1:
+        a, c = sg.omega[j - 1], sg.omega[j + 1]
+        gr = (np.sqrt(5) - 1) / 2
+
+        def f(w: float) -> float:
+            ops = _ops(frozen, fb_ref, np.array([w]))
+            _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=16)
+            return float(bb.min()) if bb.size else np.inf
+
+        x1, x2 = c - gr * (c - a), a + gr * (c - a)
+        f1, f2 = f(x1), f(x2)
+        for _ in range(50):
+            if f1 < f2:
+                c, x2, f2 = x2, x1, f1
+                x1 = c - gr * (c - a)
+                f1 = f(x1)
+            else:
+                a, x1, f1 = x1, x2, f2
+                x2 = a + gr * (c - a)
+                f2 = f(x2)
+            if c - a < 1e-12 * c:
+                break
+        w = 0.5 * (a + c)
+        bm = min(f1, f2)
+        if np.isfinite(bm) and bm <= bmin:
+            return {"width": bm * b_ref, "chatter_hz": w / (2 * np.pi)}
+    return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
+
+
+def _verify(
+    frozen: FrozenSystem, d: LobeDiagram, count: int, couplings: list[str] | None
+) -> tuple[dict[str, Any], ...]:
+    """Spot-check the boundary with the characteristic roots."""
+    from .stability import stability
+
+    fin = np.nonzero(np.isfinite(d.b_lim))[0]
+    if fin.size == 0:
+        return ()
+    picks = [int(np.nanargmin(d.b_lim))]
+    if count > 1:
+        extra = fin[np.linspace(0, fin.size - 1, count + 1).astype(int)[1:]]
+        picks += [int(p) for p in extra if int(p) not in picks][: count - 1]
+    out = []
+    for j in picks:
+        for factor in (0.9, 1.1):
+            b = float(d.b_lim[j] * factor)
+            st = stability(
+                frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings, winding=False
+            )
+            expect = "stable" if factor < 1 else "unstable"
+            out.append(
+                {
+                    "speed": float(d.speed[j]),
+                    "delay": float(d.delay[j]),
+                    "width": b,
+                    "factor": factor,
+                    "expected": expect,
+                    "verdict": st.verdict,
+                    "abscissa": st.abscissa,
+                    "agrees": st.verdict == expect,
+                }
+            )
+    return tuple(out)
