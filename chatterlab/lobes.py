@@ -280,16 +280,23 @@ def _solve_beta(
     a = lb[fi, ki]
     b = lb[fi, ki + 1]
     fa = mag[fi, ki, ri]
+    fb_ = mag[fi, ki + 1, ri]
     sel = fidx[fi] if idx is None else idx[fi]
-    # bisection on log beta (60 halvings: relative precision ~1e-16 of the bracket)
-    for _ in range(60):
-        c = 0.5 * (a + b)
+    # Illinois regula falsi on log|nu| against log beta (superlinear; keeps the bracket)
+    last = np.zeros(a.size)
+    for _ in range(40):
+        c = np.where(fb_ != fa, b - fb_ * (b - a) / (fb_ - fa), 0.5 * (a + b))
         fc = np.log(np.abs(_nu_pick(ops, np.exp(c), sel, ri)))
         left = np.sign(fc) == np.sign(fa)
-        a = np.where(left, c, a)
-        fa = np.where(left, fc, fa)
+        fb_ = np.where(left, np.where(last == 1, 0.5 * fb_, fb_), fc)
+        fa = np.where(left, fc, np.where(last == -1, 0.5 * fa, fa))
         b = np.where(left, b, c)
-    beta = np.exp(0.5 * (a + b))
+        a = np.where(left, c, a)
+        last = np.where(left, 1, -1)
+        if np.all((np.abs(b - a) < 1e-15 * np.maximum(1.0, np.abs(a))) | (fc == 0)):
+            break
+    c = np.where(fb_ != fa, b - fb_ * (b - a) / (fb_ - fa), 0.5 * (a + b))
+    beta = np.exp(c)
     nu = _nu_pick(ops, beta, sel, ri)
     return fi, beta, -1.0 / nu
 
@@ -344,53 +351,80 @@ def _refine_crossings(
     frozen: FrozenSystem,
     fb_ref: Feedback,
     T: np.ndarray,
+    k: np.ndarray,
     w0: np.ndarray,
     w1: np.ndarray,
-    g0: np.ndarray,
-    g1: np.ndarray,
+    h0: np.ndarray,
+    h1: np.ndarray,
     b0: np.ndarray,
     b1: np.ndarray,
-    iters: int = 40,
+    psi0: np.ndarray,
+    psi1: np.ndarray,
+    iters: int = 60,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Regula falsi (Illinois) on g(w) = arg(z(w) e^{jwT}) in [w0, w1], with
-    beta re-solved exactly near the branch at each trial frequency."""
+    """Solve h(w) = w T - psi(w) - 2 pi k = 0 in [w0, w1] by regula falsi
+    (Illinois), with beta and psi = -arg z re-solved exactly near the branch
+    at each trial frequency.  ``h0``, ``h1`` are the (exact) end values."""
     blo = np.minimum(b0, b1) / 1.5
     bhi = np.maximum(b0, b1) * 1.5
-    wa, wb, ga, gb = w0.copy(), w1.copy(), g0.copy(), g1.copy()
-    beta = 0.5 * (b0 + b1)
-    w = 0.5 * (wa + wb)
-    side = np.zeros(T.size)
+    wa, wb, ha, hb = w0.copy(), w1.copy(), h0.copy(), h1.copy()
+    beta = np.where(h1 != h0, b0 + (b1 - b0) * h0 / (h0 - h1), 0.5 * (b0 + b1))
+    w = np.where(h1 != h0, w0 - h0 * (w1 - w0) / (h1 - h0), 0.5 * (w0 + w1))
     ok = np.ones(T.size, bool)
+    active = np.ones(T.size, bool)
+    last = np.zeros(T.size)
     for _ in range(iters):
-        w = np.where(gb != ga, wb - gb * (wb - wa) / (gb - ga), 0.5 * (wa + wb))
-        w = np.clip(w, np.minimum(wa, wb), np.maximum(wa, wb))
-        ops = _ops(frozen, fb_ref, w)
-        fi, bb, zz = _solve_beta(ops, blo, bhi, n_grid=12)
-        # pick the solution nearest the interpolated guess at each point
-        best_b = np.full(T.size, np.nan)
-        best_z = np.full(T.size, np.nan + 0j)
-        target = b0 + (b1 - b0) * (w - w0) / np.where(w1 != w0, w1 - w0, 1.0)
+        idx = np.nonzero(active)[0]
+        if idx.size == 0:
+            break
+        wa_, wb_, ha_, hb_ = wa[idx], wb[idx], ha[idx], hb[idx]
+        wt = np.where(hb_ != ha_, wb_ - hb_ * (wb_ - wa_) / (hb_ - ha_), 0.5 * (wa_ + wb_))
+        wt = np.clip(wt, np.minimum(wa_, wb_), np.maximum(wa_, wb_))
+        ops = _ops(frozen, fb_ref, wt)
+        fi, bb, zz = _solve_beta(ops, blo[idx], bhi[idx], n_grid=10)
+        frac = (wt - w0[idx]) / np.where(w1[idx] != w0[idx], w1[idx] - w0[idx], 1.0)
+        target = b0[idx] + (b1[idx] - b0[idx]) * frac
+        psi_guess = psi0[idx] + (psi1[idx] - psi0[idx]) * frac
+        best_b = np.full(idx.size, np.nan)
+        best_z = np.full(idx.size, np.nan + 0j)
         dist = np.abs(np.log(bb / target[fi]))
         ordr = np.argsort(-dist)  # later writes (smaller distance) win
         best_b[fi[ordr]] = bb[ordr]
         best_z[fi[ordr]] = zz[ordr]
-        ok &= np.isfinite(best_b)
-        beta = np.where(np.isfinite(best_b), best_b, beta)
-        gw = np.angle(best_z * np.exp(1j * w * T))
-        gw = np.where(np.isfinite(gw), gw, 0.0)
-        same = np.sign(gw) == np.sign(ga)
-        # Illinois modification: halve the stale end's value
-        ga_new = np.where(same, gw, ga)
-        gb_new = np.where(same, gb, gw)
-        wa_new = np.where(same, w, wa)
-        wb_new = np.where(same, wb, w)
-        gb_new = np.where(same & (side == 1), gb_new * 0.5, gb_new)
-        ga_new = np.where(~same & (side == -1), ga_new * 0.5, ga_new)
-        side = np.where(same, 1, -1)
-        wa, wb, ga, gb = wa_new, wb_new, ga_new, gb_new
-        if np.all(np.abs(wb - wa) <= 1e-13 * np.abs(w)):
-            break
+        good = np.isfinite(best_b)
+        ok[idx[~good]] = False
+        active[idx[~good]] = False
+        psi = -np.angle(best_z)
+        psi = psi + 2 * np.pi * np.round((psi_guess - psi) / (2 * np.pi))
+        ht = wt * T[idx] - psi - 2 * np.pi * k[idx]
+        w[idx] = np.where(good, wt, w[idx])
+        beta[idx] = np.where(good, best_b, beta[idx])
+        same = np.sign(ht) == np.sign(ha_)
+        lst = last[idx]
+        new_wa = np.where(same, wt, wa_)
+        new_ha = np.where(same, ht, np.where(lst == -1, 0.5 * ha_, ha_))
+        new_wb = np.where(same, wb_, wt)
+        new_hb = np.where(same, np.where(lst == 1, 0.5 * hb_, hb_), ht)
+        last[idx] = np.where(same, 1, -1)
+        wa[idx], ha[idx], wb[idx], hb[idx] = new_wa, new_ha, new_wb, new_hb
+        done = (np.abs(wb[idx] - wa[idx]) <= 1e-14 * np.abs(wt)) | (ht == 0)
+        active[idx[done & good]] = False
     return w, beta, ok
+
+
+def _grid(frozen: FrozenSystem, lo: float, hi: float, n_base: int) -> np.ndarray:
+    """Frequency grid, uniform plus clusters that resolve every resonance in
+    the band (points at w_r + sigma tan(theta), theta uniform)."""
+    cm = _cached_modes(frozen)
+    lam = cm.lam[cm.lam.imag > 0]
+    parts = [np.linspace(lo, hi, n_base)]
+    th = np.linspace(-1.52, 1.52, 161)
+    for l_ in lam:
+        wr, sg = float(l_.imag), max(float(-l_.real), 2e-3 * float(l_.imag))
+        if lo - 20 * sg < wr < hi + 20 * sg:
+            parts.append(wr + sg * np.tan(th))
+    w = np.unique(np.concatenate(parts))
+    return w[(w >= lo) & (w <= hi)]
 
 
 # ============================================================================ lobes
@@ -441,7 +475,8 @@ def lobes(
     fmin, fmax : float, optional
         Chatter frequency band searched, Hz (default: from the modes).
     n_frequencies : int, optional
-        Frequency grid size (default: enough that w T turns < pi/2 per step).
+        Size of the uniform part of the frequency grid (default 2000); every
+        resonance in the band adds a cluster of points that resolves it.
     verify : int
         Number of speeds spot-checked with characteristic roots at 0.9 and
         1.1 b_lim (0 to skip).
@@ -472,39 +507,55 @@ def lobes(
         raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
     T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
     lo, hi = _band(frozen, fmin, fmax)
-    Tmax = float(T.max())
-    n = n_frequencies or int(min(200_000, max(3000, np.ceil(4.0 * (hi - lo) * Tmax / np.pi))))
-    omega = np.linspace(lo, hi, n)
+    omega = _grid(frozen, lo, hi, n_frequencies or 2000)
+    n = omega.size
     beta_max = width_max / b_ref
     ops, segs = boundary(frozen, fb_ref, omega, beta_max)
 
+    # candidate envelope crossing per speed: on each grid interval of each
+    # branch, F(w) = (w T - psi(w)) / 2 pi crosses the integers k between its
+    # end values; with beta linear on the interval the lowest crossing is the
+    # integer nearest the lower-beta end.
     nT = T.size
     best = np.full(nT, np.inf)
-    info = np.zeros((nT, 7))  # w0, w1, g0, g1, b0, b1, seg
-    for si, sg in enumerate(segs):
-        phase = np.angle(sg.z[None, :] * np.exp(1j * sg.omega[None, :] * T[:, None]))  # (nT, L)
-        g0, g1 = phase[:, :-1], phase[:, 1:]
-        cross = (np.sign(g0) != np.sign(g1)) & (np.abs(g1 - g0) < np.pi)
-        ti, li = np.nonzero(cross)
-        if ti.size == 0:
+    info = np.zeros((nT, 9))  # k, w0, w1, h0, h1, b0, b1, psi0, psi1
+    for sg in segs:
+        psi = -np.unwrap(np.angle(sg.z))
+        F = (sg.omega[None, :] * T[:, None] - psi[None, :]) / (2 * np.pi)  # (nT, L)
+        Fa, Fb = F[:, :-1], F[:, 1:]
+        ba, bb = sg.beta[:-1], sg.beta[1:]
+        lo_end_is_a = (ba <= bb)[None, :]
+        inc = Fb >= Fa
+        Flo, Fhi = np.minimum(Fa, Fb), np.maximum(Fa, Fb)
+        k_lo = np.floor(Flo) + 1.0  # smallest integer in (Flo, Fhi]
+        k_hi = np.floor(Fhi)
+        near_a = np.where(inc, k_lo, k_hi)
+        near_b = np.where(inc, k_hi, k_lo)
+        kc = np.where(lo_end_is_a, near_a, near_b)
+        has = k_hi >= k_lo
+        den = np.where(Fb != Fa, Fb - Fa, 1.0)
+        t = np.clip((kc - Fa) / den, 0.0, 1.0)
+        bc = np.where(has, ba[None, :] + t * (bb - ba)[None, :], np.inf)
+        j = np.argmin(bc, axis=1)
+        r = np.arange(nT)
+        bmin = bc[r, j]
+        upd = bmin < best
+        if not np.any(upd):
             continue
-        frac = g0[ti, li] / (g0[ti, li] - g1[ti, li])
-        bint = sg.beta[li] + frac * (sg.beta[li + 1] - sg.beta[li])
-        # keep the smallest crossing per speed
-        order = np.argsort(-bint)
-        tsel, lsel, bsel = ti[order], li[order], bint[order]
-        upd = bsel < best[tsel]
-        tsel, lsel, bsel = tsel[upd], lsel[upd], bsel[upd]
-        best[tsel] = bsel
-        info[tsel] = np.stack(
+        ru, ju = r[upd], j[upd]
+        kk = kc[ru, ju]
+        best[ru] = bmin[upd]
+        info[ru] = np.stack(
             [
-                sg.omega[lsel],
-                sg.omega[lsel + 1],
-                g0[tsel, lsel],
-                g1[tsel, lsel],
-                sg.beta[lsel],
-                sg.beta[lsel + 1],
-                np.full(lsel.size, si),
+                kk,
+                sg.omega[ju],
+                sg.omega[ju + 1],
+                2 * np.pi * (Fa[ru, ju] - kk),
+                2 * np.pi * (Fb[ru, ju] - kk),
+                ba[ju],
+                bb[ju],
+                psi[ju],
+                psi[ju + 1],
             ],
             axis=1,
         )
@@ -514,22 +565,20 @@ def lobes(
     lobe_k = np.full(nT, -1)
     if np.any(has):
         h = np.nonzero(has)[0]
-        w, beta, ok = _refine_crossings(frozen, fb_ref, T[h], *[info[h, j] for j in range(6)])
+        w, beta, ok = _refine_crossings(frozen, fb_ref, T[h], *[info[h, j] for j in range(9)])
         beta = np.where(ok, beta, best[h])
         b_lim[h] = beta * b_ref
         chatter[h] = w / (2 * np.pi)
-        zc = np.exp(-1j * w * T[h])
-        lobe_k[h] = np.round((w * T[h] + np.angle(zc)) / (2 * np.pi)).astype(int)
+        lobe_k[h] = np.floor(w * T[h] / (2 * np.pi)).astype(int)
 
     # every lobe in the range of delays, as curves on the frequency grid
     lobe_list: list[Lobe] = []
     Tlo, Thi = float(T.min()), float(T.max())
     for sg in segs:
-        phi = -np.unwrap(np.angle(sg.z))  # w T = phi + 2 pi k
-        kmin = int(np.floor((sg.omega * Tlo - phi).min() / (2 * np.pi)))
+        phi = np.mod(-np.angle(sg.z), 2 * np.pi)  # w T = phi + 2 pi k, phi in [0, 2 pi)
+        kmin = max(int(np.floor((sg.omega * Tlo - phi).min() / (2 * np.pi))), 0)
         kmax = int(np.ceil((sg.omega * Thi - phi).max() / (2 * np.pi)))
-        kmin = max(kmin, 0)
-        if kmax - kmin > 2000:  # a dense diagram: keep the lobes near the envelope's numbers
+        if kmax - kmin > 400:  # a dense diagram: keep the lobes that form the envelope
             ks = np.unique(lobe_k[lobe_k >= 0])
             krange = ks if ks.size else np.arange(kmin, kmin + 50)
         else:
@@ -590,33 +639,19 @@ def _absolute_minimum(
         return {"width": float("inf"), "chatter_hz": float("nan")}
     cand = [(float(sg.beta.min()), sg, int(np.argmin(sg.beta))) for sg in segs]
     bmin, sg, j = min(cand, key=lambda c: c[0])
-    # golden-section refinement of min over w of beta(w) on the bracketing samples
+    # bounded Brent refinement of min over w of beta(w) between the neighbouring samples
     if 0 < j < sg.omega.size - 1:
-        a, c = sg.omega[j - 1], sg.omega[j + 1]
-        gr = (np.sqrt(5) - 1) / 2
+        from scipy.optimize import minimize_scalar
 
         def f(w: float) -> float:
             ops = _ops(frozen, fb_ref, np.array([w]))
-            _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=16)
+            _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=8)
             return float(bb.min()) if bb.size else np.inf
 
-        x1, x2 = c - gr * (c - a), a + gr * (c - a)
-        f1, f2 = f(x1), f(x2)
-        for _ in range(50):
-            if f1 < f2:
-                c, x2, f2 = x2, x1, f1
-                x1 = c - gr * (c - a)
-                f1 = f(x1)
-            else:
-                a, x1, f1 = x1, x2, f2
-                x2 = a + gr * (c - a)
-                f2 = f(x2)
-            if c - a < 1e-12 * c:
-                break
-        w = 0.5 * (a + c)
-        bm = min(f1, f2)
-        if np.isfinite(bm) and bm <= bmin:
-            return {"width": bm * b_ref, "chatter_hz": w / (2 * np.pi)}
+        a, c = float(sg.omega[j - 1]), float(sg.omega[j + 1])
+        res = minimize_scalar(f, bounds=(a, c), method="bounded", options={"xatol": 1e-10 * c})
+        if np.isfinite(res.fun) and res.fun <= bmin:
+            return {"width": float(res.fun) * b_ref, "chatter_hz": float(res.x) / (2 * np.pi)}
     return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
 
 
