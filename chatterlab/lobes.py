@@ -444,6 +444,108 @@ def _band(frozen: FrozenSystem, fmin: float | None, fmax: float | None) -> tuple
     return lo, hi
 
 
+class Boundary:
+    """The stability boundary of one frozen configuration, computed once on a
+    frequency grid and evaluated at any delays (:meth:`envelope`).
+
+    Used by :func:`lobes` and, cached per slide position, by the stability
+    atlas sweep.
+    """
+
+    def __init__(
+        self,
+        frozen: FrozenSystem,
+        *,
+        width_max: float,
+        terms: Literal["pdo", "o"] = "pdo",
+        fmin: float | None = None,
+        fmax: float | None = None,
+        n_base: int | None = None,
+        couplings: list[str] | None = None,
+    ) -> None:
+        if not (np.isfinite(width_max) and width_max > 0):
+            raise InputError(f"width_max must be > 0 m (got {width_max!r})")
+        if terms not in ("pdo", "o"):
+            raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
+        self.frozen = frozen
+        self.width_max = float(width_max)
+        # feedback at b = 1 m: beta is the width in m
+        self.fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+        if not np.any(self.fb_ref.Dl_O):
+            raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
+        lo, hi = _band(frozen, fmin, fmax)
+        self.omega = _grid(frozen, lo, hi, n_base or 2000)
+        self.ops, self.segments = boundary(frozen, self.fb_ref, self.omega, self.width_max)
+
+    def envelope(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s)."""
+        frozen, fb_ref, b_ref = self.frozen, self.fb_ref, 1.0
+        T = np.atleast_1d(np.asarray(T, dtype=float))
+        # candidate envelope crossing per speed: on each grid interval of each
+        # branch, F(w) = (w T - psi(w)) / 2 pi crosses the integers k between its
+        # end values; with beta linear on the interval the lowest crossing is the
+        # integer nearest the lower-beta end.
+        nT = T.size
+        best = np.full(nT, np.inf)
+        info = np.zeros((nT, 9))  # k, w0, w1, h0, h1, b0, b1, psi0, psi1
+        for sg in self.segments:
+            psi = -np.unwrap(np.angle(sg.z))
+            F = (sg.omega[None, :] * T[:, None] - psi[None, :]) / (2 * np.pi)  # (nT, L)
+            Fa, Fb = F[:, :-1], F[:, 1:]
+            ba, bb = sg.beta[:-1], sg.beta[1:]
+            lo_end_is_a = (ba <= bb)[None, :]
+            inc = Fb >= Fa
+            Flo, Fhi = np.minimum(Fa, Fb), np.maximum(Fa, Fb)
+            k_lo = np.floor(Flo) + 1.0  # smallest integer in (Flo, Fhi]
+            k_hi = np.floor(Fhi)
+            near_a = np.where(inc, k_lo, k_hi)
+            near_b = np.where(inc, k_hi, k_lo)
+            kc = np.where(lo_end_is_a, near_a, near_b)
+            has = k_hi >= k_lo
+            den = np.where(Fb != Fa, Fb - Fa, 1.0)
+            t = np.clip((kc - Fa) / den, 0.0, 1.0)
+            bc = np.where(has, ba[None, :] + t * (bb - ba)[None, :], np.inf)
+            j = np.argmin(bc, axis=1)
+            r = np.arange(nT)
+            bmin = bc[r, j]
+            upd = bmin < best
+            if not np.any(upd):
+                continue
+            ru, ju = r[upd], j[upd]
+            kk = kc[ru, ju]
+            best[ru] = bmin[upd]
+            info[ru] = np.stack(
+                [
+                    kk,
+                    sg.omega[ju],
+                    sg.omega[ju + 1],
+                    2 * np.pi * (Fa[ru, ju] - kk),
+                    2 * np.pi * (Fb[ru, ju] - kk),
+                    ba[ju],
+                    bb[ju],
+                    psi[ju],
+                    psi[ju + 1],
+                ],
+                axis=1,
+            )
+        has = np.isfinite(best)
+        b_lim = np.full(nT, np.inf)
+        chatter = np.full(nT, np.nan)
+        lobe_k = np.full(nT, -1)
+        if np.any(has):
+            h = np.nonzero(has)[0]
+            w, beta, ok = _refine_crossings(frozen, fb_ref, T[h], *[info[h, j] for j in range(9)])
+            beta = np.where(ok, beta, best[h])
+            b_lim[h] = beta * b_ref
+            chatter[h] = w / (2 * np.pi)
+            lobe_k[h] = np.floor(w * T[h] / (2 * np.pi)).astype(int)
+        return b_lim, chatter, lobe_k
+
+    def absolute_minimum(self) -> dict[str, float]:
+        """Smallest boundary width over all delays: ``width`` (m), ``chatter_hz``."""
+        return _absolute_minimum(self.frozen, self.fb_ref, self.segments, 1.0)
+
+
 def lobes(
     frozen: FrozenSystem,
     speeds: np.ndarray,
@@ -501,75 +603,18 @@ def lobes(
         raise InputError(f"width_max must be > 0 m (got {width_max!r})")
     if terms not in ("pdo", "o"):
         raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
-    fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
-    b_ref = 1.0  # feedback built at b = 1 m: beta is the width in m
-    if not np.any(fb_ref.Dl_O):
-        raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
+    bd = Boundary(
+        frozen,
+        width_max=width_max,
+        terms=terms,
+        fmin=fmin,
+        fmax=fmax,
+        n_base=n_frequencies,
+        couplings=couplings,
+    )
+    fb_ref, segs, n, b_ref = bd.fb_ref, bd.segments, bd.omega.size, 1.0
     T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
-    lo, hi = _band(frozen, fmin, fmax)
-    omega = _grid(frozen, lo, hi, n_frequencies or 2000)
-    n = omega.size
-    beta_max = width_max / b_ref
-    ops, segs = boundary(frozen, fb_ref, omega, beta_max)
-
-    # candidate envelope crossing per speed: on each grid interval of each
-    # branch, F(w) = (w T - psi(w)) / 2 pi crosses the integers k between its
-    # end values; with beta linear on the interval the lowest crossing is the
-    # integer nearest the lower-beta end.
-    nT = T.size
-    best = np.full(nT, np.inf)
-    info = np.zeros((nT, 9))  # k, w0, w1, h0, h1, b0, b1, psi0, psi1
-    for sg in segs:
-        psi = -np.unwrap(np.angle(sg.z))
-        F = (sg.omega[None, :] * T[:, None] - psi[None, :]) / (2 * np.pi)  # (nT, L)
-        Fa, Fb = F[:, :-1], F[:, 1:]
-        ba, bb = sg.beta[:-1], sg.beta[1:]
-        lo_end_is_a = (ba <= bb)[None, :]
-        inc = Fb >= Fa
-        Flo, Fhi = np.minimum(Fa, Fb), np.maximum(Fa, Fb)
-        k_lo = np.floor(Flo) + 1.0  # smallest integer in (Flo, Fhi]
-        k_hi = np.floor(Fhi)
-        near_a = np.where(inc, k_lo, k_hi)
-        near_b = np.where(inc, k_hi, k_lo)
-        kc = np.where(lo_end_is_a, near_a, near_b)
-        has = k_hi >= k_lo
-        den = np.where(Fb != Fa, Fb - Fa, 1.0)
-        t = np.clip((kc - Fa) / den, 0.0, 1.0)
-        bc = np.where(has, ba[None, :] + t * (bb - ba)[None, :], np.inf)
-        j = np.argmin(bc, axis=1)
-        r = np.arange(nT)
-        bmin = bc[r, j]
-        upd = bmin < best
-        if not np.any(upd):
-            continue
-        ru, ju = r[upd], j[upd]
-        kk = kc[ru, ju]
-        best[ru] = bmin[upd]
-        info[ru] = np.stack(
-            [
-                kk,
-                sg.omega[ju],
-                sg.omega[ju + 1],
-                2 * np.pi * (Fa[ru, ju] - kk),
-                2 * np.pi * (Fb[ru, ju] - kk),
-                ba[ju],
-                bb[ju],
-                psi[ju],
-                psi[ju + 1],
-            ],
-            axis=1,
-        )
-    has = np.isfinite(best)
-    b_lim = np.full(nT, np.inf)
-    chatter = np.full(nT, np.nan)
-    lobe_k = np.full(nT, -1)
-    if np.any(has):
-        h = np.nonzero(has)[0]
-        w, beta, ok = _refine_crossings(frozen, fb_ref, T[h], *[info[h, j] for j in range(9)])
-        beta = np.where(ok, beta, best[h])
-        b_lim[h] = beta * b_ref
-        chatter[h] = w / (2 * np.pi)
-        lobe_k[h] = np.floor(w * T[h] / (2 * np.pi)).astype(int)
+    b_lim, chatter, lobe_k = bd.envelope(T)
 
     # every lobe in the range of delays, as curves on the frequency grid
     lobe_list: list[Lobe] = []
@@ -606,7 +651,7 @@ def lobes(
         minimum = {"width": float(b_lim[j]), "speed": float(speeds[j]), "chatter_hz": float(chatter[j])}
     else:
         minimum = {"width": float("inf"), "speed": float("nan"), "chatter_hz": float("nan")}
-    absolute = _absolute_minimum(frozen, fb_ref, segs, b_ref)
+    absolute = bd.absolute_minimum()
 
     diagram = LobeDiagram(
         speed=speeds,

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plot_frf", "plot_nyquist", "savefig"]
+__all__ = ["plot_frf", "plot_nyquist", "plot_lobes", "savefig"]
 
 
 def _index(names: Sequence[str], key: int | str) -> int:
@@ -89,3 +89,97 @@ def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
+
+
+def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: str | None = None) -> Any:
+    """Stability lobe diagram: b_lim (mm) against speed with the unstable
+    region shaded and lobe numbers, above the chatter frequency (Hz) along the
+    envelope.  Returns (ax_lobes, ax_freq)."""
+    import matplotlib.pyplot as plt
+
+    d = diagram
+    if axes is None:
+        fig, axes = plt.subplots(
+            2, 1, sharex=True, figsize=(8.5, 6.5), gridspec_kw={"height_ratios": [3, 1.2]}
+        )
+    ax, axf = axes
+    v = d.speed
+    b = d.b_lim * 1e3
+    fin = np.isfinite(b)
+    top = d.width_max * 1e3
+    # lobes are "dense" when several lobes fall between two sampled speeds
+    dv = float(np.median(np.abs(np.diff(v)))) if v.size > 1 else 0.0
+    kk = d.lobe[d.lobe >= 0]
+    dense = v.size > 1 and kk.size > 1 and (kk.max() - kk.min()) > 0.5 * v.size
+    bb = np.where(fin, b, top)
+    ax.fill_between(v, bb, top, color="tab:red", alpha=0.15, lw=0, label="unstable (chatter)", zorder=0)
+    if dense:
+        spacing = (v.max() - v.min()) / max(1, kk.max() - kk.min())
+        ax.plot(
+            v, bb, color="tab:red", lw=0.7, marker=".", ms=3, zorder=3, label="b_lim at the sampled speeds"
+        )
+        a = d.absolute_minimum["width"] * 1e3
+        if np.isfinite(a):
+            ax.axhline(
+                a,
+                color="k",
+                ls="--",
+                lw=1,
+                label=f"b_lim,min over all speeds {a:.3g} mm ({d.absolute_minimum['chatter_hz']:.1f} Hz)",
+            )
+        ax.text(
+            0.01,
+            0.97,
+            f"lobes denser than the speed grid: one lobe every ~{spacing:.2g} {d.speed_unit}",
+            transform=ax.transAxes,
+            fontsize=8,
+            va="top",
+        )
+    else:
+        for lb in d.lobes:
+            order = np.argsort(lb.speed)
+            ax.plot(lb.speed[order], lb.width[order] * 1e3, color="0.65", lw=0.6, zorder=1)
+        ax.plot(v, bb, color="tab:red", lw=1.8, label="b_lim (stability boundary)", zorder=3)
+    if np.isfinite(d.minimum["width"]):
+        ax.plot(
+            [d.minimum["speed"]],
+            [d.minimum["width"] * 1e3],
+            "ko",
+            ms=5,
+            zorder=4,
+            label=f"min {d.minimum['width'] * 1e3:.3g} mm @ {d.minimum['speed']:.4g} {d.speed_unit}",
+        )
+    # lobe numbers at the envelope's local minima, spread over the range
+    if lobe_numbers and fin.sum() > 2 and not dense:
+        loc = np.nonzero((b[1:-1] <= b[:-2]) & (b[1:-1] <= b[2:]) & fin[1:-1])[0] + 1
+        loc = loc[np.argsort(b[loc])]
+        picked: list[int] = []
+        for j in loc:
+            if all(abs(v[j] - v[p]) > 0.06 * (v.max() - v.min()) for p in picked):
+                picked.append(int(j))
+            if len(picked) >= lobe_numbers:
+                break
+        for j in picked:
+            ax.annotate(
+                f"k={d.lobe[j]}",
+                (v[j], b[j]),
+                textcoords="offset points",
+                xytext=(0, -12),
+                ha="center",
+                fontsize=7,
+            )
+    del dv
+    ax.set_ylim(0, top)
+    ax.set_xlim(v.min(), v.max())
+    ax.set_ylabel("width of cut b [mm]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(alpha=0.3)
+    axf.plot(v[fin], d.chatter_hz[fin], ".", ms=2.5, color="tab:blue")
+    axf.set_ylabel("chatter [Hz]")
+    axf.set_xlabel(f"{d.speed_name} [{d.speed_unit}]")
+    axf.grid(alpha=0.3)
+    ttl = title or f"{d.model}: stability lobes ({d.terms})"
+    if d.position is not None:
+        ttl += f", s = {d.position:g} m"
+    ax.set_title(ttl, fontsize=10)
+    return axes
