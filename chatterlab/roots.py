@@ -70,6 +70,7 @@ References
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -600,9 +601,18 @@ def char_matrix_derivative(
 
 
 def _newton(
-    sys: DelaySystem, lam0: ArrayLike, *, tol: float = 1e-13, maxiter: int = 40
+    sys: DelaySystem,
+    lam0: ArrayLike,
+    *,
+    tol: float = 1e-13,
+    maxiter: int = 40,
+    deflate: ComplexArray | None = None,
 ) -> tuple[ComplexArray, NDArray[np.bool_]]:
-    """Vectorised Newton iteration on det Delta; returns (roots, converged)."""
+    """Vectorised Newton iteration on det Delta; returns (roots, converged).
+
+    ``deflate``: known roots ``zeta_i``; Newton is then applied to
+    ``det Delta(lam) / prod (lam - zeta_i)`` so that it cannot return them.
+    """
     lam = np.array(lam0, dtype=complex).ravel()
     conv = np.zeros(lam.shape, dtype=bool)
     alive = np.isfinite(lam)
@@ -622,6 +632,8 @@ def _newton(
             X = _batched_solve(D, Dp, singular=np.inf)
             tr = np.trace(X, axis1=-2, axis2=-1)
             exact = np.isinf(tr.real) | np.isinf(tr.imag)
+            if deflate is not None and deflate.size:
+                tr = tr - (1.0 / (L[:, None] - deflate[None, :])).sum(axis=1)
             step = 1.0 / tr
             step[~np.isfinite(tr)] = np.nan
         step[exact] = 0.0
@@ -863,37 +875,109 @@ def _branch_mu(sys: DelaySystem, lam: ComplexArray) -> ComplexArray:
         return mu
 
 
-def _predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
-    """Predicted root locations along the branches ``lam tau = log mu_j + 2 pi i k``.
+def _axis_grid(sys: DelaySystem, top: float) -> FloatArray:
+    """Frequencies in [0, top] (rad/s): step pi/(4 tau) plus refinement at poles."""
+    tau = sys.tau
+    step = min(math.pi / (4.0 * tau), top / 200.0)
+    pts = [np.linspace(0.0, top, int(math.ceil(top / step)) + 1)]
+    offs = np.array([-8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8])
+    p = sys.delay_free_poles()
+    for z in p[p.imag >= 0]:
+        d = max(abs(z.real), 1e-9 * abs(z), 1e-12)
+        loc = z.imag + d * offs
+        pts.append(loc[(loc >= 0) & (loc <= top)])
+    return np.unique(np.concatenate(pts))
 
-    One start per integer ``k`` with ``2 pi k / tau <= top`` and per branch,
-    four fixed-point sweeps ``lam <- (log mu(lam) + 2 pi i m) / tau`` on the
-    branch nearest to ``lam`` (a contraction when ``|mu'/mu| < tau``, i.e. for
-    long delays), plus the sign changes and dips of ``det Delta(x)`` on the
-    real axis.  Returns the estimates (upper half plane) and their
-    uncertainty (size of the last sweep step; rad/s).
+
+def _track_branches(mu: ComplexArray) -> ComplexArray:
+    """Reorder the columns of ``mu`` (shape (G, r)) into continuous branches."""
+    G, r = mu.shape
+    if r == 1 or G < 2:
+        return mu
+    perms = np.array(list(itertools.permutations(range(r)))) if r <= 4 else None
+    out = np.empty_like(mu)
+    order = np.arange(r)
+    out[0] = mu[0]
+    if perms is not None:
+        # best raw-to-raw matching of consecutive samples, vectorised
+        with np.errstate(invalid="ignore"):
+            cost = np.abs(mu[1:, perms] - mu[:-1, None, :]).sum(axis=2)
+        cost[~np.isfinite(cost)] = np.inf
+        best = perms[np.argmin(cost, axis=1)]
+        for i in range(1, G):
+            order = best[i - 1][order]
+            out[i] = mu[i, order]
+        return out
+    for i in range(1, G):  # pragma: no cover - r > 4 is unusual
+        prev = out[i - 1]
+        cur = list(range(r))
+        for j in range(r):
+            k = min(cur, key=lambda c, j=j: abs(mu[i, c] - prev[j]))
+            order[j] = k
+            cur.remove(k)
+        out[i] = mu[i, order]
+    return out
+
+
+def _predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
+    """Predicted root locations from the phase condition along each branch.
+
+    With ``mu_j(j w)`` the eigenvalues of ``H(j w)`` tracked continuously along
+    the axis and ``phi_j`` their unwrapped phase, roots near the axis lie
+    where ``tau w - phi_j(w) = 2 pi k`` (the phase condition of
+    ``lam tau = log mu_j(lam) + 2 pi i k``); one Newton step of that scalar
+    equation from the crossing ``j w*`` gives
+    ``lam ~ j w* + log|mu_j| / (tau - s)``, ``s = d log mu_j / d lam``.
+    Added: sign changes and dips of ``det Delta(x)`` on the real axis and the
+    delay-free poles.  Returns the estimates (upper half plane) and an
+    uncertainty (rad/s; ``inf`` where ``|s| > tau / 2``, i.e. where the
+    long-delay picture does not hold).
     """
     tau = sys.tau
-    kmax = int(math.ceil(top * tau / (2.0 * np.pi))) + 1
-    k = np.arange(0, kmax + 1)
-    mu = _branch_mu(sys, 2j * np.pi * k / tau)
+    w = _axis_grid(sys, top)
+    mu = _track_branches(_branch_mu(sys, 1j * w))
+    ests = []
+    uncs = []
     with np.errstate(all="ignore"):
-        lam = ((np.log(mu) + 2j * np.pi * k[:, None]) / tau).ravel()
-    lam = lam[np.isfinite(lam) & (lam.real * tau > -_EXP_LIMIT)]
-    unc = np.full(lam.shape, np.inf)
-    for _ in range(4):
-        mu = _branch_mu(sys, lam)
-        with np.errstate(all="ignore"):
-            lg = np.log(mu)
-            mm = np.round((tau * lam.imag[:, None] - lg.imag) / (2.0 * np.pi))
-            cand = (lg + 2j * np.pi * mm) / tau
-            d = np.abs(cand - lam[:, None])
-        d[~np.isfinite(d)] = np.inf
-        j = np.argmin(d, axis=1)
-        new = cand[np.arange(lam.size), j]
-        ok = np.isfinite(new) & (new.real * tau > -_EXP_LIMIT)
-        unc = np.where(ok, d[np.arange(lam.size), j], np.inf)
-        lam = np.where(ok, new, lam)
+        for j in range(mu.shape[1]):
+            m = mu[:, j]
+            ok = np.isfinite(m) & (m != 0)
+            if np.sum(ok) < 2:
+                continue
+            ww = w[ok]
+            la = np.log(np.abs(m[ok]))
+            ph = np.unwrap(np.angle(m[ok]))
+            psi = (tau * ww - ph) / (2.0 * np.pi)
+            lev = np.floor(psi)
+            cross = np.flatnonzero(lev[1:] != lev[:-1])
+            if cross.size == 0:
+                continue
+            dla = np.gradient(la, ww)
+            dph = np.gradient(ph, ww)
+            idx_list = []
+            kk_list = []
+            for i in cross:
+                lo_, hi_ = sorted((psi[i], psi[i + 1]))
+                ks = np.arange(math.floor(lo_) + 1, math.floor(hi_) + 1)
+                idx_list.append(np.full(ks.shape, i))
+                kk_list.append(ks)
+            ii = np.concatenate(idx_list)
+            kk = np.concatenate(kk_list)
+            t = (kk - psi[ii]) / (psi[ii + 1] - psi[ii])
+            wstar = ww[ii] + t * (ww[ii + 1] - ww[ii])
+            lam_abs = la[ii] + t * (la[ii + 1] - la[ii])
+            # d log mu / d lam on the axis = -i d log mu / d w
+            s = -1j * ((dla[ii] + t * (dla[ii + 1] - dla[ii]))
+                       + 1j * (dph[ii] + t * (dph[ii + 1] - dph[ii])))
+            corr = lam_abs / (tau - s)
+            est = 1j * wstar + corr
+            ratio = np.abs(s) / tau
+            unc = np.where(ratio < 0.5, 2.0 * ratio * np.abs(corr) + 1e-12, np.inf)
+            good = np.isfinite(est) & (est.real * tau > -_EXP_LIMIT)
+            ests.append(est[good])
+            uncs.append(unc[good])
+    lam = np.concatenate(ests) if ests else np.zeros(0, complex)
+    unc = np.concatenate(uncs) if uncs else np.zeros(0)
     # the real axis (two real roots may share a branch index)
     p = sys.delay_free_poles()
     with np.errstate(all="ignore"):
@@ -909,7 +993,7 @@ def _predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
     # term is weak or the delay short (where the sweeps do not contract)
     pp = p[p.imag >= 0]
     lam = np.concatenate([lam, xr.astype(complex), pp])
-    unc = np.concatenate([unc, np.full(xr.shape, x[1] - x[0]), np.full(pp.shape, np.inf)])
+    unc = np.concatenate([unc, np.full(xr.shape, x[1] - x[0]), np.zeros(pp.shape)])
     lam = np.where(lam.imag < 0, lam.conj(), lam)
     return lam, unc
 
@@ -956,9 +1040,11 @@ def _spectral(
     method = "spectral"
     note = ""
     for _round in range(20):
-        delta = 0.5 / tau + 0.1 * abs(a_c)
+        delta = 0.25 / tau + 0.05 * abs(a_c)
         lo = a_c - delta
-        need = est[est.real + np.minimum(unc, 1e6) >= lo]
+        sel = est.real + np.minimum(unc, 1e6) >= lo
+        # only roots right of lo matter: cover the prediction clipped to lo
+        need = np.maximum(est.real[sel], lo) + 1j * est.imag[sel]
         # a prediction whose fixed-point iteration did not settle is only
         # known to lie near the axis: cover the band from its estimate to lo
         cov = np.zeros(need.shape, dtype=bool)
@@ -1077,20 +1163,49 @@ def _finish(
 # ---------------------------------------------------------------------------
 # branch enumeration
 # ---------------------------------------------------------------------------
+def _newton_distinct(
+    sys: DelaySystem, starts: ComplexArray, known: ComplexArray
+) -> tuple[ComplexArray, int]:
+    """Newton from each start; a start that lands on a root already claimed by
+    another start is restarted with the claimed roots deflated, so that one
+    start yields one distinct root.  Returns (all distinct roots, failures)."""
+    scale = _root_scale(sys)
+    lam, conv = _newton(sys, starts)
+    roots = _dedupe(np.concatenate([known, _canonical(lam[conv], scale)]), 1e-8, scale)
+    rejected = int(np.sum(~conv))
+    ndup = int(np.sum(conv)) + known.size - roots.size
+    if ndup <= 0:
+        return roots, rejected
+    # which starts collided: those whose root is closer to another start
+    good = _canonical(lam, scale)
+    d_own = np.abs(good - _canonical(starts, scale))
+    dup_idx = []
+    for z in roots:
+        hit = np.flatnonzero(conv & (np.abs(good - z) <= 1e-8 * max(abs(z), scale)))
+        if hit.size > 1:
+            dup_idx.extend(hit[np.argsort(d_own[hit])][1:].tolist())
+    if not dup_idx:
+        return roots, rejected
+    defl = np.concatenate([roots, roots[roots.imag != 0].conj()])
+    lam2, conv2 = _newton(sys, starts[dup_idx], deflate=defl, maxiter=60)
+    if np.any(conv2):
+        # polish without deflation (deflation only steers the iteration)
+        lam3, conv3 = _newton(sys, lam2[conv2])
+        roots = _dedupe(np.concatenate([roots, _canonical(lam3[conv3], scale)]), 1e-8, scale)
+    return roots, rejected
+
+
 def _branch(
     sys: DelaySystem, count: int, omega_max: float | None, t0: float
 ) -> RootsResult:
     tau = sys.tau
-    scale = _root_scale(sys)
     top = _band_top(sys, count, omega_max)
     est, unc = _predict(sys, top)
     # Newton from the predictions that may end up among the rightmost
     re = est.real + np.minimum(unc, 1e6)
     take = np.argsort(-re)
     nstart = min(est.size, 4 * count + 16)
-    lam, conv = _newton(sys, est[take[:nstart]])
-    roots = _dedupe(_canonical(lam[conv], scale), 1e-8, scale)
-    rejected = int(np.sum(~conv))
+    roots, rejected = _newton_distinct(sys, est[take[:nstart]], np.zeros(0, complex))
     # widen until the count-th root is safely right of every unused prediction
     while nstart < est.size and roots.size:
         srt = np.sort(roots.real)[::-1]
@@ -1100,9 +1215,8 @@ def _branch(
             break
         if more.size == 0:
             more = take[nstart:nstart + 4 * count + 16]
-        lam2, conv2 = _newton(sys, est[more])
-        rejected += int(np.sum(~conv2))
-        roots = _dedupe(np.concatenate([roots, _canonical(lam2[conv2], scale)]), 1e-8, scale)
+        roots, rej = _newton_distinct(sys, est[more], roots)
+        rejected += rej
         nstart += more.size
         take = np.concatenate([take[:nstart - more.size], more,
                                np.setdiff1d(take[nstart - more.size:], more, assume_unique=True)])
