@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -21,7 +22,9 @@ __all__ = ["main", "build_parser"]
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {}
 
 
-def _command(name: str) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
+def _command(
+    name: str,
+) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
     def deco(fn: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
         COMMANDS[name] = fn
         return fn
@@ -48,7 +51,9 @@ def _parse_set(items: Sequence[str] | None) -> dict[str, Any]:
 def _load(args: argparse.Namespace) -> Any:
     from .modelfile import load_model
 
-    return load_model(args.model, variant=getattr(args, "variant", None), overrides=_parse_set(getattr(args, "set", None)))
+    return load_model(
+        args.model, variant=getattr(args, "variant", None), overrides=_parse_set(getattr(args, "set", None))
+    )
 
 
 def _frozen(args: argparse.Namespace) -> Any:
@@ -136,7 +141,9 @@ def _check(args: argparse.Namespace) -> int:
         rows.append(("position / range [m]", f"{mv.position:g} / [{mv.range[0]:g}, {mv.range[1]:g}]"))
     if model.process is not None:
         pr = model.process
-        rows.append(("process", f"{pr.kind}, {pr.speed_name} {pr.speed:g} {pr.speed_unit}, T = {pr.delay():.6g} s"))
+        rows.append(
+            ("process", f"{pr.kind}, {pr.speed_name} {pr.speed:g} {pr.speed_unit}, T = {pr.delay():.6g} s")
+        )
     for k, v in rows:
         print(f"  {k:<26} {v}")
     return 0
@@ -187,10 +194,349 @@ def _frf(args: argparse.Namespace) -> int:
 
         curves = [res]
         if fb is not None:
-            curves = [frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, method=args.method), res]
-        savefig(plot_frf(curves, title=f"{fz.model.name}: {args.output[0]} / {args.input[0]}", peaks=2), args.plot)
+            curves = [
+                frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, method=args.method),
+                res,
+            ]
+        savefig(
+            plot_frf(curves, title=f"{fz.model.name}: {args.output[0]} / {args.input[0]}", peaks=2), args.plot
+        )
         print(f"wrote {args.plot}", file=sys.stderr)
     return 0
+
+
+@_command("roots")
+def _roots(args: argparse.Namespace) -> int:
+    from .stability import stability
+
+    if args.count < 1:
+        raise InputError(f"--count must be >= 1 (got {args.count})")
+    fz = _frozen(args)
+    st = stability(
+        fz,
+        width=_width_m(args),
+        speed=args.speed,
+        delay=args.delay,
+        terms=args.terms,
+        count=args.count,
+        winding=not args.no_winding,
+    )
+    if args.format == "json":
+        _emit(json.dumps(st.to_dict(), indent=2), args.out)
+    else:
+        _emit(st.table(), args.out)
+    return 0
+
+
+def _speeds(args: argparse.Namespace, proc: Any) -> Any:
+    import numpy as np
+
+    lo, hi = args.speed
+    if not (np.isfinite(lo) and np.isfinite(hi)) or lo <= 0:
+        raise InputError(f"--speed MIN MAX must be positive (got {lo:g} {hi:g} {proc.speed_unit})")
+    if not hi > lo:
+        raise InputError(f"--speed range is empty or reversed: MAX ({hi:g}) must exceed MIN ({lo:g})")
+    if args.points < 2:
+        raise InputError(f"--points must be >= 2 (got {args.points})")
+    return np.linspace(lo, hi, args.points)
+
+
+@_command("lobes")
+def _lobes(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .assembly import assemble
+
+    model = _load(args)
+    if model.process is None:
+        raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
+    v = _speeds(args, model.process)
+    wmax = args.width_max * 1e-3
+    if not wmax > 0:
+        raise InputError(f"--width-max must be > 0 mm (got {args.width_max:g})")
+    sy = assemble(model)
+    if args.positions is not None:
+        return _atlas(args, model, v, wmax)
+    from .lobes import lobes
+
+    d = lobes(
+        sy.at(args.position),
+        v,
+        width_max=wmax,
+        terms=args.terms,
+        fmin=args.fmin,
+        fmax=args.fmax,
+        verify=args.verify,
+    )
+    if args.confirm:
+        from .confirm import confirm
+
+        conf = confirm(sy, d, count=args.confirm)
+        object.__setattr__(d, "meta", {**d.meta, "confirm": conf.summary_line()})
+        print(conf.table(), file=sys.stderr)
+    print(d.summary())
+    if args.out:
+        if args.out.endswith(".csv"):
+            d.to_csv(args.out)
+        else:
+            d.to_netcdf(args.out, attrs={"model_text": model.text, "command": " ".join(sys.argv)})
+        print(f"wrote {args.out}", file=sys.stderr)
+    if args.plot:
+        from .plot import savefig
+
+        savefig(d.plot(), args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    del np
+    return 0
+
+
+def _sweep_opts(args: argparse.Namespace) -> dict[str, Any]:
+    if args.jobs < 1 and args.jobs != -1:
+        raise InputError(f"--jobs must be >= 1 (or -1 for all cores), got {args.jobs}")
+    if args.backend == "dask" and not args.scheduler:
+        pass  # a local cluster of --jobs workers
+    return {
+        "jobs": args.jobs,
+        "backend": args.backend,
+        "scheduler": args.scheduler,
+        "progress": not args.quiet,
+    }
+
+
+def _checkpoint(args: argparse.Namespace) -> str | None:
+    if args.checkpoint:
+        return args.checkpoint
+    if args.out:
+        return args.out + ".ckpt"
+    if args.resume:
+        raise InputError("--resume needs --out FILE (the checkpoint is FILE.ckpt) or --checkpoint DIR")
+    return None
+
+
+def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float) -> int:
+    import numpy as np
+
+    from .sweep import sweep
+    from .tasks import AtlasTask, model_fingerprint
+
+    a, b, n = args.positions
+    n = int(n)
+    if n < 1 or (n > 1 and not b > a):
+        raise InputError(f"--positions A B N: need B > A and N >= 1 (got {a:g} {b:g} {n})")
+    pos = np.linspace(a, b, n)
+    task = AtlasTask(
+        model, wmax, tuple(float(x) for x in v), terms=args.terms, fmin=args.fmin, fmax=args.fmax
+    )
+    res = sweep(
+        task,
+        {"position": (pos, "m"), "speed": (v, model.process.speed_unit)},
+        outputs={
+            "b_lim": ("m", "largest chatter-free width of cut"),
+            "chatter_frequency": ("Hz", "chatter frequency"),
+        },
+        chunk_size=v.size,
+        checkpoint=_checkpoint(args),
+        resume=args.resume,
+        fingerprint=model_fingerprint(model) + f"|{wmax}|{args.terms}|{args.fmin}|{args.fmax}",
+        attrs={"title": "chatterlab stability atlas", "model_text": model.text, "terms": args.terms},
+        **_sweep_opts(args),
+    )
+    bl = res.data["b_lim"]
+    worst = np.nanmin(np.where(np.isfinite(bl), bl, np.inf), axis=0)
+    j = int(np.argmin(worst))
+    i = int(np.argmin(bl[:, j]))
+    print(
+        f"stability atlas of {model.source}: {n} positions x {v.size} speeds ({res.status})\n"
+        f"  worst case along the stroke: b_lim {worst[j] * 1e3:.4g} mm at {v[j]:.5g} {model.process.speed_unit},"
+        f" position {pos[i]:.4g} m, chatter {res.data['chatter_frequency'][i, j]:.2f} Hz"
+    )
+    for k, p in enumerate(pos):
+        print(f"  position {p:8.4f} m: min b_lim {np.nanmin(bl[k]) * 1e3:.4g} mm")
+    if res.failures:
+        print(f"  {len(res.failures)} task(s) failed: {res.message}", file=sys.stderr)
+    if args.out:
+        if args.out.endswith(".csv"):
+            res.to_csv(args.out)
+        else:
+            res.to_netcdf(args.out)
+        print(f"wrote {args.out}", file=sys.stderr)
+    if args.plot:
+        from .plot import plot_atlas, savefig
+
+        savefig(plot_atlas(res, model.process), args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    return 0 if res.status == "ok" else 1
+
+
+@_command("sweep")
+def _sweep(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .sweep import Axis, Grid, sweep
+    from .tasks import QUANTITIES, QuantityTask, axis_name, model_fingerprint
+
+    model = _load(args)
+    if not args.grid:
+        raise InputError("give at least one --grid PARAM=MIN:MAX:N")
+    axes = []
+    aliases: dict[str, str] = {}
+    units = {
+        "width": "m",
+        "speed": model.process.speed_unit if model.process else "",
+        "delay": "s",
+        "position": "m",
+    }
+    for spec in args.grid:
+        if "=" not in spec:
+            raise InputError(f"--grid {spec!r}: write PARAM=MIN:MAX:N, e.g. width=0.5:3:11 (mm)")
+        name, rng = (x.strip() for x in spec.split("=", 1))
+        g = Grid.from_spec(f"{axis_name(name)}={rng}")
+        vals = np.asarray(g.axes[0].values, float)
+        if name == "width":
+            vals = vals * 1e-3  # the CLI takes mm
+        ax_name = axis_name(name) if "." in name else name
+        if "." in name:
+            aliases[ax_name] = name
+        axes.append(Axis(ax_name, vals, units.get(name, "")))
+    grid = Grid(axes)
+    fixed: dict[str, float] = {}
+    if args.width is not None:
+        fixed["width"] = _width_m(args)
+    for nm in ("speed", "delay", "position"):
+        if getattr(args, nm) is not None:
+            fixed[nm] = getattr(args, nm)
+    task = QuantityTask(
+        model, args.quantity, fixed, terms=args.terms, width_max=args.width_max * 1e-3, aliases=aliases
+    )
+    task.check_axes(list(grid.names))
+    res = sweep(
+        task,
+        grid,
+        outputs=QUANTITIES[args.quantity],
+        checkpoint=_checkpoint(args),
+        resume=args.resume,
+        fingerprint=model_fingerprint(model) + "|" + repr(sorted(fixed.items())) + args.quantity + args.terms,
+        out=args.out if args.out and not args.out.endswith(".csv") else None,
+        attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
+        **_sweep_opts(args),
+    )
+    print(
+        f"sweep of {args.quantity} over {' x '.join(f'{a.name}[{a.values.size}]' for a in grid.axes)}: {res.status}"
+    )
+    for k, arr in res.data.items():
+        with np.errstate(all="ignore"):
+            print(
+                f"  {k} [{QUANTITIES[args.quantity][k]}]: min {np.nanmin(arr):.6g}, max {np.nanmax(arr):.6g}"
+            )
+    if res.failures:
+        print(f"  {len(res.failures)} task(s) failed; first: {res.message}", file=sys.stderr)
+    if args.out:
+        if args.out.endswith(".csv"):
+            res.to_csv(args.out)
+        elif not Path(args.out).exists():
+            res.to_netcdf(args.out)
+        print(f"wrote {args.out}", file=sys.stderr)
+    if args.plot:
+        from .plot import savefig
+
+        first = next(iter(QUANTITIES[args.quantity]))
+        savefig(res.plot(first), args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    return 0 if res.status == "ok" else 1
+
+
+def _parallel_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2; -1: all cores)")
+    p.add_argument("--backend", choices=["loky", "dask", "serial"], default="loky")
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="dask scheduler, e.g. tcp://host:8786 (with --backend dask)"
+    )
+    p.add_argument(
+        "--checkpoint", metavar="DIR", help="checkpoint directory (default: OUT.ckpt when --out is given)"
+    )
+    p.add_argument("--resume", action="store_true", help="resume an interrupted run from its checkpoint")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _more_parsers(sub: Any) -> None:
+    r = sub.add_parser("roots", help="rightmost characteristic roots and the stability verdict at (b, T)")
+    _model_args(r)
+    _cut_args(r, required_width=True)
+    r.add_argument("--count", type=int, default=6, metavar="K", help="number of rightmost roots (default 6)")
+    r.add_argument("--position", type=float, metavar="S", help="slide position s, m")
+    r.add_argument("--format", choices=["table", "json"], default="table")
+    r.add_argument("--out", metavar="FILE")
+    r.add_argument("--no-winding", action="store_true", help="skip the argument-principle cross-check")
+
+    lo = sub.add_parser(
+        "lobes", help="stability lobe diagram (b_lim against speed), or an atlas along the stroke"
+    )
+    _model_args(lo)
+    lo.add_argument(
+        "--speed",
+        type=float,
+        nargs=2,
+        required=True,
+        metavar=("MIN", "MAX"),
+        help="speed range in the process unit",
+    )
+    lo.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
+    lo.add_argument(
+        "--width-max", type=float, default=20.0, metavar="B", help="largest width considered, mm (default 20)"
+    )
+    g = lo.add_mutually_exclusive_group()
+    g.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
+    g.add_argument(
+        "--positions",
+        type=float,
+        nargs=3,
+        metavar=("A", "B", "N"),
+        help="atlas over N positions from A to B, m",
+    )
+    lo.add_argument(
+        "--terms",
+        choices=["pdo", "o"],
+        default="pdo",
+        help="pdo: all feedback terms (default); o: delayed only",
+    )
+    lo.add_argument("--fmin", type=float, help="lowest chatter frequency searched, Hz")
+    lo.add_argument("--fmax", type=float, help="highest chatter frequency searched, Hz")
+    lo.add_argument(
+        "--verify",
+        type=int,
+        default=2,
+        metavar="N",
+        help="speeds spot-checked by characteristic roots (default 2)",
+    )
+    lo.add_argument(
+        "--confirm", type=int, default=0, metavar="N", help="confirm N boundary points by Newmark simulation"
+    )
+    lo.add_argument("--out", metavar="FILE.nc|FILE.csv")
+    lo.add_argument("--plot", metavar="FILE.png")
+    _parallel_args(lo)
+
+    sw = sub.add_parser(
+        "sweep", help="a chatter quantity over a grid of widths, speeds, positions or model parameters"
+    )
+    _model_args(sw)
+    sw.add_argument(
+        "--grid",
+        action="append",
+        metavar="PARAM=MIN:MAX:N",
+        help="a grid axis: width (mm), speed, delay (s), position (m) or a model parameter path (repeatable)",
+    )
+    sw.add_argument("--quantity", required=True, choices=sorted(QUANTITY_NAMES))
+    _cut_args(sw)
+    sw.add_argument("--position", type=float, metavar="S", help="slide position s, m (when not on the grid)")
+    sw.add_argument(
+        "--width-max", type=float, default=20.0, metavar="B", help="largest width for b-lim quantities, mm"
+    )
+    sw.add_argument("--out", metavar="FILE.nc|FILE.csv")
+    sw.add_argument("--plot", metavar="FILE.png")
+    _parallel_args(sw)
+
+
+QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-frequencies")
 
 
 # ----------------------------------------------------------------------------- parser
@@ -217,11 +563,15 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--format", choices=["table", "json", "csv"], default="table")
     m.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")
     m.add_argument("--plot", metavar="FILE.png", help="bar chart of the frequencies")
-    m.add_argument("--allow-rigid", action="store_true", help="report rigid-body modes instead of refusing them")
+    m.add_argument(
+        "--allow-rigid", action="store_true", help="report rigid-body modes instead of refusing them"
+    )
 
     f = sub.add_parser("frf", help="open- or closed-loop frequency response between named points")
     _model_args(f)
-    f.add_argument("--input", action="append", required=True, metavar="P.DIR", help="force input, e.g. rfe5.x")
+    f.add_argument(
+        "--input", action="append", required=True, metavar="P.DIR", help="force input, e.g. rfe5.x"
+    )
     f.add_argument("--output", action="append", required=True, metavar="P.DIR", help="response, e.g. rfe5.x")
     f.add_argument("--fmin", type=float, default=1.0, help="lowest frequency, Hz (default 1)")
     f.add_argument("--fmax", type=float, default=300.0, help="highest frequency, Hz (default 300)")
@@ -240,7 +590,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-_EXTRA_PARSERS: list[Callable[[Any], None]] = []
+_EXTRA_PARSERS: list[Callable[[Any], None]] = [_more_parsers]
 
 
 def main(argv: Sequence[str] | None = None) -> int:

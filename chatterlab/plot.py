@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plot_frf", "plot_nyquist", "plot_lobes", "savefig"]
+__all__ = ["plot_frf", "plot_nyquist", "plot_lobes", "plot_atlas", "savefig"]
 
 
 def _index(names: Sequence[str], key: int | str) -> int:
@@ -182,4 +182,51 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
     if d.position is not None:
         ttl += f", s = {d.position:g} m"
     ax.set_title(ttl, fontsize=10)
+    return axes
+
+
+def plot_atlas(result: Any, process: Any = None, *, axes: Any = None, title: str | None = None) -> Any:
+    """Stability atlas: b_lim (mm) over speed x slide position as a map,
+    above the worst case along the stroke (the minimum over positions).
+    ``result`` is the :class:`~chatterlab.sweep.SweepResult` of an atlas
+    sweep (axes ``position``, ``speed``).  Returns (ax_map, ax_worst)."""
+    import matplotlib.pyplot as plt
+
+    pos = np.asarray(result.grid.axes[0].values)
+    v = np.asarray(result.grid.axes[1].values)
+    unit = result.grid.axes[1].unit
+    bl = np.asarray(result.data["b_lim"]) * 1e3
+    if axes is None:
+        fig, axes = plt.subplots(
+            2, 1, sharex=True, figsize=(8.5, 6.5), gridspec_kw={"height_ratios": [2, 1.3]}
+        )
+    ax, axw = axes
+    finite = np.where(np.isfinite(bl), bl, np.nan)
+    vmax = float(np.nanpercentile(finite, 95)) if np.any(np.isfinite(finite)) else 1.0
+    if pos.size > 1:
+        mesh = ax.pcolormesh(
+            v, pos, finite, shading="nearest", cmap="viridis", vmin=np.nanmin(finite), vmax=vmax
+        )
+        ax.figure.colorbar(mesh, ax=ax, label="b_lim [mm]")
+        ax.set_ylabel("slide position s [m]")
+    else:
+        ax.plot(v, finite[0])
+        ax.set_ylabel("b_lim [mm]")
+    worst = np.nanmin(finite, axis=0)
+    axw.fill_between(
+        v,
+        worst,
+        np.nanmax(worst) * 1.1,
+        color="tab:red",
+        alpha=0.15,
+        lw=0,
+        label="unstable somewhere on the stroke",
+    )
+    axw.plot(v, worst, color="tab:red", lw=1, label="worst case over positions")
+    axw.set_ylim(0, np.nanmax(worst) * 1.1 if np.any(np.isfinite(worst)) else 1)
+    axw.set_ylabel("b_lim [mm]")
+    axw.set_xlabel(f"{getattr(process, 'speed_name', 'speed')} [{unit}]")
+    axw.legend(fontsize=8, loc="upper right")
+    axw.grid(alpha=0.3)
+    ax.set_title(title or "stability atlas along the stroke", fontsize=10)
     return axes
