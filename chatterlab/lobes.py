@@ -612,7 +612,7 @@ def lobes(
         n_base=n_frequencies,
         couplings=couplings,
     )
-    fb_ref, segs, n, b_ref = bd.fb_ref, bd.segments, bd.omega.size, 1.0
+    segs, n, b_ref = bd.segments, bd.omega.size, 1.0
     T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
     b_lim, chatter, lobe_k = bd.envelope(T)
 
