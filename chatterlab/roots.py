@@ -31,10 +31,14 @@ Methods
     :math:`e^{-j\\omega_0 t} q(t)` is discretised, whose eigenfunctions near
     :math:`\\lambda = j\\omega_0` are slowly varying, so a modest :math:`N`
     resolves the roots near :math:`j\\omega_0` whatever :math:`\\omega_0\\tau`.
-    Windows are placed where a cheap frequency scan predicts the rightmost
-    roots (the long-delay estimate :math:`\\Re\\lambda \\approx
-    \\log\\rho(H(j\\omega))/\\tau`, :math:`H = V^T P^{-1} U`) and added until
-    every predicted location right of the ``count``-th root found is covered.
+    Windows are placed on predicted root locations (the phase condition
+    :math:`\\omega\\tau - \\arg\\mu_j(j\\omega) = 2\\pi k` along each
+    continuously tracked eigenvalue :math:`\\mu_j` of
+    :math:`H = V^T P^{-1} U`, real part :math:`\\approx \\log|\\mu_j|/\\tau`)
+    and added until every prediction right of the ``count``-th root found
+    (minus a margin and the prediction's own uncertainty) lies in a window.
+    The predictions only steer where to look; every reported root is an
+    eigenvalue of a discretised generator.
     Every eigenvalue is refined by Newton's method on
     :math:`\\det\\Delta` and kept only if a second, finer discretisation
     (:math:`N_2 \\approx 1.5 N`) gives the same root.
@@ -44,8 +48,9 @@ Methods
     along each eigenvalue branch :math:`\\mu_j` of :math:`H` the roots satisfy
     :math:`\\lambda\\tau = \\log\\mu_j(\\lambda) + 2\\pi i k`.  One start per
     integer :math:`k` and branch, a few fixed-point sweeps, then Newton on
-    :math:`\\det\\Delta`.  Accurate starting values when the delay is long;
-    an independent check of the spectral route.
+    :math:`\\det\\Delta` (restarted with deflation when two starts reach the
+    same root).  Accurate starting values when the delay is long; an
+    independent check of the spectral route.
 ``"eig"``
     No delay: the quadratic eigenvalue problem, solved by linearisation.
 
@@ -486,6 +491,10 @@ def make_system(
     InputError
         Non-square, mismatched or non-finite matrices, ``M`` not symmetric
         positive definite, ``tau <= 0`` with ``DO`` given.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
     Mm = _as_real_matrix(M, "M")
     n = Mm.shape[0]
@@ -537,6 +546,10 @@ def make_first_order_system(
     DelaySystem
         With ``coeffs = (-A0, I)``; :math:`\\Delta(\\lambda) = \\lambda I - A_0
         - A_1 e^{-\\lambda\\tau}`.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
     A = _as_real_matrix(A0, "A0")
     n = A.shape[0]
@@ -578,6 +591,10 @@ def char_matrix(
     -------
     ndarray of complex, shape ``(...) + (n, n)``
         :math:`\\lambda^2 M + \\lambda (C - D_V) + K - D_P - D_O e^{-\\lambda\\tau}`.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
     return make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau).delta(lam)
 
@@ -596,6 +613,10 @@ def char_matrix_derivative(
     """Derivative :math:`\\Delta'(\\lambda) = 2\\lambda M + C - D_V + \\tau D_O e^{-\\lambda\\tau}`.
 
     Same parameters and shapes as :func:`char_matrix`.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
     return make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau).ddelta(lam)
 

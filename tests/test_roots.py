@@ -237,7 +237,7 @@ def small_systems(draw: st.DrawFn) -> dict:
     return {"M": M, "C": C, "K": K, "DP": DP, "DO": DO, "tau": tau}
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(small_systems())
 def test_abscissa_sign_agrees_with_winding(sys: dict) -> None:
     res = characteristic_roots(**sys, count=3)
