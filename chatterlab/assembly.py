@@ -256,17 +256,26 @@ class System:
             z = np.zeros((sa.size, 0, ni))
             return z, z, z
         G0 = self.constraint_matrix(sa, 0)
-        Gd = G0[:, :, self.d]
-        N = np.einsum("mri,mrj->mij", Gd, Gd)
-        Pt = np.linalg.solve(N, np.transpose(Gd, (0, 2, 1)))  # (m, nd, r)
-        W0 = -Pt @ G0[:, :, self.i]
+        Gd = np.ascontiguousarray(G0[:, :, self.d])
+        Gi = np.ascontiguousarray(G0[:, :, self.i])
+        GdT = np.ascontiguousarray(np.transpose(Gd, (0, 2, 1)))
+        Pt = np.linalg.solve(GdT @ Gd, GdT)  # (m, nd, r): (G_d^T G_d)^-1 G_d^T
+        W0 = -(Pt @ Gi)
         if not self._contacts:
             z = np.zeros_like(W0)
             return W0, z, z
         G1 = self.constraint_matrix(sa, 1)
         G2 = self.constraint_matrix(sa, 2)
-        W1 = -Pt @ (G1[:, :, self.i] + G1[:, :, self.d] @ W0)
-        W2 = -Pt @ (G2[:, :, self.i] + 2 * G1[:, :, self.d] @ W1 + G2[:, :, self.d] @ W0)
+        G1d = np.ascontiguousarray(G1[:, :, self.d])
+        W1 = -(Pt @ (np.ascontiguousarray(G1[:, :, self.i]) + G1d @ W0))
+        W2 = -(
+            Pt
+            @ (
+                np.ascontiguousarray(G2[:, :, self.i])
+                + 2 * (G1d @ W1)
+                + np.ascontiguousarray(G2[:, :, self.d]) @ W0
+            )
+        )
         return W0, W1, W2
 
     # ---------------------------------------------------------------- reduction

@@ -445,6 +445,100 @@ def _sweep(args: argparse.Namespace) -> int:
     return 0 if res.status == "ok" else 1
 
 
+@_command("simulate")
+def _simulate(args: argparse.Namespace) -> int:
+    from .assembly import assemble
+    from .simulate import simulate
+
+    if args.passes < 1:
+        raise InputError(f"--passes must be >= 1 (got {args.passes})")
+    if args.duration is not None and not args.duration > 0:
+        raise InputError(f"--duration must be > 0 s (got {args.duration:g})")
+    if args.step is not None and not args.step > 0:
+        raise InputError(f"--step must be > 0 s (got {args.step:g})")
+    sy = assemble(_load(args))
+    width = _width_m(args) if args.width is not None else None
+    cases = ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
+    sims = []
+    for fb in cases:
+        sim = simulate(
+            sy,
+            feedback=fb,
+            width=width,
+            speed=args.speed,
+            delay=args.delay,
+            position=args.position,
+            passes=args.passes,
+            duration=args.duration,
+            step=args.step,
+            outputs=args.output,
+            progress=None if args.quiet else _progress_bar(f"simulate ({fb})"),
+        )
+        sims.append(sim)
+        print(f"feedback {fb}: {sim.message}")
+        for name in sim.data:
+            x = sim.data[name]
+            m = sim.window("last-cut")
+            f, a = sim.spectrum(name)
+            sel = f > 1.0
+            fp = f[sel][int(a[sel].argmax())] if sel.any() else float("nan")
+            line = (
+                f"  {name:10s} mean {x[m].mean() * 1e6:9.3f} um   peak-to-peak {(x[m].max() - x[m].min()) * 1e6:8.3f} um"
+                f"   main spectral peak {fp:7.2f} Hz"
+            )
+            if sim.in_cut.all():  # a continuous cut: the envelope's growth rate is meaningful
+                g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
+                line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
+            print(line)
+        if sim.status != "ok":
+            print(f"  status: {sim.status}", file=sys.stderr)
+    if args.out:
+        for sim in sims:
+            out = args.out if len(sims) == 1 else _suffixed(args.out, sim.terms)
+            if out.endswith(".csv"):
+                sim.to_csv(out)
+            else:
+                sim.to_netcdf(out)
+            print(f"wrote {out}", file=sys.stderr)
+    if args.plot:
+        import matplotlib.pyplot as plt
+
+        from .plot import plot_histories, plot_spectra
+
+        names = list(sims[0].data)[:2]
+        fig, axs = plt.subplots(len(names) + 1, 1, figsize=(8.5, 2.6 * (len(names) + 1) + 0.5))
+        plot_histories(sims, names, axes=axs[: len(names)], against="time")
+        plot_spectra(sims, names[0], ax=axs[-1])
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=130)
+        plt.close(fig)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    return 0 if all(s.status == "ok" for s in sims) else 1
+
+
+def _suffixed(path: str, tag: str) -> str:
+    p = Path(path)
+    return str(p.with_name(f"{p.stem}_{tag}{p.suffix}"))
+
+
+def _progress_bar(label: str) -> Callable[[float], None] | None:
+    if not sys.stderr.isatty():
+        return None
+    state = {"last": -1}
+
+    def show(frac: float) -> None:
+        pct = int(100 * frac)
+        if pct != state["last"]:
+            state["last"] = pct
+            bar = "#" * (pct // 4)
+            sys.stderr.write(f"\r{label} [{bar:<25}] {pct:3d}%")
+            if pct >= 100:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+    return show
+
+
 def _parallel_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2; -1: all cores)")
     p.add_argument("--backend", choices=["loky", "dask", "serial"], default="loky")
@@ -514,6 +608,48 @@ def _more_parsers(sub: Any) -> None:
     lo.add_argument("--out", metavar="FILE.nc|FILE.csv")
     lo.add_argument("--plot", metavar="FILE.png")
     _parallel_args(lo)
+
+    si = sub.add_parser("simulate", help="Newmark transient of the moving, delayed closed loop (Eq. 2.28)")
+    _model_args(si)
+    si.add_argument(
+        "--feedback",
+        choices=["none", "pd", "pdo", "all"],
+        default="pdo",
+        help="paper's cases: none (a), pd = proportional + derivative (b), pdo = + delayed (c), all = the three",
+    )
+    si.add_argument(
+        "--passes", type=int, default=2, help="stroke cycles (or delay periods) simulated (default 2)"
+    )
+    si.add_argument("--duration", type=float, metavar="S", help="simulated time, s (overrides --passes)")
+    si.add_argument(
+        "--step",
+        type=float,
+        metavar="H",
+        help="time step, s (default: 1/20 of the highest period below 300 Hz)",
+    )
+    si.add_argument(
+        "--width",
+        type=float,
+        metavar="B",
+        help="width of cut b, mm (default: the coupling's reference width)",
+    )
+    g2 = si.add_mutually_exclusive_group()
+    g2.add_argument(
+        "--speed", type=float, metavar="V", help="work speed (shaping, m/s) or spindle speed (turning, rpm)"
+    )
+    g2.add_argument(
+        "--delay", type=float, metavar="T", help="hold the slide still and cut continuously with delay T, s"
+    )
+    si.add_argument("--position", type=float, metavar="S", help="hold the slide at s, m (continuous cut)")
+    si.add_argument(
+        "--output",
+        action="append",
+        metavar="P.DIR",
+        help="time history to record (default: the contact point x, y)",
+    )
+    si.add_argument("--out", metavar="FILE.nc|FILE.csv")
+    si.add_argument("--plot", metavar="FILE.png")
+    si.add_argument("--quiet", action="store_true", help="no progress bar")
 
     sw = sub.add_parser(
         "sweep", help="a chatter quantity over a grid of widths, speeds, positions or model parameters"

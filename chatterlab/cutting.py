@@ -22,7 +22,7 @@ modulation) and ``"pdo"`` (c, + delayed: inner and outer modulation).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -30,7 +30,7 @@ from .assembly import CouplingMatrices, FrozenSystem
 from .errors import InputError
 from .model import Process
 
-__all__ = ["Feedback", "feedback", "delay_for", "TERMS"]
+__all__ = ["Feedback", "feedback", "delay_for", "ce_maps", "TERMS"]
 
 TERMS = ("none", "pd", "pdo", "o")
 
@@ -218,3 +218,26 @@ def feedback(
         delay=T,
         terms=terms,
     )
+
+
+def ce_maps(system: Any, width: float) -> tuple[np.ndarray, ...]:
+    """All coupling elements stacked over *all* coordinates, for the time
+    domain: J (3m, n) mapping q to the CE relative displacements in CE axes,
+    the block-diagonal D_P, D_V, D_O (3m, 3m) at width b, and the desired
+    forces P0 (3m,) at width b."""
+    maps = system._coupling_maps
+    m = len(maps)
+    J = np.zeros((3 * m, system.n))
+    P = np.zeros((3 * m, 3 * m))
+    V = np.zeros_like(P)
+    O = np.zeros_like(P)
+    F = np.zeros(3 * m)
+    for k, (c, Jc) in enumerate(maps):
+        sl = slice(3 * k, 3 * k + 3)
+        f = width / c.width_ref
+        J[sl] = Jc
+        P[sl, sl] = f * np.array(c.DP)
+        V[sl, sl] = f * np.array(c.DV)
+        O[sl, sl] = f * np.array(c.DO)
+        F[sl] = f * np.array(c.forces)
+    return J, P, V, O, F
