@@ -221,10 +221,13 @@ def bench_memory(n: int) -> None:
     print(
         f"   result arrays (2 x f8)   {d['result_bytes'] * mb:8.1f} MB   netCDF file {d['file_bytes'] * mb:.1f} MB"
     )
-    grow = (d["rss_peak_kb"] - d["rss_before_kb"]) / 1024
-    print(f"   driver RSS before        {d['rss_before_kb'] / 1024:8.1f} MB")
+    if d["hwm_sweep_mb"] is not None:  # Linux: peak reset just before the sweep
+        before, peak = d["rss_current_mb"], d["hwm_sweep_mb"]
+    else:  # ru_maxrss: a high-water mark since start (inherited across fork on Linux)
+        before, peak = d["rss_before_kb"] / 1024, d["rss_peak_kb"] / 1024
+    print(f"   driver RSS before        {before:8.1f} MB   (numpy, scipy, joblib imported; workers started)")
     print(
-        f"   driver RSS peak          {d['rss_peak_kb'] / 1024:8.1f} MB   (+{grow:.1f} MB during the sweep)"
+        f"   driver RSS peak          {peak:8.1f} MB   (+{peak - before:.1f} MB during the sweep and the write)"
     )
     print(f"   worker RSS peak          {d['rss_workers_kb'] / 1024:8.1f} MB")
     print(f"   Python alloc peak        {d['tracemalloc_peak'] * mb:8.1f} MB   (tracemalloc, driver)")
