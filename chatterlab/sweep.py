@@ -38,6 +38,21 @@ Design
 
 joblib, dask, tqdm and matplotlib are imported inside the functions that use
 them; importing this module costs numpy only.
+
+Example
+-------
+>>> import functools
+>>> def rate(width, speed, k):
+...     return {"abscissa": k * width - speed, "freq": speed / width}
+>>> grid = Grid.from_spec("width[m]=1e-3:3e-3:3", "speed[m/s]=1:2:2")
+>>> res = sweep(functools.partial(rate, k=1e3), grid, outputs={"abscissa": "1/s", "freq": "Hz"},
+...             backend="serial", progress=False)
+>>> res.status, res["freq"].shape
+('ok', (3, 2))
+
+With ``checkpoint="runs/ck", fingerprint=model_hash`` an interrupted sweep is
+continued by the same call with ``resume=True``; ``out="runs/sweep.nc"``
+streams the result to a netCDF file (``SweepResult.from_netcdf`` reads it).
 """
 
 from __future__ import annotations
