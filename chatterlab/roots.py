@@ -75,6 +75,7 @@ References
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import time
@@ -1280,6 +1281,20 @@ def _check_count(count: Any) -> int:
     return int(count)
 
 
+def _blas_limits() -> Any:
+    """Single-threaded BLAS for the many small dense problems, if possible.
+
+    The matrices here are a few hundred wide; multi-threaded OpenBLAS gains
+    nothing on them and loses 10x or more when the cores are shared.  Uses
+    ``threadpoolctl`` when it is installed (optional), else does nothing.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _dispatch(
     sys: DelaySystem,
     count: Any,
@@ -1301,11 +1316,12 @@ def _dispatch(
     if n_nodes is not None:
         if isinstance(n_nodes, bool) or not isinstance(n_nodes, int | np.integer) or n_nodes < 2:
             raise InputError(f"n_nodes must be an integer >= 2 (got {n_nodes!r})")
-    if not sys.has_delay:
-        return _no_delay(sys, count, t0)
-    if method == "branch":
-        return _branch(sys, count, omega_max, t0)
-    return _spectral(sys, count, omega_max, n_nodes, match_tol, max_windows, t0)
+    with _blas_limits():
+        if not sys.has_delay:
+            return _no_delay(sys, count, t0)
+        if method == "branch":
+            return _branch(sys, count, omega_max, t0)
+        return _spectral(sys, count, omega_max, n_nodes, match_tol, max_windows, t0)
 
 
 def characteristic_roots(

@@ -72,7 +72,7 @@ import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
 
 from chatterlab.errors import InputError
-from chatterlab.roots import DelaySystem, make_system
+from chatterlab.roots import DelaySystem, _blas_limits, make_system
 
 __all__ = ["WindingResult", "rhp_count", "rhp_count_system"]
 
@@ -430,7 +430,8 @@ def rhp_count(
     """
     sys = make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
     _check_options(omega_max, n_points)
-    return rhp_count_system(sys, omega_max=omega_max, n_points=n_points, direct=direct)
+    with _blas_limits():
+        return rhp_count_system(sys, omega_max=omega_max, n_points=n_points, direct=direct)
 
 
 def _check_options(omega_max: Any, n_points: Any) -> None:

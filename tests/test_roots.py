@@ -52,7 +52,8 @@ def _lambert_roots(a: float, b: float, tau: float, count: int) -> np.ndarray:
     lam = np.array([a + lambertw(b * tau * np.exp(-a * tau), k) / tau for k in ks])
     lam = lam[lam.imag >= -1e-12]
     lam = np.where(np.abs(lam.imag) < 1e-14, lam.real + 0j, lam)
-    lam = np.unique(np.round(lam, 12))
+    _, first = np.unique(np.round(lam, 9), return_index=True)  # W_0 and W_-1 may coincide
+    lam = lam[first]
     return lam[np.lexsort((lam.imag, -lam.real))][:count]
 
 
@@ -237,7 +238,7 @@ def small_systems(draw: st.DrawFn) -> dict:
     return {"M": M, "C": C, "K": K, "DP": DP, "DO": DO, "tau": tau}
 
 
-@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(small_systems())
 def test_abscissa_sign_agrees_with_winding(sys: dict) -> None:
     res = characteristic_roots(**sys, count=3)
