@@ -1,0 +1,119 @@
+"""Stability of the traverse shaper: lobes, the atlas along the stroke, and
+the paper's feedback cases compared.
+
+* case (c) -- proportional + ideal derivative + delayed feedback (Table 3,
+  Eq. 3.7-3.9): the regenerative lobes b_lim(v_w) at the central position;
+* case (b) -- proportional + ideal derivative only (inner modulation, no
+  regeneration): stability does not depend on speed; its critical width is
+  found by bisection on the delay-free characteristic roots;
+* the atlas: b_lim over work speed x slide position, and its worst case.
+
+Run: ``python studies/traverse_shaper/lobes.py`` (prints the numbers and
+writes ``docs/figures/shaper_lobes.png`` and ``docs/figures/shaper_atlas.png``).
+``tests/test_studies.py`` checks the numbers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import chatterlab as cl
+from chatterlab.lobes import lobes
+
+HERE = Path(__file__).resolve().parent
+MODEL = HERE / "model.toml"
+
+
+def case_b_limit(frozen: cl.FrozenSystem, b_hi: float = 0.5, tol: float = 1e-4) -> float:
+    """Smallest width (m) at which the P+D closed loop (no delay) loses
+    stability, by bisection on the sign of the rightmost root (inf if stable
+    up to ``b_hi``)."""
+    from chatterlab.stability import stability
+
+    def unstable(b: float) -> bool:
+        return stability(frozen, width=b, terms="pd", winding=False).abscissa > 0
+
+    if not unstable(b_hi):
+        return float("inf")
+    lo, hi = 0.0, b_hi
+    while hi - lo > tol * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if unstable(mid) else (mid, hi)
+    return hi
+
+
+def run(speeds: np.ndarray | None = None, positions: np.ndarray | None = None, jobs: int = 2) -> dict:
+    """Compute the study's numbers (and keep the result objects)."""
+    v = np.linspace(0.1, 1.0, 300) if speeds is None else speeds
+    pos = np.linspace(0.6, 1.1, 6) if positions is None else positions
+    model = cl.load_model(MODEL)
+    system = cl.assemble(model)
+    frozen = system.at()
+    diagram = lobes(frozen, v, width_max=1e-3, terms="pdo", verify=1)
+    b_case_b = case_b_limit(frozen)
+    from chatterlab.sweep import sweep
+    from chatterlab.tasks import AtlasTask
+
+    task = AtlasTask(model, 1e-3, tuple(float(x) for x in v))
+    atlas = sweep(
+        task,
+        {"position": (pos, "m"), "speed": (v, "m/s")},
+        outputs={"b_lim": "m", "chatter_frequency": "Hz"},
+        jobs=jobs,
+        chunk_size=v.size,
+        progress=False,
+    )
+    per_position = np.nanmin(atlas.data["b_lim"], axis=1)
+    return {
+        "diagram": diagram,
+        "atlas": atlas,
+        "process": model.process,
+        "b_lim_min": diagram.minimum["width"],
+        "b_lim_min_speed": diagram.minimum["speed"],
+        "chatter_hz": diagram.minimum["chatter_hz"],
+        "absolute_min": diagram.absolute_minimum["width"],
+        "case_b_limit": b_case_b,
+        "positions": pos,
+        "per_position_min": per_position,
+        "verified": diagram.verified,
+    }
+
+
+def report(r: dict) -> str:
+    lines = [
+        r["diagram"].summary(),
+        f"case (b), P+D without regeneration: stable up to b = {r['case_b_limit'] * 1e3:.4g} mm (any speed)",
+        "minimum b_lim along the stroke (case c):",
+    ]
+    for p, b in zip(r["positions"], r["per_position_min"], strict=True):
+        lines.append(f"  s = {p:5.3f} m: {b * 1e3:.4g} mm")
+    return "\n".join(lines)
+
+
+def plot(r: dict, outdir: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from chatterlab.plot import plot_atlas, savefig
+
+    axes = r["diagram"].plot(title="traverse shaper, case (c): stability lobes at s = 0.85 m")
+    bb = r["case_b_limit"] * 1e3
+    if np.isfinite(bb) and bb < r["diagram"].width_max * 1e3:
+        axes[0].axhline(bb, color="tab:green", ls=":", label=f"case (b) limit {bb:.3g} mm")
+        axes[0].legend(fontsize=8, loc="upper right")
+    savefig(axes, str(outdir / "shaper_lobes.png"))
+    savefig(
+        plot_atlas(r["atlas"], r["process"], title="traverse shaper: stability atlas along the stroke"),
+        str(outdir / "shaper_atlas.png"),
+    )
+
+
+if __name__ == "__main__":
+    res = run()
+    print(report(res))
+    out = HERE.parents[1] / "docs" / "figures"
+    out.mkdir(parents=True, exist_ok=True)
+    plot(res, out)
+    print(f"wrote {out / 'shaper_lobes.png'} and {out / 'shaper_atlas.png'}")
