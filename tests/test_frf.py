@@ -426,22 +426,18 @@ def test_frequencies_in_hz_out_in_rad_s():
 # ----------------------------------------------------------------------------- the paper's cases
 
 
-def _peaks(frozen, fb, point: str, om: np.ndarray, n: int = 4) -> list[tuple[float, float]]:
-    """The n largest local maxima of |H(point, point)| on the grid, each
-    refined by bounded Brent on the exact (direct) FRF between its grid
-    neighbours: [(Hz, m/N)], largest first."""
-    from scipy.optimize import minimize_scalar
-
-    mag = np.abs(frf(frozen, om, inputs=point, outputs=point, feedback=fb).data[0, 0])
+def _peaks(frozen, fb, point: str, om: np.ndarray, mag: np.ndarray, n: int = 4) -> list[tuple[float, float]]:
+    """The n largest local maxima of ``mag`` = |H(point, point)| on the grid
+    ``om``, each refined on a 401-point grid between its neighbours (step
+    1/200 of the grid step, 1.2e-4 Hz here, 1/250 of the narrowest
+    half-power bandwidth, so the amplitude is exact to ~1e-5): [(Hz, m/N)],
+    largest first."""
     k = np.nonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:]))[0] + 1
     out = []
     for j in k[np.argsort(-mag[k])][: 2 * n]:
-
-        def neg(w: float) -> float:
-            return -abs(frf(frozen, np.array([w]), inputs=point, outputs=point, feedback=fb).data[0, 0, 0])
-
-        r = minimize_scalar(neg, bounds=(om[j - 1], om[j + 1]), method="bounded", options={"xatol": 1e-10 * om[j]})
-        out.append((float(r.x / (2 * np.pi)), float(-r.fun)))
+        fine = np.linspace(om[j - 1], om[j + 1], 401)
+        m = np.abs(frf(frozen, fine, inputs=point, outputs=point, feedback=fb).data[0, 0])
+        out.append((float(fine[m.argmax()] / (2 * np.pi)), float(m.max())))
     return sorted(out, key=lambda p: -p[1])[:n]
 
 
@@ -456,7 +452,7 @@ def test_shaper_cases_a_b_c_closed_loop_receptance(shaper):
     """The paper's three cases at b = 2 mm, v = 0.5 m/s (T = 1.5 s): the
     closed-loop receptance at the tool/workpiece contact point, rfe5.x/rfe5.x
     and rfe5.y/rfe5.y, 1-300 Hz on a 0.025 Hz grid (finer than the 0.67 Hz
-    ripple 1/T of case c), peaks refined on the exact FRF.
+    ripple 1/T of case c), peaks refined on a finer grid.
 
     Measured (Hz, m/N):
 
@@ -486,7 +482,9 @@ def test_shaper_cases_a_b_c_closed_loop_receptance(shaper):
     res = {}
     for case, terms in (("a", "none"), ("b", "pd"), ("c", "pdo")):
         fb = feedback(shaper, width=0.002, speed=0.5, terms=terms)
-        res[case] = {p: _peaks(shaper, fb, p, om) for p in ("rfe5.x", "rfe5.y")}
+        pts = ["rfe5.x", "rfe5.y"]
+        mag = np.abs(frf(shaper, om, inputs=pts, outputs=pts, feedback=fb).data)
+        res[case] = {p: _peaks(shaper, fb, p, om, mag[i, i]) for i, p in enumerate(pts)}
     print("\nshaper, b = 2 mm, v = 0.5 m/s: receptance peaks at the contact point (Hz, m/N)")
     for case in "abc":
         for p in ("rfe5.x", "rfe5.y"):
