@@ -334,6 +334,8 @@ class System:
                     T[r, self.index[cname]] = 1.0
             return T
         if ref.kind == "ground":
+            if mdl.is_matrix_model:
+                return T  # the foundation does not move: a zero map
             cols = [self.index[f"{GROUND}.{d}"] for d in DIRECTIONS]
             T[:, cols] = rigid_point_matrix(np.array(ref.offset))
             return T
@@ -736,4 +738,12 @@ def _assemble_matrices(model: Model) -> System:
         _elements=MappingProxyType({}),
         index=MappingProxyType(index),
     )
-    return sysm
+    if len(i_idx) == 0:
+        raise ModelError(
+            "every coordinate is given (fixed): nothing can move; remove some from [matrices] given / [[support]]",
+            source=model.source,
+            item="[matrices]",
+            field="given",
+        )
+    # springs between named-coordinate points add to L and K (e.g. a joint added to an imported model)
+    return _springs_into(sysm) if model.springs else sysm

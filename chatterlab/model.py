@@ -356,8 +356,9 @@ class Model:
 
         ``path`` addresses a field as ``KIND.ID.FIELD`` for list items (e.g.
         ``"spring.leg3-foundation.c2"``, ``"beam.table.I"``) or
-        ``TABLE.FIELD`` for single tables (``"movable.position"``,
-        ``"process.speed"``).  The copy is validated like a model file.
+        ``TABLE.FIELD`` for single tables (``"movable.position"``;
+        ``"process.speed"`` for shaping, ``"process.rpm"`` for turning,
+        ``"process.delay"``).  The copy is validated like a model file.
         """
         from .modelfile import build_model
 

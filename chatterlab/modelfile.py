@@ -304,6 +304,11 @@ def build_model(
     variants = raw.get("variant", {})
     if not isinstance(variants, dict):
         raise ModelError("[variant] must be a table of tables [variant.NAME]", source=src)
+    for vname, vtab in variants.items():
+        if not isinstance(vtab, dict):
+            raise ModelError(f'[variant.{vname}] must be a table of "PATH" = value', source=src)
+        # every variant must address existing fields, even when not selected
+        _apply_overrides(src, copy.deepcopy(raw), vtab, f"[variant.{vname}] parameter")
     if variant is not None:
         if variant not in variants:
             raise ModelError(
@@ -494,9 +499,14 @@ def build_model(
     matrices: MatrixBlock | None = None
     if "matrices" in raw:
         matrices = _read_matrices(src, raw["matrices"], base_dir)
-        if bodies or beams or nodes:
+        structural = [
+            k for k in ("body", "node", "beam", "attachment", "contact", "constraint", "movable") if k in raw
+        ]
+        if structural:
             raise ModelError(
-                "a model is either structural ([[body]], [[beam]], ...) or matrix-level ([matrices]), not both",
+                "a model is either structural ([[body]], [[beam]], ...) or matrix-level ([matrices]), not both:"
+                f" remove {', '.join(structural)} or the [matrices] table (a matrix-level model takes"
+                " [[point]] with coords, [[spring]], [[support]] with coordinate, [[coupling]] and [process])",
                 source=src,
                 item="[matrices]",
             )
@@ -654,6 +664,19 @@ def build_model(
         register("coupling", iid)
 
     process = _read_process(src, raw["process"]) if "process" in raw else None
+    if process is not None and process.kind == "shaping" and movable is not None:
+        a = process.start
+        b = process.start + process.direction * (process.run_in + process.cut + process.coast)
+        lo, hi = min(a, b), max(a, b)
+        if lo < movable.range[0] - 1e-9 or hi > movable.range[1] + 1e-9:
+            raise ModelError(
+                f"the stroke from start = {a:g} m over {process.run_in + process.cut + process.coast:g} m"
+                f" in direction {process.direction:+g} spans [{lo:g}, {hi:g}] m, outside [movable] range"
+                f" [{movable.range[0]:g}, {movable.range[1]:g}] m; move start, flip direction or widen the range",
+                source=src,
+                item="[process]",
+                field="start",
+            )
 
     model = Model(
         name=name,
