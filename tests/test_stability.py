@@ -309,7 +309,7 @@ def oriented_minimum(fz: cl.FrozenSystem) -> float:
 
 
 @settings(
-    max_examples=12,
+    max_examples=25,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
 )
