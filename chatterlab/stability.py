@@ -25,7 +25,7 @@ import numpy as np
 from .assembly import FrozenSystem
 from .cutting import feedback
 
-__all__ = ["Stability", "stability", "MARGINAL_TOL"]
+__all__ = ["Stability", "stability", "loop_band", "MARGINAL_TOL"]
 
 #: |Re lambda| below this fraction of |lambda| (plus 1e-9 1/s) counts as on the axis.
 MARGINAL_TOL = 1e-7
@@ -179,7 +179,14 @@ def stability(
         from .winding import rhp_count
 
         w = rhp_count(
-            frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=DO, tau=fb.delay if DO is not None else None
+            frozen.A,
+            frozen.B,
+            frozen.C,
+            DP=fb.DP,
+            DV=fb.DV,
+            DO=DO,
+            tau=fb.delay if DO is not None else None,
+            omega_max=loop_band(frozen, fb),
         )
         if verdict in ("stable", "unstable") and w.status == "converged":
             agree = (w.count == 0) == (verdict == "stable")
@@ -196,3 +203,24 @@ def stability(
         else:
             msg += f"; argument principle: {w.status} ({w.message})"
     return Stability(verdict, absc, r, w, agree, msg, float(width), fb.delay, terms, frozen.position)
+
+
+def loop_band(frozen: FrozenSystem, fb: Any, tol: float = 1e-4) -> float:
+    """Upper end (rad/s) of the band where the cutting loop matters: twice
+    the highest frequency at which the loop gain ||H(jw) Dl(jw)|| (all terms,
+    |e^{-jwT}| = 1) exceeds ``tol``.  Above it det(I - G D) stays within
+    ~tol of 1 and cannot wind about the origin, so the argument principle
+    needs no samples there."""
+    from .frf import _cached_modes, _modal_response
+
+    cm = _cached_modes(frozen)
+    wn = np.abs(cm.lam)
+    wmax = 3.0 * float(wn.max())
+    w = np.geomspace(max(1e-3 * float(wn.min()), 1e-3), wmax, 400)
+    H = np.transpose(_modal_response(cm, fb.J, fb.J.T, 1j * w, np.arange(cm.lam.size), False), (2, 0, 1))
+    Dabs = np.abs(fb.Dl_P)[None] + w[:, None, None] * np.abs(fb.Dl_V)[None] + np.abs(fb.Dl_O)[None]
+    gain = np.linalg.norm(np.abs(H) @ Dabs, ord=2, axis=(1, 2))
+    big = np.nonzero(gain > tol)[0]
+    if big.size == 0:
+        return float(2.0 * wn.min())
+    return float(min(wmax, 2.0 * w[big[-1]]))

@@ -78,6 +78,7 @@ __all__ = ["WindingResult", "rhp_count", "rhp_count_system"]
 
 _PHASE_STEP = math.pi / 4  # largest wrapped phase increment accepted between samples
 _TAIL = 1e-3  # |f - 1| bound beyond omega_max
+_PASSIVE = 0.5  # spectral radius of H below which g cannot wind
 _MAX_SAMPLES = 400_000
 
 
@@ -130,8 +131,9 @@ class WindingResult:
 
 
 def _open_loop_poles(sys: DelaySystem) -> NDArray[np.complex128]:
-    Km, Cm, Mm = sys.open_coeffs if len(sys.open_coeffs) == 3 else (
-        sys.open_coeffs[0], sys.open_coeffs[1], None)
+    Km, Cm, Mm = (
+        sys.open_coeffs if len(sys.open_coeffs) == 3 else (sys.open_coeffs[0], sys.open_coeffs[1], None)
+    )
     if Mm is None:  # first-order form: P0 = lambda I - A0
         return np.linalg.eigvals(-Km)
     n = Mm.shape[0]
@@ -167,8 +169,9 @@ def _cont_arg_total(p: NDArray[np.complex128]) -> float:
 class _Sampler:
     """Evaluate the sampled factor F(j omega): complex values, finite or not."""
 
-    def __init__(self, sys: DelaySystem, mode: str, ref_poles: NDArray[np.complex128],
-                 logdetM: float) -> None:
+    def __init__(
+        self, sys: DelaySystem, mode: str, ref_poles: NDArray[np.complex128], logdetM: float
+    ) -> None:
         self.sys = sys
         self.mode = mode
         self.ref = ref_poles
@@ -232,8 +235,9 @@ def rhp_count_system(
     tau = sys.tau if sys.has_delay else 0.0
     p0 = _open_loop_poles(sys)
     p = sys.delay_free_poles()
-    scale = max(float(np.max(np.abs(p0))) if p0.size else 1.0,
-                float(np.max(np.abs(p))) if p.size else 1.0, 1e-300)
+    scale = max(
+        float(np.max(np.abs(p0))) if p0.size else 1.0, float(np.max(np.abs(p))) if p.size else 1.0, 1e-300
+    )
     z_open = int(np.sum(p0.real > 0))
     z_p = int(np.sum(p.real > 0))
     axis_tol = 1e-10 * scale
@@ -246,11 +250,16 @@ def rhp_count_system(
         # nothing to sample: f = det P / det P0 has the closed-form phase
         marginal = bool(np.any(np.abs(p.real) <= axis_tol))
         return WindingResult(
-            count=z_p, open_loop_count=z_open, n_samples=0, min_abs_det=float("nan"),
+            count=z_p,
+            open_loop_count=z_open,
+            n_samples=0,
+            min_abs_det=float("nan"),
             status="marginal" if marginal else "converged",
             message="no delay: count from the delay-free eigenvalues"
             + ("; a root lies on the imaginary axis" if marginal else ""),
-            omega_max=0.0, delay_free_count=z_p, winding=float(z_open - z_p),
+            omega_max=0.0,
+            delay_free_count=z_p,
+            winding=float(z_open - z_p),
         )
     pf = sys._cache.get("pf", "unset")
     if pf == "unset":
@@ -281,43 +290,99 @@ def rhp_count_system(
     if omega_max is None:
         W = max(3.0 * float(np.max(np.abs(poles_for_grid.imag))), 3.0 * scale, 10.0 / tau)
         for _ in range(60):
-            if (_tail_bound(sys, mode, W, ref_shift) < _TAIL
-                    and _tail_bound(sys, mode, 2 * W, ref_shift) < _TAIL):
+            if (
+                _tail_bound(sys, mode, W, ref_shift) < _TAIL
+                and _tail_bound(sys, mode, 2 * W, ref_shift) < _TAIL
+            ):
                 break
             W *= 2.0
         else:
-            return WindingResult(count=-1, open_loop_count=z_open, n_samples=0,
-                                 min_abs_det=float("nan"), status="not_converged",
-                                 message="|f - 1| does not decay; is M singular?",
-                                 omega_max=W, delay_free_count=z_p)
+            return WindingResult(
+                count=-1,
+                open_loop_count=z_open,
+                n_samples=0,
+                min_abs_det=float("nan"),
+                status="not_converged",
+                message="|f - 1| does not decay; is M singular?",
+                omega_max=W,
+                delay_free_count=z_p,
+            )
     else:
         W = float(omega_max)
     # --- initial grid ---------------------------------------------------
     step = math.pi / (8.0 * tau)
-    n0 = int(math.ceil(W / step)) + 1
-    if n_points is not None:
-        n0 = max(n0, int(n_points))
-    if n0 > _MAX_SAMPLES:
-        return WindingResult(count=-1, open_loop_count=z_open, n_samples=0,
-                             min_abs_det=float("nan"), status="not_converged",
-                             message=f"{n0} samples needed up to {W:.4g} rad/s; "
-                             "pass a smaller omega_max",
-                             omega_max=W, delay_free_count=z_p)
-    pts = [np.linspace(0.0, W, n0)]
     offs = np.array([-16, -8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8, 16])
+    pole_pts = []
     for z in poles_for_grid:
         if z.imag < 0:
             continue
         d = max(abs(z.real), 1e-9 * scale)
         loc = z.imag + d * offs
-        pts.append(loc[(loc > 0) & (loc < W)])
+        pole_pts.append(loc[(loc > 0) & (loc < W)])
+    passive_iv: NDArray[np.bool_] | None = None
+    mu_of: Any = None
+    if mode == "factored":
+        # g = prod_k (1 - mu_k e^{-jwT}) can only wind where the spectral radius of
+        # H(jw) reaches 1.  Where it stays below 1/2 each factor keeps Re > 1/2, so
+        # the phase increment between two samples is exact from the eigenvalues at
+        # the ends: the dense pi/(8 tau) grid is needed only in the active bands.
+        wsm = np.unique(np.concatenate([np.linspace(0.0, W, 4001)] + pole_pts))
+
+        def mu_of(om: NDArray[np.float64]) -> NDArray[np.complex128]:
+            with np.errstate(all="ignore"):
+                return np.linalg.eigvals(sys.transfer_fast(1j * om))
+
+        rho = np.abs(mu_of(wsm)).max(axis=1)
+        act_pt = ~(rho < _PASSIVE)  # NaN counts as active
+        act_iv = act_pt[:-1] | act_pt[1:]
+        act_iv = act_iv | np.r_[act_iv[1:], False] | np.r_[False, act_iv[:-1]]
+        dense = [
+            np.linspace(a, b, int(math.ceil((b - a) / step)) + 1)
+            for a, b in zip(wsm[:-1][act_iv], wsm[1:][act_iv], strict=True)
+        ]
+        n0 = int(sum(x.size for x in dense)) + wsm.size
+        pts = [wsm] + dense
+        passive_pairs = (wsm[:-1][~act_iv], wsm[1:][~act_iv])
+    else:
+        n0 = int(math.ceil(W / step)) + 1
+        pts = [np.linspace(0.0, W, n0)] + pole_pts
+    if n_points is not None:
+        n0 = max(n0, int(n_points))
+        if mode != "factored":
+            pts[0] = np.linspace(0.0, W, n0)
+    if n0 > _MAX_SAMPLES:
+        return WindingResult(
+            count=-1,
+            open_loop_count=z_open,
+            n_samples=0,
+            min_abs_det=float("nan"),
+            status="not_converged",
+            message=f"{n0} samples needed up to {W:.4g} rad/s; pass a smaller omega_max",
+            omega_max=W,
+            delay_free_count=z_p,
+        )
     w = np.unique(np.concatenate(pts))
+
+    def passive_flags(grid: NDArray[np.float64]) -> NDArray[np.bool_] | None:
+        """Intervals of ``grid`` lying inside a passive interval of ``wsm``."""
+        if mode != "factored":
+            return None
+        a0, b0 = passive_pairs
+        if a0.size == 0:
+            return np.zeros(grid.size - 1, bool)
+        k = np.searchsorted(a0, grid[:-1], side="right") - 1
+        kc = np.clip(k, 0, a0.size - 1)
+        return (k >= 0) & (grid[1:] <= b0[kc] + 1e-12 * W) & (grid[:-1] >= a0[kc])
+
+    passive_iv = passive_flags(w)
     val = F(w)
     unresolved = 0
     for _ in range(200):
         ph = np.angle(val)
         d = np.angle(np.exp(1j * (ph[1:] - ph[:-1])))
         bad = ~np.isfinite(d) | (np.abs(d) > _PHASE_STEP)
+        if passive_iv is not None:
+            bad &= ~passive_iv
         width = w[1:] - w[:-1]
         tiny = width <= 1e-12 * np.maximum(w[1:], 1.0 / tau)
         unresolved = int(np.sum(bad & tiny))
@@ -328,13 +393,23 @@ def rhp_count_system(
         vm = F(mid)
         w = np.concatenate([w, mid])
         val = np.concatenate([val, vm])
-        o = np.argsort(w)
+        o = np.argsort(w, kind="stable")
         w, val = w[o], val[o]
+        passive_iv = passive_flags(w)
     absf = np.abs(val)
     finite = np.isfinite(val)
     min_abs = float(np.min(absf[finite])) if np.any(finite) else float("nan")
     ph = np.angle(val)
     inc = np.angle(np.exp(1j * (ph[1:] - ph[:-1])))
+    if passive_iv is not None and np.any(passive_iv):
+        # exact increments on the passive intervals: sum_k Arg(1 - mu_k z) at both ends
+        ends = np.nonzero(passive_iv)[0]
+        idx = np.unique(np.concatenate([ends, ends + 1]))
+        mu = mu_of(w[idx])
+        zz = np.exp(-1j * w[idx] * tau)[:, None]
+        arg = np.angle(1.0 - mu * zz).sum(axis=1)
+        pos = {int(k): j for j, k in enumerate(idx)}
+        inc[ends] = np.array([arg[pos[int(k) + 1]] - arg[pos[int(k)]] for k in ends])
     inc[~np.isfinite(inc)] = 0.0
     total = float(np.sum(inc))
     # remaining phase to infinity: F -> 1
@@ -355,17 +430,27 @@ def rhp_count_system(
         msg.append("a root lies on (or within ~1e-10 relative of) the imaginary axis")
     if abs(count_f - count) > 0.05 or abs(tail) > math.pi / 4 or w.size > _MAX_SAMPLES:
         status = "not_converged"
-        msg.append(f"winding {winding:.4g} is not an integer (tail phase {tail:.3g} rad); "
-                   "raise omega_max or n_points")
+        msg.append(
+            f"winding {winding:.4g} is not an integer (tail phase {tail:.3g} rad); "
+            "raise omega_max or n_points"
+        )
     if not np.all(finite):
         status = "not_converged" if status == "converged" else status
         msg.append(f"{int(np.sum(~finite))} non-finite samples")
-    msg.append(f"{count} RHP root(s): Z = {z_base} - ({winding:.4g}) with "
-               f"{w.size} samples on [0, {W:.4g}] rad/s ({mode})")
+    msg.append(
+        f"{count} RHP root(s): Z = {z_base} - ({winding:.4g}) with "
+        f"{w.size} samples on [0, {W:.4g}] rad/s ({mode})"
+    )
     msg.extend(notes)
     return WindingResult(
-        count=count, open_loop_count=z_open, n_samples=int(w.size), min_abs_det=min_abs,
-        status=status, message="; ".join(msg), omega_max=W, delay_free_count=z_p,
+        count=count,
+        open_loop_count=z_open,
+        n_samples=int(w.size),
+        min_abs_det=min_abs,
+        status=status,
+        message="; ".join(msg),
+        omega_max=W,
+        delay_free_count=z_p,
         winding=winding,
     )
 
@@ -439,8 +524,7 @@ def _check_options(omega_max: Any, n_points: Any) -> None:
         try:
             om = float(omega_max)
         except (TypeError, ValueError) as exc:
-            raise InputError(f"omega_max must be a positive number in rad/s "
-                             f"(got {omega_max!r})") from exc
+            raise InputError(f"omega_max must be a positive number in rad/s (got {omega_max!r})") from exc
         if not math.isfinite(om) or om <= 0:
             raise InputError(f"omega_max must be finite and > 0 rad/s (got {omega_max!r})")
     if n_points is not None and (
