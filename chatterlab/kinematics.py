@@ -136,6 +136,13 @@ def kinematics_for(
     """The kinematics implied by the model's process and the options: a
     shaping process moves the slide through stroke cycles; turning, a given
     delay, or an explicit ``position`` hold it still."""
+    if speed is not None and not (np.isfinite(speed) and speed > 0):
+        unit = process.speed_unit if process is not None else ""
+        raise InputError(f"speed must be > 0 {unit} (got {speed!r})".replace("  ", " "))
+    if speed is not None and delay is not None:
+        raise InputError("give either the speed or the delay, not both")
+    if position is not None and not np.isfinite(position):
+        raise InputError(f"position must be a finite slide position in m (got {position!r})")
     if process is not None and process.kind == "shaping" and delay is None and position is None:
         return ShapingKinematics.from_process(process, speed)
     if delay is None:

@@ -79,47 +79,74 @@ class _FastReduction:
         self.X0, self.Xv, self.Xvv = [], [], []
         for X in (sy.M, sy.L, sy.K):
             self.X0.append(Tm.T @ X @ Tm)
-            self.Xv.append(Tm.T @ X[:, self.dv])
-            self.Xvv.append(X[np.ix_(self.dv, self.dv)])
+            self.Xv.append(np.ascontiguousarray(Tm.T @ X[:, self.dv]))
+            self.Xvv.append(np.ascontiguousarray(X[np.ix_(self.dv, self.dv)]))
+        self.nz_v = [bool(np.any(a)) for a in self.Xv]
+        self.nz_vv = [bool(np.any(a)) for a in self.Xvv]
         self.n_i = n_i
-        if self.ok:
-            s_chk = np.array(sy.model.movable.range if sy.model.movable else [0.0, 0.0]) * np.array(
-                [0.9, 1.0]
-            ) + np.array([0.1 * (sy.model.movable.range[1] if sy.model.movable else 0.0), 0.0])
-            s_chk = np.append(s_chk, s0)
-            for sc in s_chk:
-                R0, _, _ = self.rows(np.array([sc]), np.array([0.0]))
-                ref = sy.W(float(sc))[self.pos_v]
-                if not np.allclose(R0[0], ref, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref).max())):
-                    self.ok = False
-                    break
+        own = np.concatenate([c.cols_self for c in sy._contacts])
+        self._perm = np.array([int(np.nonzero(own == k)[0][0]) for k in self.dv], dtype=int)
+        # per contact and element: T_e (6, n_i), and the beam point-map constants
+        self._Te = [[Tm[el.cols] for el in c.elements] for c in sy._contacts]
+        self._starts = [np.array([e.start for e in c.elements]) for c in sy._contacts]
+        if self.ok and sy.model.movable is not None:
+            lo, hi = sy.model.movable.range
+            s_chk = np.array([lo, lo + 0.1 * (hi - lo), 0.5 * (lo + hi), 0.9 * hi + 0.1 * lo, hi])
+            if s0 is not None:
+                s_chk = np.append(s_chk, s0)
+            R0 = self.rows(s_chk, np.zeros(s_chk.size), orders=1)[0]
+            ref = sy.W(s_chk)[:, self.pos_v]
+            if not np.allclose(R0, ref, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref).max())):
+                self.ok = False
 
-    def rows(self, s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Contact rows of W, dW/dt and d2W/dt2: each (m, 3k, n_i)."""
+    def locate(
+        self, s: np.ndarray
+    ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+        """Per contact: along-track x, element index, side (-1 before the
+        track, 0 on it, +1 beyond; clamped contacts only) and xi."""
+        xs, idxs, sides, xis = [], [], [], []
+        for ci, c in enumerate(self.sy._contacts):
+            x = c.x_ref + c.rate * (s - c.s_ref)
+            side = np.zeros(s.size, dtype=int)
+            if c.clamp:
+                side = np.where(x < 0.0, -1, np.where(x > c.track_length, 1, 0))
+                x = np.clip(x, 0.0, c.track_length)
+            starts = self._starts[ci]
+            idx = np.clip(np.searchsorted(starts, x + 1e-12, side="right") - 1, 0, len(c.elements) - 1)
+            lens = np.array([e.length for e in c.elements])
+            xi = np.clip((x - starts[idx]) / lens[idx], 0.0, 1.0)
+            xs.append(x)
+            idxs.append(idx)
+            sides.append(side)
+            xis.append(xi)
+        return xs, idxs, sides, xis
+
+    def rows(
+        self, s: np.ndarray, v: np.ndarray, orders: int = 3
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Contact rows of W, dW/dt and d2W/dt2: each (m, 3k, n_i) (only the
+        first ``orders`` are computed; the others are zero)."""
         from .elements import beam_point_matrix
 
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        v = np.broadcast_to(np.asarray(v, dtype=float), s.shape)
         m = s.size
         k3 = 3 * len(self.sy._contacts)
         R = np.zeros((3, m, k3, self.n_i))
+        _, idxs, sides, xis = self.locate(s)
         for ci, c in enumerate(self.sy._contacts):
-            x = c.x_ref + c.rate * (s - c.s_ref)
-            inside = np.ones(m)
-            if c.clamp:
-                inside = ((x >= 0.0) & (x <= c.track_length)).astype(float)
-                x = np.clip(x, 0.0, c.track_length)
-            starts = np.array([e.start for e in c.elements])
-            idx = np.clip(np.searchsorted(starts, x + 1e-12, side="right") - 1, 0, len(c.elements) - 1)
+            idx, xi = idxs[ci], xis[ci]
+            inside = (sides[ci] == 0).astype(float)
             for e_idx in np.unique(idx):
                 el = c.elements[e_idx]
                 sel = np.nonzero(idx == e_idx)[0]
-                xi = np.clip((x[sel] - el.start) / el.length, 0.0, 1.0)
                 sec = el.beam.section
-                Te = self.Tm[el.cols]  # (6, n_i)
-                for order in range(3):
+                Te = self._Te[ci][e_idx]
+                for order in range(orders):
                     P = beam_point_matrix(
                         el.xy_i,
                         el.xy_j,
-                        xi,
+                        xi[sel],
                         c.offset,
                         E=sec.E,
                         G=sec.G,
@@ -131,37 +158,214 @@ class _FastReduction:
                     fac = (c.rate * v[sel]) ** order * (inside[sel] if order else 1.0)
                     R[order, sel, 3 * ci : 3 * ci + 3] = (P @ Te) * fac[:, None, None]
         # order the rows like self.dv
-        own = np.concatenate([c.cols_self for c in self.sy._contacts])
-        perm = np.array([int(np.nonzero(own == k)[0][0]) for k in self.dv], dtype=int)
-        return R[0][:, perm], R[1][:, perm], R[2][:, perm]
+        return R[0][:, self._perm], R[1][:, self._perm], R[2][:, self._perm]
+
+    def parts(self, s: np.ndarray) -> dict[str, np.ndarray]:
+        """The reduced matrices split by their dependence on the slide speed v:
+
+        A = A0,  B = B0 + v B1,  C = C0 + v C1 + v^2 C2   (Eq. 2.16-2.18)
+
+        with B1 = 2 (M_id + W^T M_dd) W',  C1 = (L_id + W^T L_dd) W',
+        C2 = (M_id + W^T M_dd) W'' (W' = dW/ds, W'' = d2W/ds2), plus the
+        contact rows R0 = W and R1 = W' (each (m, 3k, n_i)).  Parts that
+        vanish identically are None.
+        """
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        m = s.size
+        R0, R1, R2 = self.rows(s, np.ones(m))
+        R0t = np.ascontiguousarray(np.transpose(R0, (0, 2, 1)))  # (m, n, k)
+        n, k = self.n_i, R0.shape[1]
+        out: dict[str, Any] = {"R0": R0, "R1": R1}
+        base = []
+        for X0, Xv, Xvv, nzv, nzvv in zip(self.X0, self.Xv, self.Xvv, self.nz_v, self.nz_vv, strict=True):
+            if not (nzv or nzvv):
+                base.append(np.broadcast_to(X0, (m,) + X0.shape))
+                continue
+            Y = np.empty((m, n, n))
+            if nzv:
+                # one GEMM for the constant-times-stack product: (m n, k) @ (k, n)
+                Y[:] = (R0t.reshape(m * n, k) @ Xv.T).reshape(m, n, n)
+                Y += np.transpose(Y, (0, 2, 1)).copy()
+            else:
+                Y[:] = 0.0
+            if nzvv:
+                Y += (R0t.reshape(m * n, k) @ Xvv).reshape(m, n, k) @ R0
+            Y += X0
+            base.append(Y)
+        out["A0"], out["B0"], out["C0"] = base
+        out["B1"] = out["C1"] = out["C2"] = None
+        nzM = self.nz_v[0] or self.nz_vv[0]
+        nzL = self.nz_v[1] or self.nz_vv[1]
+        if nzM and (np.any(R1) or np.any(R2)):
+            Mfac = self.Xv[0][None] + (R0t @ self.Xvv[0] if self.nz_vv[0] else 0.0)
+            out["B1"] = 2.0 * (Mfac @ R1)
+            out["C2"] = Mfac @ R2
+        if nzL and np.any(R1):
+            Lfac = self.Xv[1][None] + (R0t @ self.Xvv[1] if self.nz_vv[1] else 0.0)
+            out["C1"] = Lfac @ R1
+        return out
 
     def reduce(self, s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
-        R0, R1, R2 = self.rows(s, v)
-        m = s.size
-        R0t = np.transpose(R0, (0, 2, 1))
-        out = []
-        for X0, Xv, Xvv in zip(self.X0, self.Xv, self.Xvv, strict=True):
-            if not np.any(Xv) and not np.any(Xvv):
-                out.append(np.broadcast_to(X0, (m,) + X0.shape).copy())
+        """A*, B*, C* (Eq. 2.16-2.18) and the contact rows of W and dW/dt at
+        slide positions s moving with ds/dt = v."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        v = np.broadcast_to(np.asarray(v, dtype=float), s.shape)
+        p = self.parts(s)
+        vv = v[:, None, None]
+        A = np.array(p["A0"])
+        B = np.array(p["B0"]) + (vv * p["B1"] if p["B1"] is not None else 0.0)
+        C = np.array(p["C0"])
+        if p["C1"] is not None:
+            C = C + vv * p["C1"]
+        if p["C2"] is not None:
+            C = C + vv**2 * p["C2"]
+        return A, B, C, p["R0"], vv * p["R1"]
+
+
+#: the families of coefficient matrices: name -> the weights they carry
+#: (1, the slide speed v, v^2, the in-cut flag c, c v)
+_FAMILIES = {
+    "A": (("A0", "1"),),
+    "B": (("B0", "1"), ("B1", "v"), ("Bce", "c")),
+    "C": (("C0", "1"), ("C1", "v"), ("C2", "vv"), ("Cce0", "c"), ("Cce1", "cv")),
+    "G": (("G", "c"),),
+    "F": (("F", "c"),),
+}
+
+
+class _Polynomial:
+    """Coefficient matrices as exact polynomials in the slide position.
+
+    Between two element joints (for every contact at once), the contact
+    rows of W are the beam point map of one element: cubic in s (the
+    Timoshenko element's transverse displacement is cubic, its rotation
+    quadratic).  Every part of Eq. (2.28) -- A*, the speed terms of B*, C*,
+    the CE terms J_i^T D J_i, J_i^T D_V J_i', the delayed matrix and the
+    desired force -- is then a polynomial of degree <= 6 in s on such a
+    *segment*.  Each segment's parts are interpolated once, at ``degree + 1``
+    Chebyshev points, from the exact (low-rank) evaluation and checked
+    between the points; a chunk of steps then costs one small GEMM per
+    matrix: ``[phi(s), v phi(s), c phi(s), ...] @ coefficients``.
+    Memory: (segments visited) x (non-zero parts) x 7 x n_i^2 doubles.
+    """
+
+    def __init__(self, owner: ParametricProblem, degree: int = 6) -> None:
+        self.owner = owner
+        self.fast = owner.fast
+        self.deg = degree
+        self.segments: dict[tuple[int, ...], Any] = {}
+        mv = owner.system.model.movable
+        self.range = tuple(mv.range) if mv is not None else (0.0, 0.0)
+        self.n = owner.n
+
+    def _interval(self, key: tuple[int, ...]) -> tuple[float, float]:
+        lo, hi = self.range
+        for ci, c in enumerate(self.fast.sy._contacts):
+            e_idx, side = key[2 * ci], key[2 * ci + 1]
+            if side < 0:
+                xa, xb = -np.inf, 0.0
+            elif side > 0:
+                xa, xb = c.track_length, np.inf
+            else:
+                el = c.elements[e_idx]
+                xa, xb = el.start, el.start + el.length
+            if c.rate == 0.0:
                 continue
-            # one GEMM for the constant-times-stack product: (n, k) @ (k, m*n)
-            XvR = np.transpose(np.tensordot(Xv, R0, axes=([1], [1])), (1, 0, 2))
-            Y = XvR + np.transpose(XvR, (0, 2, 1))
-            if np.any(Xvv):
-                Y += R0t @ np.transpose(np.tensordot(Xvv, R0, axes=([1], [1])), (1, 0, 2))
-            Y += X0
-            out.append(Y)
-        A, B, C = out
-        if np.any(R1):
-            Mv, Mvv = self.Xv[0], self.Xvv[0]
-            Lv, Lvv = self.Xv[1], self.Xvv[1]
-            if np.any(Mv) or np.any(Mvv):
-                Mfac = Mv + R0t @ Mvv
-                B = B + 2 * Mfac @ R1
-                C = C + Mfac @ R2
-            if np.any(Lv) or np.any(Lvv):
-                C = C + (Lv + R0t @ Lvv) @ R1
-        return A, B, C, R0, R1
+            sa = c.s_ref + (xa - c.x_ref) / c.rate
+            sb = c.s_ref + (xb - c.x_ref) / c.rate
+            lo, hi = max(lo, min(sa, sb)), min(hi, max(sa, sb))
+        return lo, hi
+
+    def _basis(self, u: np.ndarray, deg: int) -> np.ndarray:
+        Phi = np.empty((u.size, deg + 1))
+        Phi[:, 0] = 1.0
+        if deg >= 1:
+            Phi[:, 1] = u
+        for j in range(2, deg + 1):
+            Phi[:, j] = 2.0 * u * Phi[:, j - 1] - Phi[:, j - 2]
+        return Phi
+
+    def _build(self, key: tuple[int, ...], s_seen: float) -> Any:
+        lo, hi = self._interval(key)
+        if not hi - lo > 1e-9 * max(1.0, abs(hi), abs(lo)):
+            lo = hi = s_seen
+        deg = self.deg if hi > lo else 0
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        nodes = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # Chebyshev points, open
+        parts = self.owner._parts_direct(mid + half * nodes)
+        Phi = self._basis(nodes, deg)
+        inv = np.linalg.inv(Phi)
+        coef: dict[str, np.ndarray] = {}
+        for fam in _FAMILIES.values():
+            for name, _ in fam:
+                val = parts.get(name)
+                if val is None:
+                    continue
+                flat = np.asarray(val).reshape(deg + 1, -1)
+                if not np.any(flat):
+                    continue
+                c = inv @ flat
+                # interpolation round-off far below the family's scale (and the
+                # subnormal numbers it produces, which slow BLAS down 50-fold)
+                c[np.abs(c) < 1e-15 * np.abs(flat).max()] = 0.0
+                coef[name] = c
+        # check between the interpolation points against the direct evaluation
+        if deg > 0:
+            u_chk = np.array([-0.97, -0.41, 0.13, 0.66, 0.99])
+            direct = self.owner._parts_direct(mid + half * u_chk)
+            Phc = self._basis(u_chk, deg)
+            for name, val in direct.items():
+                if name not in ("A0", "B0", "B1", "C0", "C1", "C2", "Bce", "Cce0", "Cce1", "G", "F"):
+                    continue
+                ref = np.zeros((u_chk.size, 1)) if val is None else np.asarray(val).reshape(u_chk.size, -1)
+                got = Phc @ coef[name] if name in coef else np.zeros_like(ref)
+                scale = max(np.abs(ref).max(), np.abs(got).max(), 1e-300)
+                if np.abs(got - ref).max() > 1e-9 * scale:
+                    return None  # not a polynomial of this degree: evaluate directly
+        stacks = {}
+        for out, fam in _FAMILIES.items():
+            names = [(nm, w) for nm, w in fam if nm in coef]
+            if names:
+                stacks[out] = ([w for _, w in names], np.concatenate([coef[nm] for nm, _ in names], axis=0))
+        return (mid, half, deg, stacks)
+
+    def evaluate(self, s: np.ndarray, v: np.ndarray, cut: np.ndarray) -> dict[str, np.ndarray | None] | None:
+        """A, B, C, G (m, n, n) and F (m, n), or None where a segment is not
+        polynomial (the caller then evaluates directly)."""
+        _, idxs, sides, _ = self.fast.locate(s)
+        keys = np.stack(sum(([i, sd] for i, sd in zip(idxs, sides, strict=True)), []), axis=1)
+        uniq, inv_idx = np.unique(keys, axis=0, return_inverse=True)
+        inv_idx = inv_idx.reshape(-1)
+        m, n = s.size, self.n
+        groups = []
+        for g, key_arr in enumerate(uniq):
+            key = tuple(int(x) for x in key_arr)
+            sel = np.nonzero(inv_idx == g)[0] if uniq.shape[0] > 1 else np.arange(m)
+            if key not in self.segments:
+                self.segments[key] = self._build(key, float(s[sel[0]]))
+            if self.segments[key] is None:
+                return None
+            groups.append((sel, self.segments[key]))
+        present = {name for _, seg in groups for name in seg[3]}
+        out: dict[str, Any] = {name: None for name in _FAMILIES}
+        for name in present:
+            out[name] = np.empty((m, n if name == "F" else n * n))
+        weights = {"1": None, "v": v, "vv": v * v, "c": cut, "cv": cut * v}
+        for sel, (mid, half, deg, stacks) in groups:
+            whole = sel.size == m
+            u = (s[sel] - mid) / half if deg > 0 else np.zeros(sel.size)
+            Phi = self._basis(u, deg)
+            for name in present:
+                if name not in stacks:
+                    out[name][sel] = 0.0
+                    continue
+                ws, coef = stacks[name]
+                D = np.concatenate([Phi if w == "1" else Phi * weights[w][sel, None] for w in ws], axis=1)
+                if whole:
+                    np.matmul(D, coef, out=out[name])
+                else:
+                    out[name][sel] = D @ coef
+        return out
 
 
 class ParametricProblem:
@@ -177,6 +381,13 @@ class ParametricProblem:
         Feedback terms (the paper's cases a, b, c).
     forces : bool
         Apply the desired cutting forces P0 while in the cut.
+    method : {"auto", "polynomial", "direct"}
+        How the coefficients are evaluated: ``"polynomial"`` interpolates
+        them exactly per segment between element joints (the fast path,
+        see :class:`_Polynomial`), ``"direct"`` evaluates the low-rank
+        reduction (or Eq. 2.6 when the model has constraints on the contact
+        coordinates) at every step; ``"auto"`` uses the polynomial where
+        possible.
     """
 
     def __init__(
@@ -187,11 +398,14 @@ class ParametricProblem:
         width: float,
         terms: str = "pdo",
         forces: bool = True,
+        method: str = "auto",
     ) -> None:
         if terms not in FEEDBACK_CASES:
             raise InputError(f"feedback must be one of {', '.join(FEEDBACK_CASES)} (got {terms!r})")
         if not (np.isfinite(width) and width > 0):
             raise InputError(f"width must be > 0 m (got {width!r})")
+        if method not in ("auto", "polynomial", "direct"):
+            raise InputError(f"method must be 'auto', 'polynomial' or 'direct' (got {method!r})")
         self.system = system
         self.kin = kinematics
         self.n = len(system.i)
@@ -215,6 +429,14 @@ class ParametricProblem:
         if self.fast is not None:
             self.Jv = J[:, self.fast.dv]
             self.Ji_const = J @ self.fast.Tm  # (3k, n_i) with the contact columns' constant part
+        self.poly = _Polynomial(self) if (self.fast is not None and method != "direct") else None
+        if method == "polynomial" and self.poly is None:
+            raise InputError(
+                "method='polynomial' needs a movable model whose contact coordinates are tied to the "
+                "structure only by their [[contact]] rows"
+            )
+        self._memo: tuple[bytes, tuple[np.ndarray, ...]] | None = None
+        self.method_used: set[str] = set()
 
     # -- TimeVaryingProblem -------------------------------------------------
     def delay(self) -> float | None:
@@ -222,53 +444,145 @@ class ParametricProblem:
 
     def breakpoints(self) -> tuple[float, ...]:
         """Times where the tool enters or leaves the cut or the slide reverses
-        (the coefficients and forces jump there), over the first 10^4 cycles."""
+        (the coefficients and forces jump there), over the simulated span."""
         return self.kin.breakpoints(self._t_end) if isinstance(self.kin, ShapingKinematics) else ()
 
-    def _geometry(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _positions(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """s, v, in-cut mask and whether s is a slide position (a model with
+        a movable subsystem; a slide held still without a position sits at
+        the model's default position)."""
         s, v, cut, _ = self.kin.state(t)
+        if self.system.model.movable is None:
+            return np.full(t.size, np.nan), np.zeros(t.size), cut, False
+        if not np.all(np.isfinite(s)):
+            s = np.full(t.size, float(self.system.default_position))
+            v = np.zeros(t.size)
+        return s, v, cut, True
+
+    def _parts_direct(self, s: np.ndarray) -> dict[str, Any]:
+        """All parts of Eq. (2.28) at slide positions s, for unit slide speed
+        and the tool in the cut (see :meth:`_FastReduction.parts`):
+        A = A0, B = B0 + v B1 + c Bce, C = C0 + v C1 + v^2 C2 + c (Cce0 + v Cce1),
+        G = c G, F = c F, with c the in-cut flag."""
+        if self.fast is not None:
+            p = self.fast.parts(s)
+            Ji = self.Ji_const + self.Jv @ p["R0"]
+            Jd1 = self.Jv @ p["R1"]
+        else:
+            sy = self.system
+            W0, W1, W2 = self._W_direct(s)
+            A, B, C = _reduce(sy, W0, np.zeros_like(W0), np.zeros_like(W0))
+            p = {"A0": A, "B0": B, "C0": C, "B1": None, "C1": None, "C2": None}
+            if len(sy.d) and np.any(W1):
+                B1, C1, C2 = _speed_parts(sy, W0, W1, W2)
+                p.update(B1=B1, C1=C1, C2=C2)
+            Ji = (
+                self.Ji0 + self.Jd @ W0
+                if len(sy.d)
+                else np.broadcast_to(self.Ji0, (s.size,) + self.Ji0.shape)
+            )
+            Jd1 = self.Jd @ W1 if len(sy.d) else np.zeros_like(Ji)
+        JiT = np.transpose(Ji, (0, 2, 1))
+        p["Ji"], p["Jd1"] = Ji, Jd1
+        p["Bce"] = JiT @ self.V @ Ji if np.any(self.V) else None
+        p["Cce0"] = JiT @ self.P @ Ji if np.any(self.P) else None
+        p["Cce1"] = JiT @ self.V @ Jd1 if (np.any(self.V) and np.any(Jd1)) else None
+        p["G"] = -(JiT @ self.O @ Ji) if self._T is not None else None
+        p["F"] = np.einsum("mkn,k->mn", Ji, self.F) if np.any(self.F) else None
+        return p
+
+    def _W_direct(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         sy = self.system
         if sy.model.movable is None or not np.all(np.isfinite(s)):
-            W0 = np.broadcast_to(sy.W(None), (t.size,) + (len(sy.d), len(sy.i)))
-            Z = np.zeros_like(W0)
-            return W0, Z, Z, np.zeros(t.size), cut
-        W0, W1, W2 = sy._W_all(s)
-        return W0, W1 * v[:, None, None], W2 * (v**2)[:, None, None], v, cut
+            W0 = np.broadcast_to(sy.W(None), (s.size,) + (len(sy.d), len(sy.i)))
+            Z = np.zeros(W0.shape)
+            return np.array(W0), Z, Z
+        return sy._W_all(s)
 
-    def _ce(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
-        """A, B, C, J_i, J_dot and the in-cut mask at times t."""
-        if self.fast is not None:
-            s, v, cut, _ = self.kin.state(t)
-            if np.all(np.isfinite(s)):
-                A, B, C, R0, R1 = self.fast.reduce(s, v)
-                return A, B, C, self.Ji_const + self.Jv @ R0, self.Jv @ R1, cut
-        W0, Wd, Wdd, _, cut = self._geometry(t)
-        A, B, C = _reduce(self.system, W0, Wd, Wdd)
-        return A, B, C, self.Ji0 + self.Jd @ W0, self.Jd @ Wd, cut
+    def _evaluate(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        """A, B, C, G (or None) and F at times t; the last call is memoised
+        (newmark asks for the force and the matrices of the same steps)."""
+        key = t.tobytes()
+        if self._memo is not None and self._memo[0] == key:
+            return self._memo[1]
+        s, v, cut, moving = self._positions(t)
+        c = cut.astype(float)
+        res = None
+        if self.poly is not None and moving:
+            res = self.poly.evaluate(s, v, c)
+        m, n = t.size, self.n
+        if res is not None:
+            self.method_used.add("polynomial")
+
+            def mat(name: str) -> np.ndarray | None:
+                x = res[name]
+                return None if x is None else x.reshape(m, n, n)
+
+            A = mat("A")
+            B = mat("B")
+            C = mat("C")
+            G = mat("G") if self._T is not None else None
+            F = res["F"] if res["F"] is not None else np.zeros((m, n))
+            if G is None and self._T is not None:
+                G = np.zeros((m, n, n))
+            zero = np.zeros((m, n, n))
+            A = zero if A is None else A
+            B = zero if B is None else B
+            C = zero if C is None else C
+        else:
+            self.method_used.add("direct")
+            p = self._parts_direct(s)
+            cc = c[:, None, None]
+            vv = v[:, None, None]
+            A = np.array(p["A0"])
+            B = np.array(p["B0"])
+            C = np.array(p["C0"])
+            if p["B1"] is not None:
+                B = B + vv * p["B1"]
+            if p["C1"] is not None:
+                C = C + vv * p["C1"]
+            if p["C2"] is not None:
+                C = C + vv**2 * p["C2"]
+            if p["Bce"] is not None:
+                B = B + cc * p["Bce"]
+            if p["Cce0"] is not None:
+                C = C + cc * p["Cce0"]
+            if p["Cce1"] is not None:
+                C = C + (cc * vv) * p["Cce1"]
+            G = cc * p["G"] if p["G"] is not None else None
+            F = c[:, None] * p["F"] if p["F"] is not None else np.zeros((m, n))
+        out = (A, B, C, G, F)
+        self._memo = (key, out)
+        return out
+
+    def maps(self, t: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """``rows @ T(t)``: maps (m, k, n_i) from q_i to k quantities given as
+        rows (k, n) over all coordinates, T(t) = [I; W(t)] (Eq. 2.5)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        rows = np.atleast_2d(np.asarray(rows, dtype=float))
+        s, _, _, moving = self._positions(t)
+        sy = self.system
+        if self.fast is not None and moving:
+            R0 = self.fast.rows(s, np.zeros(s.size), orders=1)[0]
+            return rows @ self.fast.Tm + rows[:, self.fast.dv] @ R0
+        base = np.broadcast_to(rows[:, sy.i], (t.size,) + rows[:, sy.i].shape)
+        if not len(sy.d):
+            return np.array(base)
+        W0 = self._W_direct(s)[0]
+        return base + rows[:, sy.d] @ W0
 
     def ce_map(self, t: np.ndarray) -> np.ndarray:
         """J_i(t): q_i -> CE relative displacements (m, 3k, n_i)."""
-        return self._ce(np.atleast_1d(np.asarray(t, float)))[3]
+        return self.maps(t, self.J)
 
     def matrices(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        A, B, C, Ji, Jdot, cut = self._ce(t)
-        c = cut.astype(float)[:, None, None]
-        JiT = np.transpose(Ji, (0, 2, 1))
-        if np.any(self.V):
-            B = B + c * (JiT @ self.V @ Ji)
-            C = C + c * (JiT @ self.V @ Jdot)
-        if np.any(self.P):
-            C = C + c * (JiT @ self.P @ Ji)
-        G = -c * (JiT @ self.O @ Ji) if self._T is not None else None
+        A, B, C, G, _ = self._evaluate(t)
         return A, B, C, G
 
     def force(self, t: np.ndarray) -> np.ndarray:
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        if not np.any(self.F):
-            return np.zeros((t.size, self.n))
-        _, _, _, Ji, _, cut = self._ce(t)
-        return cut.astype(float)[:, None] * np.einsum("mkn,k->mn", Ji, self.F)
+        return self._evaluate(t)[4]
 
 
 def _reduce(
@@ -288,6 +602,23 @@ def _reduce(
         B = B + 2 * (Mid + Wt @ Mdd) @ Wd
         C = C + (Lid + Wt @ Ldd) @ Wd + (Mid + Wt @ Mdd) @ Wdd
     return A, B, C
+
+
+def _speed_parts(
+    sy: System, W0: np.ndarray, W1: np.ndarray, W2: np.ndarray
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """B1, C1, C2 of B* = B0 + v B1, C* = C0 + v C1 + v^2 C2 (Eq. 2.17-2.18
+    with dW/dt = W' v, d2W/dt2 = W'' v^2), from W, W' = dW/ds, W'' = d2W/ds2."""
+    i, d = sy.i, sy.d
+    Wt = np.transpose(W0, (0, 2, 1))
+    Mid, Mdd = sy.M[np.ix_(i, d)], sy.M[np.ix_(d, d)]
+    Lid, Ldd = sy.L[np.ix_(i, d)], sy.L[np.ix_(d, d)]
+    Mfac = Mid + Wt @ Mdd
+    Lfac = Lid + Wt @ Ldd
+    B1 = 2 * Mfac @ W1 if np.any(Mfac) else None
+    C2 = Mfac @ W2 if np.any(Mfac) else None
+    C1 = Lfac @ W1 if np.any(Lfac) else None
+    return B1, C1, C2
 
 
 @dataclass(frozen=True, eq=False)
@@ -467,6 +798,7 @@ def simulate(
     q0: np.ndarray | None = None,
     progress: Any = None,
     record_every: int = 1,
+    method: Literal["auto", "polynomial", "direct"] = "auto",
 ) -> Simulation:
     """Newmark simulation of the moving, delayed closed loop (Eq. 2.28).
 
@@ -492,30 +824,73 @@ def simulate(
         Simulated time, s.
     step : float, optional
         Time step h, s.  Default: a twentieth of the period of the highest
-        natural frequency below 300 Hz, and at most T/20.
+        natural frequency below 300 Hz, and at most T/20, rounded down so
+        that the process events (cut entry and exit, reversal, one cycle)
+        fall on the step grid.
     outputs : list of str, optional
         ``"POINT.DIR"`` time histories to record (default: the first CE's
         points ``b`` along x and y — the paper's q1, q2 at RFE 5).
     forces : bool
         Apply the desired cutting forces while in the cut.
+    options : NewmarkOptions, optional
+        Integrator parameters and memory limits.
+    q0 : array (n_i,), optional
+        Initial displacement of the independent coordinates (the delay
+        history is zero).
+    progress : callable, optional
+        ``progress(fraction)`` after each chunk of steps.
+    record_every : int
+        Record every k-th step.
+    method : {"auto", "polynomial", "direct"}
+        Coefficient evaluation (see :class:`ParametricProblem`); the results
+        agree to rounding.
 
     Returns
     -------
     Simulation
+
+    Raises
+    ------
+    InputError
+        Bad arguments (non-positive width, duration or step; a step longer
+        than the delay; an unknown output; a delay history or a record above
+        the memory limits of ``options``; a stroke outside the movable range).
     """
     mdl = system.model
+    if feedback not in FEEDBACK_CASES:
+        raise InputError(f"feedback must be one of {', '.join(FEEDBACK_CASES)} (got {feedback!r})")
     if not mdl.couplings:
         raise InputError(f"{mdl.source} has no [[coupling]]: a simulation of the cut needs one")
     if width is None:
         width = mdl.couplings[0].width_ref
-    if not (isinstance(passes, int | np.integer) and passes >= 1):
+    if isinstance(width, bool) or not isinstance(width, int | float | np.floating) or not np.isfinite(width):
+        raise InputError(f"width must be a number in m (got {width!r})")
+    if not width > 0:
+        raise InputError(f"width must be > 0 m (got {width!r})")
+    if not (isinstance(passes, int | np.integer) and not isinstance(passes, bool) and passes >= 1):
         raise InputError(f"passes must be an integer >= 1 (got {passes!r})")
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise InputError(f"duration must be > 0 s (got {duration!r})")
+    if step is not None and not (np.isfinite(step) and step > 0):
+        raise InputError(f"step must be > 0 s (got {step!r})")
     kin = kinematics_for(mdl.process, speed=speed, delay=delay, position=position)
+    if isinstance(kin, ShapingKinematics) and mdl.movable is not None:
+        lo, hi = mdl.movable.range
+        a, b = kin.range
+        tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+        if a < lo - tol or b > hi + tol:
+            raise InputError(
+                f"the stroke runs over s = [{a:g}, {b:g}] m (start {kin.start:g} m, run-in + cut + coast "
+                f"{kin.stroke:g} m) but the movable range is [{lo:g}, {hi:g}] m; fix [process] start/direction "
+                "or widen [movable] range"
+            )
+    if position is not None and mdl.movable is not None:
+        system._s_array(position)  # refuses a position outside the movable range
     T = float(kin.delay)
     if duration is None:
         duration = passes * T
-    if not (np.isfinite(duration) and duration > 0):
-        raise InputError(f"duration must be > 0 s (got {duration!r})")
+    outs = list(outputs) if outputs is not None else _default_outputs(mdl)
+    out_rows = [_output_map(system, name) for name in outs]  # refuse unknown outputs before the run
     if step is None:
         from .modal import modes
 
@@ -526,13 +901,15 @@ def simulate(
         # exit, reversal, one cycle) keeps them and the delayed samples on the grid
         unit = kin.grid_unit if isinstance(kin, ShapingKinematics) else T
         step = unit / math.ceil(unit / step)
-    if not (np.isfinite(step) and step > 0):
-        raise InputError(f"step must be > 0 s (got {step!r})")
-    if feedback == "pdo" and step > T:
+    step = float(step)
+    if feedback == "pdo" and step > T * (1 + 1e-12):
         raise InputError(
-            f"step {step:g} s is larger than the delay T = {T:g} s: the delayed term needs h <= T; use a smaller --step"
+            f"step {step:g} s is larger than the delay T = {T:g} s: the delayed term needs h <= T; "
+            "use a smaller step (--step)"
         )
-    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces)
+    if step > duration * (1 + 1e-12):
+        raise InputError(f"step {step:g} s is longer than the duration {duration:g} s")
+    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces, method=method)
     prob._t_end = float(duration)
     if isinstance(kin, SteadyKinematics):
         A, B, C, G = prob.matrices(np.array([0.0]))
@@ -547,36 +924,35 @@ def simulate(
         )
     else:
         run_prob = prob
-    outs = list(outputs) if outputs is not None else _default_outputs(mdl)
-    res = newmark(
-        run_prob,
-        (0.0, float(duration)),
-        float(step),
-        q0,
-        options=options,
-        record_every=record_every,
-        progress=progress,
-    )
+    with _blas_limits():
+        res = newmark(
+            run_prob,
+            (0.0, float(duration)),
+            step,
+            q0,
+            options=options,
+            record_every=record_every,
+            progress=progress,
+        )
     t = res.t
     s, v, cut, cd = kin.state(t)
     q = res.q  # (n_i, n_t)
+    nce = prob.J.shape[0]
+    rows = np.vstack([prob.J] + [r[None, :] for r in out_rows]) if out_rows else prob.J
+    vals = np.empty((rows.shape[0], t.size))
+    blk = 4096
+    for j0 in range(0, t.size, blk):
+        sl = slice(j0, min(j0 + blk, t.size))
+        Mp = prob.maps(t[sl], rows)  # (m, k, n_i)
+        vals[:, sl] = np.einsum("mkn,nm->km", Mp, q[:, sl])
     data: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
-    W0 = prob._geometry(t)[0] if t.size else np.zeros((0, len(system.d), len(system.i)))
-    for name in outs:
-        row = _output_map(system, name)  # (n_all,)
-        ri = (
-            row[system.i][None, :] + np.einsum("k,mkn->mn", row[system.d], W0)
-            if len(system.d)
-            else row[system.i][None, :]
-        )
-        data[name] = np.einsum("mn,nm->m", np.broadcast_to(ri, (t.size, ri.shape[-1])), q)
+    for j, name in enumerate(outs):
+        data[name] = vals[nce + j]
         units[name] = "rad" if name.endswith(".rz") else "m"
-    Ji = prob.Ji0 + prob.Jd @ W0 if len(system.d) else np.broadcast_to(prob.Ji0, (t.size,) + prob.Ji0.shape)
-    dw = np.einsum("mkn,nm->km", Ji, q)
     for k, c in enumerate(mdl.couplings):
         for j in (0, 1):
-            data[f"{c.id}.{j + 1}"] = dw[3 * k + j]
+            data[f"{c.id}.{j + 1}"] = vals[3 * k + j]
             units[f"{c.id}.{j + 1}"] = "m"
     return Simulation(
         t=t,
@@ -588,12 +964,26 @@ def simulate(
         terms=feedback,
         width=float(width),
         delay=T,
-        step=float(step),
+        step=step,
         passes=int(passes),
         units=units,
         model=mdl.source,
-        meta={"kinematics": type(kin).__name__},
+        meta={"kinematics": type(kin).__name__, "coefficients": "+".join(sorted(prob.method_used))},
     )
+
+
+def _blas_limits() -> Any:
+    """Single-threaded BLAS while integrating: every product is small (n_i
+    of a few tens), so threads gain nothing, and on shared cores a
+    multi-threaded call waits for a time slice (10x slower and erratic).
+    The integrator's own worker threads use the second core."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional
+        import contextlib
+
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _default_outputs(mdl: Any) -> list[str]:
