@@ -49,7 +49,7 @@ from .errors import InputError
 from .frf import _cached_modes, _modal_response
 from .model import Process
 
-__all__ = ["Lobe", "LobeDiagram", "lobes", "boundary"]
+__all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
 
 _LOG_SPAN = 9.0  # decades of width searched below the maximum width
 
@@ -218,12 +218,33 @@ class LobeDiagram:
 # ============================================================================ inner solve
 
 
-def _cfrf(frozen: FrozenSystem, fb: Feedback, omega: np.ndarray) -> np.ndarray:
-    """H(jw) = J G(jw) J^T, shape (n_w, m, m), by complex modes."""
-    cm = _cached_modes(frozen)
-    keep = np.arange(cm.lam.size)
-    G = _modal_response(cm, fb.J, fb.J.T, 1j * omega, keep, False)
-    return np.transpose(G, (2, 0, 1))
+class Plant:
+    """What the boundary needs of the structure: the FRF H(jw) between the
+    coupling-element coordinates (forces on point a in CE axes -> relative
+    displacements dw, m/N), its poles (to place the frequency grid), and the
+    CE matrices at width b = 1 m (so that beta is the width in m).
+
+    Built from a frozen RDFEM system (:meth:`from_frozen`) or from a
+    python-control LTI system (:func:`chatterlab.interop.lti_plant`).
+    """
+
+    def __init__(
+        self, H: Any, poles: np.ndarray, Dl_P: np.ndarray, Dl_V: np.ndarray, Dl_O: np.ndarray
+    ) -> None:
+        self.H = H
+        self.poles = np.asarray(poles, dtype=complex)
+        self.Dl_P, self.Dl_V, self.Dl_O = (np.asarray(x, dtype=float) for x in (Dl_P, Dl_V, Dl_O))
+
+    @classmethod
+    def from_frozen(cls, frozen: FrozenSystem, fb_ref: Feedback) -> Plant:
+        cm = _cached_modes(frozen)
+        keep = np.arange(cm.lam.size)
+
+        def H(omega: np.ndarray) -> np.ndarray:
+            G = _modal_response(cm, fb_ref.J, fb_ref.J.T, 1j * np.asarray(omega, float), keep, False)
+            return np.transpose(G, (2, 0, 1))
+
+        return cls(H, cm.lam, fb_ref.Dl_P, fb_ref.Dl_V, fb_ref.Dl_O)
 
 
 @dataclass(frozen=True)
@@ -236,10 +257,10 @@ class _Ops:
     Vt: np.ndarray  # (r, m)
 
 
-def _ops(frozen: FrozenSystem, fb: Feedback, omega: np.ndarray) -> _Ops:
-    H = _cfrf(frozen, fb, omega)
-    A = fb.Dl_P[None] + 1j * omega[:, None, None] * fb.Dl_V[None]
-    u, sv, vt = np.linalg.svd(fb.Dl_O)
+def _ops(plant: Plant, omega: np.ndarray) -> _Ops:
+    H = plant.H(omega)
+    A = plant.Dl_P[None] + 1j * omega[:, None, None] * plant.Dl_V[None]
+    u, sv, vt = np.linalg.svd(plant.Dl_O)
     r = int(np.sum(sv > 1e-12 * max(sv[0], 1e-300)))
     Uo = u[:, :r] * sv[:r]
     return _Ops(omega, H @ A, H @ Uo, vt[:r])
@@ -318,12 +339,10 @@ class _Segment:
     idx: np.ndarray  # frequency indices into the grid
 
 
-def boundary(
-    frozen: FrozenSystem, fb_ref: Feedback, omega: np.ndarray, beta_max: float
-) -> tuple[_Ops, list[_Segment]]:
+def boundary(plant: Plant, omega: np.ndarray, beta_max: float) -> tuple[_Ops, list[_Segment]]:
     """Boundary solutions (beta, z) on a frequency grid, organised into
     continuous branches (segments)."""
-    ops = _ops(frozen, fb_ref, omega)
+    ops = _ops(plant, omega)
     N = omega.size
     hi = np.full(N, beta_max)
     lo = hi * 10.0**-_LOG_SPAN
@@ -348,8 +367,7 @@ def boundary(
 
 
 def _refine_crossings(
-    frozen: FrozenSystem,
-    fb_ref: Feedback,
+    plant: Plant,
     T: np.ndarray,
     k: np.ndarray,
     w0: np.ndarray,
@@ -380,7 +398,7 @@ def _refine_crossings(
         wa_, wb_, ha_, hb_ = wa[idx], wb[idx], ha[idx], hb[idx]
         wt = np.where(hb_ != ha_, wb_ - hb_ * (wb_ - wa_) / (hb_ - ha_), 0.5 * (wa_ + wb_))
         wt = np.clip(wt, np.minimum(wa_, wb_), np.maximum(wa_, wb_))
-        ops = _ops(frozen, fb_ref, wt)
+        ops = _ops(plant, wt)
         fi, bb, zz = _solve_beta(ops, blo[idx], bhi[idx], n_grid=10)
         frac = (wt - w0[idx]) / np.where(w1[idx] != w0[idx], w1[idx] - w0[idx], 1.0)
         target = b0[idx] + (b1[idx] - b0[idx]) * frac
@@ -412,11 +430,10 @@ def _refine_crossings(
     return w, beta, ok
 
 
-def _grid(frozen: FrozenSystem, lo: float, hi: float, n_base: int) -> np.ndarray:
+def _grid(plant: Plant, lo: float, hi: float, n_base: int) -> np.ndarray:
     """Frequency grid, uniform plus clusters that resolve every resonance in
     the band (points at w_r + sigma tan(theta), theta uniform)."""
-    cm = _cached_modes(frozen)
-    lam = cm.lam[cm.lam.imag > 0]
+    lam = plant.poles[plant.poles.imag > 0]
     parts = [np.linspace(lo, hi, n_base)]
     th = np.linspace(-1.52, 1.52, 161)
     for l_ in lam:
@@ -430,9 +447,8 @@ def _grid(frozen: FrozenSystem, lo: float, hi: float, n_base: int) -> np.ndarray
 # ============================================================================ lobes
 
 
-def _band(frozen: FrozenSystem, fmin: float | None, fmax: float | None) -> tuple[float, float]:
-    cm = _cached_modes(frozen)
-    wn = np.sort(np.abs(cm.lam[cm.lam.imag > 0]))
+def _band(plant: Plant, fmin: float | None, fmax: float | None) -> tuple[float, float]:
+    wn = np.sort(np.abs(plant.poles[plant.poles.imag > 0]))
     w1 = float(wn[0]) if wn.size else 1.0
     wk = float(wn[min(len(wn) - 1, 11)]) if wn.size else 10.0
     lo = 2 * np.pi * fmin if fmin is not None else 0.25 * w1
@@ -454,7 +470,7 @@ class Boundary:
 
     def __init__(
         self,
-        frozen: FrozenSystem,
+        frozen: FrozenSystem | None,
         *,
         width_max: float,
         terms: Literal["pdo", "o"] = "pdo",
@@ -462,6 +478,7 @@ class Boundary:
         fmax: float | None = None,
         n_base: int | None = None,
         couplings: list[str] | None = None,
+        plant: Plant | None = None,
     ) -> None:
         if not (np.isfinite(width_max) and width_max > 0):
             raise InputError(f"width_max must be > 0 m (got {width_max!r})")
@@ -469,17 +486,24 @@ class Boundary:
             raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
         self.frozen = frozen
         self.width_max = float(width_max)
-        # feedback at b = 1 m: beta is the width in m
-        self.fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
-        if not np.any(self.fb_ref.Dl_O):
+        if plant is None:
+            if frozen is None:
+                raise InputError("give a frozen system or a plant")
+            # feedback at b = 1 m: beta is the width in m
+            fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+            plant = Plant.from_frozen(frozen, fb_ref)
+        elif terms == "o":
+            plant = Plant(plant.H, plant.poles, 0 * plant.Dl_P, 0 * plant.Dl_V, plant.Dl_O)
+        self.plant = plant
+        if not np.any(plant.Dl_O):
             raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
-        lo, hi = _band(frozen, fmin, fmax)
-        self.omega = _grid(frozen, lo, hi, n_base or 2000)
-        self.ops, self.segments = boundary(frozen, self.fb_ref, self.omega, self.width_max)
+        lo, hi = _band(plant, fmin, fmax)
+        self.omega = _grid(plant, lo, hi, n_base or 2000)
+        self.ops, self.segments = boundary(plant, self.omega, self.width_max)
 
     def envelope(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s)."""
-        frozen, fb_ref, b_ref = self.frozen, self.fb_ref, 1.0
+        plant, b_ref = self.plant, 1.0
         T = np.atleast_1d(np.asarray(T, dtype=float))
         # candidate envelope crossing per speed: on each grid interval of each
         # branch, F(w) = (w T - psi(w)) / 2 pi crosses the integers k between its
@@ -534,7 +558,7 @@ class Boundary:
         lobe_k = np.full(nT, -1)
         if np.any(has):
             h = np.nonzero(has)[0]
-            w, beta, ok = _refine_crossings(frozen, fb_ref, T[h], *[info[h, j] for j in range(9)])
+            w, beta, ok = _refine_crossings(plant, T[h], *[info[h, j] for j in range(9)])
             beta = np.where(ok, beta, best[h])
             b_lim[h] = beta * b_ref
             chatter[h] = w / (2 * np.pi)
@@ -543,11 +567,11 @@ class Boundary:
 
     def absolute_minimum(self) -> dict[str, float]:
         """Smallest boundary width over all delays: ``width`` (m), ``chatter_hz``."""
-        return _absolute_minimum(self.frozen, self.fb_ref, self.segments, 1.0)
+        return _absolute_minimum(self.plant, self.segments, 1.0)
 
 
 def lobes(
-    frozen: FrozenSystem,
+    frozen: FrozenSystem | None,
     speeds: np.ndarray,
     *,
     width_max: float = 0.02,
@@ -558,6 +582,8 @@ def lobes(
     n_frequencies: int | None = None,
     verify: int = 2,
     couplings: list[str] | None = None,
+    plant: Plant | None = None,
+    name: str | None = None,
 ) -> LobeDiagram:
     """Stability lobe diagram b_lim(speed) at a frozen configuration.
 
@@ -581,17 +607,24 @@ def lobes(
         resonance in the band adds a cluster of points that resolves it.
     verify : int
         Number of speeds spot-checked with characteristic roots at 0.9 and
-        1.1 b_lim (0 to skip).
+        1.1 b_lim (0 to skip; not available with a ``plant``).
+    plant : Plant, optional
+        A structure given by its FRF instead of a model (e.g. a python-control
+        LTI system, :func:`chatterlab.interop.lti_plant`); ``frozen`` is then
+        None and ``process`` must be given.
+    name : str, optional
+        Label of the structure in the result (default: the model file).
 
     Returns
     -------
     LobeDiagram
     """
     t0 = time.perf_counter()
-    proc = process if process is not None else frozen.model.process
+    proc = process if process is not None else (frozen.model.process if frozen is not None else None)
     if proc is None:
+        src = frozen.model.source if frozen is not None else "the plant"
         raise InputError(
-            f"{frozen.model.source} has no [process] table: add one (shaping, turning or delay) so that"
+            f"{src} has no [process] table: add one (shaping, turning or delay), or pass process=, so that"
             " speeds map to delays"
         )
     speeds = np.asarray(speeds, dtype=float)
@@ -611,6 +644,7 @@ def lobes(
         fmax=fmax,
         n_base=n_frequencies,
         couplings=couplings,
+        plant=plant,
     )
     segs, n, b_ref = bd.segments, bd.omega.size, 1.0
     T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
@@ -666,20 +700,18 @@ def lobes(
         speed_name=proc.speed_name,
         width_max=width_max,
         terms=terms,
-        position=frozen.position,
-        model=frozen.model.source,
+        position=frozen.position if frozen is not None else None,
+        model=name or (frozen.model.source if frozen is not None else "plant"),
         elapsed=0.0,
         n_frequencies=n,
     )
-    checks = _verify(frozen, diagram, verify, couplings) if verify else ()
+    checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
     object.__setattr__(diagram, "checks", checks)
     object.__setattr__(diagram, "elapsed", time.perf_counter() - t0)
     return diagram
 
 
-def _absolute_minimum(
-    frozen: FrozenSystem, fb_ref: Feedback, segs: list[_Segment], b_ref: float
-) -> dict[str, float]:
+def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[str, float]:
     if not segs:
         return {"width": float("inf"), "chatter_hz": float("nan")}
     cand = [(float(sg.beta.min()), sg, int(np.argmin(sg.beta))) for sg in segs]
@@ -689,7 +721,7 @@ def _absolute_minimum(
         from scipy.optimize import minimize_scalar
 
         def f(w: float) -> float:
-            ops = _ops(frozen, fb_ref, np.array([w]))
+            ops = _ops(plant, np.array([w]))
             _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=8)
             return float(bb.min()) if bb.size else np.inf
 
