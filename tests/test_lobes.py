@@ -344,9 +344,10 @@ def shaper(shaper_path) -> cl.FrozenSystem:
 def test_shaper_boundary_agrees_with_roots_on_a_coarse_grid(shaper, tmp_path):
     """The paper's CE (D_P + s D_V + D_O e^{-sT}, terms="pdo"), 300 speeds
     0.1-1 m/s: at the paper's 0.5 m/s and at 1 m/s the characteristic roots
-    call 0.5 and 0.9 b_lim stable and 1.1 and 2 b_lim unstable; the
-    diagram's own spot checks agree.  (Each root computation on the shaper
-    with T = 0.9-1.5 s takes 1-2 s: this grid is kept small.)"""
+    call 0.5 and 0.9 b_lim stable and 1.1 and 2 b_lim unstable, and the
+    argument principle agrees; the diagram's own spot checks agree.  (Each
+    verdict on the shaper with T = 0.9-1.5 s takes 0.5-2 s: the grid is
+    kept small.)"""
     speeds = np.linspace(0.1, 1.0, 300)
     d = lobes(shaper, speeds, width_max=0.005, terms="pdo", verify=1)
     assert d.verified is True, d.checks
@@ -358,8 +359,9 @@ def test_shaper_boundary_agrees_with_roots_on_a_coarse_grid(shaper, tmp_path):
     for v in (0.5, 1.0):
         j = int(np.argmin(np.abs(speeds - v)))
         for factor, expected in ((0.5, "stable"), (0.9, "stable"), (1.1, "unstable"), (2.0, "unstable")):
-            s = stability(shaper, width=factor * d.b_lim[j], delay=d.delay[j], terms="pdo", winding=False)
+            s = stability(shaper, width=factor * d.b_lim[j], delay=d.delay[j], terms="pdo")
             assert s.verdict == expected, (v, factor, s.message)
+            assert s.agree is True, (v, factor, s.message)  # the argument principle too
     d.to_netcdf(str(tmp_path / "shaper.nc"))
     r = read_netcdf(tmp_path / "shaper.nc")
     np.testing.assert_array_equal(r.data["b_lim"][0], d.b_lim)
