@@ -62,17 +62,27 @@ class ShapingKinematics:
 
     def state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Slide position s (m), velocity ds/dt (m/s), in-cut mask and the
-        distance travelled in the cut (m; NaN outside it), at times t."""
+        distance travelled in the cut (m; NaN outside it), at times t.
+
+        Right-continuous at the events (cut entry and exit, reversal, end of
+        the cycle): a time within a few units in the last place of an event
+        -- a step ``k h`` meant to land on it -- is taken as the event itself,
+        so that the switch happens on that step and not one step late.
+        """
         t = np.asarray(t, dtype=float)
-        tau = np.mod(t, self.cycle)
-        work = tau < self.work_time
+        T = self.cycle
+        tol = 4.0 * np.spacing(np.maximum(np.abs(t), T))
+        k = np.floor((t + tol) / T)
+        tau = np.maximum(t - k * T, 0.0)
+        t_in, t_out, t_work, _ = self.events()
+        work = tau < t_work - tol
         d_work = self.speed * tau
         d_ret = self.stroke - self.return_speed * (tau - self.work_time)
-        d = np.where(work, d_work, d_ret)
+        d = np.where(work, d_work, np.clip(d_ret, 0.0, self.stroke))
         s = self.start + self.direction * d
         v = np.where(work, self.direction * self.speed, -self.direction * self.return_speed)
-        in_cut = work & (d_work >= self.run_in) & (d_work < self.run_in + self.cut)  # right-continuous
-        cut_d = np.where(in_cut, d_work - self.run_in, np.nan)
+        in_cut = work & (tau >= t_in - tol) & (tau < t_out - tol)
+        cut_d = np.where(in_cut, np.clip(d_work - self.run_in, 0.0, self.cut), np.nan)
         return s, v, in_cut, cut_d
 
     def events(self) -> tuple[float, float, float, float]:
@@ -92,19 +102,25 @@ class ShapingKinematics:
     @property
     def grid_unit(self) -> float:
         """The largest time step that puts every event on the step grid (to
-        1e-9 relative), or the cycle if the events are incommensurate."""
+        1e-9 relative), or the cycle if the events are incommensurate (then
+        only the cycle, i.e. the delay, is on the grid; cut entry and exit
+        fall between steps)."""
         from fractions import Fraction
-        from math import gcd
+        from math import gcd, lcm
 
         ev = [e for e in self.events() if e > 0]
-        scale = 10**9
-        ints = [int(round(Fraction(e).limit_denominator(10**6) * scale)) for e in ev]
-        g = 0
-        for x in ints:
-            g = gcd(g, x)
-        unit = g / scale
-        ok = all(abs(e / unit - round(e / unit)) < 1e-6 for e in ev) if unit > 0 else False
-        return unit if ok and unit > 1e-6 * self.cycle else self.cycle
+        fr = [Fraction(e).limit_denominator(10**6) for e in ev]
+        den = 1
+        for f in fr:
+            den = lcm(den, f.denominator)
+        num = 0
+        for f in fr:
+            num = gcd(num, f.numerator * (den // f.denominator))
+        unit = num / den if num else 0.0
+        ok = unit > 1e-6 * self.cycle and all(
+            abs(e / unit - round(e / unit)) < 1e-9 * max(1.0, e / unit) for e in ev
+        )
+        return unit if ok else self.cycle
 
     @property
     def range(self) -> tuple[float, float]:

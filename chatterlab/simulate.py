@@ -900,6 +900,8 @@ def simulate(
         # a whole number of steps between the process events (cut entry and
         # exit, reversal, one cycle) keeps them and the delayed samples on the grid
         unit = kin.grid_unit if isinstance(kin, ShapingKinematics) else T
+        if unit < 0.25 * step:  # events on a grid much finer than needed: keep the cycle on it only
+            unit = T
         step = unit / math.ceil(unit / step)
     step = float(step)
     if feedback == "pdo" and step > T * (1 + 1e-12):
