@@ -14,24 +14,49 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 from .assembly import CouplingMatrices, FrozenSystem, System, assemble
+from .cutting import Feedback, feedback
 from .errors import ChatterlabError, InputError, ModelError, SweepError
+from .frf import FRF, frequencies, frf, loop_determinant
+from .lobes import LobeDiagram, lobes
 from .modal import Modes, modes
 from .model import Model
 from .modelfile import load_model, loads_model
+from .simulate import Simulation, simulate
+from .stability import Stability, stability
+from .sweep import Grid, SweepResult, sweep
 
 __all__ = [
     "__version__",
-    "ChatterlabError",
-    "CouplingMatrices",
-    "FrozenSystem",
-    "InputError",
+    # model and assembly
     "Model",
-    "ModelError",
-    "Modes",
-    "SweepError",
-    "System",
-    "assemble",
     "load_model",
     "loads_model",
+    "System",
+    "FrozenSystem",
+    "CouplingMatrices",
+    "assemble",
+    # analyses and their results
+    "Modes",
     "modes",
+    "FRF",
+    "frf",
+    "frequencies",
+    "loop_determinant",
+    "Feedback",
+    "feedback",
+    "Stability",
+    "stability",
+    "LobeDiagram",
+    "lobes",
+    "Simulation",
+    "simulate",
+    # sweeps
+    "Grid",
+    "SweepResult",
+    "sweep",
+    # errors
+    "ChatterlabError",
+    "InputError",
+    "ModelError",
+    "SweepError",
 ]

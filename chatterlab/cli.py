@@ -189,6 +189,25 @@ def _frf(args: argparse.Namespace) -> int:
         _emit(res.to_json(), args.out)
     else:
         res.to_csv(args.out or sys.stdout)
+    if args.nyquist:
+        if fb is None or fb.is_zero:
+            raise InputError(
+                "--nyquist draws det(I - G D) of the cutting loop: add --closed-loop --width ..."
+            )
+        import numpy as np
+
+        from .frf import _cached_modes, loop_determinant, resonance_grid
+        from .plot import plot_nyquist, savefig
+
+        # resolve every resonance and the turning of e^{-jwT} (32 points per turn)
+        n_turn = int(16 * (fb.delay or 0.0) * float(w[-1] - w[0]) / np.pi) + 1
+        wn = resonance_grid(
+            _cached_modes(fz).lam, float(w[0]), float(w[-1]), min(max(w.size, n_turn), 400_000)
+        )
+        det = loop_determinant(fz, wn, fb)
+        title = f"{fz.model.name}: det(I - G D), b = {args.width:g} mm"
+        savefig(plot_nyquist(wn, det, title=title), args.nyquist)
+        print(f"wrote {args.nyquist}", file=sys.stderr)
     if args.plot:
         from .plot import plot_frf, savefig
 
@@ -720,6 +739,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--format", choices=["csv", "json"], default="csv")
     f.add_argument("--out", metavar="FILE")
     f.add_argument("--plot", metavar="FILE.png", help="magnitude/phase plot (open vs closed loop)")
+    f.add_argument("--nyquist", metavar="FILE.png", help="Nyquist plot of the loop determinant det(I - G D)")
 
     for extra in _EXTRA_PARSERS:
         extra(sub)

@@ -46,7 +46,7 @@ import numpy as np
 from .assembly import FrozenSystem
 from .cutting import Feedback, feedback
 from .errors import InputError
-from .frf import _cached_modes, _modal_response
+from .frf import _cached_modes, _modal_response, resonance_grid
 from .model import Process
 
 __all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
@@ -431,20 +431,8 @@ def _refine_crossings(
 
 
 def _grid(plant: Plant, lo: float, hi: float, n_base: int) -> np.ndarray:
-    """Frequency grid, uniform plus clusters that resolve every resonance in
-    the band (points at w_r + sigma tan(theta), theta uniform)."""
-    lam = plant.poles[plant.poles.imag > 0]
-    parts = [np.linspace(lo, hi, n_base)]
-    th = np.linspace(-1.52, 1.52, 161)
-    for l_ in lam:
-        wr, sg = float(l_.imag), max(float(-l_.real), 2e-3 * float(l_.imag))
-        if lo - 20 * sg < wr < hi + 20 * sg:
-            parts.append(wr + sg * np.tan(th))
-    w = np.unique(np.concatenate(parts))
-    return w[(w >= lo) & (w <= hi)]
-
-
-# ============================================================================ lobes
+    """Frequency grid, uniform plus clusters that resolve every resonance."""
+    return resonance_grid(plant.poles, lo, hi, n_base)
 
 
 def _band(plant: Plant, fmin: float | None, fmax: float | None) -> tuple[float, float]:
