@@ -242,16 +242,36 @@ class ComplexModes:
 
 def complex_modes(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> ComplexModes:
     """Eigen-decomposition of the symmetric first-order form
-    [[B, A], [A, 0]] y' + [[C, 0], [0, -A]] y = [f, 0]."""
+    [[B, A], [A, 0]] y' + [[C, 0], [0, -A]] y = [f, 0].
+
+    The problem is first balanced -- q = S x with S = diag(A)^-1/2 and
+    s = w0 mu with w0 a typical natural frequency -- because on the raw
+    matrices (masses of kg, stiffnesses of 1e9 N/m) the eigen-solver loses
+    ~1e-7 of the real part of a lightly damped mode.  With
+    G_s(mu) = sum phi_s phi_s^T / (mu - mu_r) of the balanced problem,
+    G(s) = S G_s(s / w0) S / w0^2, i.e. phi = S phi_s / sqrt(w0), lam = w0 mu.
+    """
     n = A.shape[0]
-    Z = np.zeros_like(A)
-    AA = np.block([[B, A], [A, Z]])
-    BB = np.block([[C, Z], [Z, -A]])
-    lam, psi = scipy.linalg.eig(-BB, AA)
+    d = np.diag(A).copy()
+    d[d <= 0] = 1.0
+    S = 1.0 / np.sqrt(d)
+    As = A * S[:, None] * S[None, :]
+    Cs0 = C * S[:, None] * S[None, :]
+    ratio = np.diag(Cs0) / np.diag(As)
+    ratio = ratio[np.isfinite(ratio) & (ratio > 0)]
+    w0 = float(np.sqrt(np.exp(np.mean(np.log(ratio))))) if ratio.size else 1.0
+    Bs = B * S[:, None] * S[None, :] / w0
+    Cs = Cs0 / w0**2
+    Z = np.zeros_like(As)
+    AA = np.block([[Bs, As], [As, Z]])
+    BB = np.block([[Cs, Z], [Z, -As]])
+    mu, psi = scipy.linalg.eig(-BB, AA)
     a = np.einsum("ir,ij,jr->r", psi, AA, psi)
     psi = psi / np.sqrt(a)
+    lam = mu * w0
+    phi = S[:, None] * psi[:n] / np.sqrt(w0)
     order = np.argsort(np.abs(lam))
-    return ComplexModes(lam[order], psi[:n, order], A, B, C)
+    return ComplexModes(lam[order], phi[:, order], A, B, C)
 
 
 def _taylor_terms(cm: ComplexModes, rows: np.ndarray, cols: np.ndarray) -> list[np.ndarray]:
