@@ -57,8 +57,8 @@ References
 .. [2] K.-J. Bathe and E. L. Wilson, *Numerical methods in finite element
    analysis*, Prentice Hall, Englewood Cliffs 1976 (sec. 8.2.4, stability
    and accuracy of the Newmark operator).
-.. [3] E. Wittbrodt and K. Kaliński, "Dynamics of parametric closed-loop
-   systems" (the seed paper of chatterlab), eq. (2.28) and sec. 2.
+.. [3] E. Wittbrodt and K. J. Kaliński, "Transient vibration of unsteady linear
+   closed loop systems" (the seed paper of chatterlab), eq. (2.28) and sec. 2.
 """
 
 from __future__ import annotations

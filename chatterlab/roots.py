@@ -60,9 +60,8 @@ Numerical failure is reported as ``status="not_converged"`` with a
 
 References
 ----------
-.. [1] E. Wittbrodt, K. Kaliński, "Dynamics of machine tools with
-   time-varying parameters and delayed feedback" (the seed paper of
-   chatterlab), Eqs. 2.1, 2.22-2.28.
+.. [1] E. Wittbrodt, K. J. Kaliński, "Transient vibration of unsteady linear
+   closed loop systems" (the seed paper of chatterlab), Eqs. 2.1, 2.22-2.28.
 .. [2] D. Breda, S. Maset, R. Vermiglio, "Pseudospectral differencing methods
    for characteristic roots of delay differential equations", SIAM J. Sci.
    Comput. 27(2), 482-495, 2005.
@@ -183,9 +182,7 @@ class RootsResult:
             f"status={self.status}, rejected={self.rejected})",
             f"{'#':>3} {'Re (1/s)':>14} {'Im (rad/s)':>14} {'f (Hz)':>12} {'zeta':>10}",
         ]
-        for i, (lam, f, z) in enumerate(
-            zip(self.roots, self.frequency_hz, self.damping_ratio, strict=True)
-        ):
+        for i, (lam, f, z) in enumerate(zip(self.roots, self.frequency_hz, self.damping_ratio, strict=True)):
             lines.append(f"{i:>3} {lam.real:>14.6g} {lam.imag:>14.6g} {f:>12.6g} {z:>10.4g}")
         lines.append(f"abscissa = {self.abscissa:.6g} 1/s; {self.message}")
         return "\n".join(lines)
@@ -375,8 +372,7 @@ def _batched_solve(A: ComplexArray, B: ComplexArray, singular: Any = np.nan) -> 
     try:
         return np.linalg.solve(A, B)
     except np.linalg.LinAlgError:
-        out = np.full(np.broadcast_shapes(A.shape[:-2], B.shape[:-2]) + B.shape[-2:],
-                      np.nan + 0j)
+        out = np.full(np.broadcast_shapes(A.shape[:-2], B.shape[:-2]) + B.shape[-2:], np.nan + 0j)
         Ab = np.broadcast_to(A, out.shape[:-2] + A.shape[-2:])
         Bb = np.broadcast_to(B, out.shape)
         for idx in np.ndindex(out.shape[:-2]):
@@ -428,8 +424,7 @@ def _factor_DO(DO: Any, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64
             V = V[:, None]
         if U.ndim != 2 or V.ndim != 2 or U.shape != V.shape or U.shape[0] != n:
             raise InputError(
-                f"DO=(U, V) factors must both have shape (n, r) with n={n} "
-                f"(got U {U.shape}, V {V.shape})"
+                f"DO=(U, V) factors must both have shape (n, r) with n={n} (got U {U.shape}, V {V.shape})"
             )
         if not (np.all(np.isfinite(U)) and np.all(np.isfinite(V))):
             raise InputError("DO=(U, V) factors have non-finite entries")
@@ -523,9 +518,7 @@ def make_system(
         B[n:] = sla.cho_solve(cho, U)
     Cz = np.zeros((r, 2 * n))
     Cz[:, :n] = V.T
-    return DelaySystem(
-        coeffs=(Kt, Ct, Mm), U=U, V=V, tau=t, A=A, B=B, Cz=Cz, open_coeffs=(Km, Cm, Mm)
-    )
+    return DelaySystem(coeffs=(Kt, Ct, Mm), U=U, V=V, tau=t, A=A, B=B, Cz=Cz, open_coeffs=(Km, Cm, Mm))
 
 
 def make_first_order_system(
@@ -560,7 +553,13 @@ def make_first_order_system(
         raise InputError(str(exc).replace("DO", "A1")) from exc
     t = _check_tau(tau, U.shape[1] > 0)
     return DelaySystem(
-        coeffs=(-A, np.eye(n)), U=U, V=V, tau=t, A=A.copy(), B=U.copy(), Cz=V.T.copy(),
+        coeffs=(-A, np.eye(n)),
+        U=U,
+        V=V,
+        tau=t,
+        A=A.copy(),
+        B=U.copy(),
+        Cz=V.T.copy(),
         open_coeffs=(-A, np.eye(n)),
     )
 
@@ -826,7 +825,7 @@ def _generator_matrix(sys: DelaySystem, N: int, omega0: float) -> NDArray[Any]:
     G = np.zeros((size, size), dtype=dtype)
     G[:m, :m] = sys.A
     shift = 1.0 if real else np.exp(-1j * omega0 * sys.tau)
-    G[:m, m + (N - 1) * r:] = sys.B * shift
+    G[:m, m + (N - 1) * r :] = sys.B * shift
     # u rows, node-major blocks of size r
     Dh = D[1:, 1:].copy()
     if not real:
@@ -989,8 +988,7 @@ def _predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
             wstar = ww[ii] + t * (ww[ii + 1] - ww[ii])
             lam_abs = la[ii] + t * (la[ii + 1] - la[ii])
             # d log mu / d lam on the axis = -i d log mu / d w
-            s = -1j * ((dla[ii] + t * (dla[ii + 1] - dla[ii]))
-                       + 1j * (dph[ii] + t * (dph[ii + 1] - dph[ii])))
+            s = -1j * ((dla[ii] + t * (dla[ii + 1] - dla[ii])) + 1j * (dph[ii] + t * (dph[ii + 1] - dph[ii])))
             corr = lam_abs / (tau - s)
             est = 1j * wstar + corr
             ratio = np.abs(s) / tau
@@ -1003,8 +1001,10 @@ def _predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
     # the real axis (two real roots may share a branch index)
     p = sys.delay_free_poles()
     with np.errstate(all="ignore"):
-        a_hi = max(float(np.max(lam.real)) if lam.size else 0.0,
-                   float(np.max(p.real)) if p.size else 0.0, 0.0) + 10.0 / tau
+        a_hi = (
+            max(float(np.max(lam.real)) if lam.size else 0.0, float(np.max(p.real)) if p.size else 0.0, 0.0)
+            + 10.0 / tau
+        )
     x = np.linspace(a_hi - 60.0 / tau, a_hi, 601)
     with np.errstate(all="ignore"):
         sg, ld = np.linalg.slogdet(sys.delta(x).real)
@@ -1106,7 +1106,11 @@ def _spectral(
         windows.extend(new)
         if len(windows) > max_windows:
             return _finish(
-                sys, windows, count, method, t0,
+                sys,
+                windows,
+                count,
+                method,
+                t0,
                 fail=f"more than {max_windows} frequency windows needed; "
                 "pass omega_max to narrow the band or use method='branch'",
             )
@@ -1174,20 +1178,28 @@ def _finish(
         msg = f"only {roots.size} of {count} roots confirmed by both discretisations"
     else:
         status = "converged"
-        msg = (f"{roots.size} roots confirmed by N={N} and N2={N2} after Newton "
-               f"({len(windows)} window(s), {rejected} candidate(s) rejected)")
+        msg = (
+            f"{roots.size} roots confirmed by N={N} and N2={N2} after Newton "
+            f"({len(windows)} window(s), {rejected} candidate(s) rejected)"
+        )
     if extra:
         msg = f"{msg} {extra}"
-    return _make_result(roots, method=method, n_nodes=(N, N2), rejected=rejected,
-                        status=status, message=msg, n_windows=len(windows), t0=t0)
+    return _make_result(
+        roots,
+        method=method,
+        n_nodes=(N, N2),
+        rejected=rejected,
+        status=status,
+        message=msg,
+        n_windows=len(windows),
+        t0=t0,
+    )
 
 
 # ---------------------------------------------------------------------------
 # branch enumeration
 # ---------------------------------------------------------------------------
-def _newton_distinct(
-    sys: DelaySystem, starts: ComplexArray, known: ComplexArray
-) -> tuple[ComplexArray, int]:
+def _newton_distinct(sys: DelaySystem, starts: ComplexArray, known: ComplexArray) -> tuple[ComplexArray, int]:
     """Newton from each start; a start that lands on a root already claimed by
     another start is restarted with the claimed roots deflated, so that one
     start yields one distinct root.  Returns (all distinct roots, failures)."""
@@ -1217,9 +1229,7 @@ def _newton_distinct(
     return roots, rejected
 
 
-def _branch(
-    sys: DelaySystem, count: int, omega_max: float | None, t0: float
-) -> RootsResult:
+def _branch(sys: DelaySystem, count: int, omega_max: float | None, t0: float) -> RootsResult:
     tau = sys.tau
     top = _band_top(sys, count, omega_max)
     est, unc = _predict(sys, top)
@@ -1236,18 +1246,26 @@ def _branch(
         if more.size == 0 and roots.size >= count:
             break
         if more.size == 0:
-            more = take[nstart:nstart + 4 * count + 16]
+            more = take[nstart : nstart + 4 * count + 16]
         roots, rej = _newton_distinct(sys, est[more], roots)
         rejected += rej
         nstart += more.size
-        take = np.concatenate([take[:nstart - more.size], more,
-                               np.setdiff1d(take[nstart - more.size:], more, assume_unique=True)])
+        take = np.concatenate(
+            [
+                take[: nstart - more.size],
+                more,
+                np.setdiff1d(take[nstart - more.size :], more, assume_unique=True),
+            ]
+        )
     roots = roots[np.lexsort((roots.imag, -roots.real))][:count]
     status = "converged" if roots.size >= count else "not_converged"
-    msg = (f"{roots.size} roots by Newton from {nstart} of {est.size} branch predictions "
-           f"up to {top:.6g} rad/s ({rejected} start(s) without convergence)")
-    return _make_result(roots, method="branch", n_nodes=(0, 0), rejected=rejected,
-                        status=status, message=msg, t0=t0)
+    msg = (
+        f"{roots.size} roots by Newton from {nstart} of {est.size} branch predictions "
+        f"up to {top:.6g} rad/s ({rejected} start(s) without convergence)"
+    )
+    return _make_result(
+        roots, method="branch", n_nodes=(0, 0), rejected=rejected, status=status, message=msg, t0=t0
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -1257,9 +1275,15 @@ def _no_delay(sys: DelaySystem, count: int, t0: float) -> RootsResult:
     try:
         ev = np.linalg.eigvals(sys.A)
     except np.linalg.LinAlgError as exc:
-        return _make_result([], method="eig", n_nodes=(0, 0), rejected=0,
-                            status="not_converged", message=f"eigenvalue solver failed: {exc}",
-                            t0=t0)
+        return _make_result(
+            [],
+            method="eig",
+            n_nodes=(0, 0),
+            rejected=0,
+            status="not_converged",
+            message=f"eigenvalue solver failed: {exc}",
+            t0=t0,
+        )
     scale = _root_scale(sys)
     ev = ev[ev.imag >= -1e-12 * np.maximum(np.abs(ev), scale)]
     ev = np.where(np.abs(ev.imag) <= 1e-12 * np.maximum(np.abs(ev), scale), ev.real + 0j, ev)
@@ -1269,8 +1293,7 @@ def _no_delay(sys: DelaySystem, count: int, t0: float) -> RootsResult:
     msg = f"no delay: eigenvalues of the linearised (companion) problem, {total} in Im >= 0"
     if total < count:
         msg += f"; only {total} roots exist (count={count})"
-    return _make_result(ev, method="eig", n_nodes=(0, 0), rejected=0, status="converged",
-                        message=msg, t0=t0)
+    return _make_result(ev, method="eig", n_nodes=(0, 0), rejected=0, status="converged", message=msg, t0=t0)
 
 
 def _check_count(count: Any) -> int:
