@@ -26,7 +26,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .assembly import CouplingMatrices, FrozenSystem
+from .assembly import FrozenSystem
 from .errors import InputError
 from .model import Process
 
@@ -119,23 +119,6 @@ def delay_for(
     return float(process.delay(speed))
 
 
-def _stack(cms: tuple[CouplingMatrices, ...], width: float) -> tuple[np.ndarray, ...]:
-    m = len(cms)
-    n = cms[0].J.shape[1]
-    J = np.zeros((3 * m, n))
-    P = np.zeros((3 * m, 3 * m))
-    V = np.zeros((3 * m, 3 * m))
-    O = np.zeros((3 * m, 3 * m))
-    F = np.zeros(3 * m)
-    for k, c in enumerate(cms):
-        sl = slice(3 * k, 3 * k + 3)
-        J[sl] = c.J
-        DP, DV, DO = c.scaled(width)
-        P[sl, sl], V[sl, sl], O[sl, sl] = DP, DV, DO
-        F[sl] = c.forces * (width / c.width_ref)
-    return J, P, V, O, F
-
-
 def feedback(
     frozen: FrozenSystem,
     *,
@@ -171,20 +154,19 @@ def feedback(
         raise InputError(f"width must be a number in m, got {width!r}")
     if width <= 0:
         raise InputError(f"width must be > 0 m (got {width:g} m)")
-    cms = frozen.couplings()
-    if couplings is not None:
-        known = [c.id for c in cms]
-        for cid in couplings:
-            if cid not in known:
-                raise InputError(f"unknown coupling '{cid}' (known: {', '.join(known) or 'none'})")
-        cms = tuple(c for c in cms if c.id in couplings)
-    n = frozen.n
-    if not cms:
+    known = [c.id for c in frozen.model.couplings]
+    if not known:
         raise InputError(
             f"{frozen.model.source} has no [[coupling]] element: the cutting process needs one"
             " (see docs/model-format.md)"
         )
-    J, P, V, O, F = _stack(cms, float(width))
+    if couplings is not None:
+        for cid in couplings:
+            if cid not in known:
+                raise InputError(f"unknown coupling '{cid}' (known: {', '.join(known)})")
+    n = frozen.n
+    J_all, P, V, O, F = ce_maps(frozen.system, float(width), couplings)
+    J = frozen.expand(J_all)
     if terms == "none":
         P, V, O = (np.zeros_like(P),) * 3
     elif terms == "pd":
@@ -220,12 +202,12 @@ def feedback(
     )
 
 
-def ce_maps(system: Any, width: float) -> tuple[np.ndarray, ...]:
-    """All coupling elements stacked over *all* coordinates, for the time
-    domain: J (3m, n) mapping q to the CE relative displacements in CE axes,
-    the block-diagonal D_P, D_V, D_O (3m, 3m) at width b, and the desired
-    forces P0 (3m,) at width b."""
-    maps = system._coupling_maps
+def ce_maps(system: Any, width: float, couplings: list[str] | None = None) -> tuple[np.ndarray, ...]:
+    """The coupling elements stacked over *all* coordinates: J (3m, n)
+    mapping q to the CE relative displacements in CE axes, the block-diagonal
+    D_P, D_V, D_O (3m, 3m) at width b, and the desired forces P0 (3m,) at
+    width b.  ``couplings`` selects CEs by id (default: all)."""
+    maps = [(c, Jc) for c, Jc in system._coupling_maps if couplings is None or c.id in couplings]
     m = len(maps)
     J = np.zeros((3 * m, system.n))
     P = np.zeros((3 * m, 3 * m))
