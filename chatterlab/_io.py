@@ -16,7 +16,7 @@ def text_out(target: str | os.PathLike[str] | IO[str]) -> Iterator[Any]:
     if hasattr(target, "write"):
         yield target
         return
-    path = os.fspath(target)  # type: ignore[arg-type]
+    path = os.fspath(target)
     tmp = f"{path}.part"
     with open(tmp, "w", newline="") as fh:
         yield fh

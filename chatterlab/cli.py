@@ -13,7 +13,7 @@ import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from .errors import ChatterlabError, InputError
 
@@ -477,7 +477,9 @@ def _simulate(args: argparse.Namespace) -> int:
         raise InputError(f"--step must be > 0 s (got {args.step:g})")
     sy = assemble(_load(args))
     width = _width_m(args) if args.width is not None else None
-    cases = ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
+    cases: list[Literal["none", "pd", "pdo"]] = (
+        ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
+    )
     sims = []
     for fb in cases:
         sim = simulate(

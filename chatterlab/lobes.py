@@ -108,7 +108,7 @@ class LobeDiagram:
     speed_unit: str
     speed_name: str
     width_max: float
-    terms: str
+    terms: Literal["pdo", "o"]
     position: float | None
     model: str
     checks: tuple[dict[str, Any], ...] = ()

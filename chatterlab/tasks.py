@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -28,6 +28,11 @@ from .errors import InputError
 from .model import Model
 
 __all__ = ["AtlasTask", "QuantityTask", "QUANTITIES", "model_fingerprint", "axis_name"]
+
+# The tasks keep ``terms: str`` (it comes from the command line); Boundary and stability
+# refuse any other value with an InputError, so the casts below only inform the type checker.
+_LobeTerms = Literal["pdo", "o"]
+_Terms = Literal["pdo", "pd", "o", "none"]
 
 
 def axis_name(path: str) -> str:
@@ -99,8 +104,12 @@ class AtlasTask:
         def make() -> Any:
             sy = _cached(("system", self.key), lambda: assemble(self.model))
             return Boundary(
-                sy.at(position), width_max=self.width_max, terms=self.terms, fmin=self.fmin, fmax=self.fmax
-            )  # type: ignore[arg-type]
+                sy.at(position),
+                width_max=self.width_max,
+                terms=cast(_LobeTerms, self.terms),
+                fmin=self.fmin,
+                fmax=self.fmax,
+            )
 
         return _cached(
             ("boundary", self.key, float(position), self.width_max, self.terms, self.fmin, self.fmax), make
@@ -208,8 +217,8 @@ class QuantityTask:
                 width=vals["width"],
                 speed=vals.get("speed"),
                 delay=vals.get("delay"),
-                terms=self.terms,
-                winding=False,  # type: ignore[arg-type]
+                terms=cast(_Terms, self.terms),
+                winding=False,
             )
             if q == "stable":
                 return {"stable": float(st.verdict == "stable"), "abscissa": st.abscissa}
@@ -218,7 +227,7 @@ class QuantityTask:
 
         bd = _cached(
             ("boundary", self.key, pkey, pos, self.width_max, self.terms),
-            lambda: Boundary(fz, width_max=self.width_max, terms=self.terms),  # type: ignore[arg-type]
+            lambda: Boundary(fz, width_max=self.width_max, terms=cast(_LobeTerms, self.terms)),
         )
         if q == "min-b-lim":
             m = bd.absolute_minimum()
