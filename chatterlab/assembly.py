@@ -239,7 +239,7 @@ class System:
         -------
         ndarray, shape (n_d, n_i) for a scalar s, (m, n_d, n_i) for an array.
         """
-        scalar = np.ndim(s) == 0
+        scalar = s is None or np.ndim(s) == 0
         Ws = self._W_all(s)[order]
         return Ws[0] if scalar else Ws
 
@@ -290,7 +290,7 @@ class System:
 
         Returns arrays of shape (n_i, n_i) for scalar s, else (m, n_i, n_i).
         """
-        scalar = np.ndim(s) == 0
+        scalar = s is None or np.ndim(s) == 0
         W0, W1, W2 = self._W_all(s)
         v = np.atleast_1d(np.asarray(velocity, float))[:, None, None]
         a = np.atleast_1d(np.asarray(acceleration, float))[:, None, None]

@@ -153,7 +153,7 @@ def closed_loop_lti(
     w = np.asarray(omega, dtype=float)
     H = lti_plant(lti, DP=P, DV=V, DO=O, width_ref=width_ref).H(w)
     f = width / width_ref
-    e = np.exp(-1j * w * delay) if np.any(O) else np.zeros(w.size)
+    e = np.exp(-1j * w * delay) if delay is not None and np.any(O) else np.zeros(w.size)
     Dl = f * (P[None] + 1j * w[:, None, None] * V[None] + e[:, None, None] * O[None])
     Hcl = np.linalg.solve(np.eye(m)[None] + H @ Dl, H)
     names = tuple(f"ce.{k + 1}" for k in range(m))
