@@ -54,10 +54,10 @@ def body_centre(model: Model, bid: str, s: float | None = None) -> np.ndarray:
             if b.movable and mv is not None and s is not None:
                 c = c + (s - mv.position) * np.array(mv.direction)
             return c
-    for c in model.contacts:
-        if c.id == bid:
-            tp = contact_track_position(model, c, s)
-            return beam_point_xy(model, tp.beam, tp.distance, c.offset)
+    for ct in model.contacts:
+        if ct.id == bid:
+            tp = contact_track_position(model, ct, s)
+            return beam_point_xy(model, tp.beam, tp.distance, ct.offset)
     raise KeyError(bid)
 
 

@@ -167,10 +167,10 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
                 picked.append(int(j))
             if len(picked) >= lobe_numbers:
                 break
-        for j in picked:
+        for i in picked:
             ax.annotate(
-                f"k={d.lobe[j]}",
-                (v[j], b[j]),
+                f"k={d.lobe[i]}",
+                (v[i], b[i]),
                 textcoords="offset points",
                 xytext=(0, -12),
                 ha="center",
