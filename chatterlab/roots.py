@@ -370,7 +370,7 @@ def _batched_solve(A: ComplexArray, B: ComplexArray, singular: Any = np.nan) -> 
     Never raises: non-finite members give NaN.
     """
     try:
-        return np.linalg.solve(A, B)
+        return np.linalg.solve(A, B)  # type: ignore[return-value]  # numpy stubs: complex128 in, complexfloating[Any, Any] out
     except np.linalg.LinAlgError:
         out = np.full(np.broadcast_shapes(A.shape[:-2], B.shape[:-2]) + B.shape[-2:], np.nan + 0j)
         Ab = np.broadcast_to(A, out.shape[:-2] + A.shape[-2:])
@@ -933,7 +933,7 @@ def _track_branches(mu: ComplexArray) -> ComplexArray:
         prev = out[i - 1]
         cur = list(range(r))
         for j in range(r):
-            k = min(cur, key=lambda c, j=j: abs(mu[i, c] - prev[j]))
+            k = min(cur, key=lambda c: abs(mu[i, c] - prev[j]))
             order[j] = k
             cur.remove(k)
         out[i] = mu[i, order]
@@ -956,7 +956,7 @@ def _predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
     """
     tau = sys.tau
     w = _axis_grid(sys, top)
-    mu = _track_branches(_branch_mu(sys, 1j * w))
+    mu = _track_branches(_branch_mu(sys, 1j * w))  # type: ignore[arg-type]  # numpy stubs: 1j * float64 is complexfloating[Any, Any]
     ests = []
     uncs = []
     with np.errstate(all="ignore"):

@@ -130,7 +130,8 @@ class WindingResult:
         return self.count == 0
 
 
-def _open_loop_poles(sys: DelaySystem) -> NDArray[np.complex128]:
+def _open_loop_poles(sys: DelaySystem) -> NDArray[np.inexact[Any]]:
+    # real (float64) when every eigenvalue is real: that is what np.linalg.eigvals returns
     Km, Cm, Mm = (
         sys.open_coeffs if len(sys.open_coeffs) == 3 else (sys.open_coeffs[0], sys.open_coeffs[1], None)
     )
@@ -170,7 +171,7 @@ class _Sampler:
     """Evaluate the sampled factor F(j omega): complex values, finite or not."""
 
     def __init__(
-        self, sys: DelaySystem, mode: str, ref_poles: NDArray[np.complex128], logdetM: float
+        self, sys: DelaySystem, mode: str, ref_poles: NDArray[np.inexact[Any]], logdetM: float
     ) -> None:
         self.sys = sys
         self.mode = mode
@@ -330,7 +331,7 @@ def rhp_count_system(
 
         def mu_of(om: NDArray[np.float64]) -> NDArray[np.complex128]:
             with np.errstate(all="ignore"):
-                return np.linalg.eigvals(sys.transfer_fast(1j * om))
+                return np.linalg.eigvals(sys.transfer_fast(1j * om))  # type: ignore[return-value]  # numpy stubs: complex128 in, complexfloating[Any, Any] out
 
         rho = np.abs(mu_of(wsm)).max(axis=1)
         act_pt = ~(rho < _PASSIVE)  # NaN counts as active
