@@ -7,6 +7,7 @@ refused with the closest known name, so a misspelt key never passes silently.
 
 from __future__ import annotations
 
+import builtins
 import copy
 import difflib
 import json
@@ -165,10 +166,10 @@ class _Item:
 
     def num(
         self,
-        key: str,
+        key: builtins.str,
         default: Any = ...,
         *,
-        unit: str = "",
+        unit: builtins.str = "",
         positive: bool = False,
         nonneg: bool = False,
     ) -> float:
@@ -187,7 +188,9 @@ class _Item:
             raise self.err(key, f"must be >= 0 (got {v:g}{u})")
         return v
 
-    def vec(self, key: str, n: int, default: Any = ..., *, unit: str = "") -> tuple[float, ...]:
+    def vec(
+        self, key: builtins.str, n: int, default: Any = ..., *, unit: builtins.str = ""
+    ) -> tuple[float, ...]:
         v = self.raw(key, default)
         if v is default and default is not ...:
             return v
@@ -200,7 +203,7 @@ class _Item:
             out.append(float(x))
         return tuple(out)
 
-    def matrix3(self, key: str) -> tuple[tuple[float, ...], ...]:
+    def matrix3(self, key: builtins.str) -> tuple[tuple[float, ...], ...]:
         v = self.raw(key, [[0.0] * 3] * 3)
         ok = (
             isinstance(v, list)
@@ -539,8 +542,8 @@ def build_model(
             ("id", "a", "b", "c1", "c2", "c6", "d1", "d2", "d6", "angle_deg", "description"),
         )
         register("spring", iid)
-        a = ctx.ref(it, "a")
-        b = ctx.ref(it, "b")
+        pa = ctx.ref(it, "a")
+        pb = ctx.ref(it, "b")
         c = tuple(
             it.num(f, 0.0, unit=u, nonneg=True) for f, u in (("c1", "N/m"), ("c2", "N/m"), ("c6", "N m/rad"))
         )
@@ -553,9 +556,13 @@ def build_model(
                 "c1",
                 "a spring needs a stiffness (c1, c2 or c6 > 0) or a damping (d1, d2, d6 > 0); all are zero",
             )
-        if a.kind == "ground" and b.kind == "ground":
+        if pa.kind == "ground" and pb.kind == "ground":
             raise it.err("b", "both ends are on the ground; connect at least one end to the structure")
-        springs.append(Spring(iid, a, b, c, d, math.radians(it.num("angle_deg", 0.0))))  # type: ignore[arg-type]
+        springs.append(
+            Spring(
+                iid, pa, pb, (c[0], c[1], c[2]), (d[0], d[1], d[2]), math.radians(it.num("angle_deg", 0.0))
+            )
+        )
 
     # ---- attachments, supports, constraints -------------------------------------------------
     attachments: list[Attachment] = []
@@ -643,16 +650,16 @@ def build_model(
 
     # massless bodies must be fully dependent
     constrained = {x for c in constraints for x in c.dependent}
-    for b in bodies:
-        if b.mass == 0.0:
-            missing = [d for d in DIRECTIONS if f"{b.id}.{d}" not in constrained]
+    for body in bodies:
+        if body.mass == 0.0:
+            missing = [d for d in DIRECTIONS if f"{body.id}.{d}" not in constrained]
             if missing:
                 raise ModelError(
                     "mass must be > 0 (got 0 kg): a massless body is allowed only where all its coordinates"
-                    f" are dependent, and {', '.join(b.id + '.' + m for m in missing)} are not; give it a mass,"
+                    f" are dependent, and {', '.join(body.id + '.' + m for m in missing)} are not; give it a mass,"
                     " make it a [[contact]], or declare it in a [[constraint]]",
                     source=src,
-                    item=f'[[body]] "{b.id}"',
+                    item=f'[[body]] "{body.id}"',
                     field="mass",
                 )
 
@@ -665,12 +672,12 @@ def build_model(
 
     process = _read_process(src, raw["process"]) if "process" in raw else None
     if process is not None and process.kind == "shaping" and movable is not None:
-        a = process.start
-        b = process.start + process.direction * (process.run_in + process.cut + process.coast)
-        lo, hi = min(a, b), max(a, b)
+        x0 = process.start
+        x1 = process.start + process.direction * (process.run_in + process.cut + process.coast)
+        lo, hi = min(x0, x1), max(x0, x1)
         if lo < movable.range[0] - 1e-9 or hi > movable.range[1] + 1e-9:
             raise ModelError(
-                f"the stroke from start = {a:g} m over {process.run_in + process.cut + process.coast:g} m"
+                f"the stroke from start = {x0:g} m over {process.run_in + process.cut + process.coast:g} m"
                 f" in direction {process.direction:+g} spans [{lo:g}, {hi:g}] m, outside [movable] range"
                 f" [{movable.range[0]:g}, {movable.range[1]:g}] m; move start, flip direction or widen the range",
                 source=src,
@@ -805,7 +812,7 @@ class _RefContext:
                         f("coords"),
                         f"'{c}' is not in [matrices] coordinates (known: {', '.join(sorted(self.coord_names))})",
                     )
-            return PointRef("coords", "", coords=tuple(cs.get(d, "") for d in DIRECTIONS), label=label)  # type: ignore[arg-type]
+            return PointRef("coords", "", coords=tuple(cs.get(d, "") for d in DIRECTIONS), label=label)
         target = t[kind]
         if not isinstance(target, str):
             raise it.err(f(kind), f"must be an id string, got {target!r}")
@@ -824,7 +831,8 @@ class _RefContext:
                 )
             off = it.num("offset", 0.0, unit="m")
             return PointRef("beam", target, (0.0, off), min(max(dist, 0.0), L), label=label)
-        off2 = it.vec("offset", 2, (0.0, 0.0), unit="m")
+        ox, oy = it.vec("offset", 2, (0.0, 0.0), unit="m")
+        off2 = (ox, oy)
         if it.has("distance"):
             raise it.err(f("distance"), "only a point on a beam has a distance")
         if kind == "body":
@@ -864,7 +872,8 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
     a = ctx.ref(it, "a")
     b = ctx.ref(it, "b")
     width_ref = it.num("width_ref", unit="m", positive=True)
-    forces = it.vec("forces", 3, (0.0, 0.0, 0.0), unit="N")
+    f1, f2, f3 = it.vec("forces", 3, (0.0, 0.0, 0.0), unit="N")
+    forces = (f1, f2, f3)
     angle = math.radians(it.num("angle_deg", 0.0))
     params: tuple[tuple[str, float], ...] = ()
     if model_kind == "matrices":
@@ -897,7 +906,7 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
         DP = tuple(tuple(float(x) for x in r) for r in Kf * width_ref * G)
         DO = tuple(tuple(float(x) for x in r) for r in -Kf * width_ref * G)
         DV = tuple(tuple(float(x) for x in r) for r in Kv * width_ref * G)
-    return Coupling(iid, a, b, DP, DV, DO, width_ref, forces, angle, model_kind, params)  # type: ignore[arg-type]
+    return Coupling(iid, a, b, DP, DV, DO, width_ref, forces, angle, model_kind, params)
 
 
 def _read_process(src: str, t: Any) -> Process:
