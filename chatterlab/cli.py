@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
+from ._io import json_text
 from .errors import ChatterlabError, InputError
 
 __all__ = ["main", "build_parser"]
@@ -119,7 +120,7 @@ def _check(args: argparse.Namespace) -> int:
     sy = assemble(model)
     summ = sy.summary()
     if args.format == "json":
-        _emit(json.dumps(summ, indent=2), None)
+        _emit(json_text(summ), None)
         return 0
     print(f"{model.source}: OK  ({model.name}{', variant ' + model.variant if model.variant else ''})")
     rows = [
@@ -241,7 +242,7 @@ def _roots(args: argparse.Namespace) -> int:
         winding=not args.no_winding,
     )
     if args.format == "json":
-        _emit(json.dumps(st.to_dict(), indent=2), args.out)
+        _emit(json_text(st.to_dict()), args.out)
     else:
         _emit(st.table(), args.out)
     return 0
@@ -384,7 +385,18 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float) -> int:
 
         savefig(plot_atlas(res, model.process), args.plot)
         print(f"wrote {args.plot}", file=sys.stderr)
+    _drop_checkpoint(args, res)
     return 0 if res.status == "ok" else 1
+
+
+def _drop_checkpoint(args: argparse.Namespace, res: Any) -> None:
+    """A complete run's results are in --out: the default checkpoint
+    (OUT.ckpt) has done its job.  A partial run keeps it for --resume; a
+    checkpoint the user named with --checkpoint is left alone."""
+    import shutil
+
+    if res.status == "ok" and args.out and not args.checkpoint:
+        shutil.rmtree(args.out + ".ckpt", ignore_errors=True)
 
 
 @_command("sweep")
@@ -434,7 +446,8 @@ def _sweep(args: argparse.Namespace) -> int:
         outputs=QUANTITIES[args.quantity],
         checkpoint=_checkpoint(args),
         resume=args.resume,
-        fingerprint=model_fingerprint(model) + "|" + repr(sorted(fixed.items())) + args.quantity + args.terms,
+        fingerprint=model_fingerprint(model)
+        + f"|{sorted(fixed.items())!r}|{args.quantity}|{args.terms}|{args.width_max}",
         out=args.out if args.out and not args.out.endswith(".csv") else None,
         attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
         **_sweep_opts(args),
@@ -443,10 +456,10 @@ def _sweep(args: argparse.Namespace) -> int:
         f"sweep of {args.quantity} over {' x '.join(f'{a.name}[{a.values.size}]' for a in grid.axes)}: {res.status}"
     )
     for k, arr in res.data.items():
-        with np.errstate(all="ignore"):
-            print(
-                f"  {k} [{QUANTITIES[args.quantity][k]}]: min {np.nanmin(arr):.6g}, max {np.nanmax(arr):.6g}"
-            )
+        a = np.asarray(arr)
+        fin = a[np.isfinite(a)]
+        rng = f"min {fin.min():.6g}, max {fin.max():.6g}" if fin.size else "no finite values"
+        print(f"  {k} [{QUANTITIES[args.quantity][k]}]: {rng}")
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed; first: {res.message}", file=sys.stderr)
     if args.out:
@@ -461,6 +474,7 @@ def _sweep(args: argparse.Namespace) -> int:
         first = next(iter(QUANTITIES[args.quantity]))
         savefig(res.plot(first), args.plot)
         print(f"wrote {args.plot}", file=sys.stderr)
+    _drop_checkpoint(args, res)
     return 0 if res.status == "ok" else 1
 
 
@@ -534,6 +548,9 @@ def _simulate(args: argparse.Namespace) -> int:
         fig.savefig(args.plot, dpi=130)
         plt.close(fig)
         print(f"wrote {args.plot}", file=sys.stderr)
+    if any(s.status == "interrupted" for s in sims):
+        print("chatterlab: interrupted: the partial time histories above were kept", file=sys.stderr)
+        return 130
     return 0 if all(s.status == "ok" for s in sims) else 1
 
 
@@ -763,8 +780,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ChatterlabError as exc:
         print(f"chatterlab: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("chatterlab: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        # a sweep's interruption says how much is saved and how to resume
+        detail = str(exc).strip()
+        print(f"chatterlab: interrupted{': ' + detail if detail else ''}", file=sys.stderr)
         return 130
     except BrokenPipeError:  # pragma: no cover - e.g. piping into head
         return 0

@@ -31,7 +31,6 @@ References
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -113,6 +112,12 @@ class FRF:
 
     @property
     def unit(self) -> str:
+        """Unit of ``data``: m/N (and /s, /s^2) for translations; with a
+        rotation (``.rz``) among the inputs or outputs the entries mix m, rad,
+        N and N m, and the label says so."""
+        if any(x.endswith(".rz") for x in self.outputs + self.inputs):
+            p = _KINDS[self.kind][0]
+            return "(m or rad)/(N or N m)" + ("" if p == 0 else "/s" if p == 1 else "/s^2")
         return _KINDS[self.kind][1]
 
     @property
@@ -174,7 +179,9 @@ class FRF:
         }
 
     def to_json(self, path: str | None = None) -> str:
-        s = json.dumps(self.to_dict())
+        from ._io import json_text
+
+        s = json_text(self.to_dict(), None)
         if path:
             with open(path, "w") as fh:
                 fh.write(s)

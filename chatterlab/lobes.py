@@ -149,7 +149,8 @@ class LobeDiagram:
         return "\n".join(lines)
 
     def to_csv(self, path: Any) -> None:
-        """Envelope: speed, delay, b_lim (mm), chatter frequency (Hz), lobe."""
+        """Envelope: speed, delay (s), b_lim (m), chatter frequency (Hz), lobe
+        number -- SI like every chatterlab result file."""
         import csv
 
         from ._io import text_out
@@ -160,7 +161,7 @@ class LobeDiagram:
                 [
                     f"speed [{self.speed_unit}]",
                     "delay [s]",
-                    "b_lim [mm]",
+                    "b_lim [m]",
                     "chatter frequency [Hz]",
                     "lobe [-]",
                 ]
@@ -170,7 +171,7 @@ class LobeDiagram:
                     [
                         f"{self.speed[k]:.9g}",
                         f"{self.delay[k]:.9g}",
-                        f"{self.b_lim[k] * 1e3:.9g}",
+                        f"{self.b_lim[k]:.9g}",
                         f"{self.chatter_hz[k]:.9g}",
                         int(self.lobe[k]),
                     ]

@@ -8,7 +8,6 @@ each mode, and rigid-body modes detected and named: a floating part is a
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -108,8 +107,11 @@ class Modes:
             "rigid_body_modes": list(self.rigid),
         }
 
-    def to_json(self, **kw: Any) -> str:
-        return json.dumps(self.to_dict(), indent=kw.pop("indent", 2), **kw)
+    def to_json(self, indent: int | None = 2) -> str:
+        """Strict JSON of :meth:`to_dict` (non-finite numbers as null)."""
+        from ._io import json_text
+
+        return json_text(self.to_dict(), indent)
 
     def table(self) -> str:
         """A readable table: mode, frequency (Hz), period (s), damping ratio."""

@@ -84,7 +84,7 @@ def plot_nyquist(omega: np.ndarray, det: np.ndarray, *, ax: Any = None, title: s
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize=9)
     return ax
 
 
@@ -186,9 +186,11 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
     axf.set_ylabel("chatter [Hz]")
     axf.set_xlabel(f"{d.speed_name} [{d.speed_unit}]")
     axf.grid(alpha=0.3)
-    ttl = title or f"{d.model}: stability lobes ({d.terms})"
-    if d.position is not None:
-        ttl += f", s = {d.position:g} m"
+    ttl = title
+    if ttl is None:
+        ttl = f"{d.model}: stability lobes ({d.terms})"
+        if d.position is not None:
+            ttl += f", s = {d.position:g} m"
     ax.set_title(ttl, fontsize=10)
     return axes
 

@@ -185,6 +185,15 @@ class QuantityTask:
             params[nm] = _current_value(self.model, nm)
         if params:
             self.model.with_parameters(params)
+        if (
+            self.quantity in ("rightmost-root", "stable")
+            and "width" not in names
+            and "width" not in self.fixed
+        ):
+            raise InputError(
+                f"quantity '{self.quantity}' needs a width of cut: put width on the grid (--grid width=MIN:MAX:N,"
+                " mm) or give --width"
+            )
 
     def __call__(self, **point: float) -> dict[str, float]:
         from .assembly import assemble

@@ -254,7 +254,7 @@ def test_lobes_writes_netcdf_csv_and_png(capsys, turning, tmp_path):
     code, _, _ = run(
         capsys, "lobes", turning, "--speed", "4000", "9000", "--points", "80", "--out", str(csv_)
     )
-    assert csv_.read_text().splitlines()[0].startswith("speed [rpm],delay [s],b_lim [mm]")
+    assert csv_.read_text().splitlines()[0].startswith("speed [rpm],delay [s],b_lim [m]")
     assert png.stat().st_size > 10_000
 
 
@@ -303,3 +303,29 @@ def test_console_script_and_light_import():
     code = "import sys, chatterlab; print(sorted(m for m in ('matplotlib', 'joblib', 'control', 'dask') if m in sys.modules))"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "[]"
+
+
+def test_complete_atlas_drops_its_default_checkpoint_and_reruns(capsys, tmp_path):
+    out = tmp_path / "atlas.nc"
+    args = ["lobes", SHAPER, "--speed", "0.4", "0.6", "--points", "6", "--width-max", "1", "--positions", "0.8", "0.9", "2", "--quiet", "--jobs", "1", "--out", str(out)]  # fmt: skip
+    assert run(capsys, *args)[0] == 0
+    assert out.exists() and not (tmp_path / "atlas.nc.ckpt").exists()
+    assert run(capsys, *args)[0] == 0  # the same command again works
+
+
+def test_sweep_quantity_needing_a_width_is_refused_up_front(capsys):
+    code, _, err = run(
+        capsys, "sweep", SHAPER, "--grid", "speed=0.4:0.6:3", "--quantity", "stable", "--quiet"
+    )
+    assert_clean_error(code, err, "needs a width")
+
+
+def test_json_is_strict_even_with_non_finite_numbers(capsys, matrix_model):
+    # roots at a width far beyond the structure's range: whatever the numbers, the JSON must parse strictly
+    code, out, _ = run(
+        capsys, "roots", matrix_model, "--width", "0.01", "--speed", "1500", "--format", "json"
+    )
+    json.loads(out, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    from chatterlab._io import json_text
+
+    assert json_text({"a": float("nan"), "b": [1.0, float("inf")]}, None) == '{"a": null, "b": [1.0, null]}'

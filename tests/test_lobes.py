@@ -292,19 +292,19 @@ def test_two_dof_boundary_points_have_a_root_on_the_axis(two_dof, two_dof_lobes,
 
 
 def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
-    """CSV: b_lim in mm and frequencies written with 9 significant digits
+    """CSV: b_lim in m (SI, like every result file) and frequencies written with 9 significant digits
     (relative 5e-9 after the round trip); netCDF: float64, exact."""
     d = turning_lobes
     p = tmp_path / "lobes.csv"
     d.to_csv(p)
     with open(p, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [mm]", "chatter frequency [Hz]", "lobe [-]"]
+    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "lobe [-]"]
     tab = np.array([[float(x) for x in r] for r in rows[1:]])
     assert tab.shape == (d.speed.size, 5)
     np.testing.assert_allclose(tab[:, 0], d.speed, rtol=5e-9)
     np.testing.assert_allclose(tab[:, 1], d.delay, rtol=5e-9)
-    np.testing.assert_allclose(tab[:, 2], d.b_lim * 1e3, rtol=5e-9)
+    np.testing.assert_allclose(tab[:, 2], d.b_lim, rtol=5e-9)
     np.testing.assert_allclose(tab[:, 3], d.chatter_hz, rtol=5e-9)
     np.testing.assert_array_equal(tab[:, 4], d.lobe)
 
