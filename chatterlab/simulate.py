@@ -160,7 +160,7 @@ class _FastReduction:
         # order the rows like self.dv
         return R[0][:, self._perm], R[1][:, self._perm], R[2][:, self._perm]
 
-    def parts(self, s: np.ndarray) -> dict[str, np.ndarray]:
+    def parts(self, s: np.ndarray) -> dict[str, Any]:
         """The reduced matrices split by their dependence on the slide speed v:
 
         A = A0,  B = B0 + v B1,  C = C0 + v C1 + v^2 C2   (Eq. 2.16-2.18)
@@ -251,7 +251,8 @@ class _Polynomial:
 
     def __init__(self, owner: ParametricProblem, degree: int = 6) -> None:
         self.owner = owner
-        self.fast = owner.fast
+        assert owner.fast is not None
+        self.fast: _FastReduction = owner.fast
         self.deg = degree
         self.segments: dict[tuple[int, ...], Any] = {}
         mv = owner.system.model.movable
@@ -435,7 +436,7 @@ class ParametricProblem:
                 "method='polynomial' needs a movable model whose contact coordinates are tied to the "
                 "structure only by their [[contact]] rows"
             )
-        self._memo: tuple[bytes, tuple[np.ndarray, ...]] | None = None
+        self._memo: tuple[bytes, tuple[Any, ...]] | None = None
         self.method_used: set[str] = set()
 
     # -- TimeVaryingProblem -------------------------------------------------
@@ -455,7 +456,8 @@ class ParametricProblem:
         if self.system.model.movable is None:
             return np.full(t.size, np.nan), np.zeros(t.size), cut, False
         if not np.all(np.isfinite(s)):
-            s = np.full(t.size, float(self.system.default_position))
+            pos = self.system.default_position
+            s = np.full(t.size, float(pos) if pos is not None else 0.0)
             v = np.zeros(t.size)
         return s, v, cut, True
 
@@ -464,6 +466,7 @@ class ParametricProblem:
         and the tool in the cut (see :meth:`_FastReduction.parts`):
         A = A0, B = B0 + v B1 + c Bce, C = C0 + v C1 + v^2 C2 + c (Cce0 + v Cce1),
         G = c G, F = c F, with c the in-cut flag."""
+        p: dict[str, Any]
         if self.fast is not None:
             p = self.fast.parts(s)
             Ji = self.Ji_const + self.Jv @ p["R0"]
@@ -499,7 +502,7 @@ class ParametricProblem:
             return np.array(W0), Z, Z
         return sy._W_all(s)
 
-    def _evaluate(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _evaluate(self, t: np.ndarray) -> tuple[Any, ...]:
         """A, B, C, G (or None) and F at times t; the last call is memoised
         (newmark asks for the force and the matrices of the same steps)."""
         key = t.tobytes()
@@ -920,7 +923,7 @@ def simulate(
             A[0],
             B[0],
             C[0],
-            force=(lambda t, f0=f0: np.broadcast_to(f0, (np.size(t), f0.size))),
+            force=np.array(f0),
             G=None if G is None else G[0],
             delay=prob.delay(),
         )
