@@ -108,3 +108,52 @@ def block_text() -> Callable[..., str]:
         )
 
     return make
+
+
+def turning_text(
+    *,
+    mass: float = 1.0,
+    stiffness: float = 1.0e7,
+    damping: float = 189.7,
+    Kf: float = 2.0e9,
+    rpm: float = 3000.0,
+    forces: tuple[float, float, float] | None = None,
+    name: str = "turning tool, one degree of freedom",
+) -> str:
+    """docs/model-format.md's 1-DOF turning tool: a body free along x on a
+    spring-damper to the ground, cut by a regenerative coupling (K_f b
+    [x(t) - x(t - T)]) at b_ref = 1 mm, turning at ``rpm``.  The tests'
+    shared oracle model: G(jw) = 1 / (k - m w^2 + j c w)."""
+    force_line = "" if forces is None else f"forces = [{forces[0]!r}, {forces[1]!r}, {forces[2]!r}]\n"
+    return f"""
+[model]
+name = "{name}"
+[[body]]
+id = "tool"
+mass = {float(mass)!r}
+inertia = 1.0e-3
+centre = [0.0, 0.0]
+[[support]]
+id = "guide"
+body = "tool"
+fix = ["y", "rz"]
+[[spring]]
+id = "holder"
+a = "tool"
+b = "ground"
+c1 = {float(stiffness)!r}
+d1 = {float(damping)!r}
+[[point]]
+id = "tip"
+body = "tool"
+[[coupling]]
+id = "cut"
+a = "tip"
+b = "ground"
+model = "regenerative"
+width_ref = 0.001
+Kf = {float(Kf)!r}
+{force_line}[process]
+kind = "turning"
+rpm = {float(rpm)!r}
+"""

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import turning_text
 
 from chatterlab.cli import main
 from chatterlab.netcdf import read_netcdf
@@ -18,34 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SHAPER = str(ROOT / "studies" / "traverse_shaper" / "model.toml")
 RECON = np.array([76.28, 83.34, 115.35, 137.58, 176.61, 211.26, 234.39])
 
-TURNING = """
-[model]
-name = "1-DOF turning"
-[[body]]
-id = "tool"
-mass = 2.0
-inertia = 1.0
-centre = [0.0, 0.0]
-[[support]]
-body = "tool"
-fix = ["y", "rz"]
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = 2.0e7
-d1 = 400.0
-[[coupling]]
-id = "cut"
-a = "tool"
-b = "ground"
-model = "regenerative"
-Kf = 2.0e9
-width_ref = 0.001
-[process]
-kind = "turning"
-rpm = 3000
-"""
+TURNING = turning_text(mass=2.0, stiffness=2.0e7, damping=400.0, name="1-DOF turning")
 
 MATRIX = """
 [matrices]

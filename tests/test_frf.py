@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.cutting import feedback
@@ -40,38 +41,7 @@ C = float(2 * ZETA * np.sqrt(K * M))  # viscous damping giving exactly zeta
 def sdof_text(m: float = M, k: float = K, c: float = C) -> str:
     """The 1-DOF turning tool of docs/model-format.md (x free, regenerative
     coupling to the ground)."""
-    return f"""
-[model]
-name = "sdof"
-[[body]]
-id = "tool"
-mass = {float(m)!r}
-inertia = 1.0e-3
-centre = [0.0, 0.0]
-[[support]]
-id = "guide"
-body = "tool"
-fix = ["y", "rz"]
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = {float(k)!r}
-d1 = {float(c)!r}
-[[point]]
-id = "tip"
-body = "tool"
-[[coupling]]
-id = "cut"
-a = "tip"
-b = "ground"
-model = "regenerative"
-width_ref = 0.001
-Kf = 2.0e9
-[process]
-kind = "turning"
-rpm = 3000.0
-"""
+    return turning_text(mass=m, stiffness=k, damping=c, name="sdof")
 
 
 def sdof_receptance(omega: np.ndarray, m: float = M, k: float = K, c: float = C) -> np.ndarray:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.cutting import feedback
@@ -17,32 +18,7 @@ from chatterlab.lobes import lobes
 control = pytest.importorskip("control")
 
 MASS, STIFF, DAMP, KF = 2.0, 2.0e7, 400.0, 2.0e9
-TURNING = f"""
-[[body]]
-id = "tool"
-mass = {MASS}
-inertia = 1.0
-centre = [0.0, 0.0]
-[[support]]
-body = "tool"
-fix = ["y", "rz"]
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = {STIFF}
-d1 = {DAMP}
-[[coupling]]
-id = "cut"
-a = "tool"
-b = "ground"
-model = "regenerative"
-Kf = {KF}
-width_ref = 0.001
-[process]
-kind = "turning"
-rpm = 3000
-"""
+TURNING = turning_text(mass=MASS, stiffness=STIFF, damping=DAMP, Kf=KF)
 
 
 @pytest.fixture(scope="module")

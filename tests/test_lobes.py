@@ -25,6 +25,7 @@ import csv
 
 import numpy as np
 import pytest
+from conftest import turning_text as _turning_text
 from scipy.optimize import brentq
 
 import chatterlab as cl
@@ -39,38 +40,7 @@ WN = float(np.sqrt(K / M))
 
 def turning_text() -> str:
     """docs/model-format.md's 1-DOF turning tool (503.3 Hz, zeta = 3 %)."""
-    return f"""
-[model]
-name = "turning tool, one degree of freedom"
-[[body]]
-id = "tool"
-mass = {M!r}
-inertia = 1.0e-3
-centre = [0.0, 0.0]
-[[support]]
-id = "guide"
-body = "tool"
-fix = ["y", "rz"]
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = {K!r}
-d1 = {C!r}
-[[point]]
-id = "tip"
-body = "tool"
-[[coupling]]
-id = "cut"
-a = "tip"
-b = "ground"
-model = "regenerative"
-width_ref = 0.001
-Kf = {KF!r}
-[process]
-kind = "turning"
-rpm = 3000.0
-"""
+    return _turning_text(mass=M, stiffness=K, damping=C, Kf=KF)
 
 
 # 2-DOF: x and y modes of one body, oriented force
@@ -419,9 +389,10 @@ def test_model_without_coupling_or_process():
     with pytest.raises(cl.InputError, match=r"no \[process\]"):
         lobes(cl.assemble(cl.loads_model(no_process)).at(), [3000.0])
     # a coupling without a delayed term has no lobes
-    no_delay = text.replace('model = "regenerative"\nwidth_ref = 0.001\nKf = 2000000000.0\n', (
-        'width_ref = 0.001\nDP = [[2.0e6, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]\n'
-    ))
+    no_delay = text.replace(
+        'model = "regenerative"\nwidth_ref = 0.001\nKf = 2000000000.0\n',
+        ("width_ref = 0.001\nDP = [[2.0e6, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]\n"),
+    )
     assert no_delay != text
     with pytest.raises(cl.InputError, match="no delayed term"):
         lobes(cl.assemble(cl.loads_model(no_delay)).at(), [3000.0])

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.cli import main
@@ -30,39 +31,7 @@ from chatterlab.simulate import ParametricProblem, _FastReduction, _reduce, simu
 
 # ----------------------------------------------------------------------------- models
 
-TURNING = """
-[model]
-name = "turning tool, one degree of freedom"
-[[body]]
-id = "tool"
-mass = 1.0
-inertia = 1.0e-3
-centre = [0.0, 0.0]
-[[support]]
-id = "guide"
-body = "tool"
-fix = ["y", "rz"]
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = 1.0e7
-d1 = 189.7
-[[point]]
-id = "tip"
-body = "tool"
-[[coupling]]
-id = "cut"
-a = "tip"
-b = "ground"
-model = "regenerative"
-width_ref = 0.001
-Kf = 2.0e9
-forces = [200.0, 0.0, 0.0]
-[process]
-kind = "turning"
-rpm = 3000.0
-"""
+TURNING = turning_text(forces=(200.0, 0.0, 0.0))
 
 
 def moving_load_text(L: float, b: float, h: float, elements: int, v: float, F: float) -> str:

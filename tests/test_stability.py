@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import turning_text as _turning_text
 from hypothesis import HealthCheck, assume, event, given, note, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq, minimize_scalar
@@ -37,38 +38,7 @@ WN = float(np.sqrt(K / M))
 def turning_text(rpm: float = 3000.0) -> str:
     """docs/model-format.md's 1-DOF turning tool (m = 1 kg, k = 1e7 N/m,
     zeta = 3 %, K_f = 2e9 N/m^2)."""
-    return f"""
-[model]
-name = "turning tool, one degree of freedom"
-[[body]]
-id = "tool"
-mass = {M!r}
-inertia = 1.0e-3
-centre = [0.0, 0.0]
-[[support]]
-id = "guide"
-body = "tool"
-fix = ["y", "rz"]
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = {K!r}
-d1 = {C!r}
-[[point]]
-id = "tip"
-body = "tool"
-[[coupling]]
-id = "cut"
-a = "tip"
-b = "ground"
-model = "regenerative"
-width_ref = 0.001
-Kf = {KF!r}
-[process]
-kind = "turning"
-rpm = {float(rpm)!r}
-"""
+    return _turning_text(mass=M, stiffness=K, damping=C, Kf=KF, rpm=rpm)
 
 
 def G(w: float | np.ndarray) -> complex | np.ndarray:
@@ -304,7 +274,9 @@ def oriented_minimum(fz: cl.FrozenSystem) -> float:
     vals = phi(grid)
     j = int(np.argmin(vals))
     lo, hi = grid[max(j - 1, 0)], grid[min(j + 1, grid.size - 1)]
-    res = minimize_scalar(lambda w: float(phi(w)[0]), bounds=(lo, hi), method="bounded", options={"xatol": 1e-12 * hi})
+    res = minimize_scalar(
+        lambda w: float(phi(w)[0]), bounds=(lo, hi), method="bounded", options={"xatol": 1e-12 * hi}
+    )
     return min(float(vals[j]), float(res.fun)) * kf
 
 
