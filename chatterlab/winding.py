@@ -146,27 +146,6 @@ def _open_loop_poles(sys: DelaySystem) -> NDArray[np.inexact[Any]]:
     return np.linalg.eigvals(A)
 
 
-def _cont_arg(omega: NDArray[np.float64], p: NDArray[np.complex128]) -> NDArray[np.float64]:
-    """Continuous sum over ``p`` of arg(j omega - p), shape (len(omega),).
-
-    ``p`` must not lie on the imaginary axis.
-    """
-    a = p.real[None, :]
-    b = p.imag[None, :]
-    w = omega[:, None]
-    lhp = np.arctan((w - b) / (-np.where(a < 0, a, -1.0)))
-    rhp = -np.pi - np.arctan((w - b) / np.where(a > 0, a, 1.0))
-    return np.where(a < 0, lhp, rhp).sum(axis=1)
-
-
-def _cont_arg_total(p: NDArray[np.complex128]) -> float:
-    """Total change of ``_cont_arg`` from omega = 0 to +infinity."""
-    a, b = p.real, p.imag
-    lhp = np.pi / 2 - np.arctan(-b / -np.where(a < 0, a, -1.0))
-    rhp = (-1.5 * np.pi) - (-np.pi - np.arctan(-b / np.where(a > 0, a, 1.0)))
-    return float(np.where(a < 0, lhp, rhp).sum())
-
-
 class _Sampler:
     """Evaluate the sampled factor F(j omega): complex values, finite or not."""
 
