@@ -52,6 +52,13 @@ class _Element:
     xy_j: np.ndarray
     cols: np.ndarray  # 6 coordinate indices
 
+    def point_matrix(self, xi: np.ndarray, offset: float, order: int = 0) -> np.ndarray:
+        """``beam_point_matrix`` of this element: (m, 3, 6)."""
+        sec = self.beam.section
+        return beam_point_matrix(
+            self.xy_i, self.xy_j, xi, offset, E=sec.E, G=sec.G, A=sec.A, I=sec.I, kappa=sec.kappa, order=order
+        )
+
 
 @dataclass(frozen=True)
 class _ContactRows:
@@ -64,6 +71,21 @@ class _ContactRows:
     track_length: float
     id: str
     clamp: bool
+
+    def locate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Where the contact is at configurations s: along-track coordinate x
+        (m), element index, side (-1 before the track, 0 on it, +1 beyond;
+        clamped contacts wait at the end) and the element coordinate xi."""
+        x = self.x_ref + self.rate * (s - self.s_ref)
+        side = np.zeros(s.size, dtype=int)
+        if self.clamp:
+            side = np.where(x < 0.0, -1, np.where(x > self.track_length, 1, 0))
+            x = np.clip(x, 0.0, self.track_length)
+        starts = np.array([e.start for e in self.elements])
+        lens = np.array([e.length for e in self.elements])
+        idx = np.clip(np.searchsorted(starts, x + 1e-12, side="right") - 1, 0, len(self.elements) - 1)
+        xi = np.clip((x - starts[idx]) / lens[idx], 0.0, 1.0)
+        return x, idx, side, xi
 
 
 @dataclass(frozen=True)
@@ -198,32 +220,14 @@ class System:
             rows = slice(r0 + 3 * k, r0 + 3 * k + 3)
             if order == 0:
                 G[:, rows, c.cols_self] = np.eye(3)
-            x = c.x_ref + c.rate * (sa - c.s_ref)
-            inside = np.ones(m)
-            if c.clamp:
-                inside = ((x >= 0.0) & (x <= c.track_length)).astype(float)
-                x = np.clip(x, 0.0, c.track_length)
-            starts = np.array([e.start for e in c.elements])
-            idx = np.clip(np.searchsorted(starts, x + 1e-12, side="right") - 1, 0, len(c.elements) - 1)
+            _, idx, side, xi = c.locate(sa)
+            inside = (side == 0).astype(float)
             for e_idx in np.unique(idx):
                 el = c.elements[e_idx]
                 sel = np.nonzero(idx == e_idx)[0]
-                xi = np.clip((x[sel] - el.start) / el.length, 0.0, 1.0)
-                sec = el.beam.section
-                P = beam_point_matrix(
-                    el.xy_i,
-                    el.xy_j,
-                    xi,
-                    c.offset,
-                    E=sec.E,
-                    G=sec.G,
-                    A=sec.A,
-                    I=sec.I,
-                    kappa=sec.kappa,
-                    order=order,
-                )
-                scale = (c.rate**order * (inside[sel] if order else 1.0)) if order else 1.0
-                G[np.ix_(sel, np.arange(rows.start, rows.stop), el.cols)] -= P * np.reshape(scale, (-1, 1, 1))
+                P = el.point_matrix(xi[sel], c.offset, order)
+                scale = c.rate**order * inside[sel] if order else np.ones(sel.size)
+                G[np.ix_(sel, np.arange(rows.start, rows.stop), el.cols)] -= P * scale[:, None, None]
         return G
 
     def W(self, s: float | np.ndarray | None = None, order: int = 0) -> np.ndarray:

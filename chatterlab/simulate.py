@@ -88,7 +88,6 @@ class _FastReduction:
         self._perm = np.array([int(np.nonzero(own == k)[0][0]) for k in self.dv], dtype=int)
         # per contact and element: T_e (6, n_i), and the beam point-map constants
         self._Te = [[Tm[el.cols] for el in c.elements] for c in sy._contacts]
-        self._starts = [np.array([e.start for e in c.elements]) for c in sy._contacts]
         if self.ok and sy.model.movable is not None:
             lo, hi = sy.model.movable.range
             s_chk = np.array([lo, lo + 0.1 * (hi - lo), 0.5 * (lo + hi), 0.9 * hi + 0.1 * lo, hi])
@@ -105,16 +104,8 @@ class _FastReduction:
         """Per contact: along-track x, element index, side (-1 before the
         track, 0 on it, +1 beyond; clamped contacts only) and xi."""
         xs, idxs, sides, xis = [], [], [], []
-        for ci, c in enumerate(self.sy._contacts):
-            x = c.x_ref + c.rate * (s - c.s_ref)
-            side = np.zeros(s.size, dtype=int)
-            if c.clamp:
-                side = np.where(x < 0.0, -1, np.where(x > c.track_length, 1, 0))
-                x = np.clip(x, 0.0, c.track_length)
-            starts = self._starts[ci]
-            idx = np.clip(np.searchsorted(starts, x + 1e-12, side="right") - 1, 0, len(c.elements) - 1)
-            lens = np.array([e.length for e in c.elements])
-            xi = np.clip((x - starts[idx]) / lens[idx], 0.0, 1.0)
+        for c in self.sy._contacts:
+            x, idx, side, xi = c.locate(s)
             xs.append(x)
             idxs.append(idx)
             sides.append(side)
@@ -126,7 +117,6 @@ class _FastReduction:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Contact rows of W, dW/dt and d2W/dt2: each (m, 3k, n_i) (only the
         first ``orders`` are computed; the others are zero)."""
-        from .elements import beam_point_matrix
 
         s = np.atleast_1d(np.asarray(s, dtype=float))
         v = np.broadcast_to(np.asarray(v, dtype=float), s.shape)
@@ -140,21 +130,9 @@ class _FastReduction:
             for e_idx in np.unique(idx):
                 el = c.elements[e_idx]
                 sel = np.nonzero(idx == e_idx)[0]
-                sec = el.beam.section
                 Te = self._Te[ci][e_idx]
                 for order in range(orders):
-                    P = beam_point_matrix(
-                        el.xy_i,
-                        el.xy_j,
-                        xi[sel],
-                        c.offset,
-                        E=sec.E,
-                        G=sec.G,
-                        A=sec.A,
-                        I=sec.I,
-                        kappa=sec.kappa,
-                        order=order,
-                    )
+                    P = el.point_matrix(xi[sel], c.offset, order)
                     fac = (c.rate * v[sel]) ** order * (inside[sel] if order else 1.0)
                     R[order, sel, 3 * ci : 3 * ci + 3] = (P @ Te) * fac[:, None, None]
         # order the rows like self.dv
