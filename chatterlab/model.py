@@ -360,16 +360,7 @@ class Model:
         ``"process.speed"`` for shaping, ``"process.rpm"`` for turning,
         ``"process.delay"``).  The copy is validated like a model file.
         """
-        from .modelfile import build_model
-
-        raw = json.loads(self.raw)
-        return build_model(
-            raw,
-            source=self.source,
-            text=self.text,
-            variant=self.variant,
-            overrides=dict(self.overrides) | {path: value},
-        )
+        return self.with_parameters({path: value})
 
     def with_parameters(self, values: dict[str, Any]) -> Model:
         """Like :meth:`with_parameter` for several fields at once."""
