@@ -27,6 +27,7 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -762,6 +763,105 @@ def _var(name: str) -> str:
     return v if not v[:1].isdigit() else f"v_{v}"
 
 
+class _ExtraForce:
+    """Generalised forces on q_i from external loads and prescribed motion of
+    given coordinates (Eq. 2.19 and the q_g terms of Eq. 2.27)."""
+
+    def __init__(
+        self,
+        prob: ParametricProblem,
+        loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None,
+        ground: Mapping[str, Callable[[np.ndarray], Any]] | None,
+    ) -> None:
+        sy = prob.system
+        self.prob = prob
+        self.load_fns = [fn for fn in (loads or {}).values()]
+        self.load_rows = np.array([_output_map(sy, name) for name in (loads or {})]).reshape(-1, sy.n)
+        for name, fn in (loads or {}).items():
+            if not callable(fn):
+                raise InputError(f"load '{name}' must be a callable f(t) returning the force at the times t")
+        given = {sy.names[k]: j for j, k in enumerate(sy.g)}
+        self.g_cols: list[int] = []
+        self.g_fns: list[Callable[[np.ndarray], Any]] = []
+        for name, fn in (ground or {}).items():
+            if name not in given:
+                raise InputError(
+                    f"ground_motion '{name}' is not a given coordinate (given: {', '.join(given) or 'none'});"
+                    " prescribe motion only of the foundation or supported coordinates"
+                )
+            if not callable(fn):
+                raise InputError(
+                    f"ground_motion '{name}' must be a callable g(t) returning (q, q_dot, q_ddot)"
+                )
+            self.g_cols.append(int(sy.g[given[name]]))
+            self.g_fns.append(fn)
+        keep = np.array(sorted(set(sy.i.tolist()) | set(sy.d.tolist())), dtype=int)
+        self.keep = keep
+        g = np.array(self.g_cols, dtype=int)
+        self.Mg, self.Lg, self.Kg = (X[np.ix_(keep, g)] for X in (sy.M, sy.L, sy.K))
+        self.Jg = prob.J[:, g]
+
+    def _motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        q = np.zeros((len(self.g_fns), t.size))
+        v = np.zeros_like(q)
+        a = np.zeros_like(q)
+        for k, fn in enumerate(self.g_fns):
+            out = fn(t)
+            if not (isinstance(out, tuple | list) and len(out) == 3):
+                raise InputError("a ground_motion callable must return (q, q_dot, q_ddot)")
+            q[k], v[k], a[k] = (np.broadcast_to(np.asarray(x, float), t.shape) for x in out)
+        return q, v, a
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        prob, sy = self.prob, self.prob.system
+        out = np.zeros((t.size, prob.n))
+        if self.load_fns:
+            f = np.array([np.broadcast_to(np.asarray(fn(t), float), t.shape) for fn in self.load_fns])
+            out += np.einsum("mkn,km->mn", prob.maps(t, self.load_rows), f)
+        if self.g_fns:
+            q, v, a = self._motion(t)
+            # Eq. (2.19): p* = -T^T (M_.g q_g'' + L_.g q_g' + K_.g q_g) over the kept coordinates
+            rows = np.zeros((self.keep.size, sy.n))
+            rows[np.arange(self.keep.size), self.keep] = 1.0
+            Tt = prob.maps(t, rows)  # (m, n_kept, n_i)
+            fk = -(self.Mg @ a + self.Lg @ v + self.Kg @ q)  # (n_kept, m)
+            out += np.einsum("mkn,km->mn", Tt, fk)
+            # Eq. (2.27): the coupling elements see the given coordinates' motion while cutting
+            if self.Jg.size and (np.any(prob.P) or np.any(prob.V) or np.any(prob.O)):
+                cut = prob.kin.state(t)[2].astype(float)
+                dw = self.Jg @ q
+                dwd = self.Jg @ v
+                fce = prob.P @ dw + prob.V @ dwd
+                if prob.delay() is not None:
+                    qT = self._motion(t - prob.delay())[0]
+                    fce = fce + prob.O @ (self.Jg @ qT)
+                Ji = prob.maps(t, prob.J)  # (m, 3k, n_i)
+                out -= cut[:, None] * np.einsum("mkn,km->mn", Ji, fce)
+        return out
+
+
+class _WithExtraForce:
+    """A problem whose force is the wrapped problem's plus an extra force."""
+
+    def __init__(self, base: ParametricProblem, extra: _ExtraForce) -> None:
+        self.base = base
+        self.extra = extra
+        self.n = base.n
+
+    def delay(self) -> float | None:
+        return self.base.delay()
+
+    def breakpoints(self) -> tuple[float, ...]:
+        return self.base.breakpoints()
+
+    def matrices(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        return self.base.matrices(t)
+
+    def force(self, t: np.ndarray) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return self.base.force(t) + self.extra(t)
+
+
 def simulate(
     system: System,
     *,
@@ -780,6 +880,8 @@ def simulate(
     progress: Any = None,
     record_every: int = 1,
     method: Literal["auto", "polynomial", "direct"] = "auto",
+    loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None = None,
+    ground_motion: Mapping[str, Callable[[np.ndarray], Any]] | None = None,
 ) -> Simulation:
     """Newmark simulation of the moving, delayed closed loop (Eq. 2.28).
 
@@ -813,6 +915,17 @@ def simulate(
         points ``b`` along x and y — the paper's q1, q2 at RFE 5).
     forces : bool
         Apply the desired cutting forces while in the cut.
+    loads : mapping, optional
+        External forces: ``"POINT.DIR" -> f(t)`` (or a coordinate name), f a
+        vectorised callable returning the force (N, or N m for ``rz``) at the
+        times ``t`` (s), in global axes.  A load on a moving contact travels
+        with it.
+    ground_motion : mapping, optional
+        Prescribed motion of given coordinates (Eq. 2.19): ``"ground.y" -> g(t)``
+        with g returning ``(q, q_dot, q_ddot)`` arrays at the times t (m, m/s,
+        m/s^2 or rad...).  It loads the structure through the stiffness,
+        damping and mass couplings, and through the coupling elements' terms
+        on given coordinates (Eq. 2.27) while cutting.
     options : NewmarkOptions, optional
         Integrator parameters and memory limits.
     q0 : array (n_i,), optional
@@ -894,19 +1007,26 @@ def simulate(
         raise InputError(f"step {step:g} s is longer than the duration {duration:g} s")
     prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces, method=method)
     prob._t_end = float(duration)
+    extra = _ExtraForce(prob, loads, ground_motion) if (loads or ground_motion) else None
     if isinstance(kin, SteadyKinematics):
         A, B, C, G = prob.matrices(np.array([0.0]))
-        f0 = prob.force(np.array([0.0]))[0]
+        f0 = np.array(prob.force(np.array([0.0]))[0])
+        force: Any = f0
+        if extra is not None:
+
+            def force(tt: np.ndarray, f0: np.ndarray = f0, extra: _ExtraForce = extra) -> np.ndarray:
+                return f0[None, :] + extra(np.atleast_1d(tt))
+
         run_prob: Any = ConstantProblem(
             A[0],
             B[0],
             C[0],
-            force=np.array(f0),
+            force=force,
             G=None if G is None else G[0],
             delay=prob.delay(),
         )
     else:
-        run_prob = prob
+        run_prob = prob if extra is None else _WithExtraForce(prob, extra)
     with _blas_limits():
         res = newmark(
             run_prob,
