@@ -1425,9 +1425,8 @@ def sweep(
         else:
             status = "ok"
             message = f"all {size} tasks succeeded"  # run-independent: files of resumed runs match
-        result = SweepResult(
+        common: dict[str, Any] = dict(
             grid=grid,
-            data=data,
             units=units,
             status=status,
             message=message,
@@ -1439,27 +1438,14 @@ def sweep(
             n_failed=n_failed,
         )
         if out_path is not None:
-            result.to_netcdf(out_path)
-            del flat, data, result  # drop the scratch memmaps
+            SweepResult(data=data, **common).to_netcdf(out_path)
+            del flat, data  # drop the scratch memmaps
             stored = read_netcdf(out_path, mmap=True)
             data = {o: stored.data[o][0] for o in out_names}
         else:
             for arr in data.values():
                 arr.flags.writeable = False
-        return SweepResult(
-            grid=grid,
-            data=data,
-            units=units,
-            status=status,
-            message=message,
-            failures=tuple(fails),
-            attrs=user_attrs,
-            long_names=long_names,
-            n_computed=n_computed,
-            n_resumed=n_resumed,
-            n_failed=n_failed,
-            elapsed=time.perf_counter() - t0,
-        )
+        return SweepResult(data=data, elapsed=time.perf_counter() - t0, **common)
     finally:
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
