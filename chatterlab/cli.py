@@ -16,7 +16,18 @@ from pathlib import Path
 from typing import Any, Literal
 
 from ._io import json_text
-from .errors import ChatterlabError, InputError
+from .errors import (
+    ChatterlabError,
+    InputError,
+    check_axis_values,
+    check_count,
+    check_delay,
+    check_nonneg,
+    check_position,
+    check_positive,
+    check_speed,
+    check_width,
+)
 
 __all__ = ["main", "build_parser"]
 
@@ -66,9 +77,38 @@ def _frozen(args: argparse.Namespace) -> Any:
 def _width_m(args: argparse.Namespace) -> float:
     if args.width is None:
         raise InputError("--width is required here: the width of cut b in mm")
-    if not args.width > 0:
-        raise InputError(f"--width must be > 0 mm (got {args.width:g})")
-    return args.width * 1e-3
+    return check_width(args.width, "--width", "mm") * 1e-3
+
+
+def _check_numbers(args: argparse.Namespace, unit: str = "") -> None:
+    """Every numeric option through the one validator set (chatterlab.errors),
+    before the model is assembled: a width, speed or delay must be > 0, a
+    position finite, a count a whole number; ``unit`` is the process's speed unit."""
+    if getattr(args, "width", None) is not None:
+        check_width(args.width, "--width", "mm")
+    if getattr(args, "width_max", None) is not None:
+        check_width(args.width_max, "--width-max", "mm")
+    speed = getattr(args, "speed", None)
+    if isinstance(speed, list):
+        for v in speed:
+            check_speed(v, "--speed", unit)
+    elif speed is not None:
+        check_speed(speed, "--speed", unit)
+    if getattr(args, "delay", None) is not None:
+        check_delay(args.delay, "--delay")
+    if getattr(args, "position", None) is not None:
+        check_position(args.position, "--position")
+    for name in ("fmin", "fmax"):
+        if getattr(args, name, None) is not None:
+            check_nonneg(getattr(args, name), f"--{name}", "Hz")
+    for name, unit_ in (("duration", "s"), ("step", "s")):
+        if getattr(args, name, None) is not None:
+            check_positive(getattr(args, name), f"--{name}", unit_)
+    for name, least in (("points", 1), ("passes", 1), ("verify", 0), ("confirm", 0)):
+        if getattr(args, name, None) is not None:
+            check_count(getattr(args, name), f"--{name}", least)
+    if getattr(args, "count", None) is not None:
+        check_count(args.count, "--count", 1)
 
 
 def _emit(text: str, out: str | None) -> None:
@@ -251,9 +291,7 @@ def _roots(args: argparse.Namespace) -> int:
 def _speeds(args: argparse.Namespace, proc: Any) -> Any:
     import numpy as np
 
-    lo, hi = args.speed
-    if not (np.isfinite(lo) and np.isfinite(hi)) or lo <= 0:
-        raise InputError(f"--speed MIN MAX must be positive (got {lo:g} {hi:g} {proc.speed_unit})")
+    lo, hi = (check_speed(v, "--speed MIN MAX", proc.speed_unit) for v in args.speed)
     if not hi > lo:
         raise InputError(f"--speed range is empty or reversed: MAX ({hi:g}) must exceed MIN ({lo:g})")
     if args.points < 2:
@@ -271,9 +309,7 @@ def _lobes(args: argparse.Namespace) -> int:
     if model.process is None:
         raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
     v = _speeds(args, model.process)
-    wmax = args.width_max * 1e-3
-    if not wmax > 0:
-        raise InputError(f"--width-max must be > 0 mm (got {args.width_max:g})")
+    wmax = check_width(args.width_max, "--width-max", "mm") * 1e-3
     sy = assemble(model)
     if args.positions is not None:
         return _atlas(args, model, v, wmax)
@@ -339,9 +375,13 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float) -> int:
     from .sweep import sweep
     from .tasks import AtlasTask, model_fingerprint
 
-    a, b, n = args.positions
-    n = int(n)
-    if n < 1 or (n > 1 and not b > a):
+    a = check_position(args.positions[0], "--positions A")
+    b = check_position(args.positions[1], "--positions B")
+    n = check_count(args.positions[2], "--positions N")
+    if model.movable is not None:
+        for x, nm in ((a, "--positions A"), (b, "--positions B")):
+            check_position(x, nm, within=model.movable.range)
+    if n > 1 and not b > a:
         raise InputError(f"--positions A B N: need B > A and N >= 1 (got {a:g} {b:g} {n})")
     pos = np.linspace(a, b, n)
     task = AtlasTask(
@@ -423,6 +463,7 @@ def _sweep(args: argparse.Namespace) -> int:
         name, rng = (x.strip() for x in spec.split("=", 1))
         g = Grid.from_spec(f"{axis_name(name)}={rng}")
         vals = np.asarray(g.axes[0].values, float)
+        check_axis_values(name, vals, "mm" if name == "width" else units.get(name, ""))
         if name == "width":
             vals = vals * 1e-3  # the CLI takes mm
         ax_name = axis_name(name) if "." in name else name
@@ -437,9 +478,14 @@ def _sweep(args: argparse.Namespace) -> int:
         if getattr(args, nm) is not None:
             fixed[nm] = getattr(args, nm)
     task = QuantityTask(
-        model, args.quantity, fixed, terms=args.terms, width_max=args.width_max * 1e-3, aliases=aliases
+        model,
+        args.quantity,
+        fixed,
+        terms=args.terms,
+        width_max=check_width(args.width_max, "--width-max", "mm") * 1e-3,
+        aliases=aliases,
     )
-    task.check_axes(list(grid.names))
+    task.check_grid(grid)
     res = sweep(
         task,
         grid,
@@ -776,6 +822,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        _check_numbers(args)
         return COMMANDS[args.command](args)
     except ChatterlabError as exc:
         print(f"chatterlab: error: {exc}", file=sys.stderr)

@@ -27,7 +27,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .assembly import FrozenSystem
-from .errors import InputError
+from .errors import InputError, check_delay, check_speed, check_width
 from .model import Process
 
 __all__ = ["Feedback", "feedback", "delay_for", "ce_maps", "TERMS"]
@@ -105,17 +105,15 @@ def delay_for(
     if speed is not None and delay is not None:
         raise InputError("give either speed or delay, not both")
     if delay is not None:
-        if not np.isfinite(delay) or delay <= 0:
-            raise InputError(f"delay must be > 0 s (got {delay!r})")
-        return float(delay)
+        return check_delay(delay)
     if process is None:
         if speed is not None:
             raise InputError(
                 "the model has no [process] table, so a speed cannot be turned into a delay; give the delay T"
             )
         return None
-    if speed is not None and (not np.isfinite(speed) or speed <= 0):
-        raise InputError(f"speed must be > 0 {process.speed_unit} (got {speed!r})")
+    if speed is not None:
+        speed = check_speed(speed, unit=process.speed_unit)
     return float(process.delay(speed))
 
 
@@ -150,10 +148,7 @@ def feedback(
     """
     if terms not in TERMS:
         raise InputError(f"terms must be one of {', '.join(TERMS)} (got {terms!r})")
-    if isinstance(width, bool) or not isinstance(width, int | float | np.floating) or not np.isfinite(width):
-        raise InputError(f"width must be a number in m, got {width!r}")
-    if width <= 0:
-        raise InputError(f"width must be > 0 m (got {width:g} m)")
+    width = check_width(width)
     known = [c.id for c in frozen.model.couplings]
     if not known:
         raise InputError(

@@ -12,7 +12,20 @@ converge) are *not* exceptions: they are reported as a ``status`` and
 
 from __future__ import annotations
 
-__all__ = ["ChatterlabError", "ModelError", "InputError", "SweepError"]
+__all__ = [
+    "ChatterlabError",
+    "ModelError",
+    "InputError",
+    "SweepError",
+    "check_count",
+    "check_delay",
+    "check_finite",
+    "check_nonneg",
+    "check_position",
+    "check_positive",
+    "check_speed",
+    "check_width",
+]
 
 
 class ChatterlabError(Exception):
@@ -53,3 +66,140 @@ class InputError(ChatterlabError, ValueError):
 class SweepError(ChatterlabError, RuntimeError):
     """A sweep task failed; the message names the grid point.  Results of the
     tasks that finished are kept in the checkpoint."""
+
+
+# ----------------------------------------------------------------------------- argument checks
+#
+# One set of checks for the quantities every entry point takes (the command
+# line, the sweep tasks, the analysis functions): a width, a speed, a delay,
+# a slide position, a duration.  Each returns the value as a float or raises
+# InputError naming the argument, its unit and what was given.
+
+
+def _show(value: object) -> str:
+    import numbers
+
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        try:
+            return f"{float(value):g}"
+        except OverflowError:
+            return f"an integer of {len(str(int(value)))} digits"
+    return repr(value)
+
+
+def _as_float(value: object, name: str, unit: str) -> float:
+    import math
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(f"{name} must be a number{' in ' + unit if unit else ''} (got {_show(value)})")
+    try:
+        x = float(value)
+    except (OverflowError, ValueError):
+        raise InputError(
+            f"{name} must be a finite number{' in ' + unit if unit else ''} (got {_show(value)})"
+        ) from None
+    if not math.isfinite(x):
+        raise InputError(
+            f"{name} must be a finite number{' in ' + unit if unit else ''} (got {_show(value)})"
+        )
+    return x
+
+
+def check_finite(value: object, name: str, unit: str = "") -> float:
+    """``value`` as a finite float, else :class:`InputError` naming ``name``."""
+    return _as_float(value, name, unit)
+
+
+def check_positive(value: object, name: str, unit: str = "") -> float:
+    """``value`` as a finite float > 0, else :class:`InputError` naming ``name``::
+
+    width must be > 0 m (got -0.001)
+    """
+    import math
+    import numbers
+
+    u = f" {unit}" if unit else ""
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        try:
+            x = float(value)
+        except OverflowError:
+            x = math.inf
+        if not math.isfinite(x):
+            raise InputError(f"{name} must be > 0{u} and finite (got {_show(value)})")
+    x = _as_float(value, name, unit)
+    if not x > 0:
+        raise InputError(f"{name} must be > 0{u} (got {_show(value)})")
+    return x
+
+
+def check_nonneg(value: object, name: str, unit: str = "") -> float:
+    """``value`` as a finite float >= 0, else :class:`InputError`."""
+    x = _as_float(value, name, unit)
+    if not x >= 0:
+        raise InputError(f"{name} must be >= 0{' ' + unit if unit else ''} (got {_show(value)})")
+    return x
+
+
+def check_width(value: object, name: str = "width", unit: str = "m") -> float:
+    """A width of cut (or a largest width): finite and > 0."""
+    return check_positive(value, name, unit)
+
+
+def check_speed(value: object, name: str = "speed", unit: str = "") -> float:
+    """A cutting speed in the process's unit (m/s, rpm; s for a delay process): finite and > 0."""
+    return check_positive(value, name, unit)
+
+
+def check_delay(value: object, name: str = "delay", unit: str = "s") -> float:
+    """A delay between passes, s: finite and > 0."""
+    return check_positive(value, name, unit)
+
+
+def check_position(
+    value: object, name: str = "position", unit: str = "m", within: tuple[float, float] | None = None
+) -> float:
+    """A slide position, m: finite, and inside ``within`` (the model's movable
+    range, to 1e-9 relative) when given."""
+    x = check_finite(value, name, unit)
+    if within is not None:
+        lo, hi = within
+        tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+        if not lo - tol <= x <= hi + tol:
+            raise InputError(
+                f"{name} {_show(value)} {unit} is outside the movable range [{lo:g}, {hi:g}] {unit};"
+                " choose a position inside it or widen [movable] range"
+            )
+    return x
+
+
+def check_count(value: object, name: str, minimum: int = 1) -> int:
+    """An integer count >= ``minimum`` (a float such as ``3.0`` is accepted, NaN is not)."""
+    import math
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(f"{name} must be a whole number >= {minimum} (got {_show(value)})")
+    if isinstance(value, numbers.Integral):
+        n = int(value)
+    else:
+        x = float(value)
+        if not math.isfinite(x) or x != int(x):
+            raise InputError(f"{name} must be a whole number >= {minimum} (got {_show(value)})")
+        n = int(x)
+    if n < minimum:
+        raise InputError(f"{name} must be >= {minimum} (got {_show(value)})")
+    return n
+
+
+def check_axis_values(name: str, values: object, unit: str = "") -> None:
+    """Check the values of a built-in sweep/grid axis (``width``, ``speed``,
+    ``delay``, ``position``) with the same check as a single value."""
+    import numpy as np
+
+    checks = {"width": check_width, "speed": check_speed, "delay": check_delay, "position": check_position}
+    check = checks.get(name)
+    if check is None:
+        return
+    for v in np.atleast_1d(np.asarray(values, dtype=float)).tolist():
+        check(v, f"grid axis {name}", unit)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, check_delay, check_position, check_speed
 from .model import Process
 
 __all__ = ["ShapingKinematics", "SteadyKinematics", "kinematics_for"]
@@ -38,9 +38,7 @@ class ShapingKinematics:
 
     @classmethod
     def from_process(cls, p: Process, speed: float | None = None) -> ShapingKinematics:
-        v = p.speed if speed is None else float(speed)
-        if not v > 0:
-            raise InputError(f"speed must be > 0 m/s (got {v!r})")
+        v = p.speed if speed is None else check_speed(speed, unit="m/s")
         return cls(p.start, p.direction, p.run_in, p.cut, p.coast, v, p.return_speed)
 
     @property
@@ -152,19 +150,16 @@ def kinematics_for(
     """The kinematics implied by the model's process and the options: a
     shaping process moves the slide through stroke cycles; turning, a given
     delay, or an explicit ``position`` hold it still."""
-    if speed is not None and not (np.isfinite(speed) and speed > 0):
-        unit = process.speed_unit if process is not None else ""
-        raise InputError(f"speed must be > 0 {unit} (got {speed!r})".replace("  ", " "))
+    if speed is not None:
+        speed = check_speed(speed, unit=process.speed_unit if process is not None else "")
     if speed is not None and delay is not None:
         raise InputError("give either the speed or the delay, not both")
-    if position is not None and not np.isfinite(position):
-        raise InputError(f"position must be a finite slide position in m (got {position!r})")
+    if position is not None:
+        position = check_position(position)
     if process is not None and process.kind == "shaping" and delay is None and position is None:
         return ShapingKinematics.from_process(process, speed)
     if delay is None:
         if process is None:
             raise InputError("the model has no [process] table: give the delay T")
         delay = float(process.delay(speed)) if speed is not None else float(process.delay())
-    if not (np.isfinite(delay) and delay > 0):
-        raise InputError(f"delay must be > 0 s (got {delay!r})")
-    return SteadyKinematics(position, float(delay))
+    return SteadyKinematics(position, check_delay(delay))

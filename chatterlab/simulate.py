@@ -35,7 +35,7 @@ import numpy as np
 
 from .assembly import System
 from .cutting import ce_maps
-from .errors import InputError
+from .errors import InputError, check_positive, check_width
 from .kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from .model import DIRECTIONS
 from .newmark import ConstantProblem, NewmarkOptions, TimeResponse, newmark
@@ -382,8 +382,7 @@ class ParametricProblem:
     ) -> None:
         if terms not in FEEDBACK_CASES:
             raise InputError(f"feedback must be one of {', '.join(FEEDBACK_CASES)} (got {terms!r})")
-        if not (np.isfinite(width) and width > 0):
-            raise InputError(f"width must be > 0 m (got {width!r})")
+        width = check_width(width)
         if method not in ("auto", "polynomial", "direct"):
             raise InputError(f"method must be 'auto', 'polynomial' or 'direct' (got {method!r})")
         self.system = system
@@ -957,16 +956,13 @@ def simulate(
         raise InputError(f"{mdl.source} has no [[coupling]]: a simulation of the cut needs one")
     if width is None:
         width = mdl.couplings[0].width_ref
-    if isinstance(width, bool) or not isinstance(width, int | float | np.floating) or not np.isfinite(width):
-        raise InputError(f"width must be a number in m (got {width!r})")
-    if not width > 0:
-        raise InputError(f"width must be > 0 m (got {width!r})")
+    width = check_width(width)
     if not (isinstance(passes, int | np.integer) and not isinstance(passes, bool) and passes >= 1):
         raise InputError(f"passes must be an integer >= 1 (got {passes!r})")
-    if duration is not None and not (np.isfinite(duration) and duration > 0):
-        raise InputError(f"duration must be > 0 s (got {duration!r})")
-    if step is not None and not (np.isfinite(step) and step > 0):
-        raise InputError(f"step must be > 0 s (got {step!r})")
+    if duration is not None:
+        duration = check_positive(duration, "duration", "s")
+    if step is not None:
+        step = check_positive(step, "step", "s")
     kin = kinematics_for(mdl.process, speed=speed, delay=delay, position=position)
     if isinstance(kin, ShapingKinematics) and mdl.movable is not None:
         lo, hi = mdl.movable.range

@@ -24,7 +24,7 @@ from typing import Any, Literal, cast
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, check_delay, check_position, check_speed, check_width
 from .model import Model
 
 __all__ = ["AtlasTask", "QuantityTask", "QUANTITIES", "model_fingerprint", "axis_name"]
@@ -95,6 +95,10 @@ class AtlasTask:
     key: str = field(default="", repr=False)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "width_max", check_width(self.width_max, "width_max"))
+        unit = self.model.process.speed_unit if self.model.process is not None else ""
+        for v in self.speeds:
+            check_speed(v, "speed", unit)
         object.__setattr__(self, "key", model_fingerprint(self.model))
 
     def boundary(self, position: float) -> Any:
@@ -163,7 +167,43 @@ class QuantityTask:
     def __post_init__(self) -> None:
         if self.quantity not in QUANTITIES:
             raise InputError(f"unknown quantity '{self.quantity}' (known: {', '.join(QUANTITIES)})")
+        object.__setattr__(self, "width_max", check_width(self.width_max, "width_max"))
+        unknown = set(self.fixed) - _BUILTIN_AXES
+        if unknown:
+            raise InputError(
+                f"fixed values are for {', '.join(sorted(_BUILTIN_AXES))}, not {', '.join(sorted(unknown))}"
+            )
+        object.__setattr__(self, "fixed", self._checked(self.fixed, "{}"))
         object.__setattr__(self, "key", model_fingerprint(self.model))
+
+    def _checked(self, values: dict[str, float], label: str) -> dict[str, float]:
+        """The built-in axis values checked by the one validator set (width,
+        speed and delay > 0, position finite); ``label`` formats the name."""
+        proc = self.model.process
+        unit = {"width": "m", "speed": proc.speed_unit if proc else "", "delay": "s", "position": "m"}
+        check = {"width": check_width, "speed": check_speed, "delay": check_delay, "position": check_position}
+        out = {}
+        for k, v in values.items():
+            out[k] = check[k](v, label.format(k), unit[k]) if k in check else v
+        if "position" in out and self.model.movable is not None:
+            check_position(out["position"], label.format("position"), within=self.model.movable.range)
+        if "speed" in out and proc is None:
+            raise InputError(
+                f"{self.model.source} has no [process] table, so a speed cannot be turned into a delay;"
+                " give the delay instead"
+            )
+        return out
+
+    def check_grid(self, grid: Any) -> None:
+        """Refuse a grid whose axes are unknown (see :meth:`check_axes`) or
+        whose built-in axes hold invalid values (a width, speed or delay
+        <= 0, a non-finite position), before anything is computed."""
+        self.check_axes(list(grid.names))
+        for ax in grid.axes:
+            name = self.aliases.get(ax.name, ax.name)
+            if name in _BUILTIN_AXES:
+                for v in np.asarray(ax.values, dtype=float).tolist():
+                    self._checked({name: v}, "grid axis {}")
 
     @property
     def outputs(self) -> dict[str, str]:
@@ -199,7 +239,7 @@ class QuantityTask:
         from .assembly import assemble
 
         params = {self.aliases.get(k, k): float(v) for k, v in point.items() if k not in _BUILTIN_AXES}
-        vals = {**self.fixed, **{k: float(v) for k, v in point.items() if k in _BUILTIN_AXES}}
+        vals = {**self.fixed, **self._checked({k: v for k, v in point.items() if k in _BUILTIN_AXES}, "{}")}
         pkey = tuple(sorted(params.items()))
 
         def make_system() -> Any:

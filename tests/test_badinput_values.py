@@ -1,0 +1,213 @@
+"""Class 1 of issue 10: a negative, zero or non-finite width, speed, delay or
+position is refused the same way by every entry point (status 2, one line),
+never turned into a result with status 0.  The checks live in one place,
+chatterlab.errors.check_*; these tests go through each entry point."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import turning_text
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from chatterlab import errors
+from chatterlab.cli import main
+from chatterlab.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+SHAPER = str(ROOT / "studies" / "traverse_shaper" / "model.toml")
+TURNING = turning_text(mass=2.0, stiffness=2.0e7, damping=400.0, name="1-DOF turning")
+
+
+@pytest.fixture
+def turning(tmp_path):
+    p = tmp_path / "turning.toml"
+    p.write_text(TURNING)
+    return str(p)
+
+
+def assert_clean_error(code, err, *words):
+    assert code == 2, err
+    lines = [ln for ln in err.strip().splitlines() if ln]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("chatterlab: error:"), err
+    for w in words:
+        assert w in lines[0], lines[0]
+
+
+BAD = ["-1", "0", "nan", "inf", "-inf", "-0.0", "1e400"]
+
+
+# the issue's examples and their kin, on every command that takes the value
+ENTRY_POINTS = [
+    ("sweep {m} --quantity b-lim --grid position=0.85 --speed {v}", "--speed"),
+    ("sweep {m} --quantity b-lim --grid position=0.85 --delay {v}", "--delay"),
+    ("sweep {m} --quantity b-lim --grid position=0.85 --width-max {v}", "--width-max"),
+    ("sweep {m} --quantity stable --grid speed=0.4:0.6:2 --width {v}", "--width"),
+    ("sweep {m} --quantity b-lim --grid speed=0.4 --position {v}", "--position"),
+    ("roots {m} --width 1 --speed {v}", "--speed"),
+    ("roots {m} --width 1 --delay {v}", "--delay"),
+    ("roots {m} --width {v} --speed 0.5", "--width"),
+    ("roots {m} --width 1 --speed 0.5 --position {v}", "--position"),
+    ("frf {m} --input rfe5.x --output rfe5.x --closed-loop --width {v}", "--width"),
+    ("frf {m} --input rfe5.x --output rfe5.x --closed-loop --width 1 --speed {v}", "--speed"),
+    ("lobes {m} --speed {v} 0.6", "--speed"),
+    ("lobes {m} --speed 0.4 0.6 --width-max {v}", "--width-max"),
+    ("lobes {m} --speed 0.4 0.6 --positions {v} 1.0 2", "--positions"),
+    ("lobes {m} --speed 0.4 0.6 --positions 0.7 1.0 {v}", "--positions"),
+    ("simulate {m} --speed {v}", "--speed"),
+    ("simulate {m} --delay {v}", "--delay"),
+    ("simulate {m} --width {v}", "--width"),
+    ("simulate {m} --duration {v}", "--duration"),
+    ("simulate {m} --step {v}", "--step"),
+    ("modes {m} --position {v}", "--position"),
+]
+
+
+@pytest.mark.parametrize("template, option", ENTRY_POINTS)
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf"])
+def test_invalid_value_is_refused_by_every_entry_point(capsys, tmp_path, template, option, value):
+    out = tmp_path / "out.csv"
+    argv = template.format(m=SHAPER, v=value).split() + ["--out", str(out)]
+    if argv[0] == "modes":
+        argv += ["--format", "csv"]
+    code = main(argv)
+    err = capsys.readouterr().err
+    # a position is checked against the model's movable range [0.55, 1.15] m
+    assert_clean_error(code, err, option.lstrip("-") if "position" in option else option)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "spec, words",
+    [
+        ("delay=-1:-0.5:2", ["grid axis delay", "> 0 s"]),
+        ("delay=0:0.5:2", ["grid axis delay", "> 0 s"]),
+        ("speed=-0.5:0.5:3", ["grid axis speed", "> 0"]),
+        ("width=-1:1:3", ["grid axis width", "> 0 mm"]),
+        ("width=0", ["grid axis width"]),
+    ],
+)
+def test_invalid_grid_axis_is_refused_before_anything_runs(capsys, tmp_path, spec, words):
+    out = tmp_path / "s.nc"
+    argv = ["sweep", SHAPER, "--quantity", "b-lim", "--grid", spec, "--quiet", "--out", str(out)]
+    if spec.startswith("width"):
+        argv = [
+            "sweep",
+            SHAPER,
+            "--quantity",
+            "stable",
+            "--speed",
+            "0.5",
+            "--grid",
+            spec,
+            "--quiet",
+            "--out",
+            str(out),
+        ]
+    code = main(argv)
+    assert_clean_error(code, capsys.readouterr().err, *words)
+    assert list(tmp_path.iterdir()) == []  # no file, no checkpoint, no scratch
+
+
+def test_library_entry_points_share_the_checks(turning):
+    import chatterlab as cl
+    from chatterlab.cutting import delay_for
+    from chatterlab.kinematics import kinematics_for
+    from chatterlab.tasks import AtlasTask, QuantityTask
+
+    model = cl.load_model(turning)
+    proc = model.process
+    for bad in (-1.0, 0.0, math.nan, math.inf):
+        with pytest.raises(InputError, match="speed"):
+            delay_for(proc, speed=bad)
+        with pytest.raises(InputError, match="delay"):
+            delay_for(proc, delay=bad)
+        with pytest.raises(InputError, match="speed"):
+            kinematics_for(proc, speed=bad)
+        with pytest.raises(InputError, match="speed"):
+            QuantityTask(model, "b-lim", {"speed": bad})
+        with pytest.raises(InputError, match="delay"):
+            QuantityTask(model, "b-lim", {"delay": bad})
+        with pytest.raises(InputError, match="width"):
+            QuantityTask(model, "stable", {"width": bad, "speed": 3000.0})
+        with pytest.raises(InputError, match="width_max"):
+            QuantityTask(model, "b-lim", width_max=bad)
+        with pytest.raises(InputError, match="width_max"):
+            AtlasTask(model, bad, (3000.0,))
+        with pytest.raises(InputError, match="speed"):
+            AtlasTask(model, 1e-3, (3000.0, bad))
+        # a grid point handed to the task directly is checked too
+        task = QuantityTask(model, "b-lim", width_max=5e-3)
+        with pytest.raises(InputError, match="speed"):
+            task(speed=bad)
+        with pytest.raises(InputError, match="width"):
+            cl.simulate(cl.assemble(model), width=bad, speed=3000.0, position=0.0, duration=0.01)
+
+
+def test_the_validators_name_the_argument_and_unit():
+    with pytest.raises(InputError, match=r"^--speed must be > 0 m/s \(got -1\)$"):
+        errors.check_speed(-1, "--speed", "m/s")
+    with pytest.raises(InputError, match=r"delay must be > 0 s and finite \(got nan\)"):
+        errors.check_delay(float("nan"))
+    with pytest.raises(InputError, match="digits"):
+        errors.check_width(10**400)
+    with pytest.raises(InputError, match="must be a number"):
+        errors.check_width("1")
+    with pytest.raises(InputError, match="must be a number"):
+        errors.check_width(True)
+    assert errors.check_width(np.float32(2.0)) == 2.0
+    assert errors.check_count(3.0, "N") == 3
+    with pytest.raises(InputError):
+        errors.check_count(2.5, "N")
+    with pytest.raises(InputError):
+        errors.check_count(float("nan"), "N")
+
+
+# ----------------------------------------------------------------------------- fuzz
+
+invalid = st.one_of(
+    st.sampled_from([math.nan, math.inf, -math.inf, 0.0, -0.0]),
+    st.floats(max_value=0.0, allow_nan=False),
+)
+
+CHEAP = {
+    "--speed": "roots {m} --width 0.5 --speed={v} --no-winding",
+    "--delay": "roots {m} --width 0.5 --delay={v} --no-winding",
+    "--width": "roots {m} --width={v} --speed 3000 --no-winding",
+    "--width-max": "sweep {m} --quantity b-lim --grid speed=3000 --width-max={v} --backend serial --quiet",
+    "--duration": "simulate {m} --speed 3000 --position 0 --duration={v} --quiet",
+    "--step": "simulate {m} --speed 3000 --position 0 --duration 0.01 --step={v} --quiet",
+    "grid speed": "sweep {m} --quantity b-lim --grid speed={v} --backend serial --quiet",
+    "grid delay": "sweep {m} --quantity b-lim --grid delay={v} --backend serial --quiet",
+}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(option=st.sampled_from(sorted(CHEAP)), value=invalid)
+def test_fuzz_invalid_numeric_options_end_in_status_2(capsys, turning, option, value):
+    argv = CHEAP[option].format(m=turning, v=repr(value)).split()
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert_clean_error(code, err)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    width=st.floats(min_value=1e-3, max_value=10.0),
+    speed=st.one_of(st.floats(min_value=100.0, max_value=1e5), st.sampled_from([math.nan, -5.0, 0.0])),
+)
+def test_fuzz_roots_options_never_traceback(capsys, turning, width, speed):
+    code = main(["roots", turning, f"--width={width!r}", f"--speed={speed!r}", "--no-winding"])
+    out = capsys.readouterr()
+    if not (math.isfinite(speed) and speed > 0):
+        assert_clean_error(code, out.err, "--speed")
+    else:
+        assert code in (0, 2), out.err
+        assert "Traceback" not in out.err
+        if code == 0:
+            assert "verdict:" in out.out
