@@ -95,7 +95,27 @@ def lti_plant(lti: Any, *, DP: Any = None, DV: Any = None, DO: Any, width_ref: f
         r = np.asarray(lti(1j * w, squeeze=False), dtype=complex)  # (m, m, n)
         return np.transpose(r.reshape(m, m, w.size), (2, 0, 1))
 
-    return Plant(H, np.asarray(lti.poles()), P / width_ref, V / width_ref, O / width_ref)
+    return Plant(
+        H, np.asarray(lti.poles()), P / width_ref, V / width_ref, O / width_ref, _pole_residue(lti, m)
+    )
+
+
+def _pole_residue(lti: Any, m: int) -> Any:
+    """H(s) = C S (s - Lambda)^-1 S^-1 B + D from the state space, or None
+    when the eigenvector matrix is ill-conditioned (the band is then not
+    certified)."""
+    import control
+
+    from ._boundary import PoleResidue
+
+    ss = control.ss(lti)
+    A, B, C, D = (np.asarray(x, dtype=float) for x in (ss.A, ss.B, ss.C, ss.D))
+    if A.size == 0:
+        return PoleResidue(np.zeros(0, complex), np.zeros((m, 0)), np.zeros((0, m)), D.reshape(m, m))
+    p, S = np.linalg.eig(A)
+    if np.linalg.cond(S) > 1e8:
+        return None
+    return PoleResidue(p, C @ S, np.linalg.solve(S, B.astype(complex)), D.reshape(m, m))
 
 
 def lobes_lti(

@@ -48,10 +48,11 @@ from .cutting import Feedback, feedback
 from .errors import InputError
 from .frf import _cached_modes, _modal_response, resonance_grid
 from .model import Process
+from ._boundary import LOG_SPAN as _LOG_SPAN
+from ._boundary import Band, Ops, PoleResidue, link, make_ops, nu, refine_folds, static_width
+from ._boundary import band as certified_band
 
 __all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
-
-_LOG_SPAN = 9.0  # decades of width searched below the maximum width
 
 
 @dataclass(frozen=True, eq=False)
@@ -222,19 +223,27 @@ class LobeDiagram:
 class Plant:
     """What the boundary needs of the structure: the FRF H(jw) between the
     coupling-element coordinates (forces on point a in CE axes -> relative
-    displacements dw, m/N), its poles (to place the frequency grid), and the
-    CE matrices at width b = 1 m (so that beta is the width in m).
+    displacements dw, m/N), its poles (to place the frequency grid), the CE
+    matrices at width b = 1 m (so that beta is the width in m), and, when
+    known, its pole-residue form (which proves the searched band complete).
 
     Built from a frozen RDFEM system (:meth:`from_frozen`) or from a
     python-control LTI system (:func:`chatterlab.interop.lti_plant`).
     """
 
     def __init__(
-        self, H: Any, poles: np.ndarray, Dl_P: np.ndarray, Dl_V: np.ndarray, Dl_O: np.ndarray
+        self,
+        H: Any,
+        poles: np.ndarray,
+        Dl_P: np.ndarray,
+        Dl_V: np.ndarray,
+        Dl_O: np.ndarray,
+        residues: PoleResidue | None = None,
     ) -> None:
         self.H = H
         self.poles = np.asarray(poles, dtype=complex)
         self.Dl_P, self.Dl_V, self.Dl_O = (np.asarray(x, dtype=float) for x in (Dl_P, Dl_V, Dl_O))
+        self.residues = residues
 
     @classmethod
     def from_frozen(cls, frozen: FrozenSystem, fb_ref: Feedback) -> Plant:
@@ -245,47 +254,31 @@ class Plant:
             G = _modal_response(cm, fb_ref.J, fb_ref.J.T, 1j * np.asarray(omega, float), keep, False)
             return np.transpose(G, (2, 0, 1))
 
-        return cls(H, cm.lam, fb_ref.Dl_P, fb_ref.Dl_V, fb_ref.Dl_O)
+        Jphi = fb_ref.J @ cm.phi
+        m = fb_ref.J.shape[0]
+        pr = PoleResidue(cm.lam, Jphi, Jphi.T, np.zeros((m, m)))
+        return cls(H, cm.lam, fb_ref.Dl_P, fb_ref.Dl_V, fb_ref.Dl_O, pr)
+
+    def with_terms_o(self) -> Plant:
+        """The same structure with only the delayed term of the process."""
+        return Plant(self.H, self.poles, 0 * self.Dl_P, 0 * self.Dl_V, self.Dl_O, self.residues)
 
 
-@dataclass(frozen=True)
-class _Ops:
-    """Per-frequency operators of the boundary equation (reference width)."""
-
-    omega: np.ndarray  # (N,)
-    HA: np.ndarray  # (N, m, m)  H (P + jw V)
-    HU: np.ndarray  # (N, m, r)
-    Vt: np.ndarray  # (r, m)
+_Ops = Ops
 
 
-def _ops(plant: Plant, omega: np.ndarray) -> _Ops:
-    H = plant.H(omega)
-    A = plant.Dl_P[None] + 1j * omega[:, None, None] * plant.Dl_V[None]
-    u, sv, vt = np.linalg.svd(plant.Dl_O)
-    r = int(np.sum(sv > 1e-12 * max(sv[0], 1e-300)))
-    Uo = u[:, :r] * sv[:r]
-    return _Ops(omega, H @ A, H @ Uo, vt[:r])
+def _ops(plant: Plant, omega: np.ndarray) -> Ops:
+    return make_ops(plant.H, plant.Dl_P, plant.Dl_V, plant.Dl_O, omega)
 
 
-def _nu(ops: _Ops, beta: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
-    """Eigenvalues of N(beta) (..., r), sorted by magnitude; ``beta`` has
-    shape (N, K) (or (len(idx), K) with ``idx`` selecting frequencies)."""
-    HA = ops.HA if idx is None else ops.HA[idx]
-    HU = ops.HU if idx is None else ops.HU[idx]
-    m = HA.shape[-1]
-    Mx = np.eye(m) + beta[..., None, None] * HA[:, None]
-    X = np.linalg.solve(Mx, np.broadcast_to(HU[:, None], Mx.shape[:-1] + (HU.shape[-1],)))
-    Nm = beta[..., None, None] * (ops.Vt @ X)
-    if Nm.shape[-1] == 1:
-        return Nm[..., 0, :]
-    ev = np.linalg.eigvals(Nm)
-    return np.take_along_axis(ev, np.argsort(np.abs(ev), axis=-1), axis=-1)
+_nu = nu
 
 
 def _solve_beta(
-    ops: _Ops, lo: np.ndarray, hi: np.ndarray, idx: np.ndarray | None = None, n_grid: int = 48
+    ops: Ops, lo: np.ndarray, hi: np.ndarray, idx: np.ndarray | None = None, n_grid: int = 48
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All beta in [lo, hi] (per frequency) with some |nu_j(beta)| = 1.
+    """All beta in [lo, hi] (per frequency) with some |nu_j(beta)| = 1, by
+    bracketing on a log grid (used to re-solve near a known branch).
 
     Returns (freq index, beta, z) of every solution, z = -1/nu.
     """
@@ -319,13 +312,20 @@ def _solve_beta(
             break
     c = np.where(fb_ != fa, b - fb_ * (b - a) / (fb_ - fa), 0.5 * (a + b))
     beta = np.exp(c)
-    nu = _nu_pick(ops, beta, sel, ri)
-    return fi, beta, -1.0 / nu
+    nu_ = _nu_pick(ops, beta, sel, ri)
+    return fi, beta, -1.0 / nu_
 
 
-def _nu_pick(ops: _Ops, beta: np.ndarray, freq: np.ndarray, branch: np.ndarray) -> np.ndarray:
-    nu = _nu(ops, beta[:, None], freq)[:, 0, :]
-    return nu[np.arange(beta.size), branch]
+def _nu_pick(ops: Ops, beta: np.ndarray, freq: np.ndarray, branch: np.ndarray) -> np.ndarray:
+    nu_ = _nu(ops, beta[:, None], freq)[:, 0, :]
+    return nu_[np.arange(beta.size), branch]
+
+
+def _z_at(ops: Ops, beta: np.ndarray, freq: np.ndarray) -> np.ndarray:
+    """z = -1/nu for the eigenvalue of N(beta) nearest the unit circle."""
+    v = _nu(ops, beta[:, None], freq)[:, 0, :]
+    j = np.argmin(np.abs(np.log(np.abs(v))), axis=1)
+    return -1.0 / v[np.arange(beta.size), j]
 
 
 # ============================================================================ boundary curve
@@ -340,31 +340,27 @@ class _Segment:
     idx: np.ndarray  # frequency indices into the grid
 
 
-def boundary(plant: Plant, omega: np.ndarray, beta_max: float) -> tuple[_Ops, list[_Segment]]:
-    """Boundary solutions (beta, z) on a frequency grid, organised into
-    continuous branches (segments)."""
-    ops = _ops(plant, omega)
-    N = omega.size
-    hi = np.full(N, beta_max)
-    lo = hi * 10.0**-_LOG_SPAN
-    fi, beta, z = _solve_beta(ops, lo, hi)
+def boundary(plant: Plant, omega: np.ndarray, beta_max: float) -> tuple[Ops, list[_Segment], int]:
+    """Every boundary solution (beta, z) on a frequency grid (refined at the
+    folds of the curve), organised into continuous branches that follow the
+    curve around its folds.  Returns the operators on the final grid, the
+    branches and the number of folds located."""
+
+    def make(w: np.ndarray) -> Ops:
+        return _ops(plant, w)
+
+    w, xs, folds = refine_folds(make, omega, beta_max)
+    ops = make(w)
     segs: list[_Segment] = []
-    if fi.size == 0:
-        return ops, segs
-    order = np.lexsort((beta, fi))
-    fi, beta, z = fi[order], beta[order], z[order]
-    # rank of each solution among those at the same frequency
-    starts = np.searchsorted(fi, fi, side="left")
-    rank = np.arange(fi.size) - starts
-    for j in np.unique(rank):
-        sel = rank == j
-        f, b, zz = fi[sel], beta[sel], z[sel]
-        # split where frequencies are not consecutive or beta jumps
-        brk = np.nonzero((np.diff(f) != 1) | (np.abs(np.diff(np.log(b))) > 0.7))[0] + 1
-        for part in np.split(np.arange(f.size), brk):
-            if part.size >= 2:
-                segs.append(_Segment(int(j), omega[f[part]], b[part], zz[part], f[part]))
-    return ops, segs
+    chains = link(xs)
+    for j, ch in enumerate(chains):
+        if len(ch) < 2:
+            continue
+        fi = np.array([c[0] for c in ch])
+        beta = np.array([xs[f][k] for f, k in ch]) * beta_max
+        z = _z_at(ops, beta, fi)
+        segs.append(_Segment(j, w[fi], beta, z, fi))
+    return ops, segs, folds
 
 
 def _refine_crossings(
@@ -432,21 +428,45 @@ def _refine_crossings(
 
 
 def _grid(plant: Plant, lo: float, hi: float, n_base: int) -> np.ndarray:
-    """Frequency grid, uniform plus clusters that resolve every resonance."""
-    return resonance_grid(plant.poles, lo, hi, n_base)
+    """Frequency grid on [lo, hi] (rad/s): logarithmic below a quarter of the
+    first natural frequency, uniform above, plus clusters that resolve every
+    resonance."""
+    w1 = _first_mode(plant)
+    parts = [resonance_grid(plant.poles, max(lo, min(0.25 * w1, hi)), hi, n_base)]
+    if lo < 0.25 * w1:
+        parts.append(np.geomspace(lo, min(0.25 * w1, hi), 80))
+    w = np.unique(np.concatenate(parts))
+    return w[(w >= lo) & (w <= hi)]
 
 
-def _band(plant: Plant, fmin: float | None, fmax: float | None) -> tuple[float, float]:
-    wn = np.sort(np.abs(plant.poles[plant.poles.imag > 0]))
-    w1 = float(wn[0]) if wn.size else 1.0
-    wk = float(wn[min(len(wn) - 1, 11)]) if wn.size else 10.0
-    lo = 2 * np.pi * fmin if fmin is not None else 0.25 * w1
-    hi = 2 * np.pi * fmax if fmax is not None else 1.6 * wk
-    if not hi > lo > 0:
-        raise InputError(
-            f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
+def _first_mode(plant: Plant) -> float:
+    wn = np.abs(plant.poles[plant.poles.imag > 0])
+    return float(wn.min()) if wn.size else 1.0
+
+
+def _band(plant: Plant, fmin: float | None, fmax: float | None, width_max: float) -> Band:
+    """The chatter-frequency band searched (rad/s) and whether it is proven
+    to hold every boundary point below ``width_max``."""
+    w1 = _first_mode(plant)
+    if fmin is not None or fmax is not None:
+        lo = 2 * np.pi * fmin if fmin is not None else 1e-3 * w1
+        hi = 2 * np.pi * fmax if fmax is not None else 1.6 * w1
+        if not hi > lo > 0:
+            raise InputError(
+                f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
+            )
+        return Band(lo, hi, False, "band given by the caller (fmin/fmax): outside it nothing is claimed")
+    if plant.residues is None:
+        wn = np.sort(np.abs(plant.poles[plant.poles.imag > 0]))
+        wk = float(wn[min(len(wn) - 1, 11)]) if wn.size else 10.0
+        return Band(
+            0.25 * w1,
+            1.6 * wk,
+            False,
+            "no pole-residue form of the structure: band from its modes, not proven",
         )
-    return lo, hi
+    bd = certified_band(plant.residues, plant.Dl_P, plant.Dl_V, plant.Dl_O, width_max, 1e-3 * w1)
+    return Band(bd.lo, max(bd.hi * 1.02, bd.lo), bd.certified, bd.reason)
 
 
 class Boundary:
@@ -455,6 +475,17 @@ class Boundary:
 
     Used by :func:`lobes` and, cached per slide position, by the stability
     atlas sweep.
+
+    Attributes
+    ----------
+    band : Band
+        The chatter-frequency band searched (rad/s) and its certificate: with
+        ``band.certified`` no boundary point with width <= ``width_max``
+        exists outside it (gain bound, :mod:`chatterlab._boundary`).
+    folds : int
+        Folds of the boundary curve located (and followed) on the grid.
+    static_width : float
+        Smallest width (m) with a root at s = 0, for every delay (inf: none).
     """
 
     def __init__(
@@ -482,13 +513,20 @@ class Boundary:
             fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
             plant = Plant.from_frozen(frozen, fb_ref)
         elif terms == "o":
-            plant = Plant(plant.H, plant.poles, 0 * plant.Dl_P, 0 * plant.Dl_V, plant.Dl_O)
+            plant = plant.with_terms_o()
         self.plant = plant
         if not np.any(plant.Dl_O):
             raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
-        lo, hi = _band(plant, fmin, fmax)
-        self.omega = _grid(plant, lo, hi, n_base or 2000)
-        self.ops, self.segments = boundary(plant, self.omega, self.width_max)
+        self.band = _band(plant, fmin, fmax, self.width_max)
+        if self.band.hi > self.band.lo:
+            self.omega = _grid(plant, self.band.lo, self.band.hi, n_base or 2000)
+            self.ops, self.segments, self.folds = boundary(plant, self.omega, self.width_max)
+        else:  # the gain bound excludes every frequency
+            self.omega = np.zeros(0)
+            self.ops, self.segments, self.folds = _ops(plant, self.omega), [], 0
+        with np.errstate(all="ignore"):
+            H0 = plant.H(np.array([0.0]))[0]
+        self.static_width = static_width(H0, plant.Dl_P, plant.Dl_O, self.width_max)
 
     def envelope(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s)."""
@@ -552,6 +590,10 @@ class Boundary:
             b_lim[h] = beta * b_ref
             chatter[h] = w / (2 * np.pi)
             lobe_k[h] = np.floor(w * T[h] / (2 * np.pi)).astype(int)
+        if np.isfinite(self.static_width):
+            # a root through s = 0 bounds every delay at the same width
+            st = self.static_width < b_lim
+            b_lim[st], chatter[st], lobe_k[st] = self.static_width, 0.0, 0
         return b_lim, chatter, lobe_k
 
     def absolute_minimum(self) -> dict[str, float]:
@@ -714,7 +756,9 @@ def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[
             _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=8)
             return float(bb.min()) if bb.size else np.inf
 
-        a, c = float(sg.omega[j - 1]), float(sg.omega[j + 1])
+        a, c = sorted((float(sg.omega[j - 1]), float(sg.omega[j + 1])))
+        if not c > a:
+            return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
         res = minimize_scalar(f, bounds=(a, c), method="bounded", options={"xatol": 1e-10 * c})
         if np.isfinite(res.fun) and res.fun <= bmin:
             return {"width": float(res.fun) * b_ref, "chatter_hz": float(res.x) / (2 * np.pi)}

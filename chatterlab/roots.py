@@ -76,6 +76,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -151,6 +152,13 @@ class RootsResult:
         Number of frequency windows (spectral route); 0 otherwise.
     elapsed : float
         Wall-clock time in s.
+    band_top : float
+        Upper end (rad/s) of the frequency band searched (NaN when the
+        caller fixed the band or the nodes).
+    complete_above : float
+        Every root with real part >= this (1/s) lies in the band searched:
+        the gain bound of the loop transfer excludes the frequencies above it
+        (NaN when not certified).  A verdict "stable" needs it < 0.
     """
 
     roots: ComplexArray
@@ -164,6 +172,8 @@ class RootsResult:
     message: str
     n_windows: int = 0
     elapsed: float = 0.0
+    band_top: float = math.nan
+    complete_above: float = math.nan
 
     @property
     def converged(self) -> bool:
@@ -874,17 +884,66 @@ def _solve_window(sys: DelaySystem, w: _Window, match_tol: float) -> None:
     w.rejected = int(np.sum(~conf)) + fa
 
 
-def _band_top(sys: DelaySystem, count: int, omega_max: float | None) -> float:
-    """Upper end (rad/s) of the band in which root locations are predicted."""
+#: roots outside the certified band have Re < -SIGMA_TAU / tau
+SIGMA_TAU = 2.0
+
+
+def _band_top(sys: DelaySystem, count: int, omega_max: float | None, sigma: float | None = None) -> float:
+    """Upper end (rad/s) of the band in which root locations are predicted.
+
+    A root lambda of det(P(lambda) - e^{-lambda tau} U V^T) needs
+    ||e^{-lambda tau} V^T P(lambda)^{-1} U|| >= 1.  With the loop transfer in
+    pole-residue form (:meth:`DelaySystem.transfer_fast`) the gain bound of
+    :func:`chatterlab._boundary.band` excludes every frequency above the
+    returned value for roots with Re lambda >= -SIGMA_TAU / tau: the band
+    follows from the loop, not from the highest structural pole.
+    """
     if omega_max is not None:
         return omega_max
+    floor_ = max(2.0 * np.pi * (2 * count + 4) / (sys.tau * sys.r), 20.0 / sys.tau)
+    cert = certified_top(sys, -SIGMA_TAU / sys.tau if sigma is None else sigma)
+    if cert is not None:
+        return max(cert, floor_)
     p = sys.delay_free_poles()
     pmax = float(np.max(np.abs(p))) if p.size else 0.0
-    return max(2.0 * pmax, 2.0 * np.pi * (2 * count + 4) / (sys.tau * sys.r), 20.0 / sys.tau)
+    return max(2.0 * pmax, floor_)
+
+
+def certified_top(sys: DelaySystem, sigma: float) -> float | None:
+    """Frequency (rad/s) above which no root with Re >= ``sigma`` exists (gain
+    bound on the loop transfer), or None if it cannot be bounded (no
+    well-conditioned pole-residue form of the loop transfer)."""
+    key = ("band_top", float(sigma))
+    if key in sys._cache:
+        return sys._cache[key]
+    from ._boundary import PoleResidue, band
+
+    sys.transfer_fast(np.zeros(0, complex))  # fills the partial-fraction cache
+    pf = sys._cache.get("pf")
+    out: float | None = None
+    if pf is not None and sys.r:
+        p, L, R = pf
+        pos = np.abs(p)[np.abs(p) > 0]
+        w_low = 1e-3 * float(pos.min()) if pos.size else 1e-3
+        r = sys.r
+        Z = np.zeros((r, r))
+        # ||e^{-lam tau} H(lam)|| <= e^{-sigma tau} ||H(lam)|| for Re lam >= sigma
+        bd = band(
+            PoleResidue(p, L, R, Z), np.eye(r), Z, Z, float(np.exp(-sigma * sys.tau)), w_low, shift=sigma
+        )
+        if bd.certified:
+            out = float(bd.hi)
+    sys._cache[key] = out
+    return out
 
 
 def _branch_mu(sys: DelaySystem, lam: ComplexArray) -> ComplexArray:
-    """Eigenvalues of H(lam), shape (len(lam), r); non-finite where H is singular."""
+    """Eigenvalues of H(lam), shape (len(lam), r); non-finite where H is singular.
+
+    Evaluated in chunks, so memory stays bounded for long grids."""
+    chunk = max(1024, _CHUNK_BYTES // (16 * max(sys.A.shape[0], 1)))
+    if lam.size > chunk:
+        return np.concatenate([_branch_mu(sys, lam[i : i + chunk]) for i in range(0, lam.size, chunk)])
     H = sys.transfer_fast(lam)
     with np.errstate(all="ignore"):
         if sys.r == 1:
@@ -896,10 +955,28 @@ def _branch_mu(sys: DelaySystem, lam: ComplexArray) -> ComplexArray:
         return mu
 
 
+#: most frequencies the root prediction samples on the axis (bounds memory to
+#: about 100 MB: the grid, the tracked eigenvalues and one chunk of the transfer)
+AXIS_GRID_MAX = 2_000_000
+#: bytes of the transfer's intermediate arrays per chunk of frequencies
+_CHUNK_BYTES = 32_000_000
+
+
+class _TooLarge(Exception):
+    """A search that cannot complete within its memory limit (reported as a status)."""
+
+
 def _axis_grid(sys: DelaySystem, top: float) -> FloatArray:
     """Frequencies in [0, top] (rad/s): step pi/(4 tau) plus refinement at poles."""
     tau = sys.tau
     step = min(math.pi / (4.0 * tau), top / 200.0)
+    n = top / step
+    if n > AXIS_GRID_MAX:
+        raise _TooLarge(
+            f"the delay {tau:.4g} s needs {n:.3g} axis samples up to {top / 2 / math.pi:.4g} Hz"
+            f" (limit {AXIS_GRID_MAX:.0e}): the roots are too dense to enumerate; pass omega_max"
+            " to narrow the band"
+        )
     pts = [np.linspace(0.0, top, int(math.ceil(top / step)) + 1)]
     offs = np.array([-8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8])
     p = sys.delay_free_poles()
@@ -1342,9 +1419,47 @@ def _dispatch(
     with _blas_limits():
         if not sys.has_delay:
             return _no_delay(sys, count, t0)
-        if method == "branch":
-            return _branch(sys, count, omega_max, t0)
-        return _spectral(sys, count, omega_max, n_nodes, match_tol, max_windows, t0)
+        try:
+            if omega_max is not None or n_nodes is not None:
+                if method == "branch":
+                    return _branch(sys, count, omega_max, t0)
+                return _spectral(sys, count, omega_max, n_nodes, match_tol, max_windows, t0)
+            # the band follows from the loop: certified for Re >= sigma, and
+            # widened until it holds the count rightmost roots found
+            sigma = -SIGMA_TAU / sys.tau
+            top = _band_top(sys, count, None, sigma)
+            for _ in range(4):
+                if method == "branch":
+                    res = _branch(sys, count, top, t0)
+                else:
+                    res = _spectral(sys, count, top, None, match_tol, max_windows, t0)
+                low = float(res.roots.real.min()) if res.roots.size else sigma
+                if not res.converged or low >= sigma:
+                    break
+                sigma = low - 1.0 / sys.tau
+                top2 = _band_top(sys, count, None, sigma)
+                if top2 <= top * (1 + 1e-9):
+                    break
+                top = top2
+            cert = certified_top(sys, sigma) is not None
+            note = (
+                f"; band 0..{top / 2 / math.pi:.5g} Hz holds every root with Re >= {sigma:.4g} 1/s"
+                if cert
+                else f"; band 0..{top / 2 / math.pi:.5g} Hz (not certified by the gain bound)"
+            )
+            return dataclasses.replace(
+                res, message=res.message + note, band_top=top, complete_above=sigma if cert else math.nan
+            )
+        except _TooLarge as exc:
+            return _make_result(
+                np.zeros(0, complex),
+                method=method,
+                n_nodes=(0, 0),
+                rejected=0,
+                status="not_converged",
+                message=str(exc),
+                t0=t0,
+            )
 
 
 def characteristic_roots(
