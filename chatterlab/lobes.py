@@ -43,14 +43,13 @@ from typing import Any, Literal
 
 import numpy as np
 
+from ._boundary import Band, Ops, PoleResidue, link, make_ops, nu, refine_folds, static_width
+from ._boundary import band as certified_band
 from .assembly import FrozenSystem
 from .cutting import Feedback, feedback
 from .errors import InputError
 from .frf import _cached_modes, _modal_response, resonance_grid
 from .model import Process
-from ._boundary import LOG_SPAN as _LOG_SPAN
-from ._boundary import Band, Ops, PoleResidue, link, make_ops, nu, refine_folds, static_width
-from ._boundary import band as certified_band
 
 __all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
 

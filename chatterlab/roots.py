@@ -75,8 +75,8 @@ References
 from __future__ import annotations
 
 import contextlib
-import itertools
 import dataclasses
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
