@@ -37,8 +37,9 @@ References
 
 from __future__ import annotations
 
+import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -92,9 +93,20 @@ class LobeDiagram:
     absolute_minimum : dict
         The smallest boundary width over all delays: ``width`` (m),
         ``chatter_hz`` (the asymptote the lobes approach at low speed).
-    checks : list of dict
-        Characteristic-root verdicts at points 10 % below and above the
-        boundary (see ``verify``); ``verified`` says whether all agree.
+    checks : tuple of dict
+        Argument-principle counts of right-half-plane roots just below and
+        above the envelope and at the width ceiling where the diagram says
+        ``inf`` (see ``verify``); ``verified`` says whether all agree.
+    band_hz : (float, float)
+        The chatter-frequency band searched, Hz.
+    band_certified : bool
+        True when the loop-gain bound proves that no boundary point below
+        ``width_max`` lies outside ``band_hz``; otherwise an ``inf`` only
+        means "no chatter found in the band searched".
+    band_note : str
+        Why the band is (or is not) complete.
+    folds : int
+        Folds of the boundary curve located and followed.
     """
 
     speed: np.ndarray
@@ -115,6 +127,10 @@ class LobeDiagram:
     elapsed: float = 0.0
     n_frequencies: int = 0
     meta: dict[str, Any] = field(default_factory=dict)
+    band_hz: tuple[float, float] = (float("nan"), float("nan"))
+    band_certified: bool = False
+    band_note: str = ""
+    folds: int = 0
 
     @property
     def verified(self) -> bool | None:
@@ -137,15 +153,48 @@ class LobeDiagram:
                 f"  minimum b_lim in range: {m['width'] * 1e3:.4g} mm at {m['speed']:.5g} {self.speed_unit},"
                 f" chatter {m['chatter_hz']:.2f} Hz"
             )
-        else:
+        elif self.band_certified:
             lines.append(f"  no chatter below {self.width_max * 1e3:g} mm in this speed range")
+        else:
+            lines.append(
+                f"  no chatter found below {self.width_max * 1e3:g} mm in the band searched:"
+                " stability outside it is undetermined"
+            )
+        lo, hi = self.band_hz
+        lines.append(
+            f"  chatter band searched {lo:.4g} .. {hi:.4g} Hz"
+            + (
+                " (complete: the loop gain is below 1 outside it)"
+                if self.band_certified
+                else f" ({self.band_note})"
+            )
+        )
         if np.isfinite(a["width"]):
             lines.append(
                 f"  absolute minimum (all speeds): {a['width'] * 1e3:.4g} mm at {a['chatter_hz']:.2f} Hz"
             )
         if self.checks:
             ok = sum(c["agrees"] for c in self.checks)
-            lines.append(f"  verified by characteristic roots: {ok}/{len(self.checks)} spot checks agree")
+            what = {
+                "below": "just below the envelope",
+                "above": "just above it",
+                "ceiling": "inf at the ceiling",
+            }
+            kinds = ", ".join(
+                what[k] for k in ("below", "above", "ceiling") if any(c["kind"] == k for c in self.checks)
+            )
+            lines.append(
+                f"  verified by the argument principle: {ok}/{len(self.checks)} checks agree ({kinds})"
+            )
+            for c in self.checks:
+                if not c["agrees"]:
+                    lines.append(
+                        f"  CHECK FAILED at {c['speed']:.6g} {self.speed_unit}, width {c['width'] * 1e3:.6g} mm:"
+                        f" expected {c['expected']}, the argument principle says {c['verdict']}"
+                        f" ({c['rhp_roots']} right-half-plane roots)"
+                    )
+        else:
+            lines.append("  not verified (verify=0 or a plant without matrices)")
         return "\n".join(lines)
 
     def to_csv(self, path: Any) -> None:
@@ -193,6 +242,10 @@ class LobeDiagram:
             "min_b_lim_chatter_hz": self.minimum["chatter_hz"],
             "absolute_min_b_lim_m": self.absolute_minimum["width"],
             "verified": str(self.verified),
+            "chatter_band_hz": list(self.band_hz),
+            "chatter_band_certified": str(self.band_certified),
+            "chatter_band_note": self.band_note,
+            "checks": json.dumps(list(self.checks)),
         }
         a.update(self.meta)
         a.update(attrs or {})
@@ -610,7 +663,7 @@ def lobes(
     fmin: float | None = None,
     fmax: float | None = None,
     n_frequencies: int | None = None,
-    verify: int = 2,
+    verify: int = 16,
     couplings: list[str] | None = None,
     plant: Plant | None = None,
     name: str | None = None,
@@ -636,8 +689,11 @@ def lobes(
         Size of the uniform part of the frequency grid (default 2000); every
         resonance in the band adds a cluster of points that resolves it.
     verify : int
-        Number of speeds spot-checked with characteristic roots at 0.9 and
-        1.1 b_lim (0 to skip; not available with a ``plant``).
+        How many envelope claims are checked by the argument principle
+        (0 to skip; not available with a ``plant``): the global minimum just
+        below and above the envelope, the ``verify - 1`` highest cusps and
+        ``verify // 2`` lobe bottoms just below it (relative offset
+        ``VERIFY_OFFSET``), and every run of ``inf`` at the width ceiling.
     plant : Plant, optional
         A structure given by its FRF instead of a model (e.g. a python-control
         LTI system, :func:`chatterlab.interop.lti_plant`); ``frozen`` is then
@@ -676,7 +732,7 @@ def lobes(
         couplings=couplings,
         plant=plant,
     )
-    segs, n, b_ref = bd.segments, bd.omega.size, 1.0
+    segs, n, b_ref = bd.segments, bd.ops.omega.size, 1.0
     T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
     b_lim, chatter, lobe_k = bd.envelope(T)
 
@@ -734,11 +790,13 @@ def lobes(
         model=name or (frozen.model.source if frozen is not None else "plant"),
         elapsed=0.0,
         n_frequencies=n,
+        band_hz=(bd.band.lo / (2 * np.pi), bd.band.hi / (2 * np.pi)),
+        band_certified=bd.band.certified,
+        band_note=bd.band.reason,
+        folds=bd.folds,
     )
     checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
-    object.__setattr__(diagram, "checks", checks)
-    object.__setattr__(diagram, "elapsed", time.perf_counter() - t0)
-    return diagram
+    return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
 
 
 def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[str, float]:
@@ -764,37 +822,81 @@ def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[
     return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
 
 
+#: relative offset of the verification widths from the envelope
+VERIFY_OFFSET = 1e-3
+
+
+def _check_speeds(d: LobeDiagram, count: int) -> list[tuple[int, str]]:
+    """Indices of the speeds checked and what is checked there.
+
+    The global minimum (below and above the envelope), the highest local
+    maxima of the sampled envelope (a lobe missed by the boundary search
+    shows as a claim that is too high: the risk sits at the cusps between
+    lobes), spread local minima (each a lobe's bottom), and the ends of every
+    run of ``inf`` (checked at the width ceiling)."""
+    b = d.b_lim
+    fin = np.isfinite(b)
+    out: list[tuple[int, str]] = []
+    if np.any(fin):
+        jmin = int(np.nanargmin(np.where(fin, b, np.nan)))
+        out += [(jmin, "below"), (jmin, "above")]
+        bb = np.where(fin, b, -np.inf)
+        inner = np.arange(1, b.size - 1)
+        peak = inner[(bb[inner] >= bb[inner - 1]) & (bb[inner] >= bb[inner + 1]) & fin[inner]]
+        for j in ([0] if fin[0] else []) + ([b.size - 1] if fin[-1] else []):
+            peak = np.append(peak, j)
+        peak = peak[np.argsort(-b[peak])]
+        out += [(int(j), "below") for j in peak[: max(count - 1, 0)] if int(j) != jmin]
+        low = inner[(bb[inner] <= bb[inner - 1]) & (bb[inner] <= bb[inner + 1]) & fin[inner]]
+        low = low[low != jmin]
+        if low.size and count > 2:
+            pick = low[np.linspace(0, low.size - 1, min(count // 2, low.size)).astype(int)]
+            out += [(int(j), "below") for j in pick]
+    inf = ~fin
+    if np.any(inf):
+        edges = np.nonzero(np.diff(np.r_[False, inf, False].astype(int)))[0]
+        for a, e in zip(edges[::2], edges[1::2] - 1, strict=True):
+            for j in {int(a), int(e), int((a + e) // 2)}:
+                out.append((j, "ceiling"))
+    seen: set[tuple[int, str]] = set()
+    return [c for c in out if not (c in seen or seen.add(c))]
+
+
 def _verify(
     frozen: FrozenSystem, d: LobeDiagram, count: int, couplings: list[str] | None
 ) -> tuple[dict[str, Any], ...]:
-    """Spot-check the boundary with the characteristic roots."""
-    from .stability import stability
+    """Check the diagram's claims by the argument principle, a route
+    independent of the boundary computation: the number of closed-loop roots
+    in the right half plane (:func:`chatterlab.winding.rhp_count_system`) is
+    0 just below the envelope (b = (1 - VERIFY_OFFSET) b_lim) and > 0 just
+    above it; where the diagram says ``inf``, 0 at the width ceiling."""
+    from .roots import make_system
+    from .winding import rhp_count_system
 
-    fin = np.nonzero(np.isfinite(d.b_lim))[0]
-    if fin.size == 0:
-        return ()
-    picks = [int(np.nanargmin(d.b_lim))]
-    if count > 1:
-        extra = fin[np.linspace(0, fin.size - 1, count + 1).astype(int)[1:]]
-        picks += [int(p) for p in extra if int(p) not in picks][: count - 1]
     out = []
-    for j in picks:
-        for factor in (0.9, 1.1):
-            b = float(d.b_lim[j] * factor)
-            st = stability(
-                frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings, winding=False
-            )
-            expect = "stable" if factor < 1 else "unstable"
-            out.append(
-                {
-                    "speed": float(d.speed[j]),
-                    "delay": float(d.delay[j]),
-                    "width": b,
-                    "factor": factor,
-                    "expected": expect,
-                    "verdict": st.verdict,
-                    "abscissa": st.abscissa,
-                    "agrees": st.verdict == expect,
-                }
-            )
+    for j, kind in _check_speeds(d, count):
+        if kind == "ceiling":
+            b, expect = d.width_max, "stable"
+        else:
+            b = float(d.b_lim[j]) * (1 - VERIFY_OFFSET if kind == "below" else 1 + VERIFY_OFFSET)
+            expect = "stable" if kind == "below" else "unstable"
+        fb = feedback(frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings)
+        sys_ = make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay)
+        w = rhp_count_system(sys_)
+        if w.status != "converged":
+            verdict = "undetermined"
+        else:
+            verdict = "stable" if w.count == 0 else "unstable"
+        out.append(
+            {
+                "speed": float(d.speed[j]),
+                "delay": float(d.delay[j]),
+                "width": b,
+                "kind": kind,
+                "expected": expect,
+                "verdict": verdict,
+                "rhp_roots": int(w.count),
+                "agrees": verdict == expect,
+            }
+        )
     return tuple(out)

@@ -200,13 +200,36 @@ def test_turning_absolute_minimum(turning_lobes):
     assert m["width"] < 1.05 * a["width"]
 
 
-def test_turning_spot_checks_agree(turning_lobes):
-    """The diagram's own root checks at 0.9 and 1.1 b_lim (2 speeds)."""
+def test_turning_checks_agree(turning_lobes):
+    """The diagram's own argument-principle checks: the global minimum just
+    below and above the envelope, the highest cusps and some lobe bottoms
+    just below it; all agree."""
     d = turning_lobes
-    assert len(d.checks) == 4 and d.verified is True
-    assert all(c["agrees"] for c in d.checks)
+    kinds = [c["kind"] for c in d.checks]
+    assert kinds.count("above") == 1 and kinds.count("below") >= 8
+    assert d.verified is True
     assert {c["expected"] for c in d.checks} == {"stable", "unstable"}
-    assert "4/4 spot checks agree" in d.summary()
+    assert f"{len(d.checks)}/{len(d.checks)} checks agree" in d.summary()
+
+
+def test_checks_catch_a_claim_that_is_too_high(turning, turning_lobes):
+    """The verification is strong enough to catch a missed lobe: a claim
+    raised 20 % at a cusp (what a lobe missed by the boundary search looks
+    like, issue 8 item 1) fails its check when the cusp is among those
+    checked (here all of them: verify = number of speeds)."""
+    from dataclasses import replace
+
+    from chatterlab.lobes import _verify
+
+    d = turning_lobes
+    b = d.b_lim
+    inner = np.arange(1, b.size - 1)
+    cusp = int(inner[(b[inner] >= b[inner - 1]) & (b[inner] >= b[inner + 1])][0])
+    wrong = b.copy()
+    wrong[cusp] *= 1.2
+    checks = _verify(turning, replace(d, b_lim=wrong), b.size, None)
+    bad = [c for c in checks if not c["agrees"]]
+    assert len(bad) == 1 and bad[0]["speed"] == d.speed[cusp] and bad[0]["verdict"] == "unstable"
 
 
 # ----------------------------------------------------------------------------- 2-DOF, oriented
