@@ -53,10 +53,18 @@ def _parse_set(items: Sequence[str] | None) -> dict[str, Any]:
         if "=" not in it:
             raise InputError(f"--set {it!r}: write PATH=VALUE, e.g. --set spring.leg3-foundation.c2=7e8")
         k, v = it.split("=", 1)
+        if not k.strip():
+            raise InputError(
+                f"--set {it!r}: the PATH before '=' is empty, e.g. --set spring.leg3-foundation.c2=7e8"
+            )
         try:
             out[k.strip()] = json.loads(v)
         except json.JSONDecodeError:
             out[k.strip()] = v
+        except (ValueError, RecursionError):  # a 5000-digit integer, arrays nested 10^5 deep
+            raise InputError(
+                f"--set {k.strip()}: the value is not a usable number or list (too large or nested too deeply)"
+            ) from None
     return out
 
 
@@ -64,7 +72,10 @@ def _load(args: argparse.Namespace) -> Any:
     from .modelfile import load_model
 
     return load_model(
-        args.model, variant=getattr(args, "variant", None), overrides=_parse_set(getattr(args, "set", None))
+        args.model,
+        variant=getattr(args, "variant", None),
+        overrides=_parse_set(getattr(args, "set", None)),
+        files_outside=getattr(args, "allow_outside_files", False),
     )
 
 
@@ -127,6 +138,11 @@ def _model_args(p: argparse.ArgumentParser) -> None:
         action="append",
         metavar="PATH=VALUE",
         help="change one model parameter, e.g. --set spring.leg3-foundation.c2=7e8 (repeatable)",
+    )
+    p.add_argument(
+        "--allow-outside-files",
+        action="store_true",
+        help="let [matrices] name files outside the model file's folder (../K.npy, absolute paths)",
     )
 
 
@@ -834,6 +850,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:  # pragma: no cover - e.g. piping into head
         return 0
+    except MemoryError:
+        print(
+            "chatterlab: error: out of memory; make the problem smaller (fewer points, positions or modes)",
+            file=sys.stderr,
+        )
+        return 2
+    except OSError as exc:  # a file system refusal while writing: name the file
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"chatterlab: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug: one line and status 3, the traceback on request
+        import os
+
+        if os.environ.get("CHATTERLAB_DEBUG"):
+            raise
+        msg = str(exc).splitlines()[0][:300] if str(exc) else ""
+        print(
+            f"chatterlab: internal error: {type(exc).__name__}{': ' + msg if msg else ''} (a bug in chatterlab:"
+            " please report it with the command; CHATTERLAB_DEBUG=1 shows the traceback)",
+            file=sys.stderr,
+        )
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover

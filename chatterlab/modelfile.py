@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ModelError
+from .errors import ChatterlabError, ModelError
 from .model import (
     DIRECTIONS,
     GROUND,
@@ -59,12 +59,20 @@ _LISTS = (
 )
 _TABLES = ("model", "movable", "process", "matrices", "variant")
 
+#: Limits checked before anything is parsed or allocated (docs/model-format.md, "Limits").
+MAX_MODEL_BYTES = 8 * 2**20  #: a model file larger than this is refused unread
+MAX_NESTING = 32  #: tables and arrays nested deeper than this are refused
+MAX_INTEGER = 2**63  #: integers must have |n| < 2**63 (write larger numbers as floats, 1e20)
+MAX_COORDINATES = 4000  #: rows (and columns) of a [matrices] matrix
+MAX_MATRIX_FILE_BYTES = 512 * 2**20  #: size of one .mtx/.npy/.npz file named by [matrices]
+
 
 def load_model(
     path: str | os.PathLike[str],
     *,
     variant: str | None = None,
     overrides: Mapping[str, Any] | None = None,
+    files_outside: bool = False,
 ) -> Model:
     """Read a model file.
 
@@ -79,23 +87,58 @@ def load_model(
     overrides : mapping, optional
         Parameter paths (``"spring.leg3-foundation.c2"``) and values applied
         after the variant.
+    files_outside : bool, default False
+        Allow ``[matrices]`` file names that lead outside the model file's
+        folder (``../K.npy``, an absolute path, a symbolic link pointing
+        out).  Off by default, so a model file from elsewhere reads no other
+        file on the machine (CLI: ``--allow-outside-files``).
 
     Raises
     ------
     ModelError
-        For anything wrong in the file, naming the file, item and field.
+        For anything wrong in the file, naming the file, item and field:
+        also an unreadable file, a file over :data:`MAX_MODEL_BYTES`, nesting
+        deeper than :data:`MAX_NESTING`, dates, and integers of 2**63 or more.
     """
     p = Path(path)
     name = str(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        with open(p, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size > MAX_MODEL_BYTES:
+                raise _too_big(name, size)
+            data = fh.read(MAX_MODEL_BYTES + 1)  # a pipe or device has no size: read no more than the cap
+        if len(data) > MAX_MODEL_BYTES:
+            raise _too_big(name, len(data))
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise ModelError("file not found; check the path", source=name) from None
     except IsADirectoryError:
         raise ModelError("is a directory, not a model file", source=name) from None
+    except PermissionError:
+        raise ModelError(
+            "cannot be read (permission denied); check the file's permissions", source=name
+        ) from None
+    except OSError as exc:
+        raise ModelError(f"cannot be read ({exc.strerror or exc}); check the path", source=name) from None
     except UnicodeDecodeError:
         raise ModelError("is not a UTF-8 text file; a model file is TOML text", source=name) from None
-    return loads_model(text, source=name, base_dir=p.parent, variant=variant, overrides=overrides)
+    return loads_model(
+        text,
+        source=name,
+        base_dir=p.parent,
+        variant=variant,
+        overrides=overrides,
+        files_outside=files_outside,
+    )
+
+
+def _too_big(name: str, size: int) -> ModelError:
+    return ModelError(
+        f"is {size / 2**20:.1f} MiB; a model file may hold at most {MAX_MODEL_BYTES // 2**20} MiB"
+        " (put large matrices in .npy or .mtx files named in [matrices])",
+        source=name,
+    )
 
 
 def loads_model(
@@ -105,17 +148,94 @@ def loads_model(
     base_dir: str | os.PathLike[str] | None = None,
     variant: str | None = None,
     overrides: Mapping[str, Any] | None = None,
+    files_outside: bool = False,
 ) -> Model:
-    """Like :func:`load_model` for the text of a model file."""
+    """Like :func:`load_model` for the text of a model file (``[matrices]``
+    files are looked up in ``base_dir``, default: the working directory)."""
+    if not isinstance(text, str):
+        raise ModelError(f"the model text must be a string, got {type(text).__name__}", source=source)
+    if len(text) > MAX_MODEL_BYTES:
+        raise _too_big(source, len(text.encode("utf-8", "replace")))
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ModelError(
             f"is not valid TOML ({exc}); see docs/model-format.md for the syntax", source=source
         ) from None
-    if base_dir is not None:
-        raw["__base_dir__"] = str(base_dir)
+    except RecursionError:
+        raise ModelError(
+            f"is nested too deeply (tables or arrays more than {MAX_NESTING} levels deep)", source=source
+        ) from None
+    for key in raw:
+        if key.startswith("__"):
+            raise ModelError(f"unknown table '{key}': names starting with '__' are reserved", source=source)
+    raw["__base_dir__"] = str(base_dir if base_dir is not None else ".")
+    if files_outside:
+        raw["__files_outside__"] = True
     return build_model(raw, source=source, text=text, variant=variant, overrides=overrides)
+
+
+def _where(path: tuple[Any, ...]) -> tuple[str, str]:
+    """(item, field) of a place in the parsed file, for messages."""
+    if not path:
+        return "", ""
+    head = path[0]
+    if head in _LISTS and len(path) >= 2 and isinstance(path[1], int):
+        return f"[[{head}]] #{path[1] + 1}", ".".join(str(p) for p in path[2:])
+    return f"[{head}]", ".".join(str(p) for p in path[1:])
+
+
+def _check_tree(raw: Any, src: str) -> None:
+    """Refuse, naming the place, what no model field can hold: nesting deeper
+    than MAX_NESTING, dates and times, integers of 2**63 or more, values of
+    other types (a dict handed to build_model may hold anything).  Iterative,
+    so a deep structure cannot exhaust the stack."""
+    import datetime
+
+    stack: list[tuple[Any, tuple[Any, ...]]] = [(raw, ())]
+    while stack:
+        obj, path = stack.pop()
+        if len(path) > MAX_NESTING:
+            item, fld = _where(path[:2])
+            raise ModelError(
+                f"{fld + ': ' if fld else ''}nested too deeply (more than {MAX_NESTING} levels of tables or"
+                " arrays)",
+                source=src,
+                item=item or None,
+            )
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                if not isinstance(k, str):
+                    raise ModelError(f"keys must be strings, got {k!r}", source=src)
+                stack.append((v, (*path, k)))
+        elif isinstance(obj, list | tuple):
+            for i, v in enumerate(obj):
+                stack.append((v, (*path, i)))
+        elif isinstance(obj, bool | str | float) or obj is None:
+            continue
+        elif isinstance(obj, int):
+            if not -MAX_INTEGER < obj < MAX_INTEGER:
+                item, fld = _where(path)
+                raise ModelError(
+                    f"{fld or 'value'}: integer of {len(str(abs(obj)))} digits is too large; write it as a"
+                    " float (e.g. 1e20)",
+                    source=src,
+                    item=item or None,
+                    field=fld or None,
+                )
+        else:
+            item, fld = _where(path)
+            what = (
+                "a date or time"
+                if isinstance(obj, datetime.date | datetime.time)
+                else f"a {type(obj).__name__}"
+            )
+            raise ModelError(
+                f"{fld or 'value'}: {what} is not a model value; write a number, a string, a list or a table",
+                source=src,
+                item=item or None,
+                field=fld or None,
+            )
 
 
 # ---------------------------------------------------------------------------
@@ -265,7 +385,10 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
                 )
         elif len(parts) == 2 and parts[0] in ("movable", "process", "model"):
             tbl, fld = parts
-            raw.setdefault(tbl, {})[fld] = value
+            table = raw.setdefault(tbl, {})
+            if not isinstance(table, dict):
+                raise ModelError(f"{what} '{path}': [{tbl}] is not a table in the file", source=src)
+            table[fld] = value
         else:
             raise ModelError(
                 f"{what} '{path}' does not address a field: write KIND.ID.FIELD for list items"
@@ -285,11 +408,52 @@ def build_model(
     variant: str | None = None,
     overrides: Mapping[str, Any] | None = None,
 ) -> Model:
-    """Validate a parsed model-file dictionary and build the :class:`Model`."""
+    """Validate a parsed model-file dictionary and build the :class:`Model`.
+
+    Every problem is a :class:`ModelError`: a value of the wrong type where
+    the reader does not name it more precisely ends in a one-line message
+    naming the file and the exception, never in a traceback."""
+    if not isinstance(raw, dict):
+        raise ModelError(f"a model is a table of tables, got {type(raw).__name__}", source=source)
+    _check_tree(raw, source)  # before deepcopy and json: they recurse
+    try:
+        return _build_model(raw, source=source, text=text, variant=variant, overrides=overrides)
+    except ChatterlabError:
+        raise
+    except RecursionError:
+        raise ModelError(f"is nested too deeply (more than {MAX_NESTING} levels)", source=source) from None
+    except MemoryError:
+        raise ModelError("is too large to build in memory; make the model smaller", source=source) from None
+    except (
+        TypeError,
+        ValueError,
+        KeyError,
+        IndexError,
+        AttributeError,
+        OverflowError,
+        ZeroDivisionError,
+    ) as exc:
+        detail = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+        raise ModelError(
+            f"a value has the wrong type or form ({type(exc).__name__}: {detail}); check the fields against"
+            " docs/model-format.md",
+            source=source,
+        ) from None
+
+
+def _build_model(
+    raw: dict[str, Any],
+    *,
+    source: str,
+    text: str,
+    variant: str | None,
+    overrides: Mapping[str, Any] | None,
+) -> Model:
     src = source
     raw = copy.deepcopy(raw)
     frozen_raw = json.dumps(raw)
     base_dir = Path(raw.pop("__base_dir__", "."))
+    files_outside = bool(raw.pop("__files_outside__", False))
 
     for key in raw:
         if key not in _LISTS and key not in _TABLES:
@@ -322,6 +486,7 @@ def build_model(
         _apply_overrides(src, raw, variants[variant], f"[variant.{variant}] parameter")
     if overrides:
         _apply_overrides(src, raw, overrides, "parameter")
+        _check_tree(raw, src)  # --set values come from JSON: same limits as the file
 
     meta = _Item(src, "[model]", raw.get("model", {}), ("name", "description", "reference"))
     name = meta.str("name", Path(src).stem)
@@ -501,7 +666,7 @@ def build_model(
     # ---- matrix-level model --------------------------------------------------------------
     matrices: MatrixBlock | None = None
     if "matrices" in raw:
-        matrices = _read_matrices(src, raw["matrices"], base_dir)
+        matrices = _read_matrices(src, raw["matrices"], base_dir, files_outside)
         structural = [
             k for k in ("body", "node", "beam", "attachment", "contact", "constraint", "movable") if k in raw
         ]
@@ -861,7 +1026,7 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
         "grasso": tuple(f"K{i}" for i in range(1, 9)),
         "regenerative": ("Kf", "force_angle_deg", "normal_angle_deg", "Kv"),
     }
-    if model_kind not in extra:
+    if not isinstance(model_kind, str) or model_kind not in extra:
         raise ModelError(
             f"model: must be one of {', '.join(extra)} (got {model_kind!r})",
             source=src,
@@ -926,7 +1091,7 @@ def _read_process(src: str, t: Any) -> Process:
         "turning": ("kind", "rpm", "description"),
         "delay": ("kind", "delay", "description"),
     }
-    if kind not in allowed:
+    if not isinstance(kind, str) or kind not in allowed:
         raise ModelError(
             f"kind: must be one of {', '.join(allowed)} (got {kind!r})",
             source=src,
@@ -984,32 +1149,30 @@ def _check_movable(model: Model) -> None:
                 ) from None
 
 
-def _read_matrices(src: str, t: Any, base_dir: Path) -> MatrixBlock:
+def _read_matrices(src: str, t: Any, base_dir: Path, files_outside: bool = False) -> MatrixBlock:
     it = _Item(src, "[matrices]", t, ("coordinates", "M", "L", "K", "file", "given", "description"))
     arrays: dict[str, np.ndarray] = {}
     coords = it.raw("coordinates", None)
+    if isinstance(coords, list) and len(coords) > MAX_COORDINATES:
+        raise it.err(
+            "coordinates",
+            f"{len(coords)} coordinates; a matrix-level model may have at most {MAX_COORDINATES}",
+        )
     if it.has("file"):
-        fn = base_dir / it.str("file")
-        try:
-            with np.load(fn, allow_pickle=False) as z:
-                for key in ("M", "L", "K"):
-                    if key in z:
-                        arrays[key] = np.asarray(z[key], float)
-                if coords is None and "coordinates" in z:
-                    coords = [str(x) for x in z["coordinates"]]
-        except FileNotFoundError:
-            raise it.err("file", f"'{fn}' not found (paths are relative to the model file)") from None
-        except (ValueError, OSError) as exc:
-            raise it.err("file", f"'{fn}' is not a readable .npz file ({exc})") from None
+        fn = _matrix_path(it, "file", it.str("file"), base_dir, files_outside)
+        arrays_z, coords_z = _read_npz(it, fn)
+        arrays.update(arrays_z)
+        if coords is None and coords_z is not None:
+            coords = coords_z
     for key in ("M", "L", "K"):
         if it.has(key):
             v = it.raw(key)
             if isinstance(v, str):
-                arrays[key] = _read_matrix_file(it, key, base_dir / v)
+                arrays[key] = _read_matrix_file(it, key, _matrix_path(it, key, v, base_dir, files_outside))
             else:
                 try:
                     arr = np.array(v, dtype=float)
-                except (TypeError, ValueError):
+                except (TypeError, ValueError, OverflowError):
                     raise it.err(key, "must be a list of rows of numbers, or a .mtx/.npy file name") from None
                 arrays[key] = arr
     if "M" not in arrays or "K" not in arrays:
@@ -1044,17 +1207,126 @@ def _read_matrices(src: str, t: Any, base_dir: Path) -> MatrixBlock:
     return MatrixBlock(tuple(coords), arrays["M"], arrays["L"], arrays["K"], tuple(given))
 
 
+def _matrix_path(it: _Item, key: str, name: str, base_dir: Path, files_outside: bool) -> Path:
+    """A [matrices] file name resolved against the model's folder; a name that
+    leads outside it (``..``, an absolute path, a link pointing out) is refused
+    unless ``files_outside``."""
+    if "\x00" in name:
+        raise it.err(key, "file name holds a NUL character")
+    full = base_dir / name  # an absolute name replaces base_dir
+    if not files_outside:
+        root = base_dir.resolve()
+        real = full.resolve()
+        if not real.is_relative_to(root):
+            raise it.err(
+                key,
+                f"'{name}' leads outside the model's folder {str(root)!r}; put the file in that folder, or"
+                " allow it with --allow-outside-files (Python: load_model(..., files_outside=True))",
+            )
+    try:
+        size = full.stat().st_size
+    except FileNotFoundError:
+        raise it.err(key, f"'{full}' not found (paths are relative to the model file)") from None
+    except OSError as exc:
+        raise it.err(key, f"'{full}' cannot be read ({exc.strerror or exc})") from None
+    if size > MAX_MATRIX_FILE_BYTES:
+        raise it.err(
+            key,
+            f"'{full}' is {size / 2**20:.0f} MiB; a matrix file may hold at most {MAX_MATRIX_FILE_BYTES // 2**20} MiB",
+        )
+    return full
+
+
+def _check_shape(it: _Item, key: str, fn: Path, shape: tuple[int, ...]) -> None:
+    if len(shape) != 2 or shape[0] != shape[1]:
+        raise it.err(key, f"'{fn}' holds an array of shape {shape}; a matrix must be square")
+    if shape[0] > MAX_COORDINATES:
+        raise it.err(
+            key,
+            f"'{fn}' declares a {shape[0]}x{shape[1]} matrix; at most {MAX_COORDINATES} coordinates are allowed",
+        )
+
+
+_NOT_NUMBERS = "holds no plain array of numbers (object or pickled data is never loaded)"
+
+
+def _npy_header(fh: Any) -> tuple[tuple[int, ...], np.dtype]:
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version == (1, 0):
+        shape, _, dtype = fmt.read_array_header_1_0(fh)
+    else:
+        shape, _, dtype = fmt.read_array_header_2_0(fh)
+    return tuple(shape), dtype
+
+
+def _read_npz(it: _Item, fn: Path) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    import zipfile
+
+    arrays: dict[str, np.ndarray] = {}
+    coords: list[str] | None = None
+    try:
+        with zipfile.ZipFile(fn) as zf:
+            names = set(zf.namelist())
+            for key in ("M", "L", "K", "coordinates"):
+                member = f"{key}.npy"
+                if member not in names:
+                    continue
+                if zf.getinfo(member).file_size > MAX_MATRIX_FILE_BYTES:
+                    raise it.err(
+                        "file", f"'{fn}': {member} unpacks to more than {MAX_MATRIX_FILE_BYTES // 2**20} MiB"
+                    )
+                with zf.open(member) as fh:
+                    shape, dtype = _npy_header(fh)
+                if dtype.hasobject:
+                    raise it.err("file", f"'{fn}': {member} {_NOT_NUMBERS}")
+                if key == "coordinates":
+                    if len(shape) != 1 or shape[0] > MAX_COORDINATES or dtype.kind not in "US":
+                        raise it.err(
+                            "file",
+                            f"'{fn}': coordinates must be a 1-D array of at most {MAX_COORDINATES} names",
+                        )
+                else:
+                    _check_shape(it, "file", fn, shape)
+        with np.load(fn, allow_pickle=False) as z:
+            for key in ("M", "L", "K"):
+                if key in z:
+                    arrays[key] = np.asarray(z[key], float)
+            if "coordinates" in z:
+                coords = [str(x) for x in z["coordinates"]]
+    except ModelError:
+        raise
+    except (ValueError, TypeError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        detail = f" ({exc})" if "pickle" not in str(exc).lower() else ""
+        raise it.err("file", f"'{fn}' is not a readable .npz file of numbers{detail}") from None
+    return arrays, coords
+
+
 def _read_matrix_file(it: _Item, key: str, fn: Path) -> np.ndarray:
     try:
         if fn.suffix == ".mtx":
-            from scipy.io import mmread
+            from scipy.io import mminfo, mmread
 
+            rows, cols, entries, _, field, _ = mminfo(str(fn))
+            _check_shape(it, key, fn, (int(rows), int(cols)))
+            if field == "complex":
+                raise it.err(key, f"'{fn}' holds complex entries; a matrix holds real numbers")
+            if int(entries) > int(rows) * int(cols):
+                raise it.err(key, f"'{fn}' declares {entries} entries for a {rows}x{cols} matrix")
             m = mmread(str(fn))
             return np.asarray(m.toarray() if hasattr(m, "toarray") else m, float)
         if fn.suffix == ".npy":
+            with open(fn, "rb") as fh:
+                shape, dtype = _npy_header(fh)
+            if dtype.hasobject:
+                raise it.err(key, f"'{fn}' {_NOT_NUMBERS}")
+            _check_shape(it, key, fn, shape)
             return np.asarray(np.load(fn, allow_pickle=False), float)
+    except ModelError:
+        raise
     except FileNotFoundError:
         raise it.err(key, f"'{fn}' not found (paths are relative to the model file)") from None
-    except (ValueError, OSError) as exc:
-        raise it.err(key, f"'{fn}' could not be read ({exc})") from None
+    except (ValueError, TypeError, OSError, EOFError, IndexError) as exc:
+        detail = f" ({exc})" if "pickle" not in str(exc).lower() else f": it {_NOT_NUMBERS}"
+        raise it.err(key, f"'{fn}' could not be read{detail}") from None
     raise it.err(key, f"'{fn}': use a Matrix Market (.mtx) or NumPy (.npy) file, or an inline list")
