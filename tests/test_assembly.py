@@ -366,9 +366,13 @@ def test_assembled_matrices_are_symmetric(shaper):
         for X in (A, B, C):
             # W^T X W products of symmetric X: symmetric to round-off
             np.testing.assert_allclose(X, X.T, atol=1e-13 * np.abs(X).max())
-        assert np.linalg.eigvalsh(A).min() > 0  # every independent coordinate carries mass
+        # positive definite means above round-off: eigvalsh's eigenvalues are
+        # within n eps max|lambda| (Weyl; here 8e-15 relative), so a smaller
+        # one could be a zero.  Measured: C*'s smallest is 2.7e-5 of its largest.
+        m = np.linalg.eigvalsh(A)
+        assert m.min() > A.shape[0] * np.finfo(float).eps * m.max()  # every coordinate carries mass
         w = np.linalg.eigvalsh(C)
-        assert w.min() > 1e-9 * w.max()  # held by the foundation: C* positive definite
+        assert w.min() > C.shape[0] * np.finfo(float).eps * w.max()  # held by the foundation
 
 
 # --------------------------------------------------------------------------- springs

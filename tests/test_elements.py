@@ -184,15 +184,24 @@ def test_global_element_has_three_rigid_body_modes(angle, L, h):
     M, Ld, K = beam_matrices(xy_i, xy_j, E=E, G=G, A=A, I=I, kappa=KAPPA, rho=RHO, eta=1e7)
     mid = 0.5 * (xy_i + xy_j)
     R = _rigid_motions(np.array([xy_i, xy_j]), mid)
-    # |K r| relative to |K| |r|: round-off in the 6x6 transformation, ~1e-15;
-    # the element's own condition (EA/L vs EI/L^3) enters only as a factor
-    # 12 (L/h)^2 <= 1.5e6, so 1e-9 is a safe round-off bound.
+    # K r = 0 holds through exact identities between the entries of K, each
+    # entry carrying the round-off of T^T K_loc T (sums of <= 9 products with
+    # |cos|, |sin| <= 1: <= 10 eps max|K|) and r the rounding of the arms
+    # (eps max|r|); the 6-term row sums of K r then give
+    # |K r| <= 6 (10 + 1 + 1) eps max|K| max|r| < 100 eps max|K| max|r|.
+    # No condition number enters: max|K| already bounds every entry, so
+    # the spread EA/L vs EI/L^3 does not amplify anything.  (The former
+    # bound, 1e-9 = 4.5e6 eps, assumed it did.)  Measured <= 3.3 eps over
+    # 3000 random elements of this strategy's range.
     scale = np.abs(K).max() * np.abs(R).max()
-    assert np.abs(K @ R).max() <= 1e-9 * scale
+    assert np.abs(K @ R).max() <= 100 * EPS * scale
     T = R.T @ M @ R  # rigid-body mass matrix about the middle
     expect = np.diag([RHO * A * L, RHO * A * L, RHO * A * L**3 / 12 + RHO * I * L])
-    # exact identities of the polynomial shape functions: round-off, 1e-12 relative
-    np.testing.assert_allclose(T, expect, atol=1e-12 * expect.max())
+    # exact identities of the polynomial shape functions, so round-off only:
+    # each entry of R^T M R sums 36 products of entries of M (each within
+    # ~10 eps of max|M|, as K above) and of R (within eps): <= 36 x 12 eps
+    # max|M| max|r|^2 < 500 eps of that scale (measured <= 15 eps)
+    np.testing.assert_allclose(T, expect, rtol=0, atol=500 * EPS * np.abs(M).max() * np.abs(R).max() ** 2)
     # Kelvin-Voigt damping: L = (eta/E) K exactly
     np.testing.assert_allclose(Ld, (1e7 / E) * K, rtol=1e-15, atol=0)
     # symmetry survives the transformation (round-off)

@@ -19,6 +19,81 @@ from chatterlab.model import DIRECTIONS
 
 E, NU, RHO, KAPPA = 2.1e11, 0.3, 7850.0, 5.0 / 6.0
 G = E / (2 * (1 + NU))
+EPS = np.finfo(float).eps
+
+
+# --------------------------------------------------------------------------- round-off bounds
+#
+# modes() solves C phi = lambda A phi with LAPACK (scipy.linalg.eigh): the
+# Cholesky reduction A = L L^T, Ct = L^-1 C L^-T, psi = L^T phi, and a
+# backward-stable symmetric eigensolver, whose results are exact for Ct + E
+# with ||E|| <= p(n) eps ||Ct|| = p(n) eps lambda_max (LAPACK Users' Guide,
+# 3rd ed., sec. 4.7; p(n) "a modestly growing function of n", taken as n).
+# Hence, with no tuned number anywhere:
+#   eigenvalues (Weyl):            |d lambda_k| <= n eps lambda_max;
+#   eigenvectors (Davis-Kahan sin-theta): the computed span of a cluster of
+#     eigenvalues is within the angle  n eps lambda_max / gap  of the true
+#     span, measured in the mass inner product <x, y> = x^T A y (the metric
+#     of psi), gap = distance from the cluster to every other eigenvalue.
+# lambda_max / gap is the condition number of the invariant subspace.  Inside
+# a degenerate cluster (the three rigid motions of a free body, repeated
+# frequencies) individual eigenvectors are not determined at all -- any
+# A-orthonormal basis of the span is right, and which one LAPACK returns
+# depends on the BLAS and its threads -- so only the span is compared, by
+# principal angles (scipy.linalg.subspace_angles); for a single mode the span
+# is a line, which also makes the comparison blind to the sign of phi.
+# LAPACK's guaranteed bound (sec. 4.10) adds the Cholesky reduction's error, a
+# factor ||A^-1|| ||A|| sqrt(kappa(A)) that is O(1) useless here; it does not
+# apply to null vectors of C (A's round-off moves no vector with C phi = 0)
+# and, for these well-scaled models, is measured far below eps lambda_max.
+
+
+def eigenvalue_tol(lam: np.ndarray) -> float:
+    """Absolute round-off bound on computed eigenvalues ``lam`` (all n of them)."""
+    lam = np.asarray(lam, dtype=float)
+    return lam.size * EPS * float(np.abs(lam).max())
+
+
+def span_angle_tol(lam: np.ndarray, cluster) -> float:
+    """Round-off bound (rad, mass metric) on the angle between the computed and
+    the true span of the eigenvectors ``cluster`` (indices into ``lam``, all n
+    eigenvalues of the pencil)."""
+    lam = np.asarray(lam, dtype=float)
+    inside = np.zeros(lam.size, dtype=bool)
+    inside[np.asarray(cluster)] = True
+    gap = float(np.abs(lam[~inside][:, None] - lam[inside][None, :]).min())
+    return eigenvalue_tol(lam) / gap
+
+
+def mass_angle(X: np.ndarray, Y: np.ndarray, A: np.ndarray) -> float:
+    """Largest principal angle (rad) between span(X) and span(Y) in the inner
+    product x^T A y (A symmetric positive definite)."""
+    Lt = np.linalg.cholesky(A).T
+    X, Y = np.asarray(X).reshape(A.shape[0], -1), np.asarray(Y).reshape(A.shape[0], -1)
+    return float(scipy.linalg.subspace_angles(Lt @ X, Lt @ Y).max())
+
+
+def assert_within(actual: np.ndarray, expected: np.ndarray, rtol: np.ndarray) -> None:
+    """|actual - expected| <= rtol |expected| elementwise, rtol an array of bounds."""
+    err = np.abs(np.asarray(actual) - expected) / np.abs(expected)
+    assert np.all(err <= rtol), f"relative error {err} exceeds the bound {rtol}"
+
+
+def quad_form_tol(Phi: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Relative round-off bound on each phi^T X phi (columns phi of Phi):
+    n eps |phi|^T |X| |phi| / |phi^T X phi| (Higham, Accuracy and Stability
+    of Numerical Algorithms, 2nd ed., sec. 3.1, for the two dot products)."""
+    n = X.shape[0]
+    num = np.einsum("ik,ij,jk->k", np.abs(Phi), np.abs(X), np.abs(Phi))
+    return 2 * n * EPS * num / np.abs(np.einsum("ik,ij,jk->k", Phi, X, Phi))
+
+
+def normalisation_tol(n: int, A: np.ndarray) -> float:
+    """Round-off bound on |Phi^T A Phi - I| for mass-normalised Phi = L^-T Psi:
+    Psi is orthonormal to n eps, and the triangular back-substitution is
+    exact for L + dL with |dL| <= n eps |L|, a relative change of the
+    quadratic form of at most 2 n eps kappa(L), kappa(L) = sqrt(kappa(A))."""
+    return n * EPS * (1.0 + 2.0 * math.sqrt(np.linalg.cond(A)))
 
 
 # --------------------------------------------------------------------------- free-free beam
@@ -71,28 +146,30 @@ def test_free_free_beam_matrices(free_beam):
     m = np.linalg.eigvalsh(sy.M[np.ix_(keep, keep)])
     assert m.min() > 0
     k = np.linalg.eigvalsh(sy.K[np.ix_(keep, keep)])
-    # a true zero comes out at round-off, |lambda| ~ eps * max lambda (measured
+    # a true zero comes out at round-off, |lambda| <= n eps max lambda (Weyl
+    # and a backward-stable eigvalsh; here 1.1e-14 of the largest, measured
     # 4e-17); the smallest elastic eigenvalue (EI/L^3 scale over EA/h_e scale)
-    # is 2.6e-7 of the largest here, so 1e-12 separates them
-    tol = 1e-12 * k.max()
+    # is 2.6e-7 of the largest, far above it
+    tol = eigenvalue_tol(k)
     assert np.sum(np.abs(k) < tol) == 3
     assert k.min() > -tol  # semi-definite
-    assert np.sort(k)[3] > 100 * tol  # and a clear gap to the elastic ones
+    assert np.sort(k)[3] > 1e6 * tol  # and a clear gap to the elastic ones
     c = np.linalg.eigvalsh(fz.C)
-    assert np.sum(np.abs(c) < 1e-12 * c.max()) == 3
+    assert np.sum(np.abs(c) < eigenvalue_tol(c)) == 3
 
 
 def test_rigid_modes_are_the_plane_motions(free_beam):
-    """The reported rigid modes span x and y translation and rotation: every
-    node's (u, v, theta) in them is a rigid motion u = x0 - theta y,
-    v = y0 + theta x."""
+    """The reported rigid modes span x and y translation and rotation: the
+    span of the motions u = x0 - theta y, v = y0 + theta x, theta of every
+    node (principal angles in the mass metric, within the round-off bound of
+    the block comment at the top)."""
+    fz = free_beam.at()
     md = cl.modes(free_beam, rigid="report")
     R = md.rigid_shapes
-    names = free_beam.names_i
-    assert (
-        np.abs(R.T @ free_beam.at().C @ R).max()
-        < 1e-6 * np.abs(free_beam.at().C).max() * np.abs(R).max() ** 2
-    )
+    # the three rigid modes are one triple eigenvalue 0: only their span is
+    # defined, and it is compared with the span of the exact rigid motions
+    lam = scipy.linalg.eigh(fz.C, fz.A, eigvals_only=True)  # independent of modes()
+    rigid = np.arange(3)
     # node positions along the beam (2 m at 20 deg) from the beam's node list
     ang = math.radians(20.0)
     pos = {
@@ -100,15 +177,27 @@ def test_rigid_modes_are_the_plane_motions(free_beam):
         "b": (2.0 * math.cos(ang), 2.0 * math.sin(ang)),
         **{f"beam#{j}": (j / 16 * 2.0 * math.cos(ang), j / 16 * 2.0 * math.sin(ang)) for j in range(1, 16)},
     }
-    for k in range(3):
-        q = dict(zip(names, R[:, k], strict=True))
-        th = q["a.rz"]
-        x0, y0 = q["a.x"], q["a.y"]
-        for nd, (x, y) in pos.items():
-            # mass-normalised shapes are ~1/sqrt(m) ~ 0.1; round-off 1e-12 of that
-            assert q[f"{nd}.rz"] == pytest.approx(th, abs=1e-10)
-            assert q[f"{nd}.x"] == pytest.approx(x0 - th * y, abs=1e-10)
-            assert q[f"{nd}.y"] == pytest.approx(y0 + th * x, abs=1e-10)
+    # columns: x translation, y translation, rotation about the origin
+    motions = np.zeros((fz.n, 3))
+    for r, name in enumerate(free_beam.names_i):
+        node, _, d = name.rpartition(".")
+        x, y = pos[node]
+        motions[r] = {"x": (1.0, 0.0, -y), "y": (0.0, 1.0, x), "rz": (0.0, 0.0, 1.0)}[d]
+    # tolerance n eps lambda_max / lambda_4 (block comment above): 51 eps x
+    # 7.4e5 = 8.3e-9 rad; measured 6.7e-11 (gvd; 6.3e-11 gv/gvx).  The former
+    # entrywise check at an absolute 1e-10 failed by 1.5e-10 on some BLAS.
+    tol = span_angle_tol(lam, rigid)
+    assert mass_angle(R, motions, fz.A) <= tol
+    assert tol < 1e-7  # the bound is sharp enough to tell the plane motions apart
+    # ...and the rotation of a beam 0.1 % longer (arms 0.1 % off) is far outside it
+    is_rz = np.array([name.endswith(".rz") for name in free_beam.names_i])
+    stretched = motions.copy()
+    stretched[~is_rz, 2] *= 1.001
+    assert mass_angle(R, stretched, fz.A) > 1e3 * tol
+    # the rigid modes' Rayleigh quotients (phi^T A phi = 1) are zero eigenvalues:
+    # within n eps lambda_max (measured 6.8e-8 against 2.3e-4)
+    assert np.abs(R.T @ fz.C @ R).max() <= eigenvalue_tol(lam)
+    np.testing.assert_allclose(R.T @ fz.A @ R, np.eye(3), rtol=0, atol=normalisation_tol(fz.n, fz.A))
 
 
 # --------------------------------------------------------------------------- rigid body on springs
@@ -152,22 +241,32 @@ def test_rigid_body_on_springs_closed_form():
     S = k1 + k2
     p, q = m * S * a * a + J * S, 4 * k1 * k2 * a * a
     disc = math.sqrt(p * p - 4 * m * J * q)
-    w2 = sorted([(p - disc) / (2 * m * J), (p + disc) / (2 * m * J), kx / m])
-    # a 3x3 generalised eigenproblem: round-off ~1e-15 relative
-    np.testing.assert_allclose(md.omega**2, w2, rtol=1e-12)
-    # mode shapes: in a vertical/rocking mode theta / y = (m w^2 - S) / ((k2 - k1) a)
-    names = md.frozen.names
+    w2 = np.array(sorted([(p - disc) / (2 * m * J), (p + disc) / (2 * m * J), kx / m]))
+    # LAPACK's n eps lambda_max, plus the closed form's own round-off (the
+    # quadratic formula: ~8 roundings of terms <= p / mJ = w2_1 + w2_2);
+    # measured 0.23 eps lambda_max
+    closed = 8 * EPS * (p / (m * J))
+    np.testing.assert_allclose(md.omega**2, w2, rtol=0, atol=eigenvalue_tol(w2) + closed)
+    # mode shapes, each a line (distinct eigenvalues): in the horizontal mode
+    # (x); in a vertical/rocking mode (y, theta) with theta / y = (m w^2 - S) / ((k2 - k1) a)
+    fz = md.frozen
+    names = fz.names
     iy, ir, ix = names.index("block.y"), names.index("block.rz"), names.index("block.x")
     for k in range(3):
-        phi = md.shapes[:, k]
-        if abs(md.omega[k] ** 2 - kx / m) < 1e-9 * kx / m:
-            assert abs(phi[iy]) < 1e-12 and abs(phi[ir]) < 1e-12
-            assert abs(phi[ix]) == pytest.approx(1 / math.sqrt(m), rel=1e-12)  # mass-normalised
+        expect = np.zeros(3)
+        if w2[k] == kx / m:
+            expect[ix] = 1.0
         else:
-            assert abs(phi[ix]) < 1e-12
-            ratio = (m * md.omega[k] ** 2 - S) / ((k2 - k1) * a)
-            assert phi[ir] / phi[iy] == pytest.approx(ratio, rel=1e-9)
-    np.testing.assert_allclose(md.shapes.T @ md.frozen.A @ md.shapes, np.eye(3), atol=1e-12)
+            expect[iy], expect[ir] = 1.0, (m * w2[k] - S) / ((k2 - k1) * a)
+        # span-angle bound n eps lambda_max / gap_k (block comment at the top):
+        # 3 eps x 1.4e5 / 1.7e4 = 25 eps; plus the expected line's own
+        # round-off, a few roundings amplified by the cancellations p - disc
+        # (2.2x) and m w2 - S (3.6x): < 32 eps.  Measured <= 1.1 eps.
+        tol = span_angle_tol(w2, [k]) + 32 * EPS
+        assert mass_angle(md.shapes[:, k], expect, fz.A) <= tol
+    np.testing.assert_allclose(
+        md.shapes.T @ fz.A @ md.shapes, np.eye(3), rtol=0, atol=normalisation_tol(3, fz.A)
+    )
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 30.0, 117.0])
@@ -181,13 +280,20 @@ def test_rigid_body_on_a_rotated_spring(angle_deg):
         f'[[spring]]\nid = "s"\na = "puck"\nb = "ground"\nc1 = {c1}\nc2 = {c2}\nc6 = {c6}\nangle_deg = {angle_deg}\n'
     )
     md = cl.modes(cl.assemble(cl.loads_model(text)))
-    np.testing.assert_allclose(md.omega**2, sorted([c1 / m, c2 / m, c6 / J]), rtol=1e-12)
-    k1 = int(np.argmin(np.abs(md.omega**2 - c1 / m)))
-    u = md.point_shapes("puck")[:2, k1]
-    e = np.array([math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))])
-    # parallel to e: |u x e| = 0 to round-off of the eigenvector (~1e-15 / sqrt(m))
-    assert abs(u[0] * e[1] - u[1] * e[0]) < 1e-12
-    assert abs(u @ e) == pytest.approx(1 / math.sqrt(m), rel=1e-12)
+    lam = np.sort([c1 / m, c2 / m, c6 / J])
+    # LAPACK's n eps lambda_max plus one rounding in each c / m (measured <= 2.5 eps relative)
+    np.testing.assert_allclose(md.omega**2, lam, rtol=EPS, atol=eigenvalue_tol(lam))
+    k1 = int(np.argmin(np.abs(lam - c1 / m)))
+    e = np.array([math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg)), 0.0])
+    # the c1 mode is the line through (cos alpha, sin alpha, 0) in (x, y, rz):
+    # span-angle bound 3 eps x 1.6e5 / 1.1e5 ~ 1e-15 rad, plus cos/sin round-off
+    fz = md.frozen
+    assert fz.names == ("puck.x", "puck.y", "puck.rz")
+    assert mass_angle(md.shapes[:, k1], e, fz.A) <= span_angle_tol(lam, [k1]) + 2 * EPS
+    # the body's point moves with its coordinates: the same shape, mass-normalised
+    u = md.point_shapes("puck")[:, k1]
+    np.testing.assert_array_equal(u, md.shapes[:, k1])
+    assert abs(u @ fz.A @ u - 1.0) <= normalisation_tol(3, fz.A)
 
 
 def test_modal_damping_ratio_of_proportional_damping():
@@ -198,7 +304,11 @@ def test_modal_damping_ratio_of_proportional_damping():
     text = text.replace(f"c2 = {k2}\n", f"c2 = {k2}\nd2 = {beta * k2}\n")
     text = text.replace(f"c1 = {kx}\n", f"c1 = {kx}\nd1 = {beta * kx}\n")
     md = cl.modes(cl.assemble(cl.loads_model(text)))
-    np.testing.assert_allclose(md.damping_ratio, beta * md.omega / 2, rtol=1e-12)
+    # zeta = phi^T B* phi / 2 w with B* = beta C* (to one rounding of each
+    # beta c): phi^T C* phi = lambda to n eps lambda_max, plus the quadratic
+    # form's own round-off (measured: at most 1/12 of this bound)
+    rtol = eigenvalue_tol(md.omega**2) / md.omega**2 + quad_form_tol(md.shapes, md.frozen.B) + 2 * EPS
+    assert_within(md.damping_ratio, beta * md.omega / 2, rtol)
 
 
 def test_count_and_argument_checks():
@@ -235,11 +345,16 @@ def _rows(X: np.ndarray) -> str:
 def _check_modes(model: cl.Model, M: np.ndarray, K: np.ndarray, keep=None) -> cl.Modes:
     md = cl.modes(cl.assemble(model))
     keep = np.arange(N) if keep is None else np.asarray(keep)
-    lam = scipy.linalg.eigh(K[np.ix_(keep, keep)], M[np.ix_(keep, keep)], eigvals_only=True)
-    # the same LAPACK problem; file round trips (repr, Matrix Market text with
-    # 16+ digits) keep the matrices to ~1e-16: 1e-12 relative
-    np.testing.assert_allclose(md.omega, np.sqrt(lam), rtol=1e-12)
-    np.testing.assert_allclose(md.shapes.T @ M[np.ix_(keep, keep)] @ md.shapes, np.eye(keep.size), atol=1e-12)
+    Mk, Kk = M[np.ix_(keep, keep)], K[np.ix_(keep, keep)]
+    lam = scipy.linalg.eigh(Kk, Mk, eigvals_only=True)
+    # the file round trips (repr, Matrix Market at 17 digits, npz) are exact,
+    # so two solutions of one problem, each within n eps lambda_max (maybe by
+    # different LAPACK drivers): d omega / omega <= 2 tol / (2 lambda) + sqrt's
+    # rounding (measured: at most 1/12 of this bound)
+    assert_within(md.omega, np.sqrt(lam), eigenvalue_tol(lam) / lam + EPS)
+    np.testing.assert_allclose(
+        md.shapes.T @ Mk @ md.shapes, np.eye(keep.size), rtol=0, atol=normalisation_tol(keep.size, Mk)
+    )
     return md
 
 
@@ -248,8 +363,16 @@ def test_matrix_model_inline():
     names = ", ".join(f'"{c}"' for c in COORDS)
     text = f"[matrices]\ncoordinates = [{names}]\nM = {_rows(M)}\nL = {_rows(Lm)}\nK = {_rows(K)}\n"
     md = _check_modes(cl.loads_model(text), M, K)
-    # damping ratio phi^T L phi / (2 w) with L = 1e-4 K + 0.5 M: 1e-4 w/2 + 0.5/(2 w)
-    np.testing.assert_allclose(md.damping_ratio, 1e-4 * md.omega / 2 + 0.5 / (2 * md.omega), rtol=1e-10)
+    # damping ratio phi^T L phi / (2 w) with L = 1e-4 K + 0.5 M: 1e-4 w/2 + 0.5/(2 w),
+    # to the round-off of phi^T K phi = lambda, of phi^T M phi = 1 and of the
+    # quadratic form phi^T L phi itself (measured: at most 1/14 of this bound)
+    rtol = (
+        eigenvalue_tol(md.omega**2) / md.omega**2
+        + normalisation_tol(N, M)
+        + quad_form_tol(md.shapes, md.frozen.B)
+        + 2 * EPS
+    )
+    assert_within(md.damping_ratio, 1e-4 * md.omega / 2 + 0.5 / (2 * md.omega), rtol)
     # a named coordinate is a response quantity
     row = md.frozen.dof("q2")
     np.testing.assert_array_equal(row, np.eye(N)[1])
@@ -308,7 +431,9 @@ def test_matrix_model_refuses_a_wrong_shaped_file(tmp_path):
     with pytest.raises(ModelError) as info:
         cl.load_model(p)
     msg = str(info.value)
-    assert str(p) in msg and "M: must be 5x5" in msg and "(5, 4)" in msg
+    # since 6751d12 the shape is judged from the file's header: "M: '.../M.mtx'
+    # holds an array of shape (5, 4); a matrix must be square"
+    assert str(p) in msg and "[matrices]: M:" in msg and "(5, 4)" in msg and "must be square" in msg
 
 
 def test_directions_are_x_y_rz():
