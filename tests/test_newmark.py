@@ -681,6 +681,11 @@ def test_time_response_csv_and_plot(tmp_path):
     matplotlib.use("Agg")
     ax = r.plot("tip")
     assert ax.get_xlabel() == "t [s]"
+    # the figure draws the response itself, not just labelled axes
+    (line,) = ax.get_lines()
+    np.testing.assert_array_equal(line.get_xdata(), r.t)
+    np.testing.assert_array_equal(line.get_ydata(), r.q[0])
+    assert line.get_label() == "tip"
     import matplotlib.pyplot as plt
 
     plt.close("all")
