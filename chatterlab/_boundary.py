@@ -162,14 +162,15 @@ def _real_poly_roots(c: np.ndarray) -> np.ndarray:
     return out
 
 
-def widths_rank1(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
+def widths_rank1(ops: Ops, beta_max: float | np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
     """All boundary widths x = beta / beta_max in (10^-LOG_SPAN, 1] at each
     frequency, for a rank-one delayed term, plus the smallest relative
     distance of a complex root of Q from the real segment (for refinement).
 
     Returns (list of sorted x per frequency, near-real proximity (N,))."""
-    HA = ops.HA * beta_max
-    HAO = HA + beta_max * ops.HU @ ops.Vt
+    bm = np.broadcast_to(np.asarray(beta_max, dtype=float), ops.omega.shape)[:, None, None]
+    HA = ops.HA * bm
+    HAO = HA + bm * (ops.HU @ ops.Vt)
     lam = np.linalg.eigvals(HA)
     mu = np.linalg.eigvals(HAO)
     pA = _poly_from_roots(lam)
@@ -233,7 +234,7 @@ def widths_general(ops: Ops, beta_max: float, n_grid: int = 96) -> list[np.ndarr
     return [np.sort(np.array(v)) for v in out]
 
 
-def widths(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
+def widths(ops: Ops, beta_max: float | np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
     """Boundary widths (relative to beta_max) at each frequency of ``ops``."""
     if ops.Vt.shape[0] == 1:
         return widths_rank1(ops, beta_max)

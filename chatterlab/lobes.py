@@ -44,7 +44,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ._boundary import Band, Ops, PoleResidue, link, make_ops, nu, refine_folds, static_width
+from ._boundary import Band, Ops, PoleResidue, link, make_ops, nu, refine_folds, static_width, widths_rank1
 from ._boundary import band as certified_band
 from .assembly import FrozenSystem
 from .cutting import Feedback, feedback
@@ -373,6 +373,21 @@ def _nu_pick(ops: Ops, beta: np.ndarray, freq: np.ndarray, branch: np.ndarray) -
     return nu_[np.arange(beta.size), branch]
 
 
+def _widths_between(ops: Ops, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every boundary width in [lo, hi] at each frequency of ``ops``: exact
+    (polynomial roots) for a rank-one delayed term, so two close widths near a
+    fold are both found; bracketing for higher rank.  Returns (freq index,
+    beta, z) like :func:`_solve_beta`."""
+    if ops.Vt.shape[0] != 1:
+        return _solve_beta(ops, lo, hi, n_grid=24)
+    xs, _ = widths_rank1(ops, hi)
+    fi = np.concatenate([np.full(x.size, i) for i, x in enumerate(xs)]).astype(int)
+    beta = np.concatenate(xs) * hi[fi] if fi.size else np.zeros(0)
+    keep = beta >= lo[fi]
+    fi, beta = fi[keep], beta[keep]
+    return fi, beta, _z_at(ops, beta, fi)
+
+
 def _z_at(ops: Ops, beta: np.ndarray, freq: np.ndarray) -> np.ndarray:
     """z = -1/nu for the eigenvalue of N(beta) nearest the unit circle."""
     v = _nu(ops, beta[:, None], freq)[:, 0, :]
@@ -448,7 +463,7 @@ def _refine_crossings(
         wt = np.where(hb_ != ha_, wb_ - hb_ * (wb_ - wa_) / (hb_ - ha_), 0.5 * (wa_ + wb_))
         wt = np.clip(wt, np.minimum(wa_, wb_), np.maximum(wa_, wb_))
         ops = _ops(plant, wt)
-        fi, bb, zz = _solve_beta(ops, blo[idx], bhi[idx], n_grid=10)
+        fi, bb, zz = _widths_between(ops, blo[idx], bhi[idx])
         frac = (wt - w0[idx]) / np.where(w1[idx] != w0[idx], w1[idx] - w0[idx], 1.0)
         target = b0[idx] + (b1[idx] - b0[idx]) * frac
         psi_guess = psi0[idx] + (psi1[idx] - psi0[idx]) * frac
@@ -521,6 +536,58 @@ def _band(plant: Plant, fmin: float | None, fmax: float | None, width_max: float
     return Band(bd.lo, max(bd.hi * 1.02, bd.lo), bd.certified, bd.reason)
 
 
+@dataclass(frozen=True)
+class _Candidates:
+    """Integer crossings of F = (w T - psi) / 2 pi on each interval of a branch
+    (rows: delays, columns: intervals)."""
+
+    sg: _Segment
+    psi: np.ndarray
+    kc: np.ndarray
+    Fa: np.ndarray
+    Fb: np.ndarray
+    has: np.ndarray
+    bc: np.ndarray  # interpolated width of the lowest crossing (inf: none)
+    lb: np.ndarray  # smaller end width: a lower bound of any crossing
+
+    def info(self, ri: np.ndarray, ji: np.ndarray) -> np.ndarray:
+        """Rows k, w0, w1, h0, h1, b0, b1, psi0, psi1 for :func:`_refine_crossings`."""
+        sg, kk = self.sg, self.kc[ri, ji]
+        return np.stack(
+            [
+                kk,
+                sg.omega[ji],
+                sg.omega[ji + 1],
+                2 * np.pi * (self.Fa[ri, ji] - kk),
+                2 * np.pi * (self.Fb[ri, ji] - kk),
+                sg.beta[ji],
+                sg.beta[ji + 1],
+                self.psi[ji],
+                self.psi[ji + 1],
+            ],
+            axis=1,
+        )
+
+
+def _interval_candidates(sg: _Segment, T: np.ndarray) -> _Candidates:
+    psi = -np.unwrap(np.angle(sg.z))
+    F = (sg.omega[None, :] * T[:, None] - psi[None, :]) / (2 * np.pi)  # (nT, L)
+    Fa, Fb = F[:, :-1], F[:, 1:]
+    ba, bb = sg.beta[:-1], sg.beta[1:]
+    lo_end_is_a = (ba <= bb)[None, :]
+    inc = Fb >= Fa
+    Flo, Fhi = np.minimum(Fa, Fb), np.maximum(Fa, Fb)
+    k_lo = np.floor(Flo) + 1.0  # smallest integer in (Flo, Fhi]
+    k_hi = np.floor(Fhi)
+    kc = np.where(lo_end_is_a, np.where(inc, k_lo, k_hi), np.where(inc, k_hi, k_lo))
+    has = k_hi >= k_lo
+    den = np.where(Fb != Fa, Fb - Fa, 1.0)
+    t = np.clip((kc - Fa) / den, 0.0, 1.0)
+    bc = np.where(has, ba[None, :] + t * (bb - ba)[None, :], np.inf)
+    lb = np.broadcast_to(np.minimum(ba, bb)[None, :], bc.shape)
+    return _Candidates(sg, psi, kc, Fa, Fb, has, bc, lb)
+
+
 class Boundary:
     """The stability boundary of one frozen configuration, computed once on a
     frequency grid and evaluated at any delays (:meth:`envelope`).
@@ -581,67 +648,55 @@ class Boundary:
         self.static_width = static_width(H0, plant.Dl_P, plant.Dl_O, self.width_max)
 
     def envelope(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s)."""
-        plant, b_ref = self.plant, 1.0
+        """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s).
+
+        On each grid interval of each branch, F(w) = (w T - psi(w)) / 2 pi
+        crosses the integers k between its end values; with beta monotone on
+        the interval (folds are grid points) the lowest crossing is the integer
+        nearest the lower-beta end, and its width is at least the smaller end
+        value.  The best interpolated candidate is refined first; then every
+        other interval whose smaller end lies below that refined width is
+        refined too, so a crossing whose linear interpolation was poor cannot
+        be lost."""
+        plant = self.plant
         T = np.atleast_1d(np.asarray(T, dtype=float))
-        # candidate envelope crossing per speed: on each grid interval of each
-        # branch, F(w) = (w T - psi(w)) / 2 pi crosses the integers k between its
-        # end values; with beta linear on the interval the lowest crossing is the
-        # integer nearest the lower-beta end.
         nT = T.size
+        cand = [_interval_candidates(sg, T) for sg in self.segments]
         best = np.full(nT, np.inf)
         info = np.zeros((nT, 9))  # k, w0, w1, h0, h1, b0, b1, psi0, psi1
-        for sg in self.segments:
-            psi = -np.unwrap(np.angle(sg.z))
-            F = (sg.omega[None, :] * T[:, None] - psi[None, :]) / (2 * np.pi)  # (nT, L)
-            Fa, Fb = F[:, :-1], F[:, 1:]
-            ba, bb = sg.beta[:-1], sg.beta[1:]
-            lo_end_is_a = (ba <= bb)[None, :]
-            inc = Fb >= Fa
-            Flo, Fhi = np.minimum(Fa, Fb), np.maximum(Fa, Fb)
-            k_lo = np.floor(Flo) + 1.0  # smallest integer in (Flo, Fhi]
-            k_hi = np.floor(Fhi)
-            near_a = np.where(inc, k_lo, k_hi)
-            near_b = np.where(inc, k_hi, k_lo)
-            kc = np.where(lo_end_is_a, near_a, near_b)
-            has = k_hi >= k_lo
-            den = np.where(Fb != Fa, Fb - Fa, 1.0)
-            t = np.clip((kc - Fa) / den, 0.0, 1.0)
-            bc = np.where(has, ba[None, :] + t * (bb - ba)[None, :], np.inf)
-            j = np.argmin(bc, axis=1)
-            r = np.arange(nT)
-            bmin = bc[r, j]
+        r = np.arange(nT)
+        for c in cand:
+            j = np.argmin(c.bc, axis=1)
+            bmin = c.bc[r, j]
             upd = bmin < best
-            if not np.any(upd):
-                continue
-            ru, ju = r[upd], j[upd]
-            kk = kc[ru, ju]
-            best[ru] = bmin[upd]
-            info[ru] = np.stack(
-                [
-                    kk,
-                    sg.omega[ju],
-                    sg.omega[ju + 1],
-                    2 * np.pi * (Fa[ru, ju] - kk),
-                    2 * np.pi * (Fb[ru, ju] - kk),
-                    ba[ju],
-                    bb[ju],
-                    psi[ju],
-                    psi[ju + 1],
-                ],
-                axis=1,
-            )
-        has = np.isfinite(best)
+            if np.any(upd):
+                best[upd] = bmin[upd]
+                info[upd] = c.info(r[upd], j[upd])
         b_lim = np.full(nT, np.inf)
         chatter = np.full(nT, np.nan)
-        lobe_k = np.full(nT, -1)
-        if np.any(has):
-            h = np.nonzero(has)[0]
+        h = np.nonzero(np.isfinite(best))[0]
+        if h.size:
             w, beta, ok = _refine_crossings(plant, T[h], *[info[h, j] for j in range(9)])
-            beta = np.where(ok, beta, best[h])
-            b_lim[h] = beta * b_ref
+            b_lim[h] = np.where(ok, beta, best[h])
             chatter[h] = w / (2 * np.pi)
-            lobe_k[h] = np.floor(w * T[h] / (2 * np.pi)).astype(int)
+            # second pass: every interval that could hold a lower crossing
+            rows, infos = [], []
+            for c in cand:
+                ri, ji = np.nonzero(c.has & (c.lb < b_lim[:, None] * (1 - 1e-12)))
+                if ri.size:
+                    rows.append(ri)
+                    infos.append(c.info(ri, ji))
+            if rows:
+                ri = np.concatenate(rows)
+                inf_ = np.concatenate(infos)
+                w2, beta2, ok2 = _refine_crossings(plant, T[ri], *[inf_[:, j] for j in range(9)])
+                for i in np.nonzero(ok2)[0]:
+                    if beta2[i] < b_lim[ri[i]]:
+                        b_lim[ri[i]], chatter[ri[i]] = beta2[i], w2[i] / (2 * np.pi)
+        lobe_k = np.where(
+            np.isfinite(b_lim), np.floor(2 * np.pi * np.nan_to_num(chatter) * T / (2 * np.pi)), -1
+        )
+        lobe_k = lobe_k.astype(int)
         if np.isfinite(self.static_width):
             # a root through s = 0 bounds every delay at the same width
             st = self.static_width < b_lim
