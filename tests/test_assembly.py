@@ -370,9 +370,9 @@ def test_assembled_matrices_are_symmetric(shaper):
         # within n eps max|lambda| (Weyl; here 8e-15 relative), so a smaller
         # one could be a zero.  Measured: C*'s smallest is 2.7e-5 of its largest.
         m = np.linalg.eigvalsh(A)
-        assert m.min() > A.shape[0] * np.finfo(float).eps * m.max()  # every coordinate carries mass
+        assert m.min() > A.shape[0] * EPS * m.max()  # every coordinate carries mass
         w = np.linalg.eigvalsh(C)
-        assert w.min() > C.shape[0] * np.finfo(float).eps * w.max()  # held by the foundation
+        assert w.min() > C.shape[0] * EPS * w.max()  # held by the foundation
 
 
 # --------------------------------------------------------------------------- springs
