@@ -1418,7 +1418,8 @@ def _dispatch(
             raise InputError(f"n_nodes must be an integer >= 2 (got {n_nodes!r})")
     with _blas_limits():
         if not sys.has_delay:
-            return _no_delay(sys, count, t0)
+            # every root is an eigenvalue of the linearisation: complete
+            return dataclasses.replace(_no_delay(sys, count, t0), complete_above=-math.inf)
         try:
             if omega_max is not None or n_nodes is not None:
                 if method == "branch":

@@ -202,6 +202,11 @@ def stability(
             msg += f"; argument principle: {w.status}, {w.count} right-half-plane roots"
         else:
             msg += f"; argument principle: {w.status} ({w.message})"
+    if verdict == "stable" and not agree and not (r.complete_above < 0):
+        # neither route proves it: the roots' band is not certified by the gain
+        # bound and the argument principle did not run or did not converge
+        verdict = "undetermined"
+        msg += "; no root found right of the axis, but the band searched is not proven complete"
     return Stability(verdict, absc, r, w, agree, msg, float(width), fb.delay, terms, frozen.position)
 
 

@@ -45,7 +45,9 @@ def _abscissa(frozen, b: float, T: float) -> float:
 
 def _rhp(frozen, b: float, T: float, terms: str = "pdo") -> int:
     fb = feedback(frozen, width=b, delay=T, terms=terms)
-    w = rhp_count_system(make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T))
+    w = rhp_count_system(
+        make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T)
+    )
     assert w.status == "converged", w.message
     return w.count
 
