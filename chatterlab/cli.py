@@ -9,13 +9,22 @@ exits with status 2; no traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
-from ._io import json_text
+from ._io import (
+    CSV_SUFFIXES,
+    DATA_SUFFIXES,
+    JSON_SUFFIXES,
+    PLOT_SUFFIXES,
+    TEXT_SUFFIXES,
+    Outputs,
+    json_text,
+)
 from .errors import (
     ChatterlabError,
     InputError,
@@ -123,11 +132,33 @@ def _check_numbers(args: argparse.Namespace, unit: str = "") -> None:
 
 
 def _emit(text: str, out: str | None) -> None:
+    """``text`` to the (staged) file ``out``, or to standard output."""
     if out:
         with open(out, "w") as fh:
             fh.write(text if text.endswith("\n") else text + "\n")
     else:
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
+
+
+_FORMAT_SUFFIXES = {"table": TEXT_SUFFIXES, "json": JSON_SUFFIXES, "csv": CSV_SUFFIXES}
+
+
+@contextlib.contextmanager
+def _outputs(args: argparse.Namespace, *specs: tuple[str | None, str, tuple[str, ...]]) -> Iterator[Outputs]:
+    """Check every output of the command before it computes (suffix,
+    directory, writability, not an input, not named twice); the command
+    writes to ``outs.path(FILE)``; the files are moved into place together
+    when it returns, and removed if it raises (docs/cli.md, "Output files")."""
+    inputs = [args.model] if getattr(args, "model", None) else []
+    outs = Outputs(inputs=inputs)
+    for path, option, suffixes in specs:
+        outs.add(path, option, suffixes)
+    try:
+        yield outs
+    except BaseException:
+        outs.discard()
+        raise
+    outs.commit(note=lambda msg: print(msg, file=sys.stderr))
 
 
 def _model_args(p: argparse.ArgumentParser) -> None:
@@ -211,26 +242,45 @@ def _modes(args: argparse.Namespace) -> int:
     from .assembly import assemble
     from .modal import modes
 
-    if args.count is not None and args.count < 1:
-        raise InputError(f"--count must be >= 1 (got {args.count})")
-    sy = assemble(_load(args))
-    md = modes(sy, count=args.count, position=args.position, rigid="report" if args.allow_rigid else "error")
-    if args.format == "json":
-        _emit(md.to_json(), args.out)
-    elif args.format == "csv":
-        md.to_csv(args.out or sys.stdout)
-    else:
-        pos = "" if md.position is None else f" at position s = {md.position:g} m"
-        _emit(f"{sy.model.name}: natural frequencies{pos}\n" + md.table(), args.out)
-    if args.plot:
-        from .plot import savefig
+    with _outputs(
+        args, (args.out, "--out", _FORMAT_SUFFIXES[args.format]), (args.plot, "--plot", PLOT_SUFFIXES)
+    ) as outs:
+        sy = assemble(_load(args))
+        md = modes(
+            sy, count=args.count, position=args.position, rigid="report" if args.allow_rigid else "error"
+        )
+        out = outs.path(args.out) if args.out else None
+        if args.format == "json":
+            _emit(md.to_json(), out)
+        elif args.format == "csv":
+            md.to_csv(out or sys.stdout)
+        else:
+            pos = "" if md.position is None else f" at position s = {md.position:g} m"
+            _emit(f"{sy.model.name}: natural frequencies{pos}\n" + md.table(), out)
+        if args.plot:
+            from .plot import savefig
 
-        savefig(md.plot(), args.plot)
+            savefig(md.plot(), outs.path(args.plot))
     return 0
 
 
 @_command("frf")
 def _frf(args: argparse.Namespace) -> int:
+
+    if not args.closed_loop and (args.width is not None or args.speed is not None or args.delay is not None):
+        raise InputError("--width/--speed/--delay describe the cut: add --closed-loop to use them")
+    if args.nyquist and not args.closed_loop:
+        raise InputError("--nyquist draws det(I - G D) of the cutting loop: add --closed-loop --width ...")
+    with _outputs(
+        args,
+        (args.out, "--out", _FORMAT_SUFFIXES[args.format]),
+        (args.plot, "--plot", PLOT_SUFFIXES),
+        (args.nyquist, "--nyquist", PLOT_SUFFIXES),
+    ) as outs:
+        return _frf_run(args, outs)
+
+
+def _frf_run(args: argparse.Namespace, outs: Outputs) -> int:
     from .cutting import feedback
     from .frf import frequencies, frf
 
@@ -239,18 +289,16 @@ def _frf(args: argparse.Namespace) -> int:
     fb = None
     if args.closed_loop:
         fb = feedback(fz, width=_width_m(args), speed=args.speed, delay=args.delay, terms=args.terms)
-    elif args.width is not None or args.speed is not None or args.delay is not None:
-        raise InputError("--width/--speed/--delay describe the cut: add --closed-loop to use them")
+    if args.nyquist and (fb is None or fb.is_zero):
+        raise InputError(
+            "--nyquist draws det(I - G D) of the cutting loop, which is zero here: check --terms"
+        )
     res = frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, feedback=fb, method=args.method)
     if args.format == "json":
-        _emit(res.to_json(), args.out)
+        _emit(res.to_json(), outs.path(args.out) if args.out else None)
     else:
-        res.to_csv(args.out or sys.stdout)
-    if args.nyquist:
-        if fb is None or fb.is_zero:
-            raise InputError(
-                "--nyquist draws det(I - G D) of the cutting loop: add --closed-loop --width ..."
-            )
+        res.to_csv(outs.path(args.out) if args.out else sys.stdout)
+    if args.nyquist and fb is not None:
         import numpy as np
 
         from .frf import _cached_modes, loop_determinant, resonance_grid
@@ -263,8 +311,7 @@ def _frf(args: argparse.Namespace) -> int:
         )
         det = loop_determinant(fz, wn, fb)
         title = f"{fz.model.name}: det(I - G D), b = {args.width:g} mm"
-        savefig(plot_nyquist(wn, det, title=title), args.nyquist)
-        print(f"wrote {args.nyquist}", file=sys.stderr)
+        savefig(plot_nyquist(wn, det, title=title), outs.path(args.nyquist))
     if args.plot:
         from .plot import plot_frf, savefig
 
@@ -275,18 +322,22 @@ def _frf(args: argparse.Namespace) -> int:
                 res,
             ]
         savefig(
-            plot_frf(curves, title=f"{fz.model.name}: {args.output[0]} / {args.input[0]}", peaks=2), args.plot
+            plot_frf(curves, title=f"{fz.model.name}: {args.output[0]} / {args.input[0]}", peaks=2),
+            outs.path(args.plot),
         )
-        print(f"wrote {args.plot}", file=sys.stderr)
     return 0
 
 
 @_command("roots")
 def _roots(args: argparse.Namespace) -> int:
+
+    with _outputs(args, (args.out, "--out", _FORMAT_SUFFIXES[args.format])) as outs:
+        return _roots_run(args, outs)
+
+
+def _roots_run(args: argparse.Namespace, outs: Outputs) -> int:
     from .stability import stability
 
-    if args.count < 1:
-        raise InputError(f"--count must be >= 1 (got {args.count})")
     fz = _frozen(args)
     st = stability(
         fz,
@@ -297,10 +348,11 @@ def _roots(args: argparse.Namespace) -> int:
         count=args.count,
         winding=not args.no_winding,
     )
+    out = outs.path(args.out) if args.out else None
     if args.format == "json":
-        _emit(json_text(st.to_dict()), args.out)
+        _emit(json_text(st.to_dict()), out)
     else:
-        _emit(st.table(), args.out)
+        _emit(st.table(), out)
     return 0
 
 
@@ -317,8 +369,12 @@ def _speeds(args: argparse.Namespace, proc: Any) -> Any:
 
 @_command("lobes")
 def _lobes(args: argparse.Namespace) -> int:
-    import numpy as np
+    with _outputs(args, (args.out, "--out", DATA_SUFFIXES), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
+        _check_checkpoint(args, outs)
+        return _lobes_run(args, outs)
 
+
+def _lobes_run(args: argparse.Namespace, outs: Outputs) -> int:
     from .assembly import assemble
 
     model = _load(args)
@@ -328,7 +384,7 @@ def _lobes(args: argparse.Namespace) -> int:
     wmax = check_width(args.width_max, "--width-max", "mm") * 1e-3
     sy = assemble(model)
     if args.positions is not None:
-        return _atlas(args, model, v, wmax)
+        return _atlas(args, model, v, wmax, outs)
     from .lobes import lobes
 
     d = lobes(
@@ -348,31 +404,78 @@ def _lobes(args: argparse.Namespace) -> int:
         print(conf.table(), file=sys.stderr)
     print(d.summary())
     if args.out:
-        if args.out.endswith(".csv"):
-            d.to_csv(args.out)
+        if args.out.lower().endswith(".csv"):
+            d.to_csv(outs.path(args.out))
         else:
-            d.to_netcdf(args.out, attrs={"model_text": model.text, "command": " ".join(sys.argv)})
-        print(f"wrote {args.out}", file=sys.stderr)
+            d.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)})
     if args.plot:
         from .plot import savefig
 
-        savefig(d.plot(), args.plot)
-        print(f"wrote {args.plot}", file=sys.stderr)
-    del np
+        savefig(d.plot(), outs.path(args.plot))
     return 0
 
 
 def _sweep_opts(args: argparse.Namespace) -> dict[str, Any]:
     if args.jobs < 1 and args.jobs != -1:
         raise InputError(f"--jobs must be >= 1 (or -1 for all cores), got {args.jobs}")
-    if args.backend == "dask" and not args.scheduler:
-        pass  # a local cluster of --jobs workers
+    if args.scheduler and args.backend != "dask":
+        raise InputError("--scheduler is for --backend dask")
     return {
+        "security": _security(args),
         "jobs": args.jobs,
         "backend": args.backend,
         "scheduler": args.scheduler,
         "progress": not args.quiet,
+        # a complete run's results are in --out: the default checkpoint OUT.ckpt has done its job
+        # (removed under its lock); a partial run keeps it; a --checkpoint DIR is the user's
+        "keep_checkpoint": bool(args.checkpoint) or not args.out,
     }
+
+
+def _check_checkpoint(args: argparse.Namespace, outs: Outputs) -> None:
+    """The checkpoint directory is neither an input nor an output file."""
+    import os
+
+    ck = _checkpoint(args)
+    if ck is None:
+        return
+    real = os.path.realpath(ck)
+    for name, what in (
+        (args.model, "the model file"),
+        (args.out, "--out"),
+        (getattr(args, "plot", None), "--plot"),
+    ):
+        if name and os.path.realpath(name) == real:
+            raise InputError(f"--checkpoint {ck!r} is {what}; give the checkpoint its own directory")
+    if Path(ck).exists() and not Path(ck).is_dir():
+        raise InputError(f"--checkpoint {ck!r} exists and is not a directory")
+
+
+def _security(args: argparse.Namespace) -> Any:
+    """dask TLS settings for a remote --scheduler tls://..., or None."""
+    files = {"--tls-ca-file": args.tls_ca_file, "--tls-cert": args.tls_cert, "--tls-key": args.tls_key}
+    given = {k: v for k, v in files.items() if v}
+    tls = bool(args.scheduler) and str(args.scheduler).startswith("tls://")
+    if not given and not tls:
+        return None
+    if given and not tls:
+        raise InputError(f"{', '.join(given)} need --backend dask --scheduler tls://HOST:PORT")
+    missing = [k for k, v in files.items() if not v]
+    if missing:
+        raise InputError(f"a tls:// scheduler needs {', '.join(files)}; missing {', '.join(missing)}")
+    for k, v in files.items():
+        if not Path(v).is_file():
+            raise InputError(f"{k} {v!r}: no such file")
+    try:
+        from distributed.security import Security
+    except ImportError:
+        raise InputError("--backend dask needs dask.distributed: pip install chatterlab[dask]") from None
+    return Security(
+        tls_ca_file=args.tls_ca_file,
+        tls_client_cert=args.tls_cert,
+        tls_client_key=args.tls_key,
+        require_encryption=True,
+    )
 
 
 def _checkpoint(args: argparse.Namespace) -> str | None:
@@ -385,7 +488,7 @@ def _checkpoint(args: argparse.Namespace) -> str | None:
     return None
 
 
-def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float) -> int:
+def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outputs) -> int:
     import numpy as np
 
     from .sweep import sweep
@@ -431,32 +534,25 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float) -> int:
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed: {res.message}", file=sys.stderr)
     if args.out:
-        if args.out.endswith(".csv"):
-            res.to_csv(args.out)
+        if args.out.lower().endswith(".csv"):
+            res.to_csv(outs.path(args.out))
         else:
-            res.to_netcdf(args.out)
-        print(f"wrote {args.out}", file=sys.stderr)
+            res.to_netcdf(outs.path(args.out))
     if args.plot:
         from .plot import plot_atlas, savefig
 
-        savefig(plot_atlas(res, model.process), args.plot)
-        print(f"wrote {args.plot}", file=sys.stderr)
-    _drop_checkpoint(args, res)
+        savefig(plot_atlas(res, model.process), outs.path(args.plot))
     return 0 if res.status == "ok" else 1
-
-
-def _drop_checkpoint(args: argparse.Namespace, res: Any) -> None:
-    """A complete run's results are in --out: the default checkpoint
-    (OUT.ckpt) has done its job.  A partial run keeps it for --resume; a
-    checkpoint the user named with --checkpoint is left alone."""
-    import shutil
-
-    if res.status == "ok" and args.out and not args.checkpoint:
-        shutil.rmtree(args.out + ".ckpt", ignore_errors=True)
 
 
 @_command("sweep")
 def _sweep(args: argparse.Namespace) -> int:
+    with _outputs(args, (args.out, "--out", DATA_SUFFIXES), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
+        _check_checkpoint(args, outs)
+        return _sweep_run(args, outs)
+
+
+def _sweep_run(args: argparse.Namespace, outs: Outputs) -> int:
     import numpy as np
 
     from .sweep import Axis, Grid, sweep
@@ -510,7 +606,7 @@ def _sweep(args: argparse.Namespace) -> int:
         resume=args.resume,
         fingerprint=model_fingerprint(model)
         + f"|{sorted(fixed.items())!r}|{args.quantity}|{args.terms}|{args.width_max}",
-        out=args.out if args.out and not args.out.endswith(".csv") else None,
+        out=outs.path(args.out) if args.out and not args.out.lower().endswith(".csv") else None,
         attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
         **_sweep_opts(args),
     )
@@ -524,38 +620,60 @@ def _sweep(args: argparse.Namespace) -> int:
         print(f"  {k} [{QUANTITIES[args.quantity][k]}]: {rng}")
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed; first: {res.message}", file=sys.stderr)
-    if args.out:
-        if args.out.endswith(".csv"):
-            res.to_csv(args.out)
-        elif not Path(args.out).exists():
-            res.to_netcdf(args.out)
-        print(f"wrote {args.out}", file=sys.stderr)
+    if args.out and args.out.lower().endswith(".csv"):
+        res.to_csv(outs.path(args.out))  # (a .nc file was streamed by the sweep)
     if args.plot:
         from .plot import savefig
 
         first = next(iter(QUANTITIES[args.quantity]))
-        savefig(res.plot(first), args.plot)
-        print(f"wrote {args.plot}", file=sys.stderr)
-    _drop_checkpoint(args, res)
+        savefig(res.plot(first), outs.path(args.plot))
     return 0 if res.status == "ok" else 1
 
 
 @_command("simulate")
 def _simulate(args: argparse.Namespace) -> int:
-    from .assembly import assemble
-    from .simulate import simulate
-
-    if args.passes < 1:
-        raise InputError(f"--passes must be >= 1 (got {args.passes})")
-    if args.duration is not None and not args.duration > 0:
-        raise InputError(f"--duration must be > 0 s (got {args.duration:g})")
-    if args.step is not None and not args.step > 0:
-        raise InputError(f"--step must be > 0 s (got {args.step:g})")
-    sy = assemble(_load(args))
-    width = _width_m(args) if args.width is not None else None
     cases: list[Literal["none", "pd", "pdo"]] = (
         ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
     )
+    files = [args.out if len(cases) == 1 else _suffixed(args.out, fb) for fb in cases] if args.out else []
+    with _outputs(
+        args, *((f, "--out", DATA_SUFFIXES) for f in files), (args.plot, "--plot", PLOT_SUFFIXES)
+    ) as outs:
+        return _simulate_run(args, outs, cases, files)
+
+
+def _history_line(sim: Any, name: str) -> str:
+    """One printed line per recorded output: mean, peak-to-peak and spectral
+    peak of the last cut -- or, for a run that diverged, how large the
+    response grew and when (a mean of a blown-up history means nothing)."""
+    import numpy as np
+
+    x = sim.data[name]
+    unit, scale = ("rad", 1.0) if sim.units.get(name) == "rad" else ("um", 1e6)
+    if sim.status == "diverged" or not np.all(np.isfinite(x)):
+        fin = np.abs(x[np.isfinite(x)])
+        peak = f"largest |value| {fin.max() * scale:.3g} {unit}" if fin.size else "no finite value"
+        return f"  {name:10s} {peak} up to t = {sim.t[-1]:.6g} s (no mean or spectrum: the run diverged)"
+    m = sim.window("last-cut")
+    f, a = sim.spectrum(name)
+    sel = f > 1.0
+    fp = f[sel][int(a[sel].argmax())] if sel.any() else float("nan")
+    line = (
+        f"  {name:10s} mean {x[m].mean() * scale:9.3f} {unit}   peak-to-peak {(x[m].max() - x[m].min()) * scale:8.3f} {unit}"
+        f"   main spectral peak {fp:7.2f} Hz"
+    )
+    if sim.in_cut.all():  # a continuous cut: the envelope's growth rate is meaningful
+        g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
+        line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
+    return line
+
+
+def _simulate_run(args: argparse.Namespace, outs: Outputs, cases: list[Any], files: list[str]) -> int:
+    from .assembly import assemble
+    from .simulate import simulate
+
+    sy = assemble(_load(args))
+    width = _width_m(args) if args.width is not None else None
     sims = []
     for fb in cases:
         sim = simulate(
@@ -574,29 +692,14 @@ def _simulate(args: argparse.Namespace) -> int:
         sims.append(sim)
         print(f"feedback {fb}: {sim.message}")
         for name in sim.data:
-            x = sim.data[name]
-            m = sim.window("last-cut")
-            f, a = sim.spectrum(name)
-            sel = f > 1.0
-            fp = f[sel][int(a[sel].argmax())] if sel.any() else float("nan")
-            line = (
-                f"  {name:10s} mean {x[m].mean() * 1e6:9.3f} um   peak-to-peak {(x[m].max() - x[m].min()) * 1e6:8.3f} um"
-                f"   main spectral peak {fp:7.2f} Hz"
-            )
-            if sim.in_cut.all():  # a continuous cut: the envelope's growth rate is meaningful
-                g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
-                line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
-            print(line)
+            print(_history_line(sim, name))
         if sim.status != "ok":
             print(f"  status: {sim.status}", file=sys.stderr)
-    if args.out:
-        for sim in sims:
-            out = args.out if len(sims) == 1 else _suffixed(args.out, sim.terms)
-            if out.endswith(".csv"):
-                sim.to_csv(out)
-            else:
-                sim.to_netcdf(out)
-            print(f"wrote {out}", file=sys.stderr)
+    for sim, out in zip(sims, files, strict=True):
+        if out.lower().endswith(".csv"):
+            sim.to_csv(outs.path(out))
+        else:
+            sim.to_netcdf(outs.path(out))
     if args.plot:
         import matplotlib.pyplot as plt
 
@@ -607,9 +710,8 @@ def _simulate(args: argparse.Namespace) -> int:
         plot_histories(sims, names, axes=axs[: len(names)], against="time")
         plot_spectra(sims, names[0], ax=axs[-1])
         fig.tight_layout()
-        fig.savefig(args.plot, dpi=130)
+        fig.savefig(outs.path(args.plot), dpi=130)
         plt.close(fig)
-        print(f"wrote {args.plot}", file=sys.stderr)
     if any(s.status == "interrupted" for s in sims):
         print("chatterlab: interrupted: the partial time histories above were kept", file=sys.stderr)
         return 130
@@ -643,8 +745,13 @@ def _parallel_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2; -1: all cores)")
     p.add_argument("--backend", choices=["loky", "dask", "serial"], default="loky")
     p.add_argument(
-        "--scheduler", metavar="ADDRESS", help="dask scheduler, e.g. tcp://host:8786 (with --backend dask)"
+        "--scheduler",
+        metavar="ADDRESS",
+        help="dask scheduler, e.g. tls://host:8786 (with --backend dask); it runs code as you: trust it",
     )
+    p.add_argument("--tls-ca-file", metavar="PEM", help="CA certificate of a tls:// scheduler")
+    p.add_argument("--tls-cert", metavar="PEM", help="client certificate for a tls:// scheduler")
+    p.add_argument("--tls-key", metavar="PEM", help="client private key for a tls:// scheduler")
     p.add_argument(
         "--checkpoint", metavar="DIR", help="checkpoint directory (default: OUT.ckpt when --out is given)"
     )

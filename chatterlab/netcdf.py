@@ -516,6 +516,7 @@ def write_csv(
     data: Mapping[str, Any],
     *,
     block: int = 65536,
+    coded: Mapping[str, tuple[np.ndarray, Sequence[str]]] | None = None,
 ) -> Path:
     """Write labelled arrays as a long-format CSV file (atomically).
 
@@ -534,6 +535,10 @@ def write_csv(
         coordinates (no ``dims`` subset).
     block : int, default 65536
         Rows formatted at a time (bounds memory for very large grids).
+    coded : mapping, optional
+        Text columns written last: ``name -> (codes, labels)``, an integer
+        array shaped like the grid and the text of each code
+        (``labels[code]``), e.g. a per-point status and reason.
 
     Returns
     -------
@@ -557,6 +562,14 @@ def write_csv(
     header = [f"{n} [{u}]" if u else n for n, (_, u, _) in cnorm.items()]
     header += [f"{n} [{u}]" if u else n for n, (_, u, _, _) in dnorm.items()]
     flat = [a.reshape(-1) for a, _, _, _ in dnorm.values()]
+    texts = []
+    for name, (codes, labels) in (coded or {}).items():
+        _check_name(name, "column")
+        c = np.asarray(codes)
+        if c.shape != shape:
+            raise InputError(f"write_csv: coded column {name!r} has shape {c.shape}, the grid {shape}")
+        header.append(name)
+        texts.append((c.reshape(-1), list(labels)))
     with atomic_write(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
@@ -565,6 +578,7 @@ def write_csv(
             subs = np.unravel_index(idx, shape)
             cols = [v[s].tolist() for (v, _, _), s in zip(cnorm.values(), subs, strict=True)]
             cols += [_as_python(a[start : start + len(idx)]) for a in flat]
+            cols += [[lab[int(k)] for k in c[start : start + len(idx)]] for c, lab in texts]
             w.writerows(zip(*cols, strict=True))
     return path
 

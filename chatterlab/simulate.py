@@ -692,17 +692,21 @@ class Simulation:
         return self.data[name]
 
     def to_csv(self, path: Any) -> None:
-        """Time histories: t [s], s [m], in_cut, cut distance [m], outputs."""
+        """Time histories: t [s], s [m], in_cut, cut distance [m], outputs,
+        and the run's status (``ok``, ``diverged``, ``interrupted``) in the
+        last column, so that the file alone says whether it can be trusted."""
         import csv
 
         from ._io import text_out
 
         names = list(self.data)
+        status = self.status
         with text_out(path) as fh:
             w = csv.writer(fh)
             w.writerow(
                 ["t [s]", "position [m]", "in_cut [-]", "cut_distance [m]"]
                 + [f"{n} [{self.units.get(n, 'm')}]" for n in names]
+                + ["status"]
             )
             for k in range(self.t.size):
                 w.writerow(
@@ -713,6 +717,7 @@ class Simulation:
                         f"{self.cut_distance[k]:.9g}",
                     ]
                     + [f"{self.data[n][k]:.9g}" for n in names]
+                    + [status]
                 )
 
     def to_netcdf(self, path: str, attrs: dict[str, Any] | None = None) -> None:

@@ -81,6 +81,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from chatterlab._io import clean_stale
 from chatterlab.errors import InputError, SweepError
 from chatterlab.netcdf import atomic_write, check_attrs, read_netcdf, write_csv, write_netcdf
 
@@ -96,6 +97,8 @@ __all__ = [
 Backend = Literal["loky", "serial", "dask"]
 
 _MANIFEST = "manifest.json"
+_LOCK = ".lock"  # held (flock) by the run using the checkpoint; released by the kernel when it dies
+_SCRATCH = "scratch-"  # memmap folders of a run streaming to out=, inside the checkpoint
 _CHUNK_RE = re.compile(r"^chunk_(\d+)\.npz$")
 _CHECKPOINT_FORMAT = "chatterlab-sweep-checkpoint"
 _CHECKPOINT_VERSION = 1
@@ -103,6 +106,9 @@ _MAX_CHUNK = 4096
 _CHUNKS_PER_JOB = 32
 _KEEP_FAILURES = 1000  # failures kept in memory (all are counted and stored in chunks)
 _FILE_FAILURES = 100  # failures written to the netCDF ``failures`` attribute
+_MAX_REASONS = 1000  # distinct failure reasons kept per point (more share the last code)
+_OTHER_REASON = f"other failure (more than {_MAX_REASONS} distinct reasons; see the failures attribute)"
+STATUS_VARIABLE = "task_status"  # per grid point: 0 ok, k > 0 failed for reasons[k - 1]
 
 
 # =========================================================================== grid
@@ -459,6 +465,13 @@ class SweepResult:
         Tasks computed in this call, loaded from the checkpoint, failed.
     elapsed : float
         Wall time of the call, in seconds.
+    task_status : ndarray of int32, optional
+        Shaped like the grid: 0 where the task succeeded, ``k > 0`` where it
+        failed, for the reason ``reasons[k - 1]`` (``"ErrorType: message"``).
+        Written to files: a ``task_status`` variable and a ``reasons``
+        attribute (netCDF), ``status`` and ``reason`` columns (CSV).
+    reasons : tuple of str
+        The distinct failure reasons, in the order of their first grid point.
     """
 
     grid: Grid
@@ -473,6 +486,8 @@ class SweepResult:
     n_resumed: int = 0
     n_failed: int = 0
     elapsed: float = 0.0
+    task_status: np.ndarray | None = field(default=None, repr=False)
+    reasons: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -493,6 +508,8 @@ class SweepResult:
         out["status"] = self.status
         out["message"] = self.message
         out["n_failed"] = int(self.n_failed)
+        if self.task_status is not None:
+            out["reasons"] = json.dumps(list(self.reasons))
         if self.failures:
             out["failures"] = json.dumps(
                 [
@@ -510,6 +527,17 @@ class SweepResult:
     def _data_specs(self) -> dict[str, tuple[np.ndarray, str, str]]:
         return {n: (a, self.units.get(n, ""), self.long_names.get(n, n)) for n, a in self.data.items()}
 
+    def _status_spec(self) -> dict[str, tuple[np.ndarray, str, str]]:
+        if self.task_status is None:
+            return {}
+        return {
+            STATUS_VARIABLE: (
+                self.task_status,
+                "1",
+                "task status: 0 ok, k > 0 failed for the k-th entry of the reasons attribute",
+            )
+        }
+
     def to_netcdf(self, path: str | os.PathLike[str], *, provenance: bool = True) -> Path:
         """Write a netCDF classic file (see :func:`chatterlab.netcdf.write_netcdf`).
 
@@ -520,12 +548,24 @@ class SweepResult:
         fixes it (e.g. ``attrs={"created": "..."}`` for reproducible bytes).
         """
         return write_netcdf(
-            path, self.grid.coords, self._data_specs(), self.file_attrs(), provenance=provenance
+            path,
+            self.grid.coords,
+            self._data_specs() | self._status_spec(),
+            self.file_attrs(),
+            provenance=provenance,
         )
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write a long-format CSV file: one row per grid point, header ``name [unit]``."""
-        return write_csv(path, self.grid.coords, self._data_specs())
+        """Write a long-format CSV file: one row per grid point, header ``name [unit]``,
+        then (when the task status is known) ``status`` (``ok``/``failed``) and
+        ``reason`` (empty, or ``ErrorType: message``)."""
+        coded = None
+        if self.task_status is not None:
+            coded = {
+                "status": (self.task_status, ["ok"] + ["failed"] * len(self.reasons)),
+                "reason": (self.task_status, ["", *self.reasons]),
+            }
+        return write_csv(path, self.grid.coords, self._data_specs(), coded=coded)
 
     @classmethod
     def from_netcdf(cls, path: str | os.PathLike[str], *, mmap: bool = False) -> SweepResult:
@@ -545,12 +585,34 @@ class SweepResult:
                 )
             except (ValueError, KeyError, TypeError):
                 pass
+        reasons: tuple[str, ...] = ()
+        if "reasons" in attrs:
+            try:
+                reasons = tuple(str(r) for r in json.loads(attrs.pop("reasons")))
+            except (ValueError, TypeError):
+                reasons = ()
         data, units, long_names = {}, {}, {}
+        task_status = None
         for name, (arr, unit, long_name) in f.data.items():
             if f.dims.get(name) != grid.names:
                 continue
+            if name == STATUS_VARIABLE:
+                task_status = np.asarray(arr, dtype=np.int32)
+                continue
             data[name], units[name], long_names[name] = arr, unit, long_name
-        return cls(grid, data, units, status, message, failures, attrs, long_names, n_failed=n_failed)
+        return cls(
+            grid,
+            data,
+            units,
+            status,
+            message,
+            failures,
+            attrs,
+            long_names,
+            n_failed=n_failed,
+            task_status=task_status,
+            reasons=reasons,
+        )
 
     def to_dataset(self) -> Any:
         """An :class:`xarray.Dataset` (needs xarray: ``pip install xarray``)."""
@@ -741,14 +803,49 @@ def _serial_runner(
             yield _run_chunk(payload, c, s, e)
 
 
+_WATCHDOG_PERIOD = 0.2  # s between two looks at the parent process
+
+
+def _watch_parent(parent: int) -> None:
+    """Worker initializer: a daemon thread ends this worker process as soon
+    as ``parent`` (the process that runs the sweep) is gone -- killed with
+    SIGKILL, it cannot tell its workers, and loky would keep them for its
+    idle timeout (5 minutes), holding the caller's stdout and stderr open."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(_WATCHDOG_PERIOD)
+            if os.getppid() != parent or not _alive(parent):
+                os._exit(0)
+
+    threading.Thread(target=watch, name="chatterlab-parent-watchdog", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
 def _loky_runner(
     payload: _Payload, chunks: Iterator[tuple[int, int, int]], jobs: int
 ) -> Generator[_ChunkOut, None, None]:
     from joblib import Parallel, delayed, parallel_config
 
     # inner_max_num_threads=1: loky starts its workers with OMP/OPENBLAS/MKL/...
-    # _NUM_THREADS=1 so that BLAS does not oversubscribe the cores.
-    with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
+    # _NUM_THREADS=1 so that BLAS does not oversubscribe the cores.  Each
+    # worker watches this process and exits when it dies (_watch_parent).
+    with parallel_config(
+        backend="loky",
+        n_jobs=jobs,
+        inner_max_num_threads=1,
+        initializer=_watch_parent,
+        initargs=(os.getpid(),),
+    ):
         par = Parallel(return_as="generator_unordered", pre_dispatch="2*n_jobs", batch_size=1)
         gen = par(delayed(_run_chunk)(payload, c, s, e) for c, s, e in chunks)
     try:
@@ -778,6 +875,7 @@ def _dask_runner(
     jobs: int,
     scheduler: Any,
     timeout: float,
+    security: Any = None,
 ) -> Generator[_ChunkOut, None, None]:
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -789,18 +887,25 @@ def _dask_runner(
     cluster = None
     own_client = True
     if scheduler is None:
-        with _sigint_ignored():  # the worker processes inherit SIG_IGN: Ctrl-C is ours to handle
+        with _sigint_ignored(), _local_cluster_config():  # the worker processes inherit SIG_IGN
+            local_security = _local_security()
             cluster = LocalCluster(
                 n_workers=jobs,
                 threads_per_worker=1,
                 processes=True,
                 host="127.0.0.1",
-                dashboard_address=None,
+                dashboard_address="127.0.0.1:0",
+                worker_dashboard_address=None,
+                **(
+                    {"security": local_security, "protocol": "tls"}
+                    if local_security is not None
+                    else {"protocol": "tcp"}
+                ),
             )
-        client = Client(cluster, set_as_default=False)
+        client = Client(cluster, security=local_security, set_as_default=False)
     elif isinstance(scheduler, str):
         try:
-            client = Client(scheduler, timeout=timeout, set_as_default=False)
+            client = Client(scheduler, timeout=timeout, set_as_default=False, security=security)
         except (OSError, TimeoutError) as exc:
             raise SweepError(
                 f"cannot reach the dask scheduler at {scheduler!r} within {timeout:g} s "
@@ -855,6 +960,41 @@ def _dask_runner(
             cluster.close()
 
 
+@contextmanager
+def _local_cluster_config() -> Iterator[None]:
+    """dask settings for chatterlab's own local cluster: no dashboard and no
+    HTTP routes at all (the scheduler and the workers still open an HTTP
+    listener, on a random loopback port, that answers 404)."""
+    import dask
+
+    with dask.config.set(
+        {
+            "distributed.scheduler.http.routes": [],
+            "distributed.worker.http.routes": [],
+            "distributed.nanny.http.routes": [],
+        }
+    ):
+        yield
+
+
+def _local_security() -> Any:
+    """Temporary TLS credentials for a local cluster, held in memory: only
+    this process and the workers it starts can talk to the scheduler, so
+    another user of the machine cannot submit code through its loopback
+    ports.  None (plain TCP on loopback) when ``cryptography`` is missing."""
+    try:
+        from distributed.security import Security
+
+        return Security.temporary()
+    except ImportError:
+        warnings.warn(
+            "the local dask cluster runs without TLS (install 'cryptography' for temporary TLS"
+            " credentials); its loopback ports accept any local user",
+            stacklevel=3,
+        )
+        return None
+
+
 # =========================================================================== checkpoint
 
 
@@ -864,7 +1004,9 @@ def _open_checkpoint(
     """Create or validate the checkpoint directory; return the manifest in force."""
     if directory.exists() and not directory.is_dir():
         raise InputError(f"checkpoint {str(directory)!r} exists and is not a directory")
-    existing = directory.is_dir() and any(directory.iterdir())
+    existing = directory.is_dir() and any(
+        p.name != _LOCK and not p.name.startswith(_SCRATCH) for p in directory.iterdir()
+    )
     where = f"checkpoint directory {str(directory)!r}"
     if existing and not resume:
         raise InputError(
@@ -873,7 +1015,6 @@ def _open_checkpoint(
         )
     mpath = directory / _MANIFEST
     if not existing:
-        directory.mkdir(parents=True, exist_ok=True)
         _write_json(mpath, manifest)
         return manifest
     if not mpath.is_file():
@@ -911,6 +1052,51 @@ def _open_checkpoint(
             "unset when resuming"
         )
     return old
+
+
+def _lock_checkpoint(directory: Path) -> Any:
+    """Create ``directory`` if needed and hold its lock file for this run.
+
+    A second run on the same checkpoint (two ``--resume`` at once) is refused
+    instead of computing the same chunks and reporting them "saved" in a
+    folder the other run removes.  The lock is an ``flock`` on ``.lock``: the
+    kernel releases it when this process ends, even by SIGKILL, so a killed
+    run never blocks its resume.  Returns the open lock file (close it to
+    release), or None where ``fcntl`` does not exist (Windows)."""
+    if directory.exists() and not directory.is_dir():
+        raise InputError(f"checkpoint {str(directory)!r} exists and is not a directory")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        fh = open(directory / _LOCK, "a+")  # noqa: SIM115 - held for the whole run
+    except OSError as exc:
+        raise InputError(
+            f"checkpoint directory {str(directory)!r} cannot be written ({exc.strerror or exc})"
+        ) from None
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: no lock
+        return fh
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.seek(0)
+        holder = fh.read().strip() or "another process"
+        fh.close()
+        raise InputError(
+            f"checkpoint directory {str(directory)!r} is in use by a running sweep (pid {holder}); wait"
+            " for it to finish, or stop it, before resuming"
+        ) from None
+    fh.seek(0)
+    fh.truncate()
+    fh.write(str(os.getpid()))
+    fh.flush()
+    # we hold the lock: scratch folders and temporary files here are a dead run's
+    for p in directory.iterdir():
+        if p.name.startswith(_SCRATCH) and p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        elif p.name.startswith(".") and ".tmp-" in p.name:
+            p.unlink(missing_ok=True)
+    return fh
 
 
 def _grid_diff(a: Grid, b: Grid) -> str:
@@ -953,9 +1139,6 @@ def _load_chunks(
     retry_failed: bool,
 ) -> Iterator[_ChunkOut]:
     """Yield the valid finished chunks of a checkpoint (and clean stale temp files)."""
-    for p in directory.iterdir():
-        if p.name.startswith(".") and ".tmp-" in p.name:
-            p.unlink(missing_ok=True)  # left by a run killed while writing
     for p in sorted(directory.iterdir()):
         m = _CHUNK_RE.match(p.name)
         if not m:
@@ -1129,6 +1312,8 @@ def _normalise_outputs(
             raise InputError(f"output name {name!r} must be an ASCII identifier")
         if name in grid.names:
             raise InputError(f"output {name!r} has the same name as a grid axis")
+        if name == STATUS_VARIABLE:
+            raise InputError(f"output name {name!r} is reserved for the per-point status")
         if isinstance(spec, tuple) and 1 <= len(spec) <= 2:
             unit, long_name = spec[0], spec[1] if len(spec) == 2 else ""
         else:
@@ -1165,6 +1350,8 @@ def sweep(
     progress: bool = True,
     attrs: Mapping[str, Any] | None = None,
     connect_timeout: float = 10.0,
+    keep_checkpoint: bool = True,
+    security: Any = None,
 ) -> SweepResult:
     """Evaluate ``func(**point)`` at every point of ``grid``.
 
@@ -1223,6 +1410,13 @@ def sweep(
         Attributes for the result and its files (e.g. the model text).
     connect_timeout : float, default 10
         Seconds to wait for a dask scheduler (and its first worker).
+    keep_checkpoint : bool, default True
+        False: remove the checkpoint directory after a complete run (status
+        ``"ok"``), while this run still holds its lock.
+    security : distributed.Security, optional
+        TLS settings for a remote dask ``scheduler`` (``"tls://host:8786"``):
+        CA, client certificate and key.  A scheduler can run any code as the
+        user who submits to it: use only a scheduler you trust.
 
     Returns
     -------
@@ -1259,6 +1453,8 @@ def sweep(
         raise InputError(f"chunk_size must be a positive integer (got {chunk_size!r})")
     if resume and checkpoint is None:
         raise InputError("resume=True needs checkpoint=DIR (the directory of the interrupted sweep)")
+    if security is not None and backend != "dask":
+        raise InputError(f"security= is only used with backend='dask' (backend is {backend!r})")
     if scheduler is not None and backend != "dask":
         raise InputError(f"scheduler= is only used with backend='dask' (backend is {backend!r})")
     if not (isinstance(connect_timeout, int | float) and connect_timeout > 0):
@@ -1266,10 +1462,52 @@ def sweep(
     user_attrs = dict(attrs or {})
     if out is not None:
         check_attrs(user_attrs)  # fail now, not after the computation
-    size = grid.size
 
-    # --- checkpoint: decides the chunk size when resuming
+    # --- checkpoint: locked for this run; decides the chunk size when resuming
     ckpt_dir = Path(checkpoint) if checkpoint is not None else None
+    created = ckpt_dir is not None and not ckpt_dir.exists()
+    lock = _lock_checkpoint(ckpt_dir) if ckpt_dir is not None else None
+    try:
+        return _sweep_locked(
+            func, grid, out_names, units, long_names, jobs, backend, scheduler, chunk_size, ckpt_dir, resume,
+            fingerprint, on_error, retry_failed, out, progress, user_attrs, float(connect_timeout),
+            keep_checkpoint, security, t0,
+        )  # fmt: skip
+    except Exception:
+        # a run that failed before saving any chunk leaves no checkpoint it created
+        if created and ckpt_dir is not None and not any(_CHUNK_RE.match(p.name) for p in ckpt_dir.iterdir()):
+            shutil.rmtree(ckpt_dir, ignore_errors=True)
+        raise
+    finally:
+        if lock is not None:
+            lock.close()
+
+
+def _sweep_locked(
+    func: Callable[..., Mapping[str, Any]],
+    grid: Grid,
+    out_names: tuple[str, ...],
+    units: dict[str, str],
+    long_names: dict[str, str],
+    jobs: int,
+    backend: str,
+    scheduler: Any,
+    chunk_size: int | None,
+    ckpt_dir: Path | None,
+    resume: bool,
+    fingerprint: str | None,
+    on_error: str,
+    retry_failed: bool,
+    out: str | os.PathLike[str] | None,
+    progress: bool,
+    user_attrs: dict[str, Any],
+    connect_timeout: float,
+    keep_checkpoint: bool,
+    security: Any,
+    t0: float,
+) -> SweepResult:
+    """The body of :func:`sweep`, run while the checkpoint's lock is held."""
+    size = grid.size
     if ckpt_dir is not None:
         manifest: dict[str, Any] = {
             "format": _CHECKPOINT_FORMAT,
@@ -1298,14 +1536,27 @@ def sweep(
         if out_path.is_dir():
             raise InputError(f"out={str(out_path)!r} is a directory; give a .nc file path")
         out_path.parent.mkdir(parents=True, exist_ok=True)
-        scratch = Path(tempfile.mkdtemp(prefix=f".{out_path.name}.sweep-", dir=out_path.parent))
+        if ckpt_dir is not None:  # cleaned by the next run that takes the lock
+            scratch = Path(tempfile.mkdtemp(prefix=f"{_SCRATCH}{os.getpid()}-", dir=ckpt_dir))
+        else:  # named after this process: a later run removes it once the process is gone
+            clean_stale(out_path, tags=("sweep",))
+            scratch = Path(
+                tempfile.mkdtemp(prefix=f".{out_path.name}.sweep-{os.getpid()}-", dir=out_path.parent)
+            )
         data = {
             o: np.lib.format.open_memmap(scratch / f"{o}.npy", mode="w+", dtype=np.float64, shape=grid.shape)
             for o in out_names
         }
+        task_status = np.lib.format.open_memmap(
+            scratch / f"{STATUS_VARIABLE}.npy", mode="w+", dtype=np.int32, shape=grid.shape
+        )
     else:
         data = {o: np.full(grid.shape, np.nan) for o in out_names}
+        task_status = np.zeros(grid.shape, dtype=np.int32)
     flat = [data[o].reshape(-1) for o in out_names]
+    flat_status = task_status.reshape(-1)
+    reason_code: dict[str, int] = {}  # reason -> provisional code (order of arrival)
+    reason_first: dict[str, int] = {}  # reason -> first task index (for a run-independent order)
 
     failures: list[tuple[int, str, str]] = []  # heap of the lowest-index failures (negated)
     n_failed = 0
@@ -1316,6 +1567,12 @@ def sweep(
         for j, arr in enumerate(flat):
             arr[s : s + res.values.shape[1]] = res.values[j]
         for i, t, m in zip(res.failed_index, res.failed_type, res.failed_message, strict=True):
+            reason = f"{t}: {m}"
+            if reason not in reason_code and len(reason_code) >= _MAX_REASONS:
+                reason = _OTHER_REASON
+            code = reason_code.setdefault(reason, len(reason_code) + 1)
+            reason_first[reason] = min(reason_first.get(reason, int(i)), int(i))
+            flat_status[int(i)] = code
             n_failed += 1
             item = (-int(i), str(t), str(m))
             if len(failures) < _KEEP_FAILURES:
@@ -1350,7 +1607,7 @@ def sweep(
         elif backend == "loky":
             runner = _loky_runner(payload, pending, jobs)
         else:
-            runner = _dask_runner(payload, pending, jobs, scheduler, float(connect_timeout))
+            runner = _dask_runner(payload, pending, jobs, scheduler, connect_timeout, security)
 
         n_done = len(done)
         n_computed = 0
@@ -1361,6 +1618,8 @@ def sweep(
                     "no checkpoint was given, so nothing is kept: pass checkpoint=DIR "
                     "(CLI: --checkpoint DIR) to be able to resume"
                 )
+            if not (ckpt_dir / _MANIFEST).is_file():
+                return f"the checkpoint directory {str(ckpt_dir)!r} was removed meanwhile, so nothing is kept"
             done = f"{n_done} of {n_chunks} chunks " if counts else ""
             return (
                 f"{done}saved in {str(ckpt_dir)!r}; run again with resume=True (CLI: --resume) "
@@ -1425,8 +1684,18 @@ def sweep(
         else:
             status = "ok"
             message = f"all {size} tasks succeeded"  # run-independent: files of resumed runs match
+        # reasons in the order of their first grid point: the same file whatever the
+        # order in which chunks finished (workers, resume)
+        order = sorted(reason_code, key=lambda r: (reason_first[r], r))
+        if order:
+            remap = np.zeros(len(reason_code) + 1, dtype=np.int32)
+            for new, r in enumerate(order, start=1):
+                remap[reason_code[r]] = new
+            for start in range(0, flat_status.size, 1 << 20):
+                flat_status[start : start + (1 << 20)] = remap[flat_status[start : start + (1 << 20)]]
         common: dict[str, Any] = dict(
             grid=grid,
+            reasons=tuple(order),
             units=units,
             status=status,
             message=message,
@@ -1438,14 +1707,19 @@ def sweep(
             n_failed=n_failed,
         )
         if out_path is not None:
-            SweepResult(data=data, **common).to_netcdf(out_path)
-            del flat, data  # drop the scratch memmaps
+            SweepResult(data=data, task_status=task_status, **common).to_netcdf(out_path)
+            del flat, data, flat_status, task_status  # drop the scratch memmaps
             stored = read_netcdf(out_path, mmap=True)
             data = {o: stored.data[o][0] for o in out_names}
+            task_status = stored.data[STATUS_VARIABLE][0]
         else:
             for arr in data.values():
                 arr.flags.writeable = False
-        return SweepResult(data=data, elapsed=time.perf_counter() - t0, **common)
+            task_status.flags.writeable = False
+        if ckpt_dir is not None and status == "ok" and not keep_checkpoint:
+            shutil.rmtree(ckpt_dir, ignore_errors=True)  # still under our lock
+            scratch = None
+        return SweepResult(data=data, task_status=task_status, elapsed=time.perf_counter() - t0, **common)
     finally:
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)

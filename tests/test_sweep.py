@@ -612,15 +612,17 @@ def test_csv_long_format(tmp_path: Path) -> None:
     r = sweep(flaky, g, outputs=OUTS, backend="serial", progress=False)
     p = r.to_csv(tmp_path / "r.csv")
     rows = list(csv.reader(p.open()))
-    assert rows[0] == ["width [m]", "speed [m/s]", "abscissa [1/s]", "freq [Hz]"]
+    assert rows[0] == ["width [m]", "speed [m/s]", "abscissa [1/s]", "freq [Hz]", "status", "reason"]
     assert len(rows) == 1 + g.size
     for i, row in enumerate(rows[1:]):
         pt = g.point(i)
         assert [float(v) for v in row[:2]] == [pt["width"], pt["speed"]]
         if i == 6:
             assert row[2] == "nan"
+            assert row[4] == "failed" and row[5] == f"{r.failures[0].error_type}: {r.failures[0].message}"
         else:
             assert float(row[2]) == r["abscissa"].reshape(-1)[i]  # exact round trip
+            assert row[4:] == ["ok", ""]
     write_csv(tmp_path / "t.csv", {"time": (np.array([0.0, 0.5]), "s")}, {"x": (np.array([1.0, 2.0]), "m")})
     assert (tmp_path / "t.csv").read_text() == "time [s],x [m]\n0.0,1.0\n0.5,2.0\n"
 
