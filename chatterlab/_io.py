@@ -53,7 +53,7 @@ def clean_stale(path: str | os.PathLike[str], tags: Iterable[str] = ("part", "tm
 
     p = Path(path)
     pat = re.compile(rf"^\.{re.escape(p.name)}\.(?:{'|'.join(map(re.escape, tags))})-(\d+)-")
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(p.parent.iterdir())
     except OSError:

@@ -78,12 +78,13 @@ class SweepError(ChatterlabError, RuntimeError):
 
 def _show(value: object) -> str:
     import numbers
+    import operator
 
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        n = operator.index(value)
+        return f"an integer of {len(str(abs(n)))} digits" if abs(n) >= 2**1023 else f"{float(n):g}"
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
-        try:
-            return f"{float(value):g}"
-        except OverflowError:
-            return f"an integer of {len(str(int(value)))} digits"
+        return f"{float(value):g}"
     return repr(value)
 
 

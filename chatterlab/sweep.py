@@ -878,7 +878,7 @@ def _dask_runner(
     security: Any = None,
 ) -> Generator[_ChunkOut, None, None]:
     try:
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, as_completed
     except ImportError:
         raise SweepError(
             "the dask backend needs dask.distributed, which is not installed: pip install chatterlab[dask]"
@@ -887,22 +887,7 @@ def _dask_runner(
     cluster = None
     own_client = True
     if scheduler is None:
-        with _sigint_ignored(), _local_cluster_config():  # the worker processes inherit SIG_IGN
-            local_security = _local_security()
-            cluster = LocalCluster(
-                n_workers=jobs,
-                threads_per_worker=1,
-                processes=True,
-                host="127.0.0.1",
-                dashboard_address="127.0.0.1:0",
-                worker_dashboard_address=None,
-                **(
-                    {"security": local_security, "protocol": "tls"}
-                    if local_security is not None
-                    else {"protocol": "tcp"}
-                ),
-            )
-        client = Client(cluster, security=local_security, set_as_default=False)
+        cluster, client = _local_cluster(jobs)
     elif isinstance(scheduler, str):
         try:
             client = Client(scheduler, timeout=timeout, set_as_default=False, security=security)
@@ -975,6 +960,32 @@ def _local_cluster_config() -> Iterator[None]:
         }
     ):
         yield
+
+
+def _local_cluster(jobs: int) -> tuple[Any, Any]:
+    """A local dask cluster of ``jobs`` single-threaded worker processes and
+    a client: listening on the loopback interface only, with no dashboard,
+    and (when ``cryptography`` is installed) TLS with temporary credentials."""
+    from distributed import Client, LocalCluster
+
+    with _sigint_ignored(), _local_cluster_config():  # the worker processes inherit SIG_IGN
+        security = _local_security()
+        cluster = LocalCluster(
+            n_workers=jobs,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address="127.0.0.1:0",  # its HTTP listener: loopback, a random port, not 8787
+            worker_dashboard_address=None,
+            scheduler_kwargs={"dashboard": False},  # ... and no dashboard behind it
+            **({"security": security, "protocol": "tls"} if security is not None else {"protocol": "tcp"}),
+        )
+    try:
+        client = Client(cluster, security=security, set_as_default=False)
+    except BaseException:
+        cluster.close()
+        raise
+    return cluster, client
 
 
 def _local_security() -> Any:
@@ -1531,6 +1542,7 @@ def _sweep_locked(
     # --- storage: plain arrays, or memmaps when streaming to a file
     scratch: Path | None = None
     data: dict[str, np.ndarray]
+    task_status: np.ndarray
     out_path = Path(out) if out is not None else None
     if out_path is not None:
         if out_path.is_dir():
