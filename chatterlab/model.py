@@ -248,6 +248,13 @@ class Process:
         """Delay T (s) at the given speed (in :attr:`speed_unit`)."""
         v = self.speed if speed is None else speed
         v = np.asarray(v, dtype=float)
+        if speed is not None and not np.all(np.isfinite(v) & (v > 0)):
+            # the one speed check (chatterlab.errors.check_speed) on the first bad value:
+            # a speed <= 0 would give a negative or infinite delay, never a result
+            from .errors import check_speed
+
+            bad = v[~(np.isfinite(v) & (v > 0))] if v.ndim else v
+            check_speed(float(np.ravel(bad)[0]), "speed", self.speed_unit)
         if self.kind == "shaping":
             stroke = self.run_in + self.cut + self.coast
             out = stroke / v + stroke / self.return_speed

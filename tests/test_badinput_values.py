@@ -211,3 +211,17 @@ def test_fuzz_roots_options_never_traceback(capsys, turning, width, speed):
         assert "Traceback" not in out.err
         if code == 0:
             assert "verdict:" in out.out
+
+
+def test_every_speed_to_delay_conversion_is_checked():
+    """Process.delay is where every speed becomes a delay (the CLI, the tasks, the lobes,
+    the kinematics): a speed <= 0 or non-finite never becomes a negative or infinite delay."""
+    import chatterlab as cl
+
+    proc = cl.load_model(SHAPER).process
+    assert proc.delay(0.5) == pytest.approx(1.5)
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        with pytest.raises(InputError, match="speed must be > 0 m/s"):
+            proc.delay(bad)
+        with pytest.raises(InputError, match="speed must be > 0 m/s"):
+            proc.delay(np.array([0.5, bad]))
