@@ -152,9 +152,19 @@ def check_speed(value: object, name: str = "speed", unit: str = "") -> float:
     return check_positive(value, name, unit)
 
 
+#: the longest delay between passes, s (11.6 days): anything longer comes from a speed
+#: that is no cut (1e-300 m/s) and would size arrays by it
+MAX_DELAY = 1e6
+
+
 def check_delay(value: object, name: str = "delay", unit: str = "s") -> float:
-    """A delay between passes, s: finite and > 0."""
-    return check_positive(value, name, unit)
+    """A delay between passes, s: finite, > 0 and at most :data:`MAX_DELAY`."""
+    x = check_positive(value, name, unit)
+    if x > MAX_DELAY:
+        raise InputError(
+            f"{name} must be at most {MAX_DELAY:g} s (got {_show(value)} s); a delay this long is no cut"
+        )
+    return x
 
 
 def check_position(

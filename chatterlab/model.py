@@ -16,6 +16,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .errors import MAX_DELAY
+
 __all__ = [
     "Body",
     "Node",
@@ -262,6 +264,10 @@ class Process:
             out = 60.0 / v
         else:
             out = v if speed is not None else np.asarray(self.delay_value)
+        if speed is not None and np.any(out > MAX_DELAY):
+            from .errors import check_delay
+
+            check_delay(float(np.max(out)), f"the delay at this speed ({self.speed_name})")
         return float(out) if out.ndim == 0 else out
 
     def speed_for_delay(self, T: float | np.ndarray) -> float | np.ndarray:

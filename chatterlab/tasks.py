@@ -99,6 +99,8 @@ class AtlasTask:
         unit = self.model.process.speed_unit if self.model.process is not None else ""
         for v in self.speeds:
             check_speed(v, "speed", unit)
+        if self.model.process is not None and self.speeds:
+            self.model.process.delay(np.asarray(self.speeds, dtype=float))  # and their delays
         object.__setattr__(self, "key", model_fingerprint(self.model))
 
     def boundary(self, position: float) -> Any:
@@ -192,6 +194,8 @@ class QuantityTask:
                 f"{self.model.source} has no [process] table, so a speed cannot be turned into a delay;"
                 " give the delay instead"
             )
+        if "speed" in out and proc is not None:
+            proc.delay(out["speed"])  # the delay it gives is checked too (errors.check_delay)
         return out
 
     def check_grid(self, grid: Any) -> None:

@@ -225,3 +225,20 @@ def test_every_speed_to_delay_conversion_is_checked():
             proc.delay(bad)
         with pytest.raises(InputError, match="speed must be > 0 m/s"):
             proc.delay(np.array([0.5, bad]))
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        "roots {m} --width 1 --speed 1e-300",
+        "lobes {m} --speed 1e-300 1e-299 --points 2",
+        "roots {m} --width 1 --delay 1e300",
+        "simulate {m} --delay 1e300 --position 0 --duration 0.01",
+        "sweep {m} --quantity b-lim --grid speed=1e-300 --backend serial",
+    ],
+)
+def test_an_absurdly_long_delay_is_an_input_error(capsys, turning, argv):
+    """A speed of 1e-300 rpm is finite and > 0, but its delay (6e301 s) is no cut: refused
+    by the delay check before any array is sized by it."""
+    code = main(argv.format(m=turning).split())
+    assert_clean_error(code, capsys.readouterr().err, "at most 1e+06 s")
