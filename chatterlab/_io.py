@@ -53,6 +53,8 @@ def clean_stale(path: str | os.PathLike[str], tags: Iterable[str] = ("part", "tm
 
     p = Path(path)
     pat = re.compile(rf"^\.{re.escape(p.name)}\.(?:{'|'.join(map(re.escape, tags))})-(\d+)-")
+    # chatterlab 0.1 named a sweep's scratch folder .NAME.sweep-XXXXXXXX (no pid): always stale now
+    legacy = re.compile(rf"^\.{re.escape(p.name)}\.sweep-[a-z0-9_]{{8}}$") if "sweep" in tags else None
     removed: list[Path] = []
     try:
         entries = list(p.parent.iterdir())
@@ -60,7 +62,7 @@ def clean_stale(path: str | os.PathLike[str], tags: Iterable[str] = ("part", "tm
         return removed
     for e in entries:
         m = pat.match(e.name)
-        if m and not _pid_alive(int(m[1])):
+        if (m and not _pid_alive(int(m[1]))) or (legacy is not None and legacy.match(e.name) and e.is_dir()):
             if e.is_dir() and not e.is_symlink():
                 shutil.rmtree(e, ignore_errors=True)
             else:

@@ -161,3 +161,25 @@ def _fail_at_two(x: float) -> dict[str, float]:
     if x == 2.0:
         raise ValueError("two is not allowed")
     return {"y": x}
+
+
+def test_a_scratch_folder_left_by_a_killed_01_run_is_removed(tmp_path, capsys):
+    """chatterlab 0.1 left .OUT.sweep-XXXXXXXX next to --out when killed, and nothing removed it."""
+    model = tmp_path / "t.toml"
+    model.write_text(TURNING)
+    old = tmp_path / ".s.nc.sweep-k2x9_q7a"
+    old.mkdir()
+    (old / "stable.npy").write_bytes(b"\0" * 64)
+    argv = [
+        "sweep",
+        str(model),
+        "--quantity",
+        "b-lim",
+        "--grid",
+        "speed=3000",
+        "--backend",
+        "serial",
+        "--quiet",
+    ]
+    assert main([*argv, "--out", str(tmp_path / "s.nc")]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.nc", "t.toml"]
