@@ -18,8 +18,9 @@ complete, where sampling beta and w on grids does not:
    whose real roots are all found at once (companion matrix), however close
    together: two boundary widths that merge and vanish between beta samples
    (the "nose" of a lobe that the old bracketing missed) are two roots of Q.
-   For a delayed term of rank r > 1 the eigenvalue magnitudes |nu_j| are
-   bracketed on a log-beta grid (the general fallback).
+   For a delayed term of rank r > 1 the same holds for the resultant in z of
+   q(beta, z) = det(I + beta H (A + z O)) and its reflection in the unit
+   circle, a real polynomial of degree 2 r m (:func:`widths_resultant`).
 
 2. **Folds located.**  Where the number of boundary widths changes between
    two grid frequencies, the boundary curve turns back in w (a fold).  The
@@ -211,34 +212,119 @@ def _polish(q: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.sort(x)
 
 
-def widths_general(ops: Ops, beta_max: float, n_grid: int = 96) -> list[np.ndarray]:
-    """Boundary widths x for a delayed term of rank r > 1: sign changes of
-    log|nu_j| on a log-beta grid, each refined by bisection."""
+def _sylvester_det(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """det of the Sylvester matrices of polynomial pairs (ascending
+    coefficients, shape (..., r+1) each): their resultant up to sign."""
+    r = a.shape[-1] - 1
+    S = np.zeros(a.shape[:-1] + (2 * r, 2 * r), dtype=complex)
+    for i in range(r):
+        S[..., i, i : i + r + 1] = a[..., ::-1]
+        S[..., r + i, i : i + r + 1] = b[..., ::-1]
+    return np.linalg.det(S)
+
+
+def _secant_on_nu(op1: Ops, beta_max: float, x: np.ndarray) -> np.ndarray:
+    """Refine candidate widths at one frequency on f(x) = log|nu_j(x beta_max)|
+    of the eigenvalue nearest the unit circle (secant, 8 steps); keep those
+    where |f| < 1e-9 (a resultant root whose common z is off the circle, or
+    a spurious one, fails this)."""
+
+    def f(xx: np.ndarray) -> np.ndarray:
+        v = nu(op1, beta_max * xx[None, :])[0]
+        g = np.log(np.abs(v))
+        return g[np.arange(xx.size), np.argmin(np.abs(g), axis=-1)]
+
+    x0, x1 = x * (1 - 1e-7), x.copy()
+    f0, f1 = f(x0), f(x1)
+    for _ in range(8):
+        with np.errstate(all="ignore"):
+            step = np.where(f1 != f0, f1 * (x1 - x0) / (f1 - f0), 0.0)
+        step = np.clip(np.nan_to_num(step), -0.01 * x1, 0.01 * x1)
+        x0, f0 = x1, f1
+        x1 = x1 - step
+        f1 = f(x1)
+        if np.all(np.abs(f1) < 1e-13):
+            break
+    keep = np.abs(f1) < 1e-9
+    return np.unique(x1[keep])
+
+
+def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
+    """All boundary widths x = beta / beta_max in (10^-LOG_SPAN, 1] for a
+    delayed term of rank r > 1, exactly.
+
+    With q(beta, z) = det(I + beta H (A + z O)) = d(beta) det(I_r + z N(beta)),
+    d = det(I + beta H A), a boundary point is a real beta at which q(beta, .)
+    has a root z on the unit circle, i.e. a common root of q(beta, z) and its
+    reflection z^r conj(q(beta, 1/conj z)).  Their resultant R(beta) (Sylvester
+    determinant) is a polynomial of degree <= 2 r m in beta; it is sampled on
+    2 r m + 1 points of the unit circle (in x) and interpolated by the FFT, and
+    its real roots are the candidates (the circle is repeated at radii
+    10^0, 10^-1.5, ... so that small widths are resolved too).  A candidate is
+    kept when an eigenvalue
+    of N has |nu| = 1 there (a common root off the circle, z0 and 1/conj z0,
+    is dropped).  For r = 1 this is :func:`widths_rank1`'s Q."""
     N = ops.omega.size
-    t = np.linspace(-LOG_SPAN, np.log10(_X_MAX), n_grid)
-    xb = 10.0**t
-    mag = np.log(np.abs(nu(ops, np.broadcast_to(beta_max * xb, (N, n_grid)).copy())))  # (N, K, r)
-    out: list[list[float]] = [[] for _ in range(N)]
-    fi, ki, ri = np.nonzero(np.sign(mag[:, :-1, :]) * np.sign(mag[:, 1:, :]) < 0)
-    if fi.size:
-        a, b = t[ki], t[ki + 1]
-        fa = mag[fi, ki, ri]
-        for _ in range(50):
-            c = 0.5 * (a + b)
-            fc = np.log(np.abs(nu(ops, (beta_max * 10.0**c)[:, None], fi)[:, 0, :][np.arange(fi.size), ri]))
-            left = np.sign(fc) == np.sign(fa)
-            a, fa = np.where(left, c, a), np.where(left, fc, fa)
-            b = np.where(left, b, c)
-        for f_, c_ in zip(fi, 0.5 * (a + b), strict=True):
-            out[int(f_)].append(10.0**c_)
-    return [np.sort(np.array(v)) for v in out]
+    found: list[list[np.ndarray]] = [[] for _ in range(N)]
+    prox = np.full(N, np.inf)
+    # the coefficients interpolated on a circle of radius rho are accurate
+    # relative to the polynomial's size on that circle: each radius serves the
+    # roots within a factor 10^0.75 of it
+    for e in np.arange(0.0, -LOG_SPAN - 0.01, -1.5):
+        rho = 10.0**e
+        roots, pr = _resultant_roots(ops, beta_max * rho)
+        x = roots * rho
+        lo = max(rho * 10.0**-0.75, 10.0**-LOG_SPAN)
+        hi = _X_MAX if e == 0.0 else rho * 10.0**0.75
+        with np.errstate(invalid="ignore"):
+            near_real = np.abs(x.imag) <= 1e-6 * np.abs(x.real)
+            inside = (x.real > lo) & (x.real <= hi)
+        for i in np.nonzero(np.any(near_real & inside, axis=1))[0]:
+            found[i].append(x[i, near_real[i] & inside[i]].real)
+        if e == 0.0:
+            prox = pr
+    out = []
+    for i in range(N):
+        x = np.sort(np.concatenate(found[i])) if found[i] else np.zeros(0)
+        if x.size:
+            x = _secant_on_nu(
+                Ops(ops.omega[i : i + 1], ops.HA[i : i + 1], ops.HU[i : i + 1], ops.Vt), beta_max, x
+            )
+            # one width found from two circles: keep one
+            x = x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]] if x.size else x
+        out.append(x)
+    return out, prox
 
 
-def widths(ops: Ops, beta_max: float | np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+def _resultant_roots(ops: Ops, beta_r: float) -> tuple[np.ndarray, np.ndarray]:
+    """Roots y of R(beta_r y) (see :func:`widths_resultant`), (N, 2 r m), and
+    the proximity of complex roots to the real segment (0, 1]."""
+    N, m = ops.omega.size, ops.HA.shape[-1]
+    r = ops.Vt.shape[0]
+    K = 2 * r * m + 1
+    beta = beta_r * np.exp(2j * np.pi * np.arange(K) / K)
+    Mx = np.eye(m) + beta[None, :, None, None] * ops.HA[:, None]  # (N, K, m, m)
+    d = np.linalg.det(Mx)
+    X = np.linalg.solve(Mx, np.broadcast_to(ops.HU[:, None], Mx.shape[:-1] + (r,)))
+    Nm = beta[None, :, None, None] * (ops.Vt @ X)  # (N, K, r, r)
+    ev = np.linalg.eigvals(Nm).reshape(N * K, r)
+    a = _poly_from_roots(ev).reshape(N, K, r + 1) * d[..., None]  # q's z-coefficients
+    b = np.conj(a[:, (-np.arange(K)) % K, ::-1])  # z^r conj(q(conj beta, 1/conj z))
+    coef = np.fft.fft(_sylvester_det(a, b), axis=1) / K  # ascending powers of y
+    scale = np.max(np.abs(coef), axis=1, keepdims=True)
+    scale[scale == 0] = 1.0
+    roots = _real_poly_roots((coef / scale).real)
+    with np.errstate(invalid="ignore"):
+        cand = (np.abs(roots.imag) > 1e-6 * np.abs(roots.real)) & (roots.real > -0.05) & (roots.real < 1.05)
+        prox = np.where(cand, np.abs(roots.imag) / np.maximum(np.abs(roots.real), 0.05), np.inf)
+    return roots, np.min(prox, axis=1)
+
+
+def widths(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
     """Boundary widths (relative to beta_max) at each frequency of ``ops``."""
     if ops.Vt.shape[0] == 1:
         return widths_rank1(ops, beta_max)
-    return widths_general(ops, beta_max), np.full(ops.omega.size, np.inf)
+    return widths_resultant(ops, beta_max)
 
 
 # ---------------------------------------------------------------------------- folds and branches

@@ -494,6 +494,12 @@ def _refine_crossings(
     return w, beta, ok
 
 
+def _refine_rows(plant: Plant, T: np.ndarray, info: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_refine_crossings` on candidate rows (k, w0, w1, h0, h1, b0, b1, psi0, psi1)."""
+    k, w0, w1, h0, h1, b0, b1, psi0, psi1 = info.T
+    return _refine_crossings(plant, T, k, w0, w1, h0, h1, b0, b1, psi0, psi1)
+
+
 def _grid(plant: Plant, lo: float, hi: float, n_base: int) -> np.ndarray:
     """Frequency grid on [lo, hi] (rad/s): logarithmic below a quarter of the
     first natural frequency, uniform above, plus clusters that resolve every
@@ -676,7 +682,7 @@ class Boundary:
         chatter = np.full(nT, np.nan)
         h = np.nonzero(np.isfinite(best))[0]
         if h.size:
-            w, beta, ok = _refine_crossings(plant, T[h], *[info[h, j] for j in range(9)])
+            w, beta, ok = _refine_rows(plant, T[h], info[h])
             b_lim[h] = np.where(ok, beta, best[h])
             chatter[h] = w / (2 * np.pi)
             # second pass: every interval that could hold a lower crossing
@@ -689,7 +695,7 @@ class Boundary:
             if rows:
                 ri = np.concatenate(rows)
                 inf_ = np.concatenate(infos)
-                w2, beta2, ok2 = _refine_crossings(plant, T[ri], *[inf_[:, j] for j in range(9)])
+                w2, beta2, ok2 = _refine_rows(plant, T[ri], inf_)
                 for i in np.nonzero(ok2)[0]:
                     if beta2[i] < b_lim[ri[i]]:
                         b_lim[ri[i]], chatter[ri[i]] = beta2[i], w2[i] / (2 * np.pi)
@@ -913,8 +919,7 @@ def _check_speeds(d: LobeDiagram, count: int) -> list[tuple[int, str]]:
         for a, e in zip(edges[::2], edges[1::2] - 1, strict=True):
             for j in {int(a), int(e), int((a + e) // 2)}:
                 out.append((j, "ceiling"))
-    seen: set[tuple[int, str]] = set()
-    return [c for c in out if not (c in seen or seen.add(c))]
+    return list(dict.fromkeys(out))
 
 
 def _verify(

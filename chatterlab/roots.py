@@ -913,7 +913,7 @@ def certified_top(sys: DelaySystem, sigma: float) -> float | None:
     """Frequency (rad/s) above which no root with Re >= ``sigma`` exists (gain
     bound on the loop transfer), or None if it cannot be bounded (no
     well-conditioned pole-residue form of the loop transfer)."""
-    key = ("band_top", float(sigma))
+    key = f"band_top:{float(sigma)!r}"
     if key in sys._cache:
         return sys._cache[key]
     from ._boundary import PoleResidue, band
