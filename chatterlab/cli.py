@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -400,7 +401,7 @@ def _lobes_run(args: argparse.Namespace, outs: Outputs) -> int:
         from .confirm import confirm
 
         conf = confirm(sy, d, count=args.confirm)
-        object.__setattr__(d, "meta", {**d.meta, "confirm": conf.summary_line()})
+        d = dataclasses.replace(d, meta={**d.meta, "confirm": conf.summary_line()})
         print(conf.table(), file=sys.stderr)
     print(d.summary())
     if args.out:
@@ -412,6 +413,13 @@ def _lobes_run(args: argparse.Namespace, outs: Outputs) -> int:
         from .plot import savefig
 
         savefig(d.plot(), outs.path(args.plot))
+    if d.verified is False:
+        print(
+            "chatterlab: the argument principle contradicts the diagram at the checks marked CHECK FAILED:"
+            " treat the diagram as undetermined there",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 
@@ -805,9 +813,10 @@ def _more_parsers(sub: Any) -> None:
     lo.add_argument(
         "--verify",
         type=int,
-        default=2,
+        default=16,
         metavar="N",
-        help="speeds spot-checked by characteristic roots (default 2)",
+        help="claims checked by the argument principle: the minimum, the N-1 highest cusps, N/2 lobe"
+        " bottoms and every run of inf (default 16; 0 skips)",
     )
     lo.add_argument(
         "--confirm", type=int, default=0, metavar="N", help="confirm N boundary points by Newmark simulation"

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, check_delay, check_width
 from .frf import FRF
 from .lobes import LobeDiagram, Plant, lobes
 from .model import Coupling, Process
@@ -86,8 +86,7 @@ def lti_plant(lti: Any, *, DP: Any = None, DV: Any = None, DO: Any, width_ref: f
         Width of cut (m) the matrices are given for.
     """
     m = _check_lti(lti)
-    if not (np.isfinite(width_ref) and width_ref > 0):
-        raise InputError(f"width_ref must be > 0 m (got {width_ref!r})")
+    width_ref = check_width(width_ref, "width_ref")
     P, V, O = _matrices(m, DP, DV, DO)
 
     def H(omega: np.ndarray) -> np.ndarray:
@@ -166,10 +165,11 @@ def closed_loop_lti(
     Dl(jw) = (b / b_ref)(DP + jw DV + DO e^{-jwT}) and the exact delay."""
     m = _check_lti(lti)
     P, V, O = _matrices(m, DP, DV, DO)
-    if not (np.isfinite(width) and width > 0):
-        raise InputError(f"width must be > 0 m (got {width!r})")
-    if np.any(O) and (delay is None or not delay > 0):
-        raise InputError(f"the delayed term needs a delay > 0 s (got {delay!r})")
+    width = check_width(width, "width")
+    if np.any(O):
+        if delay is None:
+            raise InputError("the delayed term needs a delay > 0 s (got None)")
+        delay = check_delay(delay, "delay")
     w = np.asarray(omega, dtype=float)
     H = lti_plant(lti, DP=P, DV=V, DO=O, width_ref=width_ref).H(w)
     f = width / width_ref

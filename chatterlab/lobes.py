@@ -48,7 +48,7 @@ from ._boundary import Band, Ops, PoleResidue, link, make_ops, nu, refine_folds,
 from ._boundary import band as certified_band
 from .assembly import FrozenSystem
 from .cutting import Feedback, feedback
-from .errors import InputError
+from .errors import InputError, check_speed, check_width
 from .frf import _cached_modes, _modal_response, resonance_grid
 from .model import Process
 
@@ -197,9 +197,30 @@ class LobeDiagram:
             lines.append("  not verified (verify=0 or a plant without matrices)")
         return "\n".join(lines)
 
+    #: meaning of :attr:`claim` codes
+    CLAIMS = (
+        "boundary",
+        "stable below width_max (band proven)",
+        "undetermined (band not proven)",
+        "contradicted by a check",
+    )
+
+    @property
+    def claim(self) -> np.ndarray:
+        """What the diagram claims at each speed, as an index into
+        :attr:`CLAIMS`: 0 a boundary at b_lim, 1 no boundary below
+        ``width_max`` in a proven band, 2 no boundary found in a band that is
+        not proven complete, 3 a check at this speed disagrees."""
+        code = np.where(np.isfinite(self.b_lim), 0, 1 if self.band_certified else 2)
+        for c in self.checks:
+            if not c["agrees"]:
+                code[np.nonzero(self.speed == c["speed"])[0]] = 3
+        return code
+
     def to_csv(self, path: Any) -> None:
         """Envelope: speed, delay (s), b_lim (m), chatter frequency (Hz), lobe
-        number -- SI like every chatterlab result file."""
+        number and the claim's status (see :attr:`claim`) -- SI like every
+        chatterlab result file."""
         import csv
 
         from ._io import text_out
@@ -213,8 +234,10 @@ class LobeDiagram:
                     "b_lim [m]",
                     "chatter frequency [Hz]",
                     "lobe [-]",
+                    "status",
                 ]
             )
+            claim = self.claim
             for k in range(self.speed.size):
                 w.writerow(
                     [
@@ -223,6 +246,7 @@ class LobeDiagram:
                         f"{self.b_lim[k]:.9g}",
                         f"{self.chatter_hz[k]:.9g}",
                         int(self.lobe[k]),
+                        self.CLAIMS[int(claim[k])],
                     ]
                 )
 
@@ -257,6 +281,11 @@ class LobeDiagram:
                 "chatter_frequency": (self.chatter_hz, "Hz", "chatter frequency on the envelope"),
                 "delay": (self.delay, "s", "delay between passes"),
                 "lobe": (self.lobe.astype(float), "1", "lobe number k"),
+                "claim": (
+                    self.claim.astype(float),
+                    "1",
+                    "status: " + ", ".join(f"{i} {t}" for i, t in enumerate(self.CLAIMS)),
+                ),
             },
             attrs=a,
         )
@@ -594,6 +623,11 @@ def _interval_candidates(sg: _Segment, T: np.ndarray) -> _Candidates:
     return _Candidates(sg, psi, kc, Fa, Fb, has, bc, lb)
 
 
+def _check_terms(terms: str) -> None:
+    if terms not in ("pdo", "o"):
+        raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
+
+
 class Boundary:
     """The stability boundary of one frozen configuration, computed once on a
     frequency grid and evaluated at any delays (:meth:`envelope`).
@@ -625,12 +659,9 @@ class Boundary:
         couplings: list[str] | None = None,
         plant: Plant | None = None,
     ) -> None:
-        if not (np.isfinite(width_max) and width_max > 0):
-            raise InputError(f"width_max must be > 0 m (got {width_max!r})")
-        if terms not in ("pdo", "o"):
-            raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
+        _check_terms(terms)
         self.frozen = frozen
-        self.width_max = float(width_max)
+        self.width_max = check_width(width_max, "width_max")
         if plant is None:
             if frozen is None:
                 raise InputError("give a frozen system or a plant")
@@ -777,12 +808,12 @@ def lobes(
     speeds = np.asarray(speeds, dtype=float)
     if speeds.ndim != 1 or speeds.size == 0:
         raise InputError("speeds must be a non-empty 1-D array")
-    if not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
-        raise InputError(f"speeds must be > 0 {proc.speed_unit}")
-    if not (np.isfinite(width_max) and width_max > 0):
-        raise InputError(f"width_max must be > 0 m (got {width_max!r})")
-    if terms not in ("pdo", "o"):
-        raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
+    for v in (
+        (speeds.min(), speeds.max()) if np.all(np.isfinite(speeds)) else speeds[~np.isfinite(speeds)][:1]
+    ):
+        check_speed(v, "speeds", proc.speed_unit)
+    width_max = check_width(width_max, "width_max")
+    _check_terms(terms)
     bd = Boundary(
         frozen,
         width_max=width_max,

@@ -292,8 +292,9 @@ def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
     d.to_csv(p)
     with open(p, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "lobe [-]"]
-    tab = np.array([[float(x) for x in r] for r in rows[1:]])
+    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "lobe [-]", "status"]
+    assert {r[5] for r in rows[1:]} == {"boundary"}
+    tab = np.array([[float(x) for x in r[:5]] for r in rows[1:]])
     assert tab.shape == (d.speed.size, 5)
     np.testing.assert_allclose(tab[:, 0], d.speed, rtol=5e-9)
     np.testing.assert_allclose(tab[:, 1], d.delay, rtol=5e-9)
@@ -312,6 +313,7 @@ def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
     np.testing.assert_array_equal(r.data["chatter_frequency"][0], d.chatter_hz)
     np.testing.assert_array_equal(r.data["delay"][0], d.delay)
     np.testing.assert_array_equal(r.data["lobe"][0], d.lobe.astype(float))
+    np.testing.assert_array_equal(r.data["claim"][0], np.zeros(d.speed.size))
     assert r.attrs["terms"] == "pdo" and r.attrs["study"] == "round trip"
     assert r.attrs["absolute_min_b_lim_m"] == d.absolute_minimum["width"]
     assert r.attrs["min_b_lim_m"] == d.minimum["width"]

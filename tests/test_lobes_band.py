@@ -108,6 +108,9 @@ def test_inf_is_checked_and_an_unproven_band_says_undetermined(turning):
     assert d.checks and not d.verified
     good = lobes(turning, rpm, width_max=0.02)
     assert np.all(np.isfinite(good.b_lim)) and good.verified
+    # the files say it per speed: contradicted by its check, or undetermined
+    assert set(d.claim) <= {2, 3} and 3 in set(d.claim)
+    assert list(good.claim) == [0, 0]
 
 
 def test_inf_claims_are_confirmed_at_the_ceiling(turning):
@@ -117,6 +120,7 @@ def test_inf_claims_are_confirmed_at_the_ceiling(turning):
     assert np.all(np.isinf(d.b_lim)) and d.band_certified
     assert d.checks and all(c["kind"] == "ceiling" for c in d.checks) and d.verified
     assert "no chatter below 0.1 mm" in d.summary()
+    assert set(d.claim) == {1}
 
 
 # --------------------------------------------------------------------------- item 3: roots

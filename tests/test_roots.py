@@ -18,8 +18,6 @@ long delays, where |lambda| tau ~ 1e3 amplifies roundoff in exp(-lambda tau)).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import scipy.linalg as sla
@@ -343,9 +341,7 @@ def test_dense_and_factored_DO_agree() -> None:
 def test_long_delay_spectral_branch_winding_agree(gain: float) -> None:
     s = _structure(10, 1, gain)
     tau = 1.5
-    t0 = time.perf_counter()
     spec = characteristic_roots(**s, tau=tau, count=6)
-    elapsed = time.perf_counter() - t0
     br = characteristic_roots(**s, tau=tau, count=6, method="branch")
     w = rhp_count(**s, tau=tau)
     assert spec.status == "converged" and br.status == "converged"
@@ -355,21 +351,21 @@ def test_long_delay_spectral_branch_winding_agree(gain: float) -> None:
     assert w.status == "converged"
     assert (w.count == 0) == (spec.abscissa < 0)
     assert w.count >= _rhp_from_roots(spec.roots)
-    assert elapsed < 20.0  # ~0.3 s on an idle core; generous for loaded CI
+    # work counters instead of a wall-clock bound: the windows and nodes needed
+    # (measured 5 and 3 windows for gains 300 and 3000; (N, N2) = (48, 72))
+    assert spec.n_windows <= 8 and spec.n_nodes == (48, 72)
     # the history oscillates: omega tau of the rightmost root in the hundreds
     assert abs(spec.roots[0].imag) * tau > 100
 
 
 @pytest.mark.slow
-def test_long_delay_n40_timing() -> None:
+def test_long_delay_n40_work() -> None:
     s = _structure(40, 3, 1000.0)
-    t0 = time.perf_counter()
     spec = characteristic_roots(**s, tau=1.5, count=6)
-    elapsed = time.perf_counter() - t0
     br = characteristic_roots(**s, tau=1.5, count=6, method="branch")
     assert spec.status == "converged"
     np.testing.assert_allclose(spec.roots, br.roots, rtol=1e-9)
-    assert elapsed < 30.0
+    assert spec.n_windows <= 8 and spec.n_nodes == (48, 72)  # measured 4 windows
 
 
 # ---------------------------------------------------------------------------
