@@ -1018,7 +1018,7 @@ def newmark(
     out_bytes = 3 * n_out * n_rec * 8
     if out_bytes > opts.max_output_bytes:
         raise InputError(
-            f"recording {n_out} outputs at {n_rec:.3g} times needs {out_bytes / 2**30:.2f} GiB > "
+            f"recording {n_out} outputs at {_count(n_rec)} times needs {out_bytes / 2**30:.2f} GiB > "
             f"max_output_bytes = {opts.max_output_bytes / 2**30:.2f} GiB; record fewer "
             "coordinates (outputs=...), thin the record (record_every=...) or raise "
             "NewmarkOptions.max_output_bytes"
@@ -1079,7 +1079,7 @@ def newmark(
     hist_bytes = (cap * 4 + (shift + 1 if has_delay else 0)) * n * 8  # buffer + history samples
     if hist_bytes > opts.max_history_bytes:
         raise InputError(
-            f"the delay T = {T:.6g} s at step h = {h:.6g} s needs {keep:.3g} stored steps of {n} "
+            f"the delay T = {T:.6g} s at step h = {h:.6g} s needs {_count(keep)} stored steps of {n} "
             f"coordinates ({hist_bytes / 2**30:.2f} GiB) > max_history_bytes = "
             f"{opts.max_history_bytes / 2**30:.2f} GiB; use a larger step h, or raise "
             "NewmarkOptions(max_history_bytes=...) if the memory is available"
@@ -1392,3 +1392,9 @@ def newmark(
             "breakpoints": tuple(t0 + b * h for b in sorted(bp_steps)),
         },
     )
+
+
+def _count(n: float) -> str:
+    """A count for a message: whole digits up to 1e9, else 3 significant digits
+    (an absurd step must not print a 300-digit integer)."""
+    return f"{int(n)}" if n < 1e9 else f"{n:.3g}"
