@@ -284,11 +284,11 @@ def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.nd
         if e == 0.0:
             prox = pr
     out = []
-    for i in range(N):
-        x = np.sort(np.concatenate(found[i])) if found[i] else np.zeros(0)
+    for k in range(N):
+        x = np.sort(np.concatenate(found[k])) if found[k] else np.zeros(0)
         if x.size:
             x = _secant_on_nu(
-                Ops(ops.omega[i : i + 1], ops.HA[i : i + 1], ops.HU[i : i + 1], ops.Vt), beta_max, x
+                Ops(ops.omega[k : k + 1], ops.HA[k : k + 1], ops.HU[k : k + 1], ops.Vt), beta_max, x
             )
             # one width found from two circles: keep one
             x = x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]] if x.size else x
