@@ -1,4 +1,4 @@
-"""Benchmark of the time domain (chatterlab.simulate on chatterlab.newmark).
+"""Benchmark of the time domain (chatterlab.time._simulate on chatterlab.time._newmark).
 
 Run from the repository root::
 
@@ -47,9 +47,9 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import chatterlab as cl
-from chatterlab.kinematics import kinematics_for
-from chatterlab.newmark import NewmarkOptions, newmark
-from chatterlab.simulate import ParametricProblem, _blas_limits, _output_map, simulate
+from chatterlab.process._kinematics import kinematics_for
+from chatterlab.time._newmark import NewmarkOptions, newmark
+from chatterlab.time._simulate import ParametricProblem, _blas_limits, _output_map, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"

@@ -1,4 +1,4 @@
-"""Benchmark of the sweep engine (chatterlab.sweep): speed-up, per-task overhead, memory.
+"""Benchmark of the sweep engine (chatterlab.sweep._engine): speed-up, per-task overhead, memory.
 
 Run from the repository root::
 
@@ -39,7 +39,7 @@ try:
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from chatterlab.sweep import Grid, sweep
+from chatterlab.sweep._engine import Grid, sweep
 
 
 def busy(i: float, reps: int) -> dict[str, float]:

@@ -1,29 +1,29 @@
 """chatterlab: machining chatter from structural models.
 
-The flow runs one way::
+The flow runs one way, and each step has its room::
 
-    model file -> Model -> System -> FrozenSystem -> modes / FRF / roots / lobes
-                                \\-> time response (Newmark)      -> plot or file
+    model file -> model.Model -> structure.System -> FrozenSystem
+        -> frequency (FRF, roots, verdict) / time (Newmark) -> lobes -> sweep
+        -> io (netCDF, CSV) / plot / cli
 
 ``import chatterlab`` stays light: matplotlib, joblib and python-control are
-imported only inside the functions that need them.
+imported only inside the functions that need them.  The lobe diagram and the
+sweep engine are subpackages: ``from chatterlab.lobes import lobes``,
+``from chatterlab.sweep import sweep, Grid``.
 """
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
-from .assembly import CouplingMatrices, FrozenSystem, System, assemble
-from .cutting import Feedback, feedback
+from . import lobes, sweep
+from ._version import __version__
 from .errors import ChatterlabError, InputError, ModelError, SweepError
-from .frf import FRF, frequencies, frf, loop_determinant
-from .lobes import LobeDiagram, lobes
-from .modal import Modes, modes
-from .model import Model
-from .modelfile import load_model, loads_model
-from .simulate import Simulation, simulate
-from .stability import Stability, stability
-from .sweep import Grid, SweepResult, sweep
+from .frequency import FRF, Stability, frequencies, frf, loop_determinant, stability
+from .lobes import LobeDiagram
+from .model import Model, load_model, loads_model
+from .process import Feedback, feedback
+from .structure import CouplingMatrices, FrozenSystem, Modes, System, assemble, modes
+from .sweep import Grid, SweepResult
+from .time import Simulation, simulate
 
 __all__ = [
     "__version__",
@@ -47,13 +47,13 @@ __all__ = [
     "Stability",
     "stability",
     "LobeDiagram",
-    "lobes",
     "Simulation",
     "simulate",
-    # sweeps
+    # subpackages: the lobe engine and the sweep engine
+    "lobes",
+    "sweep",
     "Grid",
     "SweepResult",
-    "sweep",
     # errors
     "ChatterlabError",
     "InputError",

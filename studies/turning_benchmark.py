@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 import chatterlab as cl
-from chatterlab.lobes import lobes
+from chatterlab.lobes._diagram import lobes
 
 MASS, STIFF, DAMP, KF = 2.0, 2.0e7, 400.0, 2.0e9  # kg, N/m, N s/m, N/m^2
 
@@ -106,7 +106,7 @@ if __name__ == "__main__":
     import matplotlib
 
     matplotlib.use("Agg")
-    from chatterlab.plot import savefig
+    from chatterlab.plot._plot import savefig
 
     axes = r["diagram"].plot(title="1-DOF turning: chatterlab lobes and Tlusty's closed form")
     axes[0].plot(r["diagram"].speed, r["reference"] * 1e3, "k:", lw=1, label="closed form (Tlusty)")

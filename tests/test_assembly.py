@@ -18,8 +18,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import chatterlab as cl
-from chatterlab.elements import beam_point_matrix, rigid_point_matrix, rotation3
-from chatterlab.model import DIRECTIONS, GROUND
+from chatterlab.model._items import DIRECTIONS, GROUND
+from chatterlab.structure._elements import beam_point_matrix, rigid_point_matrix, rotation3
 
 EPS = np.finfo(float).eps
 

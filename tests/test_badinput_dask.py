@@ -14,8 +14,8 @@ import pytest
 distributed = pytest.importorskip("distributed")
 psutil = pytest.importorskip("psutil")
 
-from chatterlab.cli import main  # noqa: E402
-from chatterlab.sweep import _local_cluster, sweep  # noqa: E402
+from chatterlab.cli._main import main  # noqa: E402
+from chatterlab.sweep._engine import _local_cluster, sweep  # noqa: E402
 
 
 def listeners() -> list[tuple[str, int]]:

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from conftest import turning_text
 
-from chatterlab.cli import main
-from chatterlab.netcdf import read_netcdf
+from chatterlab.cli._main import main
+from chatterlab.io._netcdf import read_netcdf
 
 psutil = pytest.importorskip("psutil")
 
@@ -56,7 +56,7 @@ def start(model: Path, out: Path, resume: bool) -> subprocess.Popen:
     argv = [
         sys.executable,
         "-m",
-        "chatterlab.cli",
+        "chatterlab.cli._main",
         "sweep",
         str(model),
         *GRID,
@@ -111,7 +111,7 @@ def test_a_second_run_on_a_checkpoint_in_use_is_refused(tmp_path):
     import fcntl
 
     from chatterlab.errors import InputError
-    from chatterlab.sweep import sweep
+    from chatterlab.sweep._engine import sweep
 
     ck = tmp_path / "ck"
     ck.mkdir()
@@ -127,7 +127,7 @@ def test_a_second_run_on_a_checkpoint_in_use_is_refused(tmp_path):
 
 
 def test_resume_clears_a_dead_runs_scratch_and_temporary_files(tmp_path):
-    from chatterlab.sweep import sweep
+    from chatterlab.sweep._engine import sweep
 
     ck, out = tmp_path / "ck", tmp_path / "o.nc"
     kw = dict(outputs={"y": ""}, checkpoint=ck, backend="serial", progress=False, chunk_size=1)
@@ -144,7 +144,7 @@ def test_resume_clears_a_dead_runs_scratch_and_temporary_files(tmp_path):
 
 
 def test_library_sweep_without_checkpoint_cleans_dead_scratch_next_to_out(tmp_path):
-    from chatterlab.sweep import sweep
+    from chatterlab.sweep._engine import sweep
 
     out = tmp_path / "o.nc"
     dead = tmp_path / ".o.nc.sweep-4199999-zz"

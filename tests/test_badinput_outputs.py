@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from conftest import turning_text
 
-from chatterlab import _io
-from chatterlab.cli import main
-from chatterlab.netcdf import read_netcdf
+from chatterlab.cli._main import main
+from chatterlab.io import _files as _io
+from chatterlab.io._netcdf import read_netcdf
 
 TURNING = turning_text(mass=2.0, stiffness=2.0e7, damping=400.0, name="1-DOF turning")
 
@@ -42,16 +42,16 @@ def files(folder: Path) -> list[str]:
 @pytest.fixture
 def computed(monkeypatch):
     """Records whether an analysis ran: output checks must come first."""
-    import chatterlab.assembly
+    import chatterlab.structure._assembly
 
     calls = []
-    real = chatterlab.assembly.assemble
+    real = chatterlab.structure._assembly.assemble
 
     def spy(*a, **k):
         calls.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(chatterlab.assembly, "assemble", spy)
+    monkeypatch.setattr(chatterlab.structure._assembly, "assemble", spy)
     return calls
 
 
@@ -153,12 +153,12 @@ def test_a_failing_command_leaves_no_file(capsys, tmp_path, turning):
 
 
 def test_a_failure_after_the_first_file_removes_it(capsys, tmp_path, turning, monkeypatch):
-    import chatterlab.plot
+    import chatterlab.plot._plot
 
     def broken(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(chatterlab.plot, "savefig", broken)
+    monkeypatch.setattr(chatterlab.plot._plot, "savefig", broken)
     out, png = tmp_path / "l.nc", tmp_path / "l.png"
     code = main(COMMANDS["lobes"].format(m=turning).split() + ["--out", str(out), "--plot", str(png)])
     assert_clean_error(code, capsys.readouterr().err, "No space left on device")
@@ -166,12 +166,12 @@ def test_a_failure_after_the_first_file_removes_it(capsys, tmp_path, turning, mo
 
 
 def test_interrupted_command_leaves_no_file(capsys, tmp_path, turning, monkeypatch):
-    import chatterlab.plot
+    import chatterlab.plot._plot
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(chatterlab.plot, "savefig", interrupted)
+    monkeypatch.setattr(chatterlab.plot._plot, "savefig", interrupted)
     code = main(COMMANDS["lobes"].format(m=turning).split() + ["--out", str(tmp_path / "l.csv"), "--plot", str(tmp_path / "l.png")])  # fmt: skip
     assert code == 130
     assert files(tmp_path) == ["turning.toml"]

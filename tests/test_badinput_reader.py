@@ -17,9 +17,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import chatterlab as cl
-from chatterlab import modelfile
-from chatterlab.cli import main
+from chatterlab.cli._main import main
 from chatterlab.errors import ModelError
+from chatterlab.model import _reader as modelfile
 
 ROOT = Path(__file__).resolve().parents[1]
 SHAPER = ROOT / "studies" / "traverse_shaper" / "model.toml"

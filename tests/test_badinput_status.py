@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from conftest import turning_text
 
-import chatterlab.cli as cli
-from chatterlab.cli import main
-from chatterlab.netcdf import read_netcdf
-from chatterlab.sweep import SweepResult
+import chatterlab.cli._main as cli
+from chatterlab.cli._main import main
+from chatterlab.io._netcdf import read_netcdf
+from chatterlab.sweep._engine import SweepResult
 
 ROOT = Path(__file__).resolve().parents[1]
 TURNING = turning_text(mass=2.0, stiffness=2.0e7, damping=400.0, name="1-DOF turning")
@@ -138,7 +138,7 @@ def test_status_2_for_a_file_system_refusal(capsys, monkeypatch, turning):
 
 
 def test_task_status_survives_resume(tmp_path):
-    from chatterlab.sweep import sweep
+    from chatterlab.sweep._engine import sweep
 
     def kw(**more):
         return dict(outputs={"y": ""}, backend="serial", progress=False, chunk_size=2, **more)

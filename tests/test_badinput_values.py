@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from chatterlab import errors
-from chatterlab.cli import main
+from chatterlab.cli._main import main
 from chatterlab.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -116,9 +116,9 @@ def test_invalid_grid_axis_is_refused_before_anything_runs(capsys, tmp_path, spe
 
 def test_library_entry_points_share_the_checks(turning):
     import chatterlab as cl
-    from chatterlab.cutting import delay_for
-    from chatterlab.kinematics import kinematics_for
-    from chatterlab.tasks import AtlasTask, QuantityTask
+    from chatterlab.process._cutting import delay_for
+    from chatterlab.process._kinematics import kinematics_for
+    from chatterlab.quantities._tasks import AtlasTask, QuantityTask
 
     model = cl.load_model(turning)
     proc = model.process

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from conftest import turning_text
 
-from chatterlab.cli import main
-from chatterlab.netcdf import read_netcdf
+from chatterlab.cli._main import main
+from chatterlab.io._netcdf import read_netcdf
 
 ROOT = Path(__file__).resolve().parents[1]
 SHAPER = str(ROOT / "studies" / "traverse_shaper" / "model.toml")
@@ -272,7 +272,7 @@ def test_simulate_continuous_cut_writes_csv(capsys, turning, tmp_path):
 
 
 def test_console_script_and_light_import():
-    r = subprocess.run([sys.executable, "-m", "chatterlab.cli", "--version"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "chatterlab.cli._main", "--version"], capture_output=True, text=True)
     assert r.returncode == 0 and r.stdout.startswith("chatterlab ")
     code = "import sys, chatterlab; print(sorted(m for m in ('matplotlib', 'joblib', 'control', 'dask') if m in sys.modules))"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
@@ -300,6 +300,6 @@ def test_json_is_strict_even_with_non_finite_numbers(capsys, matrix_model):
         capsys, "roots", matrix_model, "--width", "0.01", "--speed", "1500", "--format", "json"
     )
     json.loads(out, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
-    from chatterlab._io import json_text
+    from chatterlab.io._files import json_text
 
     assert json_text({"a": float("nan"), "b": [1.0, float("inf")]}, None) == '{"a": null, "b": [1.0, null]}'

@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import chatterlab as cl
-from chatterlab.elements import (
+from chatterlab.structure._elements import (
     beam_local_mass,
     beam_local_stiffness,
     beam_matrices,

@@ -1,4 +1,4 @@
-"""The cutting process as feedback (chatterlab.cutting) against the paper.
+"""The cutting process as feedback (chatterlab.process._cutting) against the paper.
 
 Oracles: Eqs. 3.7-3.9 with the Table 3 coefficients ("grasso" CE of the
 traverse shaper), the definition D(s) = -(b/b_ref) J^T Dl(s) J of Eq. 2.23
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import chatterlab as cl
-from chatterlab.cutting import Feedback, delay_for, feedback
+from chatterlab.process._cutting import Feedback, delay_for, feedback
 
 # Table 3 (b = 2 mm)
 K1, K2, K3, K4, K5, K6, K7, K8 = 625.4, 2097.0, 3.8e6, -703.0, 1.6e6, 1355.0, 3.8e6, 1.6e6

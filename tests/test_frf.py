@@ -1,4 +1,4 @@
-"""Frequency response functions (chatterlab.frf) against mathematics.
+"""Frequency response functions (chatterlab.frequency._frf) against mathematics.
 
 Oracles: the closed-form receptance of a single degree of freedom,
 1/(k - m w^2 + j c w); the exact conversions mobility = j w receptance and
@@ -35,8 +35,8 @@ import pytest
 from conftest import turning_text
 
 import chatterlab as cl
-from chatterlab.cutting import feedback
-from chatterlab.frf import FRF, frequencies, frf, loop_determinant
+from chatterlab.frequency._frf import FRF, frequencies, frf, loop_determinant
+from chatterlab.process._cutting import feedback
 
 # ----------------------------------------------------------------------------- models
 

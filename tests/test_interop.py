@@ -10,11 +10,11 @@ import pytest
 from conftest import turning_text
 
 import chatterlab as cl
-from chatterlab.cutting import feedback
 from chatterlab.errors import InputError
-from chatterlab.frf import frequencies, frf
-from chatterlab.interop import closed_loop_lti, coupling_matrices, lobes_lti, lti_plant
-from chatterlab.lobes import lobes
+from chatterlab.frequency._frf import frequencies, frf
+from chatterlab.lobes._control import closed_loop_lti, coupling_matrices, lobes_lti, lti_plant
+from chatterlab.lobes._diagram import lobes
+from chatterlab.process._cutting import feedback
 
 MASS, STIFF, DAMP, KF = 2.0, 2.0e7, 400.0, 2.0e9
 TURNING = turning_text(mass=MASS, stiffness=STIFF, damping=DAMP, Kf=KF)

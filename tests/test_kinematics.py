@@ -15,7 +15,7 @@ import pytest
 
 import chatterlab as cl
 from chatterlab.errors import InputError
-from chatterlab.kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
+from chatterlab.process._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +131,7 @@ def test_state_is_right_continuous_on_the_step_grid(kin, n_per_unit):
 
 
 def test_default_step_lands_on_the_events(shaper, kin):
-    from chatterlab.simulate import simulate
+    from chatterlab.time._simulate import simulate
 
     sim = simulate(shaper, feedback="none", duration=0.2)
     for e in kin.events():

@@ -1,4 +1,4 @@
-"""Stability lobes (chatterlab.lobes, D-subdivision) against closed forms and
+"""Stability lobes (chatterlab.lobes._diagram, D-subdivision) against closed forms and
 against characteristic roots.
 
 Oracles:
@@ -29,9 +29,9 @@ from conftest import turning_text as _turning_text
 from scipy.optimize import brentq
 
 import chatterlab as cl
-from chatterlab.lobes import Lobe, LobeDiagram, lobes
-from chatterlab.netcdf import read_netcdf
-from chatterlab.stability import stability
+from chatterlab.frequency._stability import stability
+from chatterlab.io._netcdf import read_netcdf
+from chatterlab.lobes._diagram import Lobe, LobeDiagram, lobes
 
 M, K, ZETA, KF = 1.0, 1.0e7, 0.03, 2.0e9
 C = float(2 * ZETA * np.sqrt(K * M))
@@ -219,7 +219,7 @@ def test_checks_catch_a_claim_that_is_too_high(turning, turning_lobes):
     checked (here all of them: verify = number of speeds)."""
     from dataclasses import replace
 
-    from chatterlab.lobes import _verify
+    from chatterlab.lobes._diagram import _verify
 
     d = turning_lobes
     b = d.b_lim

@@ -17,9 +17,9 @@ from conftest import turning_text
 from scipy.optimize import brentq
 
 import chatterlab as cl
-from chatterlab.lobes import lobes
-from chatterlab.roots import AXIS_GRID_MAX, characteristic_roots
-from chatterlab.stability import stability
+from chatterlab.frequency._roots import AXIS_GRID_MAX, characteristic_roots
+from chatterlab.frequency._stability import stability
+from chatterlab.lobes._diagram import lobes
 
 # issue 8, item 2: f_n = 100 Hz, zeta = 0.02, k = 1e7 N/m, K_f = 2e9 N/m^2
 FN, ZETA, K, KF = 100.0, 0.02, 1.0e7, 2.0e9
@@ -157,7 +157,7 @@ def test_root_band_is_the_loops_not_twice_the_highest_pole(shaper_path):
     structural pole, and the roots found in it are those found with the old
     wide band (the same 6 roots, 1e-9)."""
     fz = cl.assemble(cl.load_model(shaper_path)).at(0.85)
-    from chatterlab.cutting import feedback
+    from chatterlab.process._cutting import feedback
 
     fb = feedback(fz, width=2e-3, speed=0.5)
     args = dict(DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay, count=6)

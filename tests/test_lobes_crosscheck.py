@@ -1,10 +1,10 @@
 """The lobe engine against routes that know nothing of it (issue 8, item 4).
 
 For every envelope point b_lim(T) the rightmost characteristic root (spectral
-collocation + Newton, :mod:`chatterlab.roots`) must lie left of the axis at
+collocation + Newton, :mod:`chatterlab.frequency._roots`) must lie left of the axis at
 (1 - 1e-6) b_lim and right of it at (1 + 1e-6) b_lim: the limit a bisection on
 the sign of the rightmost root converges to lies within 1e-6 of the engine's.
-Half-way down (0.5 b_lim) the argument principle (:mod:`chatterlab.winding`)
+Half-way down (0.5 b_lim) the argument principle (:mod:`chatterlab.frequency._winding`)
 must count no right-half-plane root, so the limit found is the first one
 (no unstable pocket below it).  Every ``inf`` is confirmed by both routes at
 the width ceiling.
@@ -26,11 +26,11 @@ import pytest
 from scipy.linalg import eigh
 
 import chatterlab as cl
-from chatterlab.cutting import feedback
-from chatterlab.lobes import lobes
-from chatterlab.roots import make_system
-from chatterlab.stability import stability
-from chatterlab.winding import rhp_count_system
+from chatterlab.frequency._roots import make_system
+from chatterlab.frequency._stability import stability
+from chatterlab.frequency._winding import rhp_count_system
+from chatterlab.lobes._diagram import lobes
+from chatterlab.process._cutting import feedback
 
 REL = 1e-6
 

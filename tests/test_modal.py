@@ -15,7 +15,7 @@ import scipy.sparse
 
 import chatterlab as cl
 from chatterlab.errors import InputError, ModelError
-from chatterlab.model import DIRECTIONS
+from chatterlab.model._items import DIRECTIONS
 
 E, NU, RHO, KAPPA = 2.1e11, 0.3, 7850.0, 5.0 / 6.0
 G = E / (2 * (1 + NU))

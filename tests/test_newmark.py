@@ -1,5 +1,5 @@
-"""Tests of the Newmark integrator (chatterlab.newmark) and signal post-processing
-(chatterlab.signals).
+"""Tests of the Newmark integrator (chatterlab.time._newmark) and signal post-processing
+(chatterlab.time._signals).
 
 Mathematics is the oracle: closed-form responses, the exact discrete solution
 of the average-acceleration scheme (it is the trapezoidal rule, so its
@@ -20,7 +20,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from chatterlab.errors import InputError
-from chatterlab.newmark import (
+from chatterlab.time._newmark import (
     CallbackProblem,
     ConstantProblem,
     NewmarkOptions,
@@ -29,7 +29,7 @@ from chatterlab.newmark import (
     TimeResponse,
     newmark,
 )
-from chatterlab.signals import amplitude_spectrum, growth_rate, peaks
+from chatterlab.time._signals import amplitude_spectrum, growth_rate, peaks
 
 # --------------------------------------------------------------------------- helpers
 
@@ -495,7 +495,7 @@ def test_growth_rate_equals_rightmost_root(g):
 @pytest.mark.parametrize("g", [-180.0, 60.0], ids=["unstable", "stable"])
 def test_growth_rate_equals_chatterlab_roots(g):
     # our own module, not an optional one: a failing import is a failure, not a skip
-    from chatterlab import roots as roots_mod
+    from chatterlab.frequency import _roots as roots_mod
 
     m, wn, T = 1.0, 2 * np.pi * 5, 0.05
     k, c = wn**2, 2 * 0.02 * wn
@@ -670,7 +670,7 @@ def test_time_response_csv_and_plot(tmp_path):
     assert open(p).readline().strip() == "t [s],q:tip,v:tip"
     np.testing.assert_array_equal(data[:, 0], r.t)
     np.testing.assert_array_equal(data[:, 1], r.q[0])
-    from chatterlab import netcdf  # our own module: an import error fails the test
+    from chatterlab.io import _netcdf as netcdf  # our own module: an import error fails the test
 
     back = netcdf.read_netcdf(r.to_netcdf(tmp_path / "r.nc"))
     np.testing.assert_array_equal(back.data["q"][0], r.q)

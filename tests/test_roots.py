@@ -1,5 +1,5 @@
-"""Characteristic roots (chatterlab.roots) and the RHP winding count
-(chatterlab.winding), checked against mathematics:
+"""Characteristic roots (chatterlab.frequency._roots) and the RHP winding count
+(chatterlab.frequency._winding), checked against mathematics:
 
 * the scalar DDE x' = a x + b x(t - tau): Lambert-W closed form;
 * no delay: the quadratic eigenvalue problem (scipy's generalized eig of the
@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from scipy.special import lambertw
 
 from chatterlab.errors import InputError
-from chatterlab.roots import (
+from chatterlab.frequency._roots import (
     RootsResult,
     char_matrix,
     char_matrix_derivative,
@@ -36,7 +36,7 @@ from chatterlab.roots import (
     make_system,
     newton_refine,
 )
-from chatterlab.winding import WindingResult, rhp_count
+from chatterlab.frequency._winding import WindingResult, rhp_count
 
 
 def _rhp_from_roots(roots: np.ndarray) -> int:

@@ -23,11 +23,11 @@ import pytest
 from conftest import turning_text
 
 import chatterlab as cl
-from chatterlab.cli import main
+from chatterlab.cli._main import main
 from chatterlab.errors import InputError
-from chatterlab.kinematics import kinematics_for
-from chatterlab.newmark import ConstantProblem, NewmarkOptions, newmark
-from chatterlab.simulate import ParametricProblem, _FastReduction, _reduce, simulate
+from chatterlab.process._kinematics import kinematics_for
+from chatterlab.time._newmark import ConstantProblem, NewmarkOptions, newmark
+from chatterlab.time._simulate import ParametricProblem, _FastReduction, _reduce, simulate
 
 # ----------------------------------------------------------------------------- models
 
@@ -289,7 +289,7 @@ def test_harmonic_steady_state_equals_frf(f_hz, h):
     the FRF at w~ to rounding (tolerance 1e-7, the transient having decayed
     by e^-20 at least), and differ from the FRF at w by the warping.
     """
-    from chatterlab.frf import frf
+    from chatterlab.frequency._frf import frf
 
     fz = cl.assemble(cl.loads_model(HARMONIC)).at(None)
     w = 2 * math.pi * f_hz
@@ -343,7 +343,7 @@ def discrete_root(fz, fb, lam: complex, h: float, N: int) -> complex:
 
 @pytest.fixture(scope="module")
 def boundary(turning):
-    from chatterlab.lobes import lobes
+    from chatterlab.lobes._diagram import lobes
 
     fz = turning.at(None)
     ld = lobes(fz, np.array([3000.0]), width_max=0.01)
@@ -365,8 +365,8 @@ def test_growth_rate_equals_rightmost_root(turning, boundary, factor):
     h = T/1000 and 0.05 1/s at T/2000, ratio 4 -- and the Richardson value
     (4 sigma(h/2) - sigma(h))/3 matches it to 0.01 1/s (measured 5e-4).
     """
-    from chatterlab.cutting import feedback
-    from chatterlab.stability import stability
+    from chatterlab.frequency._stability import stability
+    from chatterlab.process._cutting import feedback
 
     fz, b_lim = boundary
     T = 0.02
@@ -670,7 +670,7 @@ def test_bad_input_is_one_clear_error(turning, kw, match):
 def test_unknown_output_is_refused_before_the_run(turning, monkeypatch):
     import sys
 
-    sm = sys.modules["chatterlab.simulate"]
+    sm = sys.modules["chatterlab.time._simulate"]
 
     def boom(*a, **k):  # pragma: no cover - must not be reached
         raise AssertionError("integrated before checking the outputs")

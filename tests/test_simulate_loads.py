@@ -9,7 +9,7 @@ from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.errors import InputError
-from chatterlab.simulate import simulate
+from chatterlab.time._simulate import simulate
 
 M, K, C = 1.0, 1.0e7, 189.7  # the shared 1-DOF tool: 503.3 Hz, zeta = 3 %
 

@@ -1,4 +1,4 @@
-"""Stability verdicts (chatterlab.stability: characteristic roots + argument
+"""Stability verdicts (chatterlab.frequency._stability: characteristic roots + argument
 principle) against closed forms.
 
 Oracles:
@@ -27,8 +27,8 @@ from hypothesis import strategies as st
 from scipy.optimize import brentq, minimize_scalar
 
 import chatterlab as cl
-from chatterlab.cutting import feedback
-from chatterlab.stability import MARGINAL_TOL, Stability, stability
+from chatterlab.frequency._stability import MARGINAL_TOL, Stability, stability
+from chatterlab.process._cutting import feedback
 
 M, K, ZETA, KF = 1.0, 1.0e7, 0.03, 2.0e9
 C = float(2 * ZETA * np.sqrt(K * M))

@@ -1,4 +1,4 @@
-"""Tests of the generic sweep engine (chatterlab.sweep) and labelled files (chatterlab.netcdf)."""
+"""Tests of the generic sweep engine (chatterlab.sweep._engine) and labelled files (chatterlab.io._netcdf)."""
 
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ from hypothesis import strategies as st
 
 import chatterlab
 from chatterlab.errors import InputError, SweepError
-from chatterlab.netcdf import read_netcdf, write_csv, write_netcdf
-from chatterlab.sweep import Axis, Grid, SweepInterrupted, SweepResult, sweep
+from chatterlab.io._netcdf import read_netcdf, write_csv, write_netcdf
+from chatterlab.sweep._engine import Axis, Grid, SweepInterrupted, SweepResult, sweep
 
 ROOT = Path(chatterlab.__file__).resolve().parent.parent
 FIXED = {"created": "2000-01-01T00:00:00+00:00", "command_line": "test"}
@@ -446,7 +446,7 @@ SCRIPT = textwrap.dedent(
     """
     import sys, time
     import numpy as np
-    from chatterlab.sweep import Grid, sweep
+    from chatterlab.sweep._engine import Grid, sweep
 
     def slow(x, y):
         time.sleep(0.06)
@@ -666,7 +666,7 @@ def test_plot_and_dataset(tmp_path: Path) -> None:
 
 def test_import_is_light() -> None:
     code = (
-        "import sys, chatterlab.sweep, chatterlab.netcdf; "
+        "import sys, chatterlab.sweep._engine, chatterlab.io._netcdf; "
         "print(sorted(m for m in ('joblib', 'dask', 'distributed', 'matplotlib', 'tqdm', 'xarray') "
         "if m in sys.modules))"
     )

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import chatterlab as cl
-from chatterlab.lobes import lobes
+from chatterlab.lobes._diagram import lobes
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE / "model.toml"
@@ -30,7 +30,7 @@ def case_b_limit(frozen: cl.FrozenSystem, b_hi: float = 0.5, tol: float = 1e-4) 
     """Smallest width (m) at which the P+D closed loop (no delay) loses
     stability, by bisection on the sign of the rightmost root (inf if stable
     up to ``b_hi``)."""
-    from chatterlab.stability import stability
+    from chatterlab.frequency._stability import stability
 
     def unstable(b: float) -> bool:
         return stability(frozen, width=b, terms="pd", winding=False).abscissa > 0
@@ -53,8 +53,8 @@ def run(speeds: np.ndarray | None = None, positions: np.ndarray | None = None, j
     frozen = system.at()
     diagram = lobes(frozen, v, width_max=1e-3, terms="pdo", verify=1)
     b_case_b = case_b_limit(frozen)
-    from chatterlab.sweep import sweep
-    from chatterlab.tasks import AtlasTask
+    from chatterlab.quantities._tasks import AtlasTask
+    from chatterlab.sweep._engine import sweep
 
     task = AtlasTask(model, 1e-3, tuple(float(x) for x in v))
     atlas = sweep(
@@ -96,7 +96,7 @@ def plot(r: dict, outdir: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    from chatterlab.plot import plot_atlas, savefig
+    from chatterlab.plot._plot import plot_atlas, savefig
 
     axes = r["diagram"].plot(title="traverse shaper, case (c): stability lobes at s = 0.85 m")
     bb = r["case_b_limit"] * 1e3

@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 
 import chatterlab as cl
-from chatterlab.signals import amplitude_spectrum, peaks
-from chatterlab.simulate import Simulation, simulate
+from chatterlab.time._signals import amplitude_spectrum, peaks
+from chatterlab.time._simulate import Simulation, simulate
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE / "model.toml"

@@ -1,0 +1,52 @@
+"""Frequency domain: open- and closed-loop FRFs, characteristic roots of the
+delay equation, the argument-principle count, the stability verdict and the
+gain bounds that prove a searched band complete."""
+
+from __future__ import annotations
+
+from ._bounds import Band, PoleResidue, certified_band
+from ._frf import FRF, ComplexModes, complex_modes, frequencies, frf, loop_determinant, resonance_grid
+from ._roots import (
+    DelaySystem,
+    RootsResult,
+    char_matrix,
+    char_matrix_derivative,
+    characteristic_roots,
+    characteristic_roots_first_order,
+    chebyshev_nodes,
+    make_first_order_system,
+    make_system,
+    newton_refine,
+)
+from ._stability import MARGINAL_TOL, Stability, loop_band, stability
+from ._winding import WindingResult, rhp_count, rhp_count_system
+
+__all__ = [
+    "Band",
+    "PoleResidue",
+    "certified_band",
+    "FRF",
+    "frf",
+    "frequencies",
+    "loop_determinant",
+    "resonance_grid",
+    "ComplexModes",
+    "complex_modes",
+    "RootsResult",
+    "DelaySystem",
+    "make_system",
+    "make_first_order_system",
+    "characteristic_roots",
+    "characteristic_roots_first_order",
+    "char_matrix",
+    "char_matrix_derivative",
+    "newton_refine",
+    "chebyshev_nodes",
+    "WindingResult",
+    "rhp_count",
+    "rhp_count_system",
+    "Stability",
+    "stability",
+    "loop_band",
+    "MARGINAL_TOL",
+]

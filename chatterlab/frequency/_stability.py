@@ -1,0 +1,231 @@
+"""A stability verdict for one operating point (b, T) at a frozen configuration.
+
+Two independent routes:
+
+* the characteristic roots of det(s^2 A* + s (B* - D_V) + C* - D_P - D_O e^{-sT})
+  (:mod:`chatterlab.frequency._roots`: spectral collocation of the delay equation, each
+  root refined by Newton and checked under refinement), whose rightmost real
+  part is the stability margin;
+* the argument principle (:mod:`chatterlab.frequency._winding`): the number of closed-loop
+  roots in the right half plane from the winding of det(I - G D) along the
+  imaginary axis.
+
+The verdict is ``stable`` / ``unstable`` / ``marginal`` when the routes
+agree; when they disagree the result says so (``verdict = "undetermined"``)
+instead of guessing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from ..process._cutting import feedback
+from ..structure._assembly import FrozenSystem
+
+__all__ = ["Stability", "stability", "loop_band", "MARGINAL_TOL"]
+
+#: |Re lambda| below this fraction of |lambda| (plus 1e-9 1/s) counts as on the axis.
+MARGINAL_TOL = 1e-7
+
+
+@dataclass(frozen=True, eq=False)
+class Stability:
+    """Result of :func:`stability`.
+
+    Attributes
+    ----------
+    verdict : str
+        ``"stable"``, ``"unstable"``, ``"marginal"`` (a root on the imaginary
+        axis to tolerance) or ``"undetermined"`` (the two routes disagree, or
+        the root search did not converge).
+    abscissa : float
+        Rightmost real part of the characteristic roots, 1/s: the margin
+        (negative = stable).
+    roots : RootsResult
+    winding : WindingResult or None
+    agree : bool or None
+        Whether roots and argument principle agree (None if winding not run).
+    """
+
+    verdict: str
+    abscissa: float
+    roots: Any
+    winding: Any
+    agree: bool | None
+    message: str
+    width: float
+    delay: float | None
+    terms: str
+    position: float | None
+
+    @property
+    def chatter_hz(self) -> float:
+        """Frequency of the rightmost root, Hz."""
+        return float(self.roots.frequency_hz[0]) if len(self.roots.roots) else float("nan")
+
+    def to_dict(self) -> dict[str, Any]:
+        from .._version import __version__
+
+        r = self.roots
+        return {
+            "chatterlab": __version__,
+            "kind": "roots",
+            "verdict": self.verdict,
+            "abscissa_per_s": self.abscissa,
+            "agree": self.agree,
+            "message": self.message,
+            "width_m": self.width,
+            "delay_s": self.delay,
+            "terms": self.terms,
+            "position_m": self.position,
+            "method": r.method,
+            "status": r.status,
+            "roots": [
+                {
+                    "real_per_s": float(z.real),
+                    "imag_rad_s": float(z.imag),
+                    "frequency_hz": float(f),
+                    "damping_ratio": float(d),
+                }
+                for z, f, d in zip(r.roots, r.frequency_hz, r.damping_ratio, strict=True)
+            ],
+            "winding": None
+            if self.winding is None
+            else {
+                "rhp_count": self.winding.count,
+                "open_loop_rhp_count": self.winding.open_loop_count,
+                "status": self.winding.status,
+                "samples": self.winding.n_samples,
+            },
+        }
+
+    def table(self) -> str:
+        lines = [
+            f"verdict: {self.verdict}   margin (rightmost Re) = {self.abscissa:.6g} 1/s",
+            f"  width {self.width * 1e3:.6g} mm"
+            + (f", delay {self.delay:.6g} s" if self.delay is not None else "")
+            + f", feedback {self.terms}"
+            + (f", position {self.position:g} m" if self.position is not None else ""),
+            f"  {self.message}",
+            self.roots.table(),
+        ]
+        return "\n".join(lines)
+
+
+def stability(
+    frozen: FrozenSystem,
+    *,
+    width: float,
+    speed: float | None = None,
+    delay: float | None = None,
+    terms: Literal["pdo", "pd", "o", "none"] = "pdo",
+    couplings: list[str] | None = None,
+    count: int = 6,
+    winding: bool = True,
+) -> Stability:
+    """Is the cut at width b and delay T (or speed) stable?
+
+    Parameters
+    ----------
+    frozen : FrozenSystem
+        The configuration.
+    width : float
+        Width of cut b, m.
+    speed, delay : float, optional
+        The cutting speed (process unit) or the delay T (s).
+    terms : {"pdo", "pd", "o", "none"}
+        Feedback terms (paper's cases c, b; delayed only; a).
+    count : int
+        Number of rightmost roots reported.
+    winding : bool
+        Also count right-half-plane roots by the argument principle and
+        require agreement.
+
+    Returns
+    -------
+    Stability
+    """
+    from ._roots import characteristic_roots
+
+    fb = feedback(frozen, width=width, speed=speed, delay=delay, terms=terms, couplings=couplings)
+    DO = (fb.U, fb.V) if fb.U.shape[1] else None
+    r = characteristic_roots(
+        frozen.A,
+        frozen.B,
+        frozen.C,
+        DP=fb.DP,
+        DV=fb.DV,
+        DO=DO,
+        tau=fb.delay if DO is not None else None,
+        count=count,
+    )
+    absc = float(r.abscissa)
+    if not np.isfinite(absc) or not r.converged:
+        verdict = "undetermined"
+        msg = f"root search: {r.message}"
+    else:
+        scale = float(abs(r.roots[0])) if len(r.roots) else 1.0
+        if abs(absc) <= MARGINAL_TOL * scale + 1e-9:
+            verdict = "marginal"
+        else:
+            verdict = "stable" if absc < 0 else "unstable"
+        msg = f"roots by {r.method}"
+    w = None
+    agree = None
+    if winding:
+        from ._winding import rhp_count
+
+        w = rhp_count(
+            frozen.A,
+            frozen.B,
+            frozen.C,
+            DP=fb.DP,
+            DV=fb.DV,
+            DO=DO,
+            tau=fb.delay if DO is not None else None,
+            omega_max=loop_band(frozen, fb),
+        )
+        if verdict in ("stable", "unstable") and w.status == "converged":
+            agree = (w.count == 0) == (verdict == "stable")
+            if not agree:
+                msg += (
+                    f"; DISAGREEMENT: the argument principle counts {w.count} right-half-plane root(s)"
+                    f" while the rightmost root found has Re = {absc:.4g} 1/s"
+                )
+                verdict = "undetermined"
+            else:
+                msg += f"; argument principle agrees ({w.count} right-half-plane roots)"
+        elif verdict == "marginal":
+            msg += f"; argument principle: {w.status}, {w.count} right-half-plane roots"
+        else:
+            msg += f"; argument principle: {w.status} ({w.message})"
+    if verdict == "stable" and not agree and not (r.complete_above < 0):
+        # neither route proves it: the roots' band is not certified by the gain
+        # bound and the argument principle did not run or did not converge
+        verdict = "undetermined"
+        msg += "; no root found right of the axis, but the band searched is not proven complete"
+    return Stability(verdict, absc, r, w, agree, msg, float(width), fb.delay, terms, frozen.position)
+
+
+def loop_band(frozen: FrozenSystem, fb: Any, tol: float = 1e-4) -> float:
+    """Upper end (rad/s) of the band where the cutting loop matters: twice
+    the highest frequency at which the loop gain ||H(jw) Dl(jw)|| (all terms,
+    |e^{-jwT}| = 1) exceeds ``tol``.  Above it det(I - G D) stays within
+    ~tol of 1 and cannot wind about the origin, so the argument principle
+    needs no samples there."""
+    from ..structure._complex import modal_response
+
+    cm = frozen.complex_modes
+    wn = np.abs(cm.lam)
+    wmax = 3.0 * float(wn.max())
+    w = np.geomspace(max(1e-3 * float(wn.min()), 1e-3), wmax, 400)
+    H = np.transpose(modal_response(cm, fb.J, fb.J.T, 1j * w, np.arange(cm.lam.size), False), (2, 0, 1))
+    Dabs = np.abs(fb.Dl_P)[None] + w[:, None, None] * np.abs(fb.Dl_V)[None] + np.abs(fb.Dl_O)[None]
+    gain = np.linalg.norm(np.abs(H) @ Dabs, ord=2, axis=(1, 2))
+    big = np.nonzero(gain > tol)[0]
+    if big.size == 0:
+        return float(2.0 * wn.min())
+    return float(min(wmax, 2.0 * w[big[-1]]))

@@ -1,0 +1,44 @@
+"""Files: netCDF (labelled, with provenance), CSV and JSON writers, atomic
+output handling.  Imports nothing of the analyses."""
+
+from __future__ import annotations
+
+from ._files import (
+    CSV_SUFFIXES,
+    DATA_SUFFIXES,
+    JSON_SUFFIXES,
+    PLOT_SUFFIXES,
+    TEXT_SUFFIXES,
+    Outputs,
+    clean_stale,
+    json_text,
+    text_out,
+)
+from ._netcdf import (
+    LabelledData,
+    atomic_write,
+    check_attrs,
+    provenance_attrs,
+    read_netcdf,
+    write_csv,
+    write_netcdf,
+)
+
+__all__ = [
+    "DATA_SUFFIXES",
+    "PLOT_SUFFIXES",
+    "JSON_SUFFIXES",
+    "TEXT_SUFFIXES",
+    "CSV_SUFFIXES",
+    "Outputs",
+    "clean_stale",
+    "json_text",
+    "text_out",
+    "LabelledData",
+    "atomic_write",
+    "check_attrs",
+    "provenance_attrs",
+    "read_netcdf",
+    "write_csv",
+    "write_netcdf",
+]

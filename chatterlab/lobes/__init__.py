@@ -1,0 +1,29 @@
+"""Stability lobes: the D-subdivision boundary found completely
+(``_boundary``), the lobe diagram and its verification (``_diagram``),
+time-domain confirmation (``_confirm``), python-control structures
+(``_control``).
+
+The diagram is computed by :func:`lobes` (``from chatterlab.lobes import lobes``).
+"""
+
+from __future__ import annotations
+
+from ._confirm import Confirmation, confirm
+from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_lti, lti_plant
+from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary, lobes
+
+__all__ = [
+    "Lobe",
+    "LobeDiagram",
+    "Boundary",
+    "Plant",
+    "lobes",
+    "boundary",
+    "Confirmation",
+    "confirm",
+    "frf_to_control",
+    "lti_plant",
+    "lobes_lti",
+    "closed_loop_lti",
+    "coupling_matrices",
+]

@@ -1,0 +1,482 @@
+"""The D-subdivision boundary curve, found completely.
+
+At each frequency w the boundary widths are the real beta > 0 with
+|nu(beta)| = 1 (see :mod:`chatterlab.lobes._diagram`).  Three things make that set
+complete, where sampling beta and w on grids does not:
+
+1. **All widths at one frequency, exactly.**  For a rank-one delayed term
+   (chip-thickness regeneration) the matrix determinant lemma gives
+
+       1 + nu(beta) = det(I + beta H (A + O)) / det(I + beta H A)
+                    = p_AO(beta) / p_A(beta),
+
+   with p_X(beta) = prod_i (1 + beta mu_i(H X)) from the m eigenvalues of an
+   m x m matrix.  Hence |nu| = 1 is the real polynomial equation of degree 2m
+
+       Q(beta) = |p_AO - p_A|^2 - |p_A|^2 = 0,
+
+   whose real roots are all found at once (companion matrix), however close
+   together: two boundary widths that merge and vanish between beta samples
+   (the "nose" of a lobe that the old bracketing missed) are two roots of Q.
+   For a delayed term of rank r > 1 the same holds for the resultant in z of
+   q(beta, z) = det(I + beta H (A + z O)) and its reflection in the unit
+   circle, a real polynomial of degree 2 r m (:func:`widths_resultant`).
+
+2. **Folds located.**  Where the number of boundary widths changes between
+   two grid frequencies, the boundary curve turns back in w (a fold).  The
+   interval is bisected until the fold is located to ~1e-13 relative, so
+   the curve is followed around its turning point and the two widths that
+   merge there are joined into one branch.  Complex roots of Q close to the
+   real axis (a closed boundary curve that could fit between two grid
+   frequencies) are refined the same way.
+
+3. **A band that is proven.**  No boundary lies at a frequency where the
+   loop gain is below one: det(I + beta H (A + z O)) != 0 whenever
+   beta ||H|| (||D_P|| + w ||D_V|| + ||D_O||) < 1.  With the structure in
+   pole-residue form H(s) = sum_k R_k / (s - p_k) + D, ||H(jw)|| on an
+   interval [a, b] is bounded by
+
+       sum_k ||R_k|| / d_k + ||D||,   or
+       ||sum_k R_k|| / a + sum_k ||R_k|| |p_k| / (a d_k) + ||D||,
+
+   d_k the distance of p_k from the segment j[a, b] (the second form uses
+   R/(s - p) = R/s + R p / (s (s - p)) and decays like 1/w^2 for a mechanical
+   structure, whose residues sum to zero).  Every interval of a geometric
+   partition where the bound times beta_max stays below one is certified
+   free of boundary points; the searched band is the rest, and beyond the
+   partition a monotone tail bound closes it.  The band therefore follows
+   from the structure, the feedback matrices and the width ceiling, and the
+   certificate is reported.
+
+References
+----------
+.. [1] D. Hajdu, T. Insperger, G. Stepan, "Robust stability analysis of
+   machining operations", Int. J. Adv. Manuf. Technol. 88, 45-54, 2017
+   (D-subdivision with frequency-domain bounds).
+.. [2] T. Insperger, G. Stepan, *Semi-Discretization for Time-Delay
+   Systems*, Springer, 2011, sec. 1.3 (D-subdivision method).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+LOG_SPAN = 9.0  #: decades of width searched below the width ceiling
+_X_MAX = 1.0 + 1e-9  #: beta / beta_max accepted (the ceiling itself included)
+_FOLD_REL = 1e-13  #: folds are located to this relative frequency
+
+
+@dataclass(frozen=True)
+class Ops:
+    """Per-frequency operators of the boundary equation (reference width)."""
+
+    omega: np.ndarray  # (N,)
+    HA: np.ndarray  # (N, m, m)  H (P + jw V)
+    HU: np.ndarray  # (N, m, r)
+    Vt: np.ndarray  # (r, m)
+
+
+def delayed_factors(Dl_O: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """D_O = U V^T with U (m, r), V^T (r, m), r its numerical rank."""
+    u, sv, vt = np.linalg.svd(Dl_O)
+    r = int(np.sum(sv > 1e-12 * max(sv[0], 1e-300)))
+    return u[:, :r] * sv[:r], vt[:r]
+
+
+def make_ops(H: Any, Dl_P: np.ndarray, Dl_V: np.ndarray, Dl_O: np.ndarray, omega: np.ndarray) -> Ops:
+    """Operators H A and H U at the frequencies ``omega`` (rad/s)."""
+    Hw = H(omega)
+    A = Dl_P[None] + 1j * omega[:, None, None] * Dl_V[None]
+    Uo, Vt = delayed_factors(Dl_O)
+    return Ops(omega, Hw @ A, Hw @ Uo, Vt)
+
+
+def nu(ops: Ops, beta: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+    """Eigenvalues of N(beta) (..., r), sorted by magnitude; ``beta`` has
+    shape (N, K) (or (len(idx), K) with ``idx`` selecting frequencies)."""
+    HA = ops.HA if idx is None else ops.HA[idx]
+    HU = ops.HU if idx is None else ops.HU[idx]
+    m = HA.shape[-1]
+    Mx = np.eye(m) + beta[..., None, None] * HA[:, None]
+    X = np.linalg.solve(Mx, np.broadcast_to(HU[:, None], Mx.shape[:-1] + (HU.shape[-1],)))
+    Nm = beta[..., None, None] * (ops.Vt @ X)
+    if Nm.shape[-1] == 1:
+        return Nm[..., 0, :]
+    ev = np.linalg.eigvals(Nm)
+    return np.take_along_axis(ev, np.argsort(np.abs(ev), axis=-1), axis=-1)
+
+
+# ---------------------------------------------------------------------------- widths at one frequency
+
+
+def _poly_from_roots(ev: np.ndarray) -> np.ndarray:
+    """Coefficients (ascending powers) of prod_i (1 + x ev_i), shape (N, m+1)."""
+    N, m = ev.shape
+    c = np.zeros((N, m + 1), dtype=complex)
+    c[:, 0] = 1.0
+    for i in range(m):
+        c[:, 1:] = c[:, 1:] + ev[:, i : i + 1] * c[:, :-1].copy()
+    return c
+
+
+def _conv_conj(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Coefficients of a(x) conj(b(x)) for real x (ascending), shape (N, 2m+1)."""
+    N, n = a.shape
+    out = np.zeros((N, 2 * n - 1), dtype=complex)
+    bc = b.conj()
+    for i in range(n):
+        out[:, i : i + n] += a[:, i : i + 1] * bc
+    return out
+
+
+def _real_poly_roots(c: np.ndarray) -> np.ndarray:
+    """All complex roots of real polynomials (ascending coefficients, (N, d+1)).
+
+    Returns roots (N, d), NaN-padded where a row has lower degree.  Leading
+    coefficients below 1e-8 of the row's largest are dropped: their roots lie
+    beyond ~1e8 (the widths wanted are in (0, 1]), and a companion matrix
+    holding them would lose the small roots to its norm; the roots in range
+    move by ~1e-8 relative, which :func:`_polish` removes on the full
+    polynomial.  Each degree is solved batched by its companion matrix."""
+    N, d1 = c.shape
+    d = d1 - 1
+    scale = np.max(np.abs(c), axis=1, keepdims=True)
+    scale[scale == 0] = 1.0
+    c = c / scale
+    big = np.abs(c) > 1e-8
+    deg = np.where(big.any(axis=1), d - np.argmax(big[:, ::-1], axis=1), 0)
+    out = np.full((N, d), np.nan + 0j)
+    for k in np.unique(deg):
+        if k == 0:
+            continue
+        rows = np.nonzero(deg == k)[0]
+        ck = c[rows, : k + 1]
+        comp = np.zeros((rows.size, k, k))
+        if k > 1:
+            comp[:, 1:, :-1] = np.eye(k - 1)
+        comp[:, :, -1] = -ck[:, :-1] / ck[:, k : k + 1]
+        with np.errstate(all="ignore"):
+            out[rows, :k] = np.linalg.eigvals(comp)
+    return out
+
+
+def widths_rank1(ops: Ops, beta_max: float | np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """All boundary widths x = beta / beta_max in (10^-LOG_SPAN, 1] at each
+    frequency, for a rank-one delayed term, plus the smallest relative
+    distance of a complex root of Q from the real segment (for refinement).
+
+    Returns (list of sorted x per frequency, near-real proximity (N,))."""
+    bm = np.broadcast_to(np.asarray(beta_max, dtype=float), ops.omega.shape)[:, None, None]
+    HA = ops.HA * bm
+    HAO = HA + bm * (ops.HU @ ops.Vt)
+    lam = np.linalg.eigvals(HA)
+    mu = np.linalg.eigvals(HAO)
+    pA = _poly_from_roots(lam)
+    pB = _poly_from_roots(mu)
+    d = pB - pA
+    Q = (_conv_conj(d, d) - _conv_conj(pA, pA)).real
+    roots = _real_poly_roots(Q)
+    xlo = 10.0**-LOG_SPAN
+    with np.errstate(invalid="ignore"):
+        near_real = np.abs(roots.imag) <= 1e-7 * np.maximum(np.abs(roots.real), xlo)
+        inside = (roots.real > xlo) & (roots.real <= _X_MAX)
+    out = []
+    for i in range(roots.shape[0]):
+        x = np.sort(roots[i, near_real[i] & inside[i]].real)
+        out.append(_polish(Q[i], x))
+    with np.errstate(invalid="ignore"):
+        cand = ~near_real & (roots.real > -0.05) & (roots.real < 1.05)
+        prox = np.where(cand, np.abs(roots.imag) / np.maximum(np.abs(roots.real), 0.05), np.inf)
+    return out, np.min(prox, axis=1)
+
+
+def _polish(q: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Newton on the full polynomial (ascending coefficients) from the
+    companion-matrix roots; steps are capped at 5 % of x (a start near a
+    double root only creeps, never jumps to another root)."""
+    if x.size == 0:
+        return x
+    p = q[::-1]
+    dp = np.polyder(p)
+    for _ in range(8):
+        f, g = np.polyval(p, x), np.polyval(dp, x)
+        with np.errstate(all="ignore"):
+            step = np.where(g != 0, f / g, 0.0)
+        step = np.clip(np.nan_to_num(step), -0.05 * np.abs(x), 0.05 * np.abs(x))
+        x = x - step
+        if np.all(np.abs(step) <= 1e-15 * np.abs(x)):
+            break
+    return np.sort(x)
+
+
+def _sylvester_det(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """det of the Sylvester matrices of polynomial pairs (ascending
+    coefficients, shape (..., r+1) each): their resultant up to sign."""
+    r = a.shape[-1] - 1
+    S = np.zeros(a.shape[:-1] + (2 * r, 2 * r), dtype=complex)
+    for i in range(r):
+        S[..., i, i : i + r + 1] = a[..., ::-1]
+        S[..., r + i, i : i + r + 1] = b[..., ::-1]
+    return np.linalg.det(S)
+
+
+def _secant_on_nu(op1: Ops, beta_max: float, x: np.ndarray) -> np.ndarray:
+    """Refine candidate widths at one frequency on f(x) = log|nu_j(x beta_max)|
+    of the eigenvalue nearest the unit circle (secant, 8 steps); keep those
+    where |f| < 1e-9 (a resultant root whose common z is off the circle, or
+    a spurious one, fails this)."""
+
+    def f(xx: np.ndarray) -> np.ndarray:
+        v = nu(op1, beta_max * xx[None, :])[0]
+        g = np.log(np.abs(v))
+        return g[np.arange(xx.size), np.argmin(np.abs(g), axis=-1)]
+
+    x0, x1 = x * (1 - 1e-7), x.copy()
+    f0, f1 = f(x0), f(x1)
+    for _ in range(8):
+        with np.errstate(all="ignore"):
+            step = np.where(f1 != f0, f1 * (x1 - x0) / (f1 - f0), 0.0)
+        step = np.clip(np.nan_to_num(step), -0.01 * x1, 0.01 * x1)
+        x0, f0 = x1, f1
+        x1 = x1 - step
+        f1 = f(x1)
+        if np.all(np.abs(f1) < 1e-13):
+            break
+    keep = np.abs(f1) < 1e-9
+    return np.unique(x1[keep])
+
+
+def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
+    """All boundary widths x = beta / beta_max in (10^-LOG_SPAN, 1] for a
+    delayed term of rank r > 1, exactly.
+
+    With q(beta, z) = det(I + beta H (A + z O)) = d(beta) det(I_r + z N(beta)),
+    d = det(I + beta H A), a boundary point is a real beta at which q(beta, .)
+    has a root z on the unit circle, i.e. a common root of q(beta, z) and its
+    reflection z^r conj(q(beta, 1/conj z)).  Their resultant R(beta) (Sylvester
+    determinant) is a polynomial of degree <= 2 r m in beta; it is sampled on
+    2 r m + 1 points of the unit circle (in x) and interpolated by the FFT, and
+    its real roots are the candidates (the circle is repeated at radii
+    10^0, 10^-1.5, ... so that small widths are resolved too).  A candidate is
+    kept when an eigenvalue
+    of N has |nu| = 1 there (a common root off the circle, z0 and 1/conj z0,
+    is dropped).  For r = 1 this is :func:`widths_rank1`'s Q."""
+    N = ops.omega.size
+    found: list[list[np.ndarray]] = [[] for _ in range(N)]
+    prox = np.full(N, np.inf)
+    # the coefficients interpolated on a circle of radius rho are accurate
+    # relative to the polynomial's size on that circle: each radius serves the
+    # roots within a factor 10^0.75 of it
+    for e in np.arange(0.0, -LOG_SPAN - 0.01, -1.5):
+        rho = 10.0**e
+        roots, pr = _resultant_roots(ops, beta_max * rho)
+        x = roots * rho
+        lo = max(rho * 10.0**-0.75, 10.0**-LOG_SPAN)
+        hi = _X_MAX if e == 0.0 else rho * 10.0**0.75
+        with np.errstate(invalid="ignore"):
+            near_real = np.abs(x.imag) <= 1e-6 * np.abs(x.real)
+            inside = (x.real > lo) & (x.real <= hi)
+        for i in np.nonzero(np.any(near_real & inside, axis=1))[0]:
+            found[i].append(x[i, near_real[i] & inside[i]].real)
+        if e == 0.0:
+            prox = pr
+    out = []
+    for k in range(N):
+        x = np.sort(np.concatenate(found[k])) if found[k] else np.zeros(0)
+        if x.size:
+            x = _secant_on_nu(
+                Ops(ops.omega[k : k + 1], ops.HA[k : k + 1], ops.HU[k : k + 1], ops.Vt), beta_max, x
+            )
+            # one width found from two circles: keep one
+            x = x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]] if x.size else x
+        out.append(x)
+    return out, prox
+
+
+def _resultant_roots(ops: Ops, beta_r: float) -> tuple[np.ndarray, np.ndarray]:
+    """Roots y of R(beta_r y) (see :func:`widths_resultant`), (N, 2 r m), and
+    the proximity of complex roots to the real segment (0, 1]."""
+    N, m = ops.omega.size, ops.HA.shape[-1]
+    r = ops.Vt.shape[0]
+    K = 2 * r * m + 1
+    beta = beta_r * np.exp(2j * np.pi * np.arange(K) / K)
+    Mx = np.eye(m) + beta[None, :, None, None] * ops.HA[:, None]  # (N, K, m, m)
+    d = np.linalg.det(Mx)
+    X = np.linalg.solve(Mx, np.broadcast_to(ops.HU[:, None], Mx.shape[:-1] + (r,)))
+    Nm = beta[None, :, None, None] * (ops.Vt @ X)  # (N, K, r, r)
+    ev = np.linalg.eigvals(Nm).reshape(N * K, r)
+    a = _poly_from_roots(ev).reshape(N, K, r + 1) * d[..., None]  # q's z-coefficients
+    b = np.conj(a[:, (-np.arange(K)) % K, ::-1])  # z^r conj(q(conj beta, 1/conj z))
+    coef = np.fft.fft(_sylvester_det(a, b), axis=1) / K  # ascending powers of y
+    scale = np.max(np.abs(coef), axis=1, keepdims=True)
+    scale[scale == 0] = 1.0
+    roots = _real_poly_roots((coef / scale).real)
+    with np.errstate(invalid="ignore"):
+        cand = (np.abs(roots.imag) > 1e-6 * np.abs(roots.real)) & (roots.real > -0.05) & (roots.real < 1.05)
+        prox = np.where(cand, np.abs(roots.imag) / np.maximum(np.abs(roots.real), 0.05), np.inf)
+    return roots, np.min(prox, axis=1)
+
+
+def widths(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
+    """Boundary widths (relative to beta_max) at each frequency of ``ops``."""
+    if ops.Vt.shape[0] == 1:
+        return widths_rank1(ops, beta_max)
+    return widths_resultant(ops, beta_max)
+
+
+# ---------------------------------------------------------------------------- folds and branches
+
+
+def refine_folds(
+    make: Any, omega: np.ndarray, beta_max: float, max_rounds: int = 48
+) -> tuple[np.ndarray, list[np.ndarray], int]:
+    """Grid frequencies plus bisection points at every change of the number of
+    boundary widths (folds of the curve) and near-real complex roots of Q.
+
+    ``make(omega)`` returns the operators at given frequencies.  Returns the
+    sorted frequencies, the widths at each, and the number of folds located.
+    """
+    w = np.asarray(omega, float)
+    xs, prox = widths(make(w), beta_max)
+    counts = np.array([x.size for x in xs])
+    folds = 0
+    # near-real complex roots: a boundary curve could appear between samples
+    lo_w, hi_w = w[:-1], w[1:]
+    suspect = (counts[:-1] != counts[1:]) | (np.minimum(prox[:-1], prox[1:]) < 0.05)
+    A, B = lo_w[suspect], hi_w[suspect]
+    cA, cB = counts[:-1][suspect], counts[1:][suspect]
+    folds = int(np.sum(cA != cB))
+    new_w: list[np.ndarray] = []
+    new_x: list[np.ndarray] = []
+    for _ in range(max_rounds):
+        if A.size == 0:
+            break
+        M = 0.5 * (A + B)
+        xm, pm = widths(make(M), beta_max)
+        cm = np.array([x.size for x in xm])
+        new_w.append(M)
+        new_x.extend(xm)
+        # keep the half (or halves) where the count changes; for proximity-only
+        # intervals keep the half with the nearer complex root
+        goL = cm != cA
+        goR = cm != cB
+        same = ~goL & ~goR
+        keepA = np.concatenate([A[goL], M[goR], A[same]])
+        keepB = np.concatenate([M[goL], B[goR], B[same]])
+        kcA = np.concatenate([cA[goL], cm[goR], cA[same]])
+        kcB = np.concatenate([cm[goL], cB[goR], cB[same]])
+        # proximity-only intervals: stop once no complex root is near the real axis
+        near = np.concatenate([np.ones(goL.sum() + goR.sum(), bool), pm[same] < 0.05])
+        wide = (keepB - keepA) > _FOLD_REL * keepB
+        sel = near & wide
+        A, B, cA, cB = keepA[sel], keepB[sel], kcA[sel], kcB[sel]
+    if new_w:
+        w = np.concatenate([w, *new_w])
+        xs = xs + new_x
+    order = np.argsort(w, kind="stable")
+    w = w[order]
+    xs = [xs[i] for i in order]
+    keep = np.concatenate([[True], np.diff(w) > 0])
+    return w[keep], [xs[i] for i in np.nonzero(keep)[0]], folds
+
+
+def link(xs: list[np.ndarray]) -> list[list[tuple[int, int]]]:
+    """Chains of (frequency index, root index) through consecutive
+    frequencies, joined at folds.
+
+    Between neighbouring frequencies the widths are matched by least total
+    |log| distance (in order when the counts agree).  Two chains that end (or
+    start) at the same frequency with adjacent widths meet at a fold and are
+    joined into one branch that turns back in frequency."""
+    from scipy.optimize import linear_sum_assignment
+
+    n = len(xs)
+    chain_of: list[np.ndarray] = [np.full(x.size, -1) for x in xs]
+    chains: list[list[tuple[int, int]]] = []
+    for j in range(xs[0].size):
+        chain_of[0][j] = len(chains)
+        chains.append([(0, j)])
+    ends: list[tuple[int, int, int]] = []  # (freq index, kind 0=end/1=start, chain) at unmatched points
+    for i in range(1, n):
+        a, b = xs[i - 1], xs[i]
+        if a.size and b.size:
+            if a.size == b.size:
+                ra, rb = np.arange(a.size), np.arange(b.size)
+            else:
+                cost = np.abs(np.log(a)[:, None] - np.log(b)[None, :])
+                ra, rb = linear_sum_assignment(cost)
+        else:
+            ra = rb = np.zeros(0, int)
+        for p, q in zip(ra, rb, strict=True):
+            c = chain_of[i - 1][p]
+            chain_of[i][q] = c
+            chains[c].append((i, int(q)))
+        for p in np.setdiff1d(np.arange(a.size), ra):
+            ends.append((i - 1, 0, int(chain_of[i - 1][p])))
+        for q in np.setdiff1d(np.arange(b.size), rb):
+            chain_of[i][q] = len(chains)
+            chains.append([(i, int(q))])
+            ends.append((i, 1, len(chains) - 1))
+    # joins at folds: two chains ending at the same index with adjacent widths,
+    # or two starting at the same index
+    joined: list[list[tuple[int, int]]] = []
+    used: set[int] = set()
+    by_key: dict[tuple[int, int], list[int]] = {}
+    for fi, kind, c in ends:
+        by_key.setdefault((fi, kind), []).append(c)
+    for (fi, kind), cs in by_key.items():
+        if len(cs) < 2:
+            continue
+        # sort the chains by their width at fi, pair neighbours
+        pos = sorted(cs, key=lambda c: xs[fi][chains[c][-1 if kind == 0 else 0][1]])
+        for c1, c2 in zip(pos[::2], pos[1::2], strict=False):
+            if c1 in used or c2 in used:
+                continue
+            used.update((c1, c2))
+            if kind == 0:  # both end here: c1 forward, then c2 backward
+                joined.append(chains[c1] + chains[c2][::-1])
+            else:  # both start here: c1 backward, then c2 forward
+                joined.append(chains[c1][::-1] + chains[c2])
+    rest = [ch for k, ch in enumerate(chains) if k not in used]
+    return _merge_open(joined + rest)
+
+
+def _merge_open(chains: list[list[tuple[int, int]]]) -> list[list[tuple[int, int]]]:
+    """Join chains that share an end point (a branch with several folds)."""
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(chains)):
+            for j in range(i + 1, len(chains)):
+                a, b = chains[i], chains[j]
+                if a[-1] == b[0]:
+                    chains[i] = a + b[1:]
+                elif a[-1] == b[-1]:
+                    chains[i] = a + b[::-1][1:]
+                elif a[0] == b[-1]:
+                    chains[i] = b + a[1:]
+                elif a[0] == b[0]:
+                    chains[i] = b[::-1] + a[1:]
+                else:
+                    continue
+                del chains[j]
+                changed = True
+                break
+            if changed:
+                break
+    return chains
+
+
+def static_width(H0: np.ndarray, Dl_P: np.ndarray, Dl_O: np.ndarray, beta_max: float) -> float:
+    """Smallest width <= beta_max with a characteristic root at s = 0, from
+    det(I + beta H(0) (D_P + D_O)) = 0 (independent of the delay); inf if none."""
+    if not np.all(np.isfinite(H0)):
+        return float("inf")
+    mu = np.linalg.eigvals(H0 @ (Dl_P + Dl_O))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = -1.0 / mu
+    ok = (np.abs(b.imag) <= 1e-9 * np.abs(b)) & (b.real > 0) & (b.real <= beta_max)
+    return float(np.min(b.real[ok])) if np.any(ok) else float("inf")

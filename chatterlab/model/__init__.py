@@ -1,0 +1,69 @@
+"""Model files -> :class:`Model`: the immutable machine description.
+
+``_items``: the frozen dataclasses (bodies, beams, springs, couplings, the
+process, ...); ``_reader``: the TOML reader and its validation (one
+:class:`~chatterlab.errors.ModelError` line per problem); ``_geometry``:
+point positions and the geometric checks.
+"""
+
+from __future__ import annotations
+
+from ._geometry import (
+    TrackPosition,
+    body_centre,
+    check_geometry,
+    contact_track_position,
+    is_movable,
+    point_xy,
+)
+from ._items import (
+    DIRECTIONS,
+    GROUND,
+    Attachment,
+    Beam,
+    Body,
+    Constraint,
+    Contact,
+    Coupling,
+    MatrixBlock,
+    Model,
+    Movable,
+    Node,
+    Point,
+    PointRef,
+    Process,
+    Section,
+    Spring,
+    Support,
+)
+from ._reader import build_model, load_model, loads_model
+
+__all__ = [
+    "Body",
+    "Node",
+    "Section",
+    "Beam",
+    "PointRef",
+    "Point",
+    "Spring",
+    "Attachment",
+    "Support",
+    "Contact",
+    "Constraint",
+    "Coupling",
+    "Process",
+    "Movable",
+    "MatrixBlock",
+    "Model",
+    "DIRECTIONS",
+    "GROUND",
+    "load_model",
+    "loads_model",
+    "build_model",
+    "TrackPosition",
+    "body_centre",
+    "contact_track_position",
+    "point_xy",
+    "check_geometry",
+    "is_movable",
+]

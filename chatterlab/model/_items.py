@@ -1,0 +1,410 @@
+"""The model: an immutable description of a machine (no matrices yet).
+
+A :class:`Model` is built by :func:`chatterlab.load_model` from a TOML model
+file (see ``docs/model-format.md``) or in Python.  Every item is a frozen
+dataclass; a changed parameter is a new model (:meth:`Model.with_parameter`),
+which is what makes parallel sweeps safe.
+
+All quantities are SI: m, kg, kg m^2, N/m, N m/rad, N s/m, s, rad.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from ..errors import MAX_DELAY
+
+__all__ = [
+    "Body",
+    "Node",
+    "Section",
+    "Beam",
+    "PointRef",
+    "Point",
+    "Spring",
+    "Attachment",
+    "Support",
+    "Contact",
+    "Constraint",
+    "Coupling",
+    "Process",
+    "Movable",
+    "MatrixBlock",
+    "Model",
+    "DIRECTIONS",
+    "GROUND",
+]
+
+#: Names of the three plane coordinates of a body, node or point.
+DIRECTIONS: tuple[str, str, str] = ("x", "y", "rz")
+#: Id of the immovable foundation (its coordinates are given, q_g = 0).
+GROUND = "ground"
+
+
+@dataclass(frozen=True)
+class Body:
+    """Rigid finite element (RFE): mass, rotary inertia about Z, centre.
+
+    ``mass == 0`` (a massless body) is allowed only when all three of its
+    coordinates are dependent (a :class:`Contact`, or a constraint).
+    """
+
+    id: str
+    mass: float
+    inertia: float
+    centre: tuple[float, float]
+    angle: float = 0.0  #: orientation of the body axes, rad
+    movable: bool = False  #: part of the movable subsystem
+
+
+@dataclass(frozen=True)
+class Node:
+    """A beam node at ``xy`` (m)."""
+
+    id: str
+    xy: tuple[float, float]
+    movable: bool = False
+
+
+@dataclass(frozen=True)
+class Section:
+    """Material and cross-section of a beam (SI)."""
+
+    E: float  #: Young's modulus, Pa
+    G: float  #: shear modulus, Pa
+    rho: float  #: density, kg/m^3
+    A: float  #: area, m^2
+    I: float  #: second moment of area about the bending axis, m^4
+    kappa: float = 5.0 / 6.0  #: Timoshenko shear coefficient
+    eta: float = 0.0  #: internal (Kelvin-Voigt) damping coefficient, N s/m^2
+
+
+@dataclass(frozen=True)
+class Beam:
+    """Deformable finite element (DFE): a plane Timoshenko beam between two
+    nodes, optionally subdivided into ``elements`` equal elements."""
+
+    id: str
+    nodes: tuple[str, str]
+    section: Section
+    elements: int = 1
+
+
+@dataclass(frozen=True)
+class PointRef:
+    """Where a point is: on a body, a node, a beam, the ground, or (for a
+    matrix-level model) on named coordinates.
+
+    ``kind``/``target`` say on what; ``offset`` is (dx, dy) in body axes for a
+    body or node, and (0, transverse offset) for a beam, with ``distance``
+    along the beam from its first node.  For ``kind == "coords"``, ``coords``
+    names the coordinate carrying x, y and rz (``""`` for none).
+    """
+
+    kind: Literal["body", "node", "beam", "ground", "coords"]
+    target: str
+    offset: tuple[float, float] = (0.0, 0.0)
+    distance: float = 0.0
+    coords: tuple[str, str, str] = ("", "", "")
+    label: str = ""  #: how the user wrote it, for messages
+
+
+@dataclass(frozen=True)
+class Point:
+    """A named point, usable in springs, couplings and as FRF input/output."""
+
+    id: str
+    ref: PointRef
+
+
+@dataclass(frozen=True)
+class Spring:
+    """Spring-damping element (SDE) between two coincident points.
+
+    Stiffness ``c = (c1, c2, c6)`` (N/m, N/m, N m/rad) and damping
+    ``d = (d1, d2, d6)`` (N s/m, N s/m, N m s/rad) along the element axes,
+    which are rotated by ``angle`` (rad) from the global axes.
+    """
+
+    id: str
+    a: PointRef
+    b: PointRef
+    c: tuple[float, float, float]
+    d: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    angle: float = 0.0
+
+
+@dataclass(frozen=True)
+class Attachment:
+    """A beam node clamped to a body through a rigid arm: the node's
+    coordinates become dependent on the body's (or given, for the ground)."""
+
+    id: str
+    node: str
+    body: str
+
+
+@dataclass(frozen=True)
+class Support:
+    """Given (prescribed, q_g = 0) coordinates of a node or body."""
+
+    id: str
+    target: str
+    dofs: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A massless moving contact point (the paper's RFE 5 and 6).
+
+    Its coordinates are dependent: they equal the motion of the material
+    point of a beam track (a chain of collinear beams) at transverse
+    ``offset`` and at the along-track position of the moving ``follows``
+    body's centre plus ``shift``.  The position therefore changes with the
+    configuration parameter s, and so does W(s) (Eq. 2.7).
+    """
+
+    id: str
+    beams: tuple[str, ...]
+    follows: str
+    offset: float = 0.0
+    shift: float = 0.0
+    outside: Literal["error", "clamp"] = "error"  #: beyond the track: refuse, or wait at its end
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """General linear constraints (Eq. 2.4): ``sum_k a_k q_k = 0`` for each
+    equation; ``dependent`` lists the coordinates they determine."""
+
+    id: str
+    dependent: tuple[str, ...]
+    equations: tuple[tuple[tuple[str, float], ...], ...]
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """Coupling element (CE): the feedback of the cutting process (Eq. 3.5).
+
+    The force the CE applies to point ``a`` (the tool), in the CE axes rotated
+    by ``angle`` from global, is
+
+        P_a = (b / width_ref) [P0 - D_V dw/dt - D_P dw - D_O dw(t - T)],
+
+    with dw = w_a - w_b the relative displacement of the two points in CE
+    axes; point ``b`` receives -P_a.  The matrices are at the reference width
+    ``width_ref`` and scale linearly with the width of cut b.  ``kind`` records
+    how they were given (``"matrices"``, ``"grasso"`` for the K1..K8 of the
+    paper's Table 3, ``"regenerative"`` for K_f b (h(t) - h(t - T))).
+    """
+
+    id: str
+    a: PointRef
+    b: PointRef
+    DP: tuple[tuple[float, ...], ...]
+    DV: tuple[tuple[float, ...], ...]
+    DO: tuple[tuple[float, ...], ...]
+    width_ref: float
+    forces: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    angle: float = 0.0
+    kind: str = "matrices"
+    params: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class Process:
+    """Process kinematics: how the cutting speed sets the delay T.
+
+    ``kind``:
+
+    * ``"shaping"``: stroke = run_in + cut + coast (m), work speed v_w and
+      return speed v_l (m/s); T = stroke/v_w + stroke/v_l (one stroke cycle).
+      The speed variable is v_w in m/s.
+    * ``"turning"``: spindle speed n (rpm); T = 60/n.  Speed variable: rpm.
+    * ``"delay"``: T given directly (s).
+    """
+
+    kind: Literal["shaping", "turning", "delay"]
+    speed: float = 0.0  #: the default value of the speed variable
+    delay_value: float = 0.0
+    run_in: float = 0.0
+    cut: float = 0.0
+    coast: float = 0.0
+    return_speed: float = 0.0
+    start: float = 0.0  #: slide position s at the start of the work stroke, m
+    direction: float = -1.0  #: +1 / -1: s increases / decreases in the work stroke
+
+    @property
+    def speed_unit(self) -> str:
+        return {"shaping": "m/s", "turning": "rpm", "delay": "s"}[self.kind]
+
+    @property
+    def speed_name(self) -> str:
+        return {"shaping": "work speed", "turning": "spindle speed", "delay": "delay"}[self.kind]
+
+    def delay(self, speed: float | np.ndarray | None = None) -> float | np.ndarray:
+        """Delay T (s) at the given speed (in :attr:`speed_unit`)."""
+        v = self.speed if speed is None else speed
+        v = np.asarray(v, dtype=float)
+        if speed is not None and not np.all(np.isfinite(v) & (v > 0)):
+            # the one speed check (chatterlab.errors.check_speed) on the first bad value:
+            # a speed <= 0 would give a negative or infinite delay, never a result
+            from ..errors import check_speed
+
+            bad = v[~(np.isfinite(v) & (v > 0))] if v.ndim else v
+            check_speed(float(np.ravel(bad)[0]), "speed", self.speed_unit)
+        if self.kind == "shaping":
+            stroke = self.run_in + self.cut + self.coast
+            out = stroke / v + stroke / self.return_speed
+        elif self.kind == "turning":
+            out = 60.0 / v
+        else:
+            out = v if speed is not None else np.asarray(self.delay_value)
+        if speed is not None and np.any(out > MAX_DELAY):
+            from ..errors import check_delay
+
+            check_delay(float(np.max(out)), f"the delay at this speed ({self.speed_name})")
+        return float(out) if out.ndim == 0 else out
+
+    def speed_for_delay(self, T: float | np.ndarray) -> float | np.ndarray:
+        """Inverse of :meth:`delay`: the speed that gives the delay T."""
+        T = np.asarray(T, dtype=float)
+        if self.kind == "shaping":
+            stroke = self.run_in + self.cut + self.coast
+            out = stroke / (T - stroke / self.return_speed)
+        elif self.kind == "turning":
+            out = 60.0 / T
+        else:
+            out = T
+        return float(out) if out.ndim == 0 else out
+
+    @property
+    def min_delay(self) -> float:
+        """The smallest delay any speed can give (the return-stroke time for
+        shaping, 0 otherwise)."""
+        if self.kind == "shaping":
+            return (self.run_in + self.cut + self.coast) / self.return_speed
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Movable:
+    """The movable subsystem (the paper's X2Y2 frame): bodies that translate
+    by s along ``direction``.  Their centres in the model file are at
+    s = ``position`` (the default, frozen configuration)."""
+
+    bodies: tuple[str, ...]
+    direction: tuple[float, float] = (1.0, 0.0)
+    position: float = 0.0
+    range: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class MatrixBlock:
+    """A matrix-level model: M, L, K on named coordinates (from another FE
+    code).  Arrays are read-only."""
+
+    coordinates: tuple[str, ...]
+    M: np.ndarray
+    L: np.ndarray
+    K: np.ndarray
+    given: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """An immutable machine description (the seed paper's Section 2 model).
+
+    Build one with :func:`chatterlab.load_model`.  Items are looked up by id
+    with :meth:`item`; :meth:`with_parameter` returns a changed copy.
+    """
+
+    name: str
+    source: str
+    bodies: tuple[Body, ...] = ()
+    nodes: tuple[Node, ...] = ()
+    beams: tuple[Beam, ...] = ()
+    springs: tuple[Spring, ...] = ()
+    attachments: tuple[Attachment, ...] = ()
+    supports: tuple[Support, ...] = ()
+    contacts: tuple[Contact, ...] = ()
+    constraints: tuple[Constraint, ...] = ()
+    points: tuple[Point, ...] = ()
+    couplings: tuple[Coupling, ...] = ()
+    process: Process | None = None
+    movable: Movable | None = None
+    matrices: MatrixBlock | None = None
+    variant: str | None = None
+    overrides: tuple[tuple[str, Any], ...] = ()
+    text: str = ""  #: the model file's text (kept for result files)
+    raw: str = field(default="", repr=False)  #: the parsed TOML as JSON
+    #: the reader that built this model (``build_model``), used by
+    #: :meth:`with_parameters` so that the items do not import the reader
+    rebuild: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def is_matrix_model(self) -> bool:
+        return self.matrices is not None
+
+    def item(self, id: str) -> Any:
+        """The body, node, beam, point, spring, contact or coupling named
+        ``id`` (KeyError if none)."""
+        for group in (
+            self.bodies,
+            self.nodes,
+            self.beams,
+            self.points,
+            self.springs,
+            self.contacts,
+            self.couplings,
+        ):
+            for it in group:
+                if it.id == id:
+                    return it
+        raise KeyError(id)
+
+    def with_parameter(self, path: str, value: Any) -> Model:
+        """A copy with one model-file field changed.
+
+        ``path`` addresses a field as ``KIND.ID.FIELD`` for list items (e.g.
+        ``"spring.leg3-foundation.c2"``, ``"beam.table.I"``) or
+        ``TABLE.FIELD`` for single tables (``"movable.position"``;
+        ``"process.speed"`` for shaping, ``"process.rpm"`` for turning,
+        ``"process.delay"``).  The copy is validated like a model file.
+        """
+        return self.with_parameters({path: value})
+
+    def with_parameters(self, values: dict[str, Any]) -> Model:
+        """Like :meth:`with_parameter` for several fields at once."""
+        if self.rebuild is None:
+            raise TypeError("this Model was not built by chatterlab's reader: build it with load_model")
+        raw = json.loads(self.raw)
+        return self.rebuild(
+            raw,
+            source=self.source,
+            text=self.text,
+            variant=self.variant,
+            overrides=dict(self.overrides) | dict(values),
+        )
+
+    def summary(self) -> dict[str, Any]:
+        """Counts of the model's items (see also :meth:`System.summary`)."""
+        return {
+            "name": self.name,
+            "source": self.source,
+            "variant": self.variant,
+            "bodies": len(self.bodies),
+            "massless bodies": sum(1 for b in self.bodies if b.mass == 0.0),
+            "beams": len(self.beams),
+            "beam elements": sum(b.elements for b in self.beams),
+            "nodes": len(self.nodes),
+            "springs": len(self.springs),
+            "attachments": len(self.attachments),
+            "contacts": len(self.contacts),
+            "couplings": len(self.couplings),
+            "matrix-level": self.is_matrix_model,
+        }

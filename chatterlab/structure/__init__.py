@@ -1,0 +1,40 @@
+"""Model -> System: RDFEM elements, assembly, the constraints W(s) of the
+moving slide, the frozen configuration, real and complex modes."""
+
+from __future__ import annotations
+
+from ._assembly import CouplingMatrices, FrozenSystem, System, assemble
+from ._complex import ComplexModes, complex_modes, modal_response, taylor_terms
+from ._elements import (
+    beam_local_mass,
+    beam_local_stiffness,
+    beam_matrices,
+    beam_point_matrix,
+    beam_rotation,
+    beam_shape,
+    rigid_point_matrix,
+    rotation3,
+)
+from ._modal import Modes, modes, rigid_body_description
+
+__all__ = [
+    "beam_local_stiffness",
+    "beam_local_mass",
+    "beam_shape",
+    "beam_rotation",
+    "beam_matrices",
+    "beam_point_matrix",
+    "rigid_point_matrix",
+    "rotation3",
+    "ComplexModes",
+    "complex_modes",
+    "modal_response",
+    "taylor_terms",
+    "System",
+    "FrozenSystem",
+    "CouplingMatrices",
+    "assemble",
+    "Modes",
+    "modes",
+    "rigid_body_description",
+]
