@@ -44,10 +44,10 @@ class PoleResidue:
 class Band:
     """The frequency band searched for boundary points and its certificate.
 
-    ``lo``, ``hi`` (rad/s): the grid's ends; ``certified``: outside
-    [cert_lo, hi] no boundary point exists with width <= beta_max (proven by
-    the gain bound); ``cert_lo`` is the lowest frequency of the bound's
-    partition (below it the grid itself reaches down to ``lo``).
+    ``lo``, ``hi`` (rad/s): the ends of the band to search; ``certified``:
+    above ``hi`` no point exists with width <= beta_max (proven by the gain
+    bound).  Below ``lo`` nothing is claimed: the caller's grid must reach
+    down there itself (the lobe engine's reaches w = 0).
     """
 
     lo: float

@@ -1429,7 +1429,7 @@ def _dispatch(
             # widened until it holds the count rightmost roots found
             sigma = -SIGMA_TAU / sys.tau
             top = _band_top(sys, count, None, sigma)
-            for _ in range(4):
+            for attempt in range(4):
                 if method == "branch":
                     res = _branch(sys, count, top, t0)
                 else:
@@ -1437,11 +1437,14 @@ def _dispatch(
                 low = float(res.roots.real.min()) if res.roots.size else sigma
                 if not res.converged or low >= sigma:
                     break
-                sigma = low - 1.0 / sys.tau
-                top2 = _band_top(sys, count, None, sigma)
+                sigma2 = low - 1.0 / sys.tau
+                top2 = _band_top(sys, count, None, sigma2)
                 if top2 <= top * (1 + 1e-9):
+                    sigma = sigma2  # the band searched already holds every root right of sigma2
                     break
-                top = top2
+                if attempt == 3:
+                    break  # the claim stays the one proven for the band searched
+                top, sigma = top2, sigma2
             cert = certified_top(sys, sigma) is not None
             note = (
                 f"; band 0..{top / 2 / math.pi:.5g} Hz holds every root with Re >= {sigma:.4g} 1/s"
@@ -1505,8 +1508,11 @@ def characteristic_roots(
         small, frequency windows otherwise); ``"branch"``: enumeration along
         the branches :math:`\\lambda\\tau = \\log\\mu_j + 2\\pi i k`.
     omega_max : float, optional
-        Upper end (rad/s) of the frequency band scanned for root locations;
-        default ``max(2 |p|_max, ...)`` from the delay-free poles ``p``.
+        Upper end (rad/s) of the frequency band scanned for root locations.
+        Default: from the loop gain bound, the frequency above which no root
+        with Re >= -2/tau exists (widened to hold the ``count`` rightmost
+        roots; reported as ``band_top`` and ``complete_above``), or
+        ``2 |p|_max`` of the delay-free poles when no bound is available.
     n_nodes : int, optional
         Force a single discretisation through the origin with this ``N``
         (``N2 = ceil(1.5 N)``); default chooses ``N`` from ``omega tau``.

@@ -39,8 +39,10 @@ class Stability:
     ----------
     verdict : str
         ``"stable"``, ``"unstable"``, ``"marginal"`` (a root on the imaginary
-        axis to tolerance) or ``"undetermined"`` (the two routes disagree, or
-        the root search did not converge).
+        axis to tolerance) or ``"undetermined"`` (the two routes disagree,
+        the root search did not converge, or no root was found right of the
+        axis but neither a certified band nor the argument principle proves
+        that none is there).
     abscissa : float
         Rightmost real part of the characteristic roots, 1/s: the margin
         (negative = stable).

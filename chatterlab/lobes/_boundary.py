@@ -50,9 +50,8 @@ complete, where sampling beta and w on grids does not:
 
 References
 ----------
-.. [1] D. Hajdu, T. Insperger, G. Stepan, "Robust stability analysis of
-   machining operations", Int. J. Adv. Manuf. Technol. 88, 45-54, 2017
-   (D-subdivision with frequency-domain bounds).
+.. [1] R. A. Horn, C. R. Johnson, *Matrix Analysis*, 2nd ed., Cambridge
+   University Press, 2013 (the determinant lemma; rho(X) <= ||X||).
 .. [2] T. Insperger, G. Stepan, *Semi-Discretization for Time-Delay
    Systems*, Springer, 2011, sec. 1.3 (D-subdivision method).
 """

@@ -133,8 +133,9 @@ def lobes_lti(
 ) -> LobeDiagram:
     """Stability lobes of a python-control LTI structure (see :func:`lti_plant`).
 
-    The D-subdivision is the same as for a model; the spot checks by
-    characteristic roots need the structure's matrices and are not run.
+    The D-subdivision is the same as for a model (with the band certified
+    from the state space's pole-residue form); the argument-principle checks
+    need the structure's matrices and are not run.
     """
     plant = lti_plant(lti, DP=DP, DV=DV, DO=DO, width_ref=width_ref)
     return lobes(

@@ -14,11 +14,14 @@ regeneration).  The matrix determinant lemma gives, for each w,
 
 so the boundary is where an eigenvalue nu of N(beta) has |nu| = 1, and then
 z = -1/nu fixes the delay: wT = -arg z + 2 pi k, k = 0, 1, 2, ... (one lobe
-per k).  chatterlab solves |nu(beta)| = 1 for every w of a grid (all real
-positive beta up to the width range, by bracketing and bisection), which
-gives every lobe as a curve (T_k(w), b(w)); the lower envelope at each
-requested speed is then refined to round-off by regula falsi on the phase
-condition, re-solving beta exactly at each trial frequency.
+per k).  chatterlab finds every real positive beta with |nu(beta)| = 1 up to
+the width range at every w of a grid (exactly: real roots of a polynomial,
+:mod:`chatterlab.lobes._boundary`), follows the curve around its folds, and
+so knows every lobe as a curve (T_k(w), b(w)); the grid's band is proven to
+hold every boundary point by a gain bound (:mod:`chatterlab.frequency._bounds`).
+The lower envelope at each requested speed is then refined to round-off by
+regula falsi on the phase condition, re-solving beta exactly at each trial
+frequency, and checked by the argument principle.
 
 For the classical regenerative model (D_P = K_f b f n^T, D_O = -D_P, D_V = 0)
 this reduces to Tlusty's b_lim = -1/(2 K_f Re[n^T G f]) with the phase
@@ -135,7 +138,7 @@ class LobeDiagram:
 
     @property
     def verified(self) -> bool | None:
-        """True if every spot check agreed with the boundary, None if none ran."""
+        """True if every check agreed with the diagram, None if none ran."""
         if not self.checks:
             return None
         return all(c["agrees"] for c in self.checks)
@@ -537,7 +540,9 @@ def _grid(plant: Plant, lo: float, hi: float, n_base: int) -> np.ndarray:
     w1 = _first_mode(plant)
     parts = [resonance_grid(plant.poles, max(lo, min(0.25 * w1, hi)), hi, n_base)]
     if lo < 0.25 * w1:
-        parts.append(np.geomspace(lo, min(0.25 * w1, hi), 80))
+        parts.append(np.geomspace(max(lo, 1e-4 * w1), min(0.25 * w1, hi), 80))
+    if lo == 0.0:
+        parts.append(np.zeros(1))  # w = 0 itself: the grid reaches the static case
     w = np.unique(np.concatenate(parts))
     return w[(w >= lo) & (w <= hi)]
 
@@ -549,27 +554,35 @@ def _first_mode(plant: Plant) -> float:
 
 def _band(plant: Plant, fmin: float | None, fmax: float | None, width_max: float) -> Band:
     """The chatter-frequency band searched (rad/s) and whether it is proven
-    to hold every boundary point below ``width_max``."""
+    to hold every boundary point below ``width_max``.  A band given by the
+    caller (either end) is searched as given and proves nothing outside it."""
+    auto = _auto_band(plant, width_max)
+    if fmin is None and fmax is None:
+        return auto
+    lo = 2 * np.pi * fmin if fmin is not None else auto.lo
+    hi = 2 * np.pi * fmax if fmax is not None else auto.hi
+    if not hi > lo >= 0:
+        raise InputError(
+            f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
+        )
+    return Band(lo, hi, False, "band given by the caller (fmin/fmax): outside it nothing is claimed")
+
+
+def _auto_band(plant: Plant, width_max: float) -> Band:
+    """[0, hi] with hi from the gain bound when the structure has a pole-residue
+    form and no pole at s = 0 (the grid then reaches w = 0 itself, where the
+    loop gain bound of a stiff cut is usually above 1); otherwise a band from
+    the modes, not proven."""
     w1 = _first_mode(plant)
-    if fmin is not None or fmax is not None:
-        lo = 2 * np.pi * fmin if fmin is not None else 1e-3 * w1
-        hi = 2 * np.pi * fmax if fmax is not None else 1.6 * w1
-        if not hi > lo > 0:
-            raise InputError(
-                f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
-            )
-        return Band(lo, hi, False, "band given by the caller (fmin/fmax): outside it nothing is claimed")
-    if plant.residues is None:
+    pmax = float(np.max(np.abs(plant.poles))) if plant.poles.size else 1.0
+    rigid = plant.poles.size and float(np.min(np.abs(plant.poles))) <= 1e-9 * pmax
+    if plant.residues is None or rigid:
         wn = np.sort(np.abs(plant.poles[plant.poles.imag > 0]))
         wk = float(wn[min(len(wn) - 1, 11)]) if wn.size else 10.0
-        return Band(
-            0.25 * w1,
-            1.6 * wk,
-            False,
-            "no pole-residue form of the structure: band from its modes, not proven",
-        )
+        why = "a pole at s = 0 (rigid-body mode)" if rigid else "no pole-residue form of the structure"
+        return Band(1e-3 * w1, 1.6 * wk, False, f"{why}: band from the modes, not proven")
     bd = certified_band(plant.residues, plant.Dl_P, plant.Dl_V, plant.Dl_O, width_max, 1e-3 * w1)
-    return Band(bd.lo, max(bd.hi * 1.02, bd.lo), bd.certified, bd.reason)
+    return Band(0.0, max(bd.hi * 1.02, bd.lo), bd.certified, bd.reason)
 
 
 @dataclass(frozen=True)
@@ -842,7 +855,8 @@ def lobes(
         else:
             krange = np.arange(kmin, kmax + 1)
         for k in krange:
-            Tk = (phi + 2 * np.pi * k) / sg.omega
+            with np.errstate(divide="ignore", invalid="ignore"):  # w = 0: T = inf, outside
+                Tk = (phi + 2 * np.pi * k) / sg.omega
             inside = (Tk >= Tlo) & (Tk <= Thi) & (Tk > proc.min_delay)
             if np.count_nonzero(inside) < 2:
                 continue
