@@ -9,6 +9,7 @@ from ._frf import FRF, ComplexModes, complex_modes, frequencies, frf, loop_deter
 from ._roots import (
     DelaySystem,
     RootsResult,
+    certified_top,
     char_matrix,
     char_matrix_derivative,
     characteristic_roots,
@@ -48,5 +49,6 @@ __all__ = [
     "Stability",
     "stability",
     "loop_band",
+    "certified_top",
     "MARGINAL_TOL",
 ]

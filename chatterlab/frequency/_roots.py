@@ -99,6 +99,7 @@ __all__ = [
     "char_matrix_derivative",
     "newton_refine",
     "chebyshev_nodes",
+    "certified_top",
 ]
 
 ComplexArray = NDArray[np.complex128]
