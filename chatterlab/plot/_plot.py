@@ -7,6 +7,7 @@ save; none calls ``plt.show()``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -89,157 +90,756 @@ def plot_nyquist(omega: np.ndarray, det: np.ndarray, *, ax: Any = None, title: s
 
 
 def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
-    """Save the figure holding the given Axes and close it."""
+    """Save the figure holding the given Axes and close it.  The layout is
+    tightened first unless the plot laid the figure out itself (figure gid
+    ``LAID_OUT``)."""
     import matplotlib.pyplot as plt
 
     ax = ax_or_axes[0] if isinstance(ax_or_axes, list | tuple | np.ndarray) else ax_or_axes
     fig = ax.figure
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
+    if fig.get_gid() != LAID_OUT:
+        fig.tight_layout()
+    # zlib level 1: several times faster than the default 6 on a dense figure, a little larger file
+    extra = {"pil_kwargs": {"compress_level": 1}} if str(path).lower().endswith(".png") else {}
+    fig.savefig(path, dpi=dpi, **extra)
     plt.close(fig)
 
 
+#: gid of a figure whose plot function already tightened its layout (savefig skips it)
+LAID_OUT = "chatterlab:laid-out"
+
+
+# ============================================================ lobe diagrams
+
+#: the envelope is evaluated at this many points per horizontal pixel ...
+ENVELOPE_POINTS_PER_PIXEL = 4
+#: ... of a figure saved at up to this resolution (savefig's default is 130 dpi)
+ENVELOPE_DPI = 200
+#: resolution at which lobe density is judged (savefig's default)
+DISPLAY_DPI = 130
+#: lobes are "denser than the plot can show" when more than one lobe bottom of
+#: a branch falls within this many pixel columns
+DENSE_PIXELS = 3
+#: lobes shown in the zoom panel of a dense diagram (bottoms either side of the minimum)
+ZOOM_LOBES = 3
+
+
+@dataclass(frozen=True)
+class _Curve:
+    """One lobe as a polyline in (speed, width): a run of consecutive samples
+    of the frequency grid."""
+
+    k: int
+    branch: int
+    speed: np.ndarray
+    width: np.ndarray  # m
+    freq: np.ndarray  # Hz
+
+
+def _delay_to_speed(d: Any) -> Any:
+    """The process's speed as a function of the delay, recovered from the
+    diagram's own (delay, speed) pairs: 1/speed is affine in the delay for
+    shaping (v = L / (T - L / v_r)) and turning (n = 60 / T), so the map is
+    exact there; speed = delay for a delay process; otherwise a monotone
+    interpolation of the pairs."""
+    T = np.concatenate([np.asarray(d.delay, float)] + [lb.delay for lb in d.lobes])
+    v = np.concatenate([np.asarray(d.speed, float)] + [lb.speed for lb in d.lobes])
+    ok = np.isfinite(T) & np.isfinite(v) & (v > 0) & (T > 0)
+    T, v = T[ok], v[ok]
+    if np.allclose(v, T, rtol=1e-12, atol=0):
+        return lambda t: np.asarray(t, float)
+    (a, c), *_ = np.linalg.lstsq(np.stack([T, np.ones_like(T)], axis=1), 1.0 / v, rcond=None)
+    if np.max(np.abs((a * T + c) * v - 1.0)) < 1e-9:
+
+        def exact(t: Any) -> np.ndarray:
+            with np.errstate(divide="ignore"):
+                s = 1.0 / (a * np.asarray(t, float) + c)
+            return np.where(s > 0, s, np.nan)
+
+        return exact
+    o = np.argsort(T)
+    return lambda t: np.interp(t, T[o], v[o], left=np.nan, right=np.nan)
+
+
+def _lobe_curves(d: Any) -> list[_Curve]:
+    """Every lobe k >= 0 of every branch whose delay falls in the diagram's
+    delay range, as polylines.
+
+    A branch is one curve (w, beta(w), phi(w)) of the boundary; lobe k of it
+    is T_k(w) = (phi(w) + 2 pi k) / w.  The diagram's lobes sample it on the
+    frequency grid; the union of their samples restores the branch, from which
+    every k is drawn -- also the lobes a dense diagram does not carry (it keeps
+    only those on the envelope at the requested speeds).  Each curve keeps one
+    sample beyond the delay range at either end so that its linear
+    interpolation reaches the ends of the range."""
+    Tlo, Thi = float(np.min(d.delay)), float(np.max(d.delay))
+    to_speed = _delay_to_speed(d) if d.lobes else None
+    branches: dict[int, list[Any]] = {}
+    for lb in d.lobes:
+        branches.setdefault(lb.branch, []).append(lb)
+    out: list[_Curve] = []
+    for br in sorted(branches):
+        lbs = branches[br]
+        f = np.concatenate([lb.frequency_hz for lb in lbs])
+        w = 2 * np.pi * f
+        T0 = np.concatenate([lb.delay for lb in lbs]) - 2 * np.pi * np.concatenate(
+            [np.full(lb.delay.size, lb.k) for lb in lbs]
+        ) / np.where(w > 0, w, np.inf)
+        b = np.concatenate([lb.width for lb in lbs])
+        fu, iu = np.unique(f, return_index=True)
+        wu, T0u, bu = 2 * np.pi * fu, T0[iu], b[iu]
+        pos = wu > 0
+        if not np.any(pos):
+            continue
+        kmin = max(int(np.floor(np.min(wu[pos] * (Tlo - T0u[pos])) / (2 * np.pi))), 0)
+        kmax = int(np.ceil(np.max(wu[pos] * (Thi - T0u[pos])) / (2 * np.pi)))
+        for k in range(kmin, kmax + 1):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                Tk = T0u + 2 * np.pi * k / wu
+            inside = pos & (Tk >= Tlo) & (Tk <= Thi)
+            if not np.any(inside):
+                continue
+            grow = inside | np.r_[inside[1:], False] | np.r_[False, inside[:-1]]
+            grow &= pos
+            idx = np.nonzero(grow)[0]
+            for run in np.split(idx, np.nonzero(np.diff(idx) > 1)[0] + 1):
+                if run.size < 2:
+                    continue
+                s = to_speed(Tk[run])
+                good = np.isfinite(s)
+                if np.count_nonzero(good) < 2:
+                    continue
+                out.append(_Curve(k, br, s[good], bu[run][good], fu[run][good]))
+    return out
+
+
+def _static_width(d: Any) -> float:
+    """The width of a root through s = 0 (every speed), where the diagram's
+    envelope says so (chatter frequency 0), else inf."""
+    m = np.isfinite(d.b_lim) & (np.asarray(d.chatter_hz) == 0)
+    return float(np.min(d.b_lim[m])) if np.any(m) else float("inf")
+
+
+def _envelope(
+    curves: list[_Curve], v: np.ndarray, static: float = float("inf")
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lower envelope of the lobes at the sorted speeds ``v``: the minimum over
+    every lobe segment covering each speed of the width interpolated linearly
+    in speed (exact for the polylines).  Returns the width (m, inf where no
+    lobe lies below the ceiling), the chatter frequency (Hz) and the index of
+    the active segment (-1: none) in the concatenated segment list."""
+    n = v.size
+    env, fq, act = np.full(n, np.inf), np.full(n, np.nan), np.full(n, -1)
+    if curves:
+        s0 = np.concatenate([c.speed[:-1] for c in curves])
+        s1 = np.concatenate([c.speed[1:] for c in curves])
+        b0 = np.concatenate([c.width[:-1] for c in curves])
+        b1 = np.concatenate([c.width[1:] for c in curves])
+        f0 = np.concatenate([c.freq[:-1] for c in curves])
+        f1 = np.concatenate([c.freq[1:] for c in curves])
+        i0 = np.searchsorted(v, np.minimum(s0, s1), "left")
+        i1 = np.searchsorted(v, np.maximum(s0, s1), "right")
+        cnt = np.maximum(i1 - i0, 0)
+        seg = np.repeat(np.arange(s0.size), cnt)
+        if seg.size:
+            start = np.cumsum(cnt) - cnt
+            gi = i0[seg] + np.arange(seg.size) - start[seg]
+            ds = s1[seg] - s0[seg]
+            t = np.where(ds != 0, (v[gi] - s0[seg]) / np.where(ds != 0, ds, 1.0), 0.0)
+            val = b0[seg] + t * (b1[seg] - b0[seg])
+            order = np.lexsort((val, gi))
+            gi, val, seg, t = gi[order], val[order], seg[order], t[order]
+            first = np.r_[True, gi[1:] != gi[:-1]]
+            g = gi[first]
+            env[g], act[g] = val[first], seg[first]
+            fq[g] = f0[seg[first]] + t[first] * (f1[seg[first]] - f0[seg[first]])
+    if np.isfinite(static):
+        st = static < env
+        env[st], fq[st], act[st] = static, 0.0, -1
+    return env, fq, act
+
+
+def _envelope_line(
+    curves: list[_Curve], v: np.ndarray, static: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The envelope on the grid ``v`` with its cusps added: where the active
+    lobe segment changes between two grid speeds, the crossing of the two
+    segments' lines is inserted and the envelope evaluated there too, so the
+    line reaches the cusps instead of cutting them off between grid points.
+    Returns speed, width (m), chatter frequency (Hz)."""
+    env, fq, act = _envelope(curves, v, static)
+    if curves:
+        s0 = np.concatenate([c.speed[:-1] for c in curves])
+        s1 = np.concatenate([c.speed[1:] for c in curves])
+        b0 = np.concatenate([c.width[:-1] for c in curves])
+        b1 = np.concatenate([c.width[1:] for c in curves])
+        a, c = act[:-1], act[1:]
+        j = np.nonzero((a >= 0) & (c >= 0) & (a != c))[0]
+        if j.size:
+            sa, sc = a[j], c[j]
+            ma = (b1[sa] - b0[sa]) / np.where(s1[sa] != s0[sa], s1[sa] - s0[sa], np.inf)
+            mc = (b1[sc] - b0[sc]) / np.where(s1[sc] != s0[sc], s1[sc] - s0[sc], np.inf)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                x = (b0[sc] - mc * s0[sc] - b0[sa] + ma * s0[sa]) / (ma - mc)
+            keep = np.isfinite(x) & (x > v[j]) & (x < v[j + 1])
+            x = np.unique(x[keep])
+            if x.size:
+                e2, f2, _ = _envelope(curves, x, static)
+                vv = np.concatenate([v, x])
+                o = np.argsort(vv, kind="stable")
+                return vv[o], np.concatenate([env, e2])[o], np.concatenate([fq, f2])[o]
+    return v, env, fq
+
+
+def _axes_pixels(ax: Any, dpi: float) -> float:
+    fig = ax.figure
+    return max(float(ax.get_position().width * fig.get_figwidth() * dpi), 50.0)
+
+
+def _speed_grid(ax: Any, lo: float, hi: float, extra: np.ndarray) -> np.ndarray:
+    """>= ENVELOPE_POINTS_PER_PIXEL points per pixel of the Axes (at
+    ENVELOPE_DPI) over [lo, hi], plus the ``extra`` speeds inside."""
+    n = int(np.ceil(ENVELOPE_POINTS_PER_PIXEL * _axes_pixels(ax, ENVELOPE_DPI) * 1.1)) + 1
+    g = np.linspace(lo, hi, n)
+    extra = extra[(extra >= lo) & (extra <= hi)]
+    return np.unique(np.concatenate([g, extra]))
+
+
+def _bottoms(curves: list[_Curve]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speed and width (m) of each lobe's lowest sample, and its branch."""
+    if not curves:
+        return np.zeros(0), np.zeros(0), np.zeros(0, int)
+    j = [int(np.argmin(c.width)) for c in curves]
+    return (
+        np.array([c.speed[i] for c, i in zip(curves, j, strict=True)]),
+        np.array([c.width[i] for c, i in zip(curves, j, strict=True)]),
+        np.array([c.branch for c in curves]),
+    )
+
+
+def _density(curves: list[_Curve], lo: float, hi: float, pixels: float) -> float:
+    """Most lobe bottoms of one branch within DENSE_PIXELS pixel columns."""
+    sp, _, br = _bottoms(curves)
+    n = max(int(pixels), 1)
+    worst = 0.0
+    for b in np.unique(br):
+        h, _ = np.histogram(sp[br == b], bins=n, range=(lo, hi))
+        win = np.convolve(h, np.ones(DENSE_PIXELS), "valid") if n >= DENSE_PIXELS else h
+        worst = max(worst, float(win.max()) if win.size else 0.0)
+    return worst
+
+
+def _zoom_range(curves: list[_Curve], d: Any, lo: float, hi: float) -> tuple[float, float]:
+    """A speed range around the diagram's minimum holding about 2 ZOOM_LOBES + 1
+    lobes of the branch that forms the envelope there."""
+    vc = float(d.minimum["speed"]) if np.isfinite(d.minimum["speed"]) else 0.5 * (lo + hi)
+    sp, wd, br = _bottoms(curves)
+    if sp.size == 0:
+        return lo, hi
+    near = np.argsort(np.abs(sp - vc))[:4]
+    b = br[near[np.argmin(wd[near])]]
+    s = np.sort(sp[br == b])
+    i = int(np.argmin(np.abs(s - vc)))
+    a, e = max(i - ZOOM_LOBES, 0), min(i + ZOOM_LOBES, s.size - 1)
+    pad = 0.5 * (s[e] - s[a]) / max(e - a, 1)
+    return max(lo, s[a] - pad), min(hi, s[e] + pad)
+
+
+def _model_name(d: Any) -> str:
+    from pathlib import PurePath
+
+    p = PurePath(str(d.model))
+    return str(PurePath(*p.parts[-2:])) if len(p.parts) > 2 else str(p)
+
+
+def _subtitle(d: Any) -> str:
+    terms = {"pdo": "P + D + delayed (pdo)", "o": "delayed only (o)"}.get(d.terms, str(d.terms))
+    pos = f"slide at s = {d.position:g} m" if d.position is not None else "fixed structure"
+    lo, hi = d.band_hz
+    band = f"chatter band {lo:.4g}-{hi:.4g} Hz " + ("proven complete" if d.band_certified else "NOT proven")
+    if d.verified is None:
+        ver = "not verified"
+    else:
+        ok = sum(c["agrees"] for c in d.checks)
+        ver = f"verified {ok}/{len(d.checks)} checks" + ("" if d.verified else " -- CHECKS FAILED")
+    return (
+        f"{pos}; feedback {terms}; width ceiling {d.width_max * 1e3:g} mm\n{band}; {ver} (argument principle)"
+    )
+
+
+def _claim_spans(d: Any) -> dict[int, list[tuple[float, float]]]:
+    """Speed ranges (half-way to the neighbours) of each claim code."""
+    v = np.asarray(d.speed, float)
+    o = np.argsort(v)
+    v, code = v[o], np.asarray(d.claim)[o]
+    mid = 0.5 * (v[1:] + v[:-1])
+    left, right = np.r_[v[0], mid], np.r_[mid, v[-1]]
+    out: dict[int, list[tuple[float, float]]] = {}
+    edges = np.nonzero(np.r_[True, code[1:] != code[:-1], True])[0]
+    for a, e in zip(edges[:-1], edges[1:], strict=True):
+        out.setdefault(int(code[a]), []).append((float(left[a]), float(right[e - 1])))
+    return out
+
+
+def _draw_lobe_panel(
+    ax: Any,
+    d: Any,
+    curves: list[_Curve],
+    lo: float,
+    hi: float,
+    *,
+    static: float,
+    lobe_numbers: int,
+    dense_ok: bool,
+) -> dict[str, Any]:
+    """Lobes (one LineCollection), the exact envelope, the unstable region and
+    the claims on one Axes over speeds [lo, hi].  Returns what was drawn."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.patches import Patch
+
+    ax.set_xlim(lo, hi)
+    px = _axes_pixels(ax, DISPLAY_DPI)
+    density = _density(curves, lo, hi, px)
+    dense = dense_ok and density > 1
+    vg = _speed_grid(ax, lo, hi, np.asarray(d.speed, float))
+    vx, env, fq = _envelope_line(curves, vg, static)
+    em = env * 1e3
+    fin = np.isfinite(em)
+    top = d.width_max * 1e3
+    peak = float(np.max(em[fin])) if np.any(fin) else top
+    ytop = top if 1.2 * peak >= top else 1.2 * peak
+    handles: list[Any] = []
+    segs = [
+        np.column_stack([c.speed, c.width * 1e3])
+        for c in curves
+        if c.speed.max() >= lo and c.speed.min() <= hi
+    ]
+    lc = LineCollection(
+        segs, colors="0.55", linewidths=0.2 if dense else 0.6, alpha=0.12 if dense else 1.0, zorder=1
+    )
+    lc.set_gid("lobes")
+    ax.add_collection(lc)
+    handles.append(lc)
+    lc.set_label("lobes (each an exact boundary curve)")
+    ax.fill_between(vx, np.where(fin, em, np.nan), ytop * 2, color="tab:red", alpha=0.15, lw=0, zorder=0)
+    handles.append(Patch(color="tab:red", alpha=0.15, label="unstable (chatter)"))
+    if dense:
+        # the envelope within each pixel column: from its lowest point to its highest cusp
+        cols = np.clip(((vx - lo) / (hi - lo) * px).astype(int), 0, int(px) - 1)
+        e = np.where(fin, em, np.nan)
+        starts = np.nonzero(np.r_[True, cols[1:] != cols[:-1]])[0]
+        cmin = np.fmin.reduceat(e, starts)
+        cmax = np.fmax.reduceat(e, starts)
+        xc = lo + (cols[starts] + 0.5) / px * (hi - lo)
+        band = ax.fill_between(xc, cmin, cmax, color="tab:red", alpha=0.55, lw=0, zorder=2)
+        band.set_gid("lobe-band")
+        handles.append(
+            Patch(color="tab:red", alpha=0.55, label="b_lim sweeps this band within each pixel column")
+        )
+    (line,) = ax.plot(
+        vx, em, color="tab:red", lw=0.5 if dense else 1.6, zorder=3, label="b_lim (exact lower envelope)"
+    )
+    line.set_gid("envelope")
+    handles.append(line)
+    a = d.absolute_minimum["width"] * 1e3
+    if np.isfinite(a):
+        (al,) = ax.plot(
+            [lo, hi],
+            [a, a],
+            color="k",
+            ls="--",
+            lw=1,
+            zorder=4,
+            label=f"unconditional limit {a:.4g} mm ({d.absolute_minimum['chatter_hz']:.1f} Hz)",
+        )
+        handles.append(al)
+    m = d.minimum
+    if np.isfinite(m["width"]) and lo <= m["speed"] <= hi:
+        (mk,) = ax.plot(
+            [m["speed"]],
+            [m["width"] * 1e3],
+            "ko",
+            ms=4.5,
+            zorder=5,
+            label=f"min of range {m['width'] * 1e3:.4g} mm at {m['speed']:.4g} {d.speed_unit}",
+        )
+        handles.append(mk)
+    spans = _claim_spans(d)
+    trans = ax.get_xaxis_transform()
+    styles = {
+        1: dict(
+            y=(0.93, 1.0),
+            hatch="////",
+            fc="none",
+            ec="tab:green",
+            label=f"b_lim = inf: no chatter below the {top:g} mm ceiling",
+        ),
+        2: dict(
+            y=(0.0, 1.0),
+            hatch=None,
+            fc="tab:orange",
+            ec="none",
+            label="undetermined: none found, band not proven",
+        ),
+        3: dict(y=(0.0, 1.0), hatch=None, fc="magenta", ec="none", label="contradicted by a check"),
+    }
+    for code, st in styles.items():
+        for k, (x0, x1) in enumerate(spans.get(code, [])):
+            if x1 < lo or x0 > hi:
+                continue
+            x0, x1 = max(x0, lo), min(x1, hi)
+            if x1 <= x0:
+                x1 = x0 + 1e-3 * (hi - lo)
+            p = ax.fill_between(
+                [x0, x1],
+                st["y"][0],
+                st["y"][1],
+                transform=trans,
+                facecolor=st["fc"],
+                edgecolor=st["ec"],
+                hatch=st["hatch"],
+                alpha=0.35 if st["hatch"] is None else 1.0,
+                lw=0,
+                zorder=2.5,
+                label=st["label"] if k == 0 else None,
+            )
+            p.set_gid(f"claim-{code}")
+            if k == 0:
+                handles.append(p)
+    ax.set_ylim(0, ytop)
+    labelled = _label_lobes(ax, curves, vx, em, lo, hi, ytop, lobe_numbers) if not dense else []
+    return {
+        "handles": handles,
+        "dense": dense,
+        "density": density,
+        "speed": vx,
+        "width": em,
+        "freq": fq,
+        "labelled": labelled,
+        "ytop": ytop,
+        "pixels": px,
+    }
+
+
+def _label_lobes(
+    ax: Any,
+    curves: list[_Curve],
+    vx: np.ndarray,
+    em: np.ndarray,
+    lo: float,
+    hi: float,
+    ytop: float,
+    most: int,
+) -> list[int]:
+    """Number the lobes whose bottoms lie on the envelope in view, lowest
+    first, skipping any label that would overlap one already placed."""
+    if not most or not curves:
+        return []
+    sp, wd, br = _bottoms(curves)
+    wd = wd * 1e3
+    env_at = np.interp(sp, vx, np.where(np.isfinite(em), em, np.inf))
+    ok = (sp > lo) & (sp < hi) & (wd < ytop) & (wd <= env_at * (1 + 1e-3))
+    multi = np.unique(br).size > 1
+    placed: list[tuple[float, float, float, float]] = []
+    out: list[int] = []
+    tr = ax.transData
+    for i in np.nonzero(ok)[0][np.argsort(wd[ok])]:
+        c = curves[i]
+        txt = f"{c.k}" + (f"/{c.branch}" if multi else "")
+        x, y = tr.transform((sp[i], wd[i]))
+        w = 6.0 * len(txt) + 6
+        box = (x - w / 2, x + w / 2, y - 22, y - 4)
+        if any(not (box[1] < p[0] or box[0] > p[1] or box[3] < p[2] or box[2] > p[3]) for p in placed):
+            continue
+        placed.append(box)
+        ax.annotate(
+            txt,
+            (sp[i], wd[i]),
+            textcoords="offset points",
+            xytext=(0, -11),
+            ha="center",
+            fontsize=7,
+            color="0.2",
+            gid="lobe-label",
+        )
+        out.append(i)
+        if len(out) >= most:
+            break
+    return out
+
+
 def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: str | None = None) -> Any:
-    """Stability lobe diagram: b_lim (mm) against speed with the unstable
-    region shaded and lobe numbers, above the chatter frequency (Hz) along the
-    envelope.  Returns (ax_lobes, ax_freq)."""
+    """Stability lobe diagram: width of cut (mm) against speed.
+
+    Draws every lobe (one LineCollection), the exact lower envelope of the
+    lobes (the minimum over the lobe curves, linearly interpolated in speed,
+    at >= 4 points per pixel with the cusps added), the unstable region above
+    it, the unconditional limit, and where the diagram claims ``inf`` (hatched
+    at the top), undetermined (orange) or contradicted (magenta) speeds.  When
+    the lobes are denser than the pixels (more than one lobe of a branch
+    within DENSE_PIXELS columns) it says so, shades the band the envelope
+    sweeps within each pixel column (from the lobe bottoms to the cusps), and
+    adds a panel zoomed on about 7 lobes around the minimum.  The bottom panel
+    is the chatter frequency along the envelope.  The title names the model,
+    position, feedback, ceiling, chatter band and the verification.
+
+    Returns (ax_lobes, ax_freq), or (ax_lobes, ax_zoom, ax_freq) when dense.
+    """
     import matplotlib.pyplot as plt
 
     d = diagram
+    v = np.asarray(d.speed, float)
+    lo, hi = float(v.min()), float(v.max())
+    if hi <= lo:
+        lo, hi = lo * 0.95, hi * 1.05
+    curves = _lobe_curves(d)
+    static = _static_width(d)
+    created = axes is None
     if axes is None:
-        fig, axes = plt.subplots(
-            2, 1, sharex=True, figsize=(8.5, 6.5), gridspec_kw={"height_ratios": [3, 1.2]}
+        # decide the layout on a figure of the final size (dpi of savefig: text is measured once)
+        fig = plt.figure(figsize=(8.5, 6.5), dpi=130)
+        probe = fig.add_axes((0.1, 0.1, 0.86, 0.8))
+        dense = _density(curves, lo, hi, _axes_pixels(probe, DISPLAY_DPI)) > 1
+        fig.clear()
+        if dense:
+            fig.set_size_inches(8.5, 9.5)
+            gs = fig.add_gridspec(3, 1, height_ratios=[3, 2.4, 1.1])
+            ax = fig.add_subplot(gs[0])
+            axz = fig.add_subplot(gs[1])
+            axf = fig.add_subplot(gs[2], sharex=ax)
+            axes = (ax, axz, axf)
+        else:
+            ax, axf = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.2]})
+            axes = (ax, axf)
+    axes = tuple(axes)
+    ax, axf = axes[0], axes[-1]
+    axz = axes[1] if len(axes) > 2 else None
+    main = _draw_lobe_panel(ax, d, curves, lo, hi, static=static, lobe_numbers=lobe_numbers, dense_ok=True)
+    unit = d.speed_unit
+    count = _lobe_count(curves, d)
+    note = None
+    if main["dense"]:
+        note = (
+            f"lobes denser than the plot: up to {main['density']:.0f} lobe bottoms in {DENSE_PIXELS} pixel"
+            " columns.\nWhere dense, each pixel column shows the band b_lim sweeps in it,\nfrom the lobe"
+            " bottoms to the cusps; individual lobes in the zoom below."
         )
-    ax, axf = axes
-    v = d.speed
-    b = d.b_lim * 1e3
-    fin = np.isfinite(b)
-    top = d.width_max * 1e3
-    # lobes are "dense" when several lobes fall between two sampled speeds
-    dv = float(np.median(np.abs(np.diff(v)))) if v.size > 1 else 0.0
-    kk = d.lobe[d.lobe >= 0]
-    dense = v.size > 1 and kk.size > 1 and (kk.max() - kk.min()) > 0.5 * v.size
-    bb = np.where(fin, b, top)
-    ax.fill_between(v, bb, top, color="tab:red", alpha=0.15, lw=0, label="unstable (chatter)", zorder=0)
-    if dense:
-        spacing = (v.max() - v.min()) / max(1, kk.max() - kk.min())
-        ax.plot(
-            v, bb, color="tab:red", lw=0.7, marker=".", ms=3, zorder=3, label="b_lim at the sampled speeds"
+    if axz is not None:
+        zlo, zhi = _zoom_range(curves, d, lo, hi) if main["dense"] else (lo, hi)
+        zoom = _draw_lobe_panel(
+            axz, d, curves, zlo, zhi, static=static, lobe_numbers=lobe_numbers, dense_ok=False
         )
-        a = d.absolute_minimum["width"] * 1e3
-        if np.isfinite(a):
-            ax.axhline(
-                a,
-                color="k",
-                ls="--",
-                lw=1,
-                label=f"b_lim,min over all speeds {a:.3g} mm ({d.absolute_minimum['chatter_hz']:.1f} Hz)",
-            )
-        ax.text(
-            0.01,
-            0.97,
-            f"lobes denser than the speed grid: one lobe every ~{spacing:.2g} {d.speed_unit}",
-            transform=ax.transAxes,
-            fontsize=8,
-            va="top",
+        axz.set_ylabel("width of cut b [mm]")
+        axz.set_xlabel(f"{d.speed_name} [{unit}] (zoom)")
+        axz.grid(alpha=0.3)
+        ax.axvspan(zlo, zhi, facecolor="none", edgecolor="k", lw=0.8, zorder=6)
+        ax.annotate(
+            "zoom",
+            (zhi, 0.02),
+            xycoords=ax.get_xaxis_transform(),
+            xytext=(3, 0),
+            textcoords="offset points",
+            ha="left",
+            va="bottom",
+            fontsize=7,
         )
+        _lobe_legend(axz, zoom, curves, d, "lower center", count)
+        axz.set_title(f"zoom on {zlo:.5g}-{zhi:.5g} {unit} around the minimum: individual lobes", fontsize=8)
+        leg = ax.legend(
+            handles=main["handles"],
+            loc="upper left",
+            fontsize=6.5,
+            framealpha=0.92,
+            title=note,
+            title_fontsize=6.5,
+            alignment="left",
+        )
+        if note:
+            leg.get_title().set_gid("dense-note")
     else:
-        for lb in d.lobes:
-            order = np.argsort(lb.speed)
-            ax.plot(lb.speed[order], lb.width[order] * 1e3, color="0.65", lw=0.6, zorder=1)
-        ax.plot(v, bb, color="tab:red", lw=1.8, label="b_lim (stability boundary)", zorder=3)
-    if np.isfinite(d.minimum["width"]):
-        ax.plot(
-            [d.minimum["speed"]],
-            [d.minimum["width"] * 1e3],
-            "ko",
-            ms=5,
-            zorder=4,
-            label=f"min {d.minimum['width'] * 1e3:.3g} mm @ {d.minimum['speed']:.4g} {d.speed_unit}",
-        )
-    # lobe numbers at the envelope's local minima, spread over the range
-    if lobe_numbers and fin.sum() > 2 and not dense:
-        loc = np.nonzero((b[1:-1] <= b[:-2]) & (b[1:-1] <= b[2:]) & fin[1:-1])[0] + 1
-        loc = loc[np.argsort(b[loc])]
-        picked: list[int] = []
-        for j in loc:
-            if all(abs(v[j] - v[p]) > 0.06 * (v.max() - v.min()) for p in picked):
-                picked.append(int(j))
-            if len(picked) >= lobe_numbers:
-                break
-        for i in picked:
-            ax.annotate(
-                f"k={d.lobe[i]}",
-                (v[i], b[i]),
-                textcoords="offset points",
-                xytext=(0, -12),
-                ha="center",
-                fontsize=7,
-            )
-    del dv
-    ax.set_ylim(0, top)
-    ax.set_xlim(v.min(), v.max())
+        _lobe_legend(ax, main, curves, d, "lower center", count)
     ax.set_ylabel("width of cut b [mm]")
-    ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
-    axf.plot(v[fin], d.chatter_hz[fin], ".", ms=2.5, color="tab:blue")
+    fin = np.isfinite(main["width"]) & (main["freq"] > 0)
+    axf.plot(main["speed"][fin], main["freq"][fin], ".", ms=1, color="tab:blue", rasterized=True)
     axf.set_ylabel("chatter [Hz]")
-    axf.set_xlabel(f"{d.speed_name} [{d.speed_unit}]")
+    axf.set_xlabel(f"{d.speed_name} [{unit}]")
+    axf.set_title("chatter frequency along the envelope", fontsize=8, loc="left")
     axf.grid(alpha=0.3)
-    ttl = title
-    if ttl is None:
-        ttl = f"{d.model}: stability lobes ({d.terms})"
-        if d.position is not None:
-            ttl += f", s = {d.position:g} m"
-    ax.set_title(ttl, fontsize=10)
+    if axz is not None:
+        ax.set_xlabel(f"{d.speed_name} [{unit}]")
+    head = title if title is not None else f"{_model_name(d)}: stability lobes"
+    ax.set_title(f"{head}\n{_subtitle(d)}", fontsize=9)
+    if created:
+        ax.figure.tight_layout()
+        ax.figure.set_gid(LAID_OUT)
     return axes
 
 
-def plot_atlas(result: Any, process: Any = None, *, axes: Any = None, title: str | None = None) -> Any:
+def _lobe_count(curves: list[_Curve], d: Any) -> str:
+    """The number of lobes drawn, said against the diagram's summary."""
+    ks = {(c.k, c.branch) for c in curves}
+    if not ks:
+        return "no lobe below the width ceiling"
+    kk = sorted(k for k, _ in ks)
+    txt = f"{len(ks)} lobes in the speed range (k = {kk[0]}-{kk[-1]})"
+    if len(ks) == len(d.lobes):
+        return txt + ", as in the summary"
+    return txt + f";\nthe summary's {len(d.lobes)} are those on the envelope at its {np.size(d.speed)} speeds"
+
+
+def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[_Curve], d: Any, loc: str, count: str) -> None:
+    from matplotlib.lines import Line2D
+
+    handles = list(drawn["handles"])
+    if curves:
+        txt = count
+        if drawn["labelled"]:
+            multi = len({c.branch for c in curves}) > 1
+            txt += "\nnumbers: lobe k" + ("/branch" if multi else "") + " at its bottom"
+        handles.append(Line2D([], [], ls="none", label=txt))
+    ax.legend(handles=handles, loc=loc, fontsize=6.5, framealpha=0.9, ncol=2 if loc == "lower center" else 1)
+
+
+def _atlas_model_name(result: Any, model: str | None) -> str:
+    if model:
+        return model
+    attrs = getattr(result, "attrs", {}) or {}
+    if attrs.get("model"):
+        return str(attrs["model"])
+    text = attrs.get("model_text")
+    if text:
+        import tomllib
+
+        try:
+            name = tomllib.loads(str(text)).get("model", {}).get("name")
+        except tomllib.TOMLDecodeError:
+            name = None
+        if name:
+            return str(name)
+    return "model not named"
+
+
+def plot_atlas(
+    result: Any,
+    process: Any = None,
+    *,
+    axes: Any = None,
+    title: str | None = None,
+    model: str | None = None,
+    width_max: float | None = None,
+) -> Any:
     """Stability atlas: b_lim (mm) over speed x slide position as a map,
     above the worst case along the stroke (the minimum over positions).
-    ``result`` is the :class:`~chatterlab.sweep._engine.SweepResult` of an atlas
-    sweep (axes ``position``, ``speed``).  Returns (ax_map, ax_worst)."""
-    import matplotlib.pyplot as plt
 
-    pos = np.asarray(result.grid.axes[0].values)
-    v = np.asarray(result.grid.axes[1].values)
+    ``result`` is the :class:`~chatterlab.sweep._engine.SweepResult` of an atlas
+    sweep (axes ``position``, ``speed``); ``model`` names it in the title
+    (default: the result's ``model`` attribute or the name in its
+    ``model_text``) and ``width_max`` (m) is the width ceiling: cells with
+    b_lim = inf (no chatter below it) are hatched grey, cells that failed
+    (NaN) white, each with a legend entry.  Returns (ax_map, ax_worst)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    pos = np.asarray(result.grid.axes[0].values, float)
+    v = np.asarray(result.grid.axes[1].values, float)
     unit = result.grid.axes[1].unit
-    bl = np.asarray(result.data["b_lim"]) * 1e3
+    attrs = getattr(result, "attrs", {}) or {}
+    wmax = width_max if width_max is not None else attrs.get("width_max_m")
+    ceiling = f"the {float(wmax) * 1e3:g} mm ceiling" if wmax is not None else "the width ceiling"
+    bl = np.asarray(result.data["b_lim"], float) * 1e3
     if axes is None:
         fig, axes = plt.subplots(
-            2, 1, sharex=True, figsize=(8.5, 6.5), gridspec_kw={"height_ratios": [2, 1.3]}
+            2, 1, sharex=True, figsize=(8.5, 6.8), gridspec_kw={"height_ratios": [2, 1.3]}
         )
     ax, axw = axes
+    speed_name = getattr(process, "speed_name", "speed")
+    isinf, isnan = np.isinf(bl), np.isnan(bl)
     finite = np.where(np.isfinite(bl), bl, np.nan)
-    vmax = float(np.nanpercentile(finite, 95)) if np.any(np.isfinite(finite)) else 1.0
+    anyfin = bool(np.any(np.isfinite(finite)))
+    vmax = float(np.nanpercentile(finite, 95)) if anyfin else 1.0
+    vmin = float(np.nanmin(finite)) if anyfin else 0.0
+    extra: list[Any] = []
     if pos.size > 1:
-        mesh = ax.pcolormesh(
-            v, pos, finite, shading="nearest", cmap="viridis", vmin=np.nanmin(finite), vmax=vmax
-        )
-        ax.figure.colorbar(mesh, ax=ax, label="b_lim [mm]")
+        mesh = ax.pcolormesh(v, pos, finite, shading="nearest", cmap="viridis", vmin=vmin, vmax=vmax)
+        cb = ax.figure.colorbar(mesh, ax=ax, extend="max" if np.nanmax(finite) > vmax else "neither")
+        cb.set_label("b_lim [mm] (largest chatter-free width)")
+        if np.any(isinf):
+            ax.pcolor(
+                *np.meshgrid(_cell_edges(v), _cell_edges(pos)),
+                np.ma.masked_where(~isinf, np.ones_like(bl)),
+                cmap=ListedColormap(["0.85"]),
+                hatch="///",
+                edgecolor="0.6",
+                lw=0,
+            )
+            extra.append(
+                Patch(
+                    facecolor="0.85", edgecolor="0.6", hatch="///", label=f"inf: no chatter below {ceiling}"
+                )
+            )
+        if np.any(isnan):
+            extra.append(Patch(facecolor="white", edgecolor="0.4", label="not computed (task failed)"))
         ax.set_ylabel("slide position s [m]")
+        if extra:
+            ax.legend(handles=extra, loc="upper right", fontsize=7, framealpha=0.9)
     else:
         ax.plot(v, finite[0])
         ax.set_ylabel("b_lim [mm]")
-    worst = np.nanmin(finite, axis=0)
+    ax.set_xlabel(f"{speed_name} [{unit}]")
+    ax.xaxis.set_tick_params(labelbottom=True)
+    worst = np.min(np.where(isnan, np.inf, bl), axis=0)
+    wfin = np.isfinite(worst)
+    ytop = float(np.max(worst[wfin])) * 1.15 if np.any(wfin) else 1.0
     axw.fill_between(
         v,
-        worst,
-        np.nanmax(worst) * 1.1,
+        np.where(wfin, worst, np.nan),
+        ytop,
         color="tab:red",
         alpha=0.15,
         lw=0,
         label="unstable somewhere on the stroke",
     )
-    axw.plot(v, worst, color="tab:red", lw=1, label="worst case over positions")
-    axw.set_ylim(0, np.nanmax(worst) * 1.1 if np.any(np.isfinite(worst)) else 1)
-    axw.set_ylabel("b_lim [mm]")
-    axw.set_xlabel(f"{getattr(process, 'speed_name', 'speed')} [{unit}]")
-    axw.legend(fontsize=8, loc="upper right")
+    axw.plot(v, np.where(wfin, worst, np.nan), color="tab:red", lw=1, label="worst case over positions")
+    if np.any(~wfin):
+        axw.fill_between(
+            v,
+            0.92,
+            1.0,
+            where=~wfin,
+            transform=axw.get_xaxis_transform(),
+            facecolor="none",
+            edgecolor="tab:green",
+            hatch="////",
+            lw=0,
+            label=f"inf at every position: no chatter below {ceiling}",
+        )
+    axw.set_ylim(0, ytop)
+    axw.set_ylabel("worst b_lim [mm]")
+    axw.set_xlabel(f"{speed_name} [{unit}]")
+    axw.legend(fontsize=7, loc="upper right")
     axw.grid(alpha=0.3)
-    ax.set_title(title or "stability atlas along the stroke", fontsize=10)
+    name = _atlas_model_name(result, model)
+    terms = attrs.get("terms")
+    sub = f"{pos.size} positions {pos.min():g}-{pos.max():g} m x {v.size} speeds"
+    if terms:
+        sub += f"; feedback {terms}"
+    if wmax is not None:
+        sub += f"; width ceiling {float(wmax) * 1e3:g} mm"
+    head = title or f"{name}: stability atlas along the stroke"
+    if title and name not in title:
+        head = f"{name}: {title}"
+    ax.set_title(f"{head}\n{sub}", fontsize=9)
     return axes
+
+
+def _cell_edges(x: np.ndarray) -> np.ndarray:
+    """Edges of cells centred on the sorted values x."""
+    if x.size == 1:
+        return np.array([x[0] - 0.5, x[0] + 0.5])
+    mid = 0.5 * (x[1:] + x[:-1])
+    return np.r_[x[0] - (mid[0] - x[0]), mid, x[-1] + (x[-1] - mid[-1])]
 
 
 def plot_histories(
