@@ -81,24 +81,108 @@ def _parse_set(items: Sequence[str] | None) -> dict[str, Any]:
 def _load(args: argparse.Namespace) -> Any:
     from ..model._reader import load_model
 
-    return load_model(
+    model = load_model(
         args.model,
         variant=getattr(args, "variant", None),
         overrides=_parse_set(getattr(args, "set", None)),
         files_outside=getattr(args, "allow_outside_files", False),
     )
+    _warn(args, _model_slips(model, args))
+    return model
 
 
 def _frozen(args: argparse.Namespace) -> Any:
     from ..structure._assembly import assemble
 
-    return assemble(_load(args)).at(getattr(args, "position", None))
+    fz = assemble(_load(args)).at(getattr(args, "position", None))
+    _warn(args, _frequency_slips(fz))
+    return fz
 
 
 def _width_m(args: argparse.Namespace) -> float:
     if args.width is None:
         raise InputError("--width is required here: the width of cut b in mm")
-    return check_width(args.width, "--width", "mm") * 1e-3
+    b = check_width(args.width, "--width", "mm") * 1e-3
+    _warn(args, _width_slips(b, "--width"))
+    return b
+
+
+# ----------------------------------------------------------------------------- unit slips
+# A number off by a factor 1000 (mm typed for m, N/mm^2 for N/m^2) gives a
+# confident answer; these ranges cover real machines with a wide margin, and
+# a value outside them is named on one line of standard error (--quiet: none).
+
+
+def _warn(args: argparse.Namespace, lines: list[str]) -> None:
+    if getattr(args, "quiet", False):
+        return
+    for line in lines:
+        print(f"chatterlab: warning: {line}", file=sys.stderr)
+
+
+def _width_slips(b: float, option: str) -> list[str]:
+    if b < 1e-6:
+        return [f"{option} is {b * 1e3:g} mm, below 1 um: was the width typed in m? (the CLI takes mm)"]
+    if b > 1.0:
+        return [f"{option} is {b * 1e3:g} mm, above 1 m: was the width typed in um?"]
+    return []
+
+
+def _model_slips(model: Any, args: argparse.Namespace) -> list[str]:
+    import numpy as np
+
+    out = []
+    for c in model.couplings:
+        kf = float(np.max(np.abs(np.asarray(c.DO, float)))) / c.width_ref
+        if kf and not 1e7 <= kf <= 1e11:
+            out.append(
+                f"coupling '{c.id}': delayed cutting stiffness {kf:.3g} N/m^2 per unit width is outside"
+                " 1e7..1e11 N/m^2: were the coefficients given in N/mm^2 or width_ref in mm?"
+            )
+    xy = [b.centre for b in model.bodies] + [n.xy for n in model.nodes]
+    if len(xy) > 1:
+        span = float(np.ptp(np.asarray(xy, float), axis=0).max())
+        if 0 < span < 1e-3 or span > 100.0:
+            out.append(
+                f"the structure spans {span:g} m: outside 1 mm..100 m; were the coordinates given in mm?"
+            )
+    proc = model.process
+    speed = getattr(args, "speed", None)
+    limits = {"shaping": (1e-3, 10.0), "turning": (1.0, 1e5)}
+    if proc is not None and proc.kind in limits:
+        lo, hi = limits[proc.kind]
+        given = speed if isinstance(speed, list | tuple) else [speed]
+        for what, v in [("the model's speed", proc.speed)] + [("--speed", x) for x in given]:
+            if v is not None and v > 0 and not lo <= v <= hi:
+                out.append(
+                    f"{what} {v:g} {proc.speed_unit} is outside {lo:g}..{hi:g} {proc.speed_unit}"
+                    f" ({proc.kind}): is it in the right unit?"
+                )
+    return out
+
+
+def _frequency_slips(fz: Any) -> list[str]:
+    import numpy as np
+
+    f = np.abs(fz.complex_modes.lam) / (2 * np.pi)
+    f = f[f > 0]
+    out = []
+    if f.size and f.min() < 0.1:
+        out.append(
+            f"the lowest natural frequency is {f.min():.3g} Hz, below 0.1 Hz: a mass or stiffness unit slip?"
+        )
+    if f.size and f.max() > 1e5:
+        out.append(
+            f"the highest natural frequency is {f.max():.3g} Hz, above 100 kHz: a mass or stiffness unit slip?"
+        )
+    return out
+
+
+def _terms_slips(args: argparse.Namespace) -> list[str]:
+    if getattr(args, "terms", "pdo") == "pd" and (args.delay is not None or args.speed is not None):
+        opt = "--delay" if args.delay is not None else "--speed"
+        return [f"{opt} has no effect with --terms pd (no delayed term); use --terms pdo or o for the delay"]
+    return []
 
 
 def _check_numbers(args: argparse.Namespace, unit: str = "") -> None:
@@ -175,6 +259,9 @@ def _model_args(p: argparse.ArgumentParser) -> None:
         "--allow-outside-files",
         action="store_true",
         help="let [matrices] name files outside the model file's folder (../K.npy, absolute paths)",
+    )
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress bar and no warnings about implausible magnitudes"
     )
 
 
@@ -339,6 +426,7 @@ def _roots(args: argparse.Namespace) -> int:
 def _roots_run(args: argparse.Namespace, outs: Outputs) -> int:
     from ..frequency._stability import stability
 
+    _warn(args, _terms_slips(args))
     fz = _frozen(args)
     st = stability(
         fz,
@@ -383,6 +471,7 @@ def _lobes_run(args: argparse.Namespace, outs: Outputs) -> int:
         raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
     v = _speeds(args, model.process)
     wmax = check_width(args.width_max, "--width-max", "mm") * 1e-3
+    _warn(args, _width_slips(wmax, "--width-max"))
     sy = assemble(model)
     if args.positions is not None:
         return _atlas(args, model, v, wmax, outs)
@@ -764,7 +853,6 @@ def _parallel_args(p: argparse.ArgumentParser) -> None:
         "--checkpoint", metavar="DIR", help="checkpoint directory (default: OUT.ckpt when --out is given)"
     )
     p.add_argument("--resume", action="store_true", help="resume an interrupted run from its checkpoint")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _more_parsers(sub: Any) -> None:
@@ -865,7 +953,6 @@ def _more_parsers(sub: Any) -> None:
     )
     si.add_argument("--out", metavar="FILE.nc|FILE.csv")
     si.add_argument("--plot", metavar="FILE.png")
-    si.add_argument("--quiet", action="store_true", help="no progress bar")
 
     sw = sub.add_parser(
         "sweep", help="a chatter quantity over a grid of widths, speeds, positions or model parameters"
@@ -894,10 +981,33 @@ QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-fre
 # ----------------------------------------------------------------------------- parser
 
 
+#: the command line being parsed (for "did you mean" in parser errors)
+_ARGV: list[str] = []
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argparse parser whose errors suggest the nearest option of the
+    (sub)command for a misspelled one, with that command's own usage."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        import difflib
+
+        known = [o for a in self._actions for o in a.option_strings]
+        hints = []
+        for tok in _ARGV:
+            opt = tok.split("=", 1)[0]
+            if opt.startswith("--") and opt not in known:
+                near = difflib.get_close_matches(opt, known, n=1)
+                hints.append(f"{opt}: did you mean {near[0]}?" if near else f"{opt}: no such option")
+        self.print_usage(sys.stderr)
+        hint = f" ({'; '.join(hints)})" if hints else ""
+        self.exit(2, f"{self.prog}: error: {message}{hint}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .._version import __version__
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="chatterlab",
         description="Machining chatter from structural models (RDFEM): modes, FRFs, roots, transients, lobes.",
     )
@@ -946,10 +1056,22 @@ def build_parser() -> argparse.ArgumentParser:
 _EXTRA_PARSERS: list[Callable[[Any], None]] = [_more_parsers]
 
 
+def _subparser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            return a.choices[name]  # type: ignore[no-any-return]
+    return parser
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``chatterlab`` command; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    _ARGV[:] = list(sys.argv[1:] if argv is None else argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        # an unknown option: the subcommand's usage and a suggestion, not the top level's
+        sub = _subparser(parser, args.command) if args.command else parser
+        sub.error(f"unrecognized arguments: {' '.join(extra)}")
     if not args.command:
         parser.print_help()
         return 2
