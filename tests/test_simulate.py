@@ -26,8 +26,9 @@ import chatterlab as cl
 from chatterlab.cli._main import main
 from chatterlab.errors import InputError
 from chatterlab.process._kinematics import kinematics_for
+from chatterlab.structure._assembly import MovingReduction
 from chatterlab.time._newmark import ConstantProblem, NewmarkOptions, newmark
-from chatterlab.time._simulate import ParametricProblem, _FastReduction, _reduce, simulate
+from chatterlab.time._simulate import ParametricProblem, simulate
 
 # ----------------------------------------------------------------------------- models
 
@@ -485,19 +486,19 @@ def _with_contact_mass(sy):
 
 @pytest.mark.parametrize("variant", ["damper", "contact-mass"])
 def test_fast_reduction_equals_eq_2_6_path(shaper_damped, variant):
-    """_FastReduction (contact rows of W as beam point maps, low-rank
+    """MovingReduction (contact rows of W as beam point maps, low-rank
     updates) = Eq. 2.6 for W, W', W'' followed by Eqs. 2.16-2.18, along the
     whole stroke (every joint and track end included) for the work and the
     return speed; the speed-dependent parts compared on their own scale."""
     sy = shaper_damped if variant == "damper" else _with_contact_mass(shaper_damped)
-    fr = _FastReduction(sy)
+    fr = MovingReduction(sy)
     assert fr.ok
     s = _stroke_positions(sy)
-    W0, W1, W2 = sy._W_all(s)
+    W0, W1, W2 = sy.W_derivatives(s)
     for v in (-0.5, 2.0):
         A, B, C, R0, R1 = fr.reduce(s, np.full(s.size, v))
-        A2, B2, C2 = _reduce(sy, W0, W1 * v, W2 * v * v)
-        As, Bs, Cs = _reduce(sy, W0, 0 * W1, 0 * W2)  # the speed-independent parts
+        A2, B2, C2 = sy.reduced_matrices(W0, W1 * v, W2 * v * v)
+        As, Bs, Cs = sy.reduced_matrices(W0, 0 * W1, 0 * W2)  # the speed-independent parts
         for X, Y, Z in ((A, A2, As), (B, B2, Bs), (C, C2, Cs)):
             np.testing.assert_allclose(X, Y, rtol=0, atol=1e-12 * np.abs(Y).max())
             dY = Y - Z
@@ -519,8 +520,8 @@ def test_reduction_equals_the_projection_of_the_decoupled_system(shaper_damped):
     sy = _with_contact_mass(shaper_damped)
     s = np.array([0.57, 0.7, 0.85, 1.05, 1.13])
     v = -0.5
-    W0, W1, W2 = sy._W_all(s)
-    A, B, C = _reduce(sy, W0, W1 * v, W2 * v * v)
+    W0, W1, W2 = sy.W_derivatives(s)
+    A, B, C = sy.reduced_matrices(W0, W1 * v, W2 * v * v)
     ni = len(sy.i)
     for k in range(s.size):
         T = np.zeros((sy.n, ni))
@@ -547,8 +548,8 @@ def test_W_derivatives_equal_finite_differences(shaper):
     rounding (eps |W| / delta^2 ~ 1e-10 |W|) and by that term (1e-6 |W'|)."""
     d = 1e-3
     s = np.array([0.57, 0.63, 0.72, 0.81, 0.93, 1.02, 1.08, 1.13])
-    W0, W1, W2 = shaper._W_all(s)
-    Wp, Wm = shaper._W_all(s + d)[0], shaper._W_all(s - d)[0]
+    W0, W1, W2 = shaper.W_derivatives(s)
+    Wp, Wm = shaper.W_derivatives(s + d)[0], shaper.W_derivatives(s - d)[0]
     np.testing.assert_allclose(W1, (Wp - Wm) / (2 * d), rtol=0, atol=1e-6 * np.abs(W1).max())
     np.testing.assert_allclose(W2, (Wp - 2 * W0 + Wm) / d**2, rtol=0, atol=1e-6 * np.abs(W2).max())
     assert np.abs(W2).max() > 0

@@ -37,168 +37,13 @@ from ..errors import InputError, check_positive, check_width
 from ..model._items import DIRECTIONS
 from ..process._cutting import ce_maps
 from ..process._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
-from ..structure._assembly import System
+from ..structure._assembly import MovingReduction, System
 from ._newmark import ConstantProblem, NewmarkOptions, TimeResponse, newmark
 
 __all__ = ["ParametricProblem", "Simulation", "simulate", "FEEDBACK_CASES"]
 
 #: the paper's three cases: (a) none, (b) proportional + ideal derivative, (c) + delayed
 FEEDBACK_CASES = ("none", "pd", "pdo")
-
-
-class _FastReduction:
-    """A*, B*, C* and J_i for a moving slide, exploiting the structure.
-
-    Only the rows of W that belong to moving contacts depend on s, and by
-    direct substitution they are R_c(s) = P(xi(s)) T_e: the beam point map of
-    the element under the contact times the (constant) map T_e from q_i to
-    that element's nodal coordinates.  With T(s) = T0 + E R(s) (E selecting
-    the contact rows) each reduced matrix is a constant part plus low-rank
-    terms in R, R' v and R'' v^2 -- a few (n_i x 3k) products per step
-    instead of Eq. (2.6) and a full reduction.  Exact; checked against the
-    generic path when built.
-    """
-
-    def __init__(self, sy: System) -> None:
-        self.sy = sy
-        d = list(sy.d)
-        cset = {int(k) for c in sy._contacts for k in c.cols_self}
-        self.dv = np.array([k for k in d if k in cset], dtype=int)  # contact coordinates
-        self.pos_v = np.array([d.index(k) for k in self.dv], dtype=int)  # their rows in W
-        s0 = sy.default_position
-        W0 = sy.W(s0)
-        # map q_i -> all coordinates with the contact rows zeroed (constant part)
-        Tm = np.zeros((sy.n, len(sy.i)))
-        Tm[sy.i, np.arange(len(sy.i))] = 1.0
-        Tm[sy.d] = W0
-        Tm[self.dv] = 0.0
-        self.Tm = Tm
-        # the constant rows must not involve contact coordinates
-        rows = sy._const_rows
-        self.ok = not (rows.size and np.any(rows[:, self.dv]))
-        n_i = len(sy.i)
-        self.X0, self.Xv, self.Xvv = [], [], []
-        for X in (sy.M, sy.L, sy.K):
-            self.X0.append(Tm.T @ X @ Tm)
-            self.Xv.append(np.ascontiguousarray(Tm.T @ X[:, self.dv]))
-            self.Xvv.append(np.ascontiguousarray(X[np.ix_(self.dv, self.dv)]))
-        self.nz_v = [bool(np.any(a)) for a in self.Xv]
-        self.nz_vv = [bool(np.any(a)) for a in self.Xvv]
-        self.n_i = n_i
-        own = np.concatenate([c.cols_self for c in sy._contacts])
-        self._perm = np.array([int(np.nonzero(own == k)[0][0]) for k in self.dv], dtype=int)
-        # per contact and element: T_e (6, n_i), and the beam point-map constants
-        self._Te = [[Tm[el.cols] for el in c.elements] for c in sy._contacts]
-        if self.ok and sy.model.movable is not None:
-            lo, hi = sy.model.movable.range
-            s_chk = np.array([lo, lo + 0.1 * (hi - lo), 0.5 * (lo + hi), 0.9 * hi + 0.1 * lo, hi])
-            if s0 is not None:
-                s_chk = np.append(s_chk, s0)
-            R0 = self.rows(s_chk, np.zeros(s_chk.size), orders=1)[0]
-            ref = sy.W(s_chk)[:, self.pos_v]
-            if not np.allclose(R0, ref, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(ref).max())):
-                self.ok = False
-
-    def locate(
-        self, s: np.ndarray
-    ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-        """Per contact: along-track x, element index, side (-1 before the
-        track, 0 on it, +1 beyond; clamped contacts only) and xi."""
-        xs, idxs, sides, xis = [], [], [], []
-        for c in self.sy._contacts:
-            x, idx, side, xi = c.locate(s)
-            xs.append(x)
-            idxs.append(idx)
-            sides.append(side)
-            xis.append(xi)
-        return xs, idxs, sides, xis
-
-    def rows(
-        self, s: np.ndarray, v: np.ndarray, orders: int = 3
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Contact rows of W, dW/dt and d2W/dt2: each (m, 3k, n_i) (only the
-        first ``orders`` are computed; the others are zero)."""
-
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        v = np.broadcast_to(np.asarray(v, dtype=float), s.shape)
-        m = s.size
-        k3 = 3 * len(self.sy._contacts)
-        R = np.zeros((3, m, k3, self.n_i))
-        _, idxs, sides, xis = self.locate(s)
-        for ci, c in enumerate(self.sy._contacts):
-            idx, xi = idxs[ci], xis[ci]
-            inside = (sides[ci] == 0).astype(float)
-            for e_idx in np.unique(idx):
-                el = c.elements[e_idx]
-                sel = np.nonzero(idx == e_idx)[0]
-                Te = self._Te[ci][e_idx]
-                for order in range(orders):
-                    P = el.point_matrix(xi[sel], c.offset, order)
-                    fac = (c.rate * v[sel]) ** order * (inside[sel] if order else 1.0)
-                    R[order, sel, 3 * ci : 3 * ci + 3] = (P @ Te) * fac[:, None, None]
-        # order the rows like self.dv
-        return R[0][:, self._perm], R[1][:, self._perm], R[2][:, self._perm]
-
-    def parts(self, s: np.ndarray) -> dict[str, Any]:
-        """The reduced matrices split by their dependence on the slide speed v:
-
-        A = A0,  B = B0 + v B1,  C = C0 + v C1 + v^2 C2   (Eq. 2.16-2.18)
-
-        with B1 = 2 (M_id + W^T M_dd) W',  C1 = (L_id + W^T L_dd) W',
-        C2 = (M_id + W^T M_dd) W'' (W' = dW/ds, W'' = d2W/ds2), plus the
-        contact rows R0 = W and R1 = W' (each (m, 3k, n_i)).  Parts that
-        vanish identically are None.
-        """
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        m = s.size
-        R0, R1, R2 = self.rows(s, np.ones(m))
-        R0t = np.ascontiguousarray(np.transpose(R0, (0, 2, 1)))  # (m, n, k)
-        n, k = self.n_i, R0.shape[1]
-        out: dict[str, Any] = {"R0": R0, "R1": R1}
-        base = []
-        for X0, Xv, Xvv, nzv, nzvv in zip(self.X0, self.Xv, self.Xvv, self.nz_v, self.nz_vv, strict=True):
-            if not (nzv or nzvv):
-                base.append(np.broadcast_to(X0, (m,) + X0.shape))
-                continue
-            Y = np.empty((m, n, n))
-            if nzv:
-                # one GEMM for the constant-times-stack product: (m n, k) @ (k, n)
-                Y[:] = (R0t.reshape(m * n, k) @ Xv.T).reshape(m, n, n)
-                Y += np.transpose(Y, (0, 2, 1)).copy()
-            else:
-                Y[:] = 0.0
-            if nzvv:
-                Y += (R0t.reshape(m * n, k) @ Xvv).reshape(m, n, k) @ R0
-            Y += X0
-            base.append(Y)
-        out["A0"], out["B0"], out["C0"] = base
-        out["B1"] = out["C1"] = out["C2"] = None
-        nzM = self.nz_v[0] or self.nz_vv[0]
-        nzL = self.nz_v[1] or self.nz_vv[1]
-        if nzM and (np.any(R1) or np.any(R2)):
-            Mfac = self.Xv[0][None] + (R0t @ self.Xvv[0] if self.nz_vv[0] else 0.0)
-            out["B1"] = 2.0 * (Mfac @ R1)
-            out["C2"] = Mfac @ R2
-        if nzL and np.any(R1):
-            Lfac = self.Xv[1][None] + (R0t @ self.Xvv[1] if self.nz_vv[1] else 0.0)
-            out["C1"] = Lfac @ R1
-        return out
-
-    def reduce(self, s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
-        """A*, B*, C* (Eq. 2.16-2.18) and the contact rows of W and dW/dt at
-        slide positions s moving with ds/dt = v."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        v = np.broadcast_to(np.asarray(v, dtype=float), s.shape)
-        p = self.parts(s)
-        vv = v[:, None, None]
-        A = np.array(p["A0"])
-        B = np.array(p["B0"]) + (vv * p["B1"] if p["B1"] is not None else 0.0)
-        C = np.array(p["C0"])
-        if p["C1"] is not None:
-            C = C + vv * p["C1"]
-        if p["C2"] is not None:
-            C = C + vv**2 * p["C2"]
-        return A, B, C, p["R0"], vv * p["R1"]
 
 
 #: the families of coefficient matrices: name -> the weights they carry
@@ -231,30 +76,10 @@ class _Polynomial:
     def __init__(self, owner: ParametricProblem, degree: int = 6) -> None:
         self.owner = owner
         assert owner.fast is not None
-        self.fast: _FastReduction = owner.fast
+        self.fast: MovingReduction = owner.fast
         self.deg = degree
         self.segments: dict[tuple[int, ...], Any] = {}
-        mv = owner.system.model.movable
-        self.range = tuple(mv.range) if mv is not None else (0.0, 0.0)
         self.n = owner.n
-
-    def _interval(self, key: tuple[int, ...]) -> tuple[float, float]:
-        lo, hi = self.range
-        for ci, c in enumerate(self.fast.sy._contacts):
-            e_idx, side = key[2 * ci], key[2 * ci + 1]
-            if side < 0:
-                xa, xb = -np.inf, 0.0
-            elif side > 0:
-                xa, xb = c.track_length, np.inf
-            else:
-                el = c.elements[e_idx]
-                xa, xb = el.start, el.start + el.length
-            if c.rate == 0.0:
-                continue
-            sa = c.s_ref + (xa - c.x_ref) / c.rate
-            sb = c.s_ref + (xb - c.x_ref) / c.rate
-            lo, hi = max(lo, min(sa, sb)), min(hi, max(sa, sb))
-        return lo, hi
 
     def _basis(self, u: np.ndarray, deg: int) -> np.ndarray:
         Phi = np.empty((u.size, deg + 1))
@@ -266,7 +91,7 @@ class _Polynomial:
         return Phi
 
     def _build(self, key: tuple[int, ...], s_seen: float) -> Any:
-        lo, hi = self._interval(key)
+        lo, hi = self.fast.interval(key)
         if not hi - lo > 1e-9 * max(1.0, abs(hi), abs(lo)):
             lo = hi = s_seen
         deg = self.deg if hi > lo else 0
@@ -400,11 +225,7 @@ class ParametricProblem:
         self.width = float(width)
         self._T = float(kinematics.delay) if terms == "pdo" else None
         self._t_end = 0.0
-        self.fast = (
-            _FastReduction(system) if (system.model.movable is not None and system._contacts) else None
-        )
-        if self.fast is not None and not self.fast.ok:
-            self.fast = None
+        self.fast = system.moving_reduction
         if self.fast is not None:
             self.Jv = J[:, self.fast.dv]
             self.Ji_const = J @ self.fast.Tm  # (3k, n_i) with the contact columns' constant part
@@ -441,7 +262,7 @@ class ParametricProblem:
 
     def _parts_direct(self, s: np.ndarray) -> dict[str, Any]:
         """All parts of Eq. (2.28) at slide positions s, for unit slide speed
-        and the tool in the cut (see :meth:`_FastReduction.parts`):
+        and the tool in the cut (see :meth:`MovingReduction.parts`):
         A = A0, B = B0 + v B1 + c Bce, C = C0 + v C1 + v^2 C2 + c (Cce0 + v Cce1),
         G = c G, F = c F, with c the in-cut flag."""
         p: dict[str, Any]
@@ -452,10 +273,10 @@ class ParametricProblem:
         else:
             sy = self.system
             W0, W1, W2 = self._W_direct(s)
-            A, B, C = _reduce(sy, W0, np.zeros_like(W0), np.zeros_like(W0))
+            A, B, C = sy.reduced_matrices(W0, np.zeros_like(W0), np.zeros_like(W0))
             p = {"A0": A, "B0": B, "C0": C, "B1": None, "C1": None, "C2": None}
             if len(sy.d) and np.any(W1):
-                B1, C1, C2 = _speed_parts(sy, W0, W1, W2)
+                B1, C1, C2 = sy.speed_parts(W0, W1, W2)
                 p.update(B1=B1, C1=C1, C2=C2)
             Ji = (
                 self.Ji0 + self.Jd @ W0
@@ -478,7 +299,7 @@ class ParametricProblem:
             W0 = np.broadcast_to(sy.W(None), (s.size,) + (len(sy.d), len(sy.i)))
             Z = np.zeros(W0.shape)
             return np.array(W0), Z, Z
-        return sy._W_all(s)
+        return sy.W_derivatives(s)
 
     def _evaluate(self, t: np.ndarray) -> tuple[Any, ...]:
         """A, B, C, G (or None) and F at times t; the last call is memoised
@@ -564,42 +385,6 @@ class ParametricProblem:
     def force(self, t: np.ndarray) -> np.ndarray:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         return self._evaluate(t)[4]
-
-
-def _reduce(
-    sy: System, W0: np.ndarray, Wd: np.ndarray, Wdd: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A*, B*, C* of Eq. (2.16)-(2.18) from W, dW/dt, d2W/dt2 (batched)."""
-    i, d = sy.i, sy.d
-    out = []
-    Wt = np.transpose(W0, (0, 2, 1))
-    for X in (sy.M, sy.L, sy.K):
-        Xii, Xid, Xdi, Xdd = X[np.ix_(i, i)], X[np.ix_(i, d)], X[np.ix_(d, i)], X[np.ix_(d, d)]
-        out.append(Xii + Xid @ W0 + Wt @ Xdi + Wt @ Xdd @ W0)
-    A, B, C = out
-    if len(d) and np.any(Wd):
-        Mid, Mdd = sy.M[np.ix_(i, d)], sy.M[np.ix_(d, d)]
-        Lid, Ldd = sy.L[np.ix_(i, d)], sy.L[np.ix_(d, d)]
-        B = B + 2 * (Mid + Wt @ Mdd) @ Wd
-        C = C + (Lid + Wt @ Ldd) @ Wd + (Mid + Wt @ Mdd) @ Wdd
-    return A, B, C
-
-
-def _speed_parts(
-    sy: System, W0: np.ndarray, W1: np.ndarray, W2: np.ndarray
-) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
-    """B1, C1, C2 of B* = B0 + v B1, C* = C0 + v C1 + v^2 C2 (Eq. 2.17-2.18
-    with dW/dt = W' v, d2W/dt2 = W'' v^2), from W, W' = dW/ds, W'' = d2W/ds2."""
-    i, d = sy.i, sy.d
-    Wt = np.transpose(W0, (0, 2, 1))
-    Mid, Mdd = sy.M[np.ix_(i, d)], sy.M[np.ix_(d, d)]
-    Lid, Ldd = sy.L[np.ix_(i, d)], sy.L[np.ix_(d, d)]
-    Mfac = Mid + Wt @ Mdd
-    Lfac = Lid + Wt @ Ldd
-    B1 = 2 * Mfac @ W1 if np.any(Mfac) else None
-    C2 = Mfac @ W2 if np.any(Mfac) else None
-    C1 = Lfac @ W1 if np.any(Lfac) else None
-    return B1, C1, C2
 
 
 @dataclass(frozen=True, eq=False)
@@ -980,7 +765,7 @@ def simulate(
                 "or widen [movable] range"
             )
     if position is not None and mdl.movable is not None:
-        system._s_array(position)  # refuses a position outside the movable range
+        system.positions(position)  # refuses a position outside the movable range
     T = float(kin.delay)
     if duration is None:
         duration = passes * T
