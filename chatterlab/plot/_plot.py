@@ -126,90 +126,213 @@ ZOOM_LOBES = 3
 
 @dataclass(frozen=True)
 class _Curve:
-    """One lobe as a polyline in (speed, width): a run of consecutive samples
-    of the frequency grid."""
+    """One lobe: a run of consecutive samples along a branch of the boundary.
+
+    ``omega`` (rad/s), ``phi`` (rad, continuous along the branch) and
+    ``width`` (m) with their derivatives along the run (``d*``, per sample)
+    define a cubic Hermite curve between samples; the delay on it is
+    T = (phi + 2 pi kk) / omega.  ``k`` is the engine's lobe number at the
+    lobe's bottom (the number in the summary, files and labels)."""
 
     k: int
+    kk: int
     branch: int
-    speed: np.ndarray
-    width: np.ndarray  # m
-    freq: np.ndarray  # Hz
+    u: np.ndarray
+    omega: np.ndarray
+    phi: np.ndarray
+    width: np.ndarray
+    domega: np.ndarray
+    dphi: np.ndarray
+    dwidth: np.ndarray
+    speed: np.ndarray  # at the samples, for drawing
+
+    @property
+    def freq(self) -> np.ndarray:
+        return self.omega / (2 * np.pi)
 
 
-def _delay_to_speed(d: Any) -> Any:
-    """The process's speed as a function of the delay, recovered from the
-    diagram's own (delay, speed) pairs: 1/speed is affine in the delay for
-    shaping (v = L / (T - L / v_r)) and turning (n = 60 / T), so the map is
-    exact there; speed = delay for a delay process; otherwise a monotone
-    interpolation of the pairs."""
+def _speed_maps(d: Any) -> tuple[Any, Any]:
+    """The process's speed as a function of the delay and its inverse,
+    recovered from the diagram's own (delay, speed) pairs: 1/speed is affine
+    in the delay for shaping (v = L / (T - L / v_r)) and turning (n = 60 / T),
+    so the maps are exact there; speed = delay for a delay process; otherwise
+    a monotone interpolation of the pairs."""
     T = np.concatenate([np.asarray(d.delay, float)] + [lb.delay for lb in d.lobes])
     v = np.concatenate([np.asarray(d.speed, float)] + [lb.speed for lb in d.lobes])
     ok = np.isfinite(T) & np.isfinite(v) & (v > 0) & (T > 0)
     T, v = T[ok], v[ok]
+
+    def same(t: Any) -> np.ndarray:
+        return np.asarray(t, float)
+
     if np.allclose(v, T, rtol=1e-12, atol=0):
-        return lambda t: np.asarray(t, float)
+        return same, same
     (a, c), *_ = np.linalg.lstsq(np.stack([T, np.ones_like(T)], axis=1), 1.0 / v, rcond=None)
     if np.max(np.abs((a * T + c) * v - 1.0)) < 1e-9:
 
-        def exact(t: Any) -> np.ndarray:
+        def speed(t: Any) -> np.ndarray:
             with np.errstate(divide="ignore"):
                 s = 1.0 / (a * np.asarray(t, float) + c)
             return np.where(s > 0, s, np.nan)
 
-        return exact
+        def delay(s: Any) -> np.ndarray:
+            return (1.0 / np.asarray(s, float) - c) / a
+
+        return speed, delay
     o = np.argsort(T)
-    return lambda t: np.interp(t, T[o], v[o], left=np.nan, right=np.nan)
+    q = np.argsort(v)
+    return (
+        lambda t: np.interp(t, T[o], v[o], left=np.nan, right=np.nan),
+        lambda s: np.interp(s, v[q], T[q], left=np.nan, right=np.nan),
+    )
+
+
+def _branch_chains(lbs: list[Any]) -> list[np.ndarray]:
+    """The samples of one branch in their order along the curve, as chains of
+    rows (omega, phi, width): the lobes list the branch's samples in curve
+    order (a fold turns the frequency back, so frequency order is not curve
+    order); their consecutive pairs are the branch's links."""
+    from graphlib import TopologicalSorter
+
+    key: dict[tuple[float, float], int] = {}
+    rows: list[tuple[float, float, float]] = []
+    succ: dict[int, set[int]] = {}
+    links: set[tuple[int, int]] = set()
+    for lb in lbs:
+        w = 2 * np.pi * np.asarray(lb.frequency_hz, float)
+        phi = np.mod(w * np.asarray(lb.delay, float) - 2 * np.pi * lb.k, 2 * np.pi)
+        ids = []
+        for f, b, p, ww in zip(
+            lb.frequency_hz.tolist(), lb.width.tolist(), phi.tolist(), w.tolist(), strict=True
+        ):
+            i = key.get((f, b))
+            if i is None:
+                i = key[(f, b)] = len(rows)
+                rows.append((ww, p, b))
+            ids.append(i)
+        for a, e in zip(ids[:-1], ids[1:], strict=True):
+            succ.setdefault(e, set()).add(a)
+            links.add((a, e))
+    order = list(TopologicalSorter({i: succ.get(i, set()) for i in range(len(rows))}).static_order())
+    arr = np.array(rows)[order]
+    cut = [j + 1 for j in range(len(order) - 1) if (order[j], order[j + 1]) not in links]
+    return [c for c in np.split(arr, cut) if len(c) >= 2]
+
+
+def _chord(w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A parameter along a branch: the cumulative chord length in
+    (w, width), each scaled by its range (a fold turns w back, the chord does not)."""
+    sw = max(float(np.ptp(w)), 1e-300)
+    sb = max(float(np.ptp(b)), 1e-300)
+    h = np.hypot(np.diff(w) / sw, np.diff(b) / sb)
+    return np.r_[0.0, np.cumsum(np.maximum(h, 1e-15))]
+
+
+def _tangent(y: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """dy/du per sample (second-order differences on the uneven parameter, one-sided at the ends)."""
+    return np.gradient(y, u) if y.size > 2 else np.full_like(y, (y[-1] - y[0]) / (u[-1] - u[0]))
+
+
+def _with_envelope_points(d: Any, chains: list[tuple[int, np.ndarray]]) -> list[tuple[int, np.ndarray]]:
+    """Add the envelope's refined points to the branches.  The diagram's
+    b_lim at each requested speed is an exact boundary point (w, phi =
+    w T mod 2 pi, width): each joins the branch segment it lies on (nearest
+    by linear interpolation in w, within 20 % in width and 0.3 rad in phase),
+    so the curves pass through the exact envelope where the engine refined it."""
+    f = np.asarray(d.chatter_hz, float)
+    ok = np.isfinite(d.b_lim) & np.isfinite(f) & (f > 0)
+    if not np.any(ok) or not chains:
+        return chains
+    W = 2 * np.pi * f[ok]
+    P = np.mod(W * np.asarray(d.delay, float)[ok], 2 * np.pi)
+    B = np.asarray(d.b_lim, float)[ok]
+    best = np.full(W.size, np.inf)
+    where = np.full((W.size, 2), -1)
+    tpos = np.zeros(W.size)
+    for ci, (_, ch) in enumerate(chains):
+        w0, w1 = ch[:-1, 0], ch[1:, 0]
+        p0 = ch[:-1, 1]
+        dp = np.mod(ch[1:, 1] - p0 + np.pi, 2 * np.pi) - np.pi
+        b0, b1 = ch[:-1, 2], ch[1:, 2]
+        inseg = (W[:, None] > np.minimum(w0, w1)[None, :]) & (W[:, None] < np.maximum(w0, w1)[None, :])
+        r, j = np.nonzero(inseg)
+        if not r.size:
+            continue
+        t = (W[r] - w0[j]) / (w1[j] - w0[j])
+        eb = np.abs((b0[j] + t * (b1[j] - b0[j])) / B[r] - 1)
+        ep = np.abs(np.mod(p0[j] + t * dp[j] - P[r] + np.pi, 2 * np.pi) - np.pi)
+        score = np.where((eb < 0.2) & (ep < 0.3), eb + ep, np.inf)
+        for rr, jj, sc, tt in zip(r.tolist(), j.tolist(), score.tolist(), t.tolist(), strict=True):
+            if sc < best[rr]:
+                best[rr], where[rr], tpos[rr] = sc, (ci, jj), tt
+    out = []
+    for ci, (br, ch) in enumerate(chains):
+        m = (where[:, 0] == ci) & np.isfinite(best) & (tpos > 1e-9) & (tpos < 1 - 1e-9)
+        if np.any(m):
+            key = np.r_[np.arange(len(ch), dtype=float), where[m, 1] + tpos[m]]
+            rows = np.vstack([ch, np.column_stack([W[m], P[m], B[m]])])
+            ch = rows[np.argsort(key, kind="stable")]
+        out.append((br, ch))
+    return out
 
 
 def _lobe_curves(d: Any) -> list[_Curve]:
-    """Every lobe k >= 0 of every branch whose delay falls in the diagram's
-    delay range, as polylines.
+    """Every lobe of every branch whose delay falls in the diagram's delay
+    range, as runs of samples along the branch.
 
-    A branch is one curve (w, beta(w), phi(w)) of the boundary; lobe k of it
-    is T_k(w) = (phi(w) + 2 pi k) / w.  The diagram's lobes sample it on the
-    frequency grid; the union of their samples restores the branch, from which
-    every k is drawn -- also the lobes a dense diagram does not carry (it keeps
-    only those on the envelope at the requested speeds).  Each curve keeps one
-    sample beyond the delay range at either end so that its linear
-    interpolation reaches the ends of the range."""
+    A branch is one curve (w, beta(w), phi(w)) of the boundary; its lobes are
+    T(w) = (phi(w) + 2 pi k) / w for the integers k.  The diagram's lobes
+    sample it on the frequency grid; the union of their samples, in curve
+    order, restores the branch, from which every lobe is drawn -- also those
+    a dense diagram does not carry (it keeps only the lobes on the envelope
+    at the requested speeds).  phi is unwrapped along the branch so that a
+    lobe continues through the point where the engine's phase wraps (there
+    its number k steps by one).  Each run keeps one sample beyond the delay
+    range at either end so that it reaches the ends of the range."""
+    if not d.lobes:
+        return []
     Tlo, Thi = float(np.min(d.delay)), float(np.max(d.delay))
-    to_speed = _delay_to_speed(d) if d.lobes else None
+    to_speed, _ = _speed_maps(d)
     branches: dict[int, list[Any]] = {}
     for lb in d.lobes:
         branches.setdefault(lb.branch, []).append(lb)
+    chains = [(br, ch) for br in sorted(branches) for ch in _branch_chains(branches[br])]
+    chains = _with_envelope_points(d, chains)
     out: list[_Curve] = []
-    for br in sorted(branches):
-        lbs = branches[br]
-        f = np.concatenate([lb.frequency_hz for lb in lbs])
-        w = 2 * np.pi * f
-        T0 = np.concatenate([lb.delay for lb in lbs]) - 2 * np.pi * np.concatenate(
-            [np.full(lb.delay.size, lb.k) for lb in lbs]
-        ) / np.where(w > 0, w, np.inf)
-        b = np.concatenate([lb.width for lb in lbs])
-        fu, iu = np.unique(f, return_index=True)
-        wu, T0u, bu = 2 * np.pi * fu, T0[iu], b[iu]
-        pos = wu > 0
-        if not np.any(pos):
-            continue
-        kmin = max(int(np.floor(np.min(wu[pos] * (Tlo - T0u[pos])) / (2 * np.pi))), 0)
-        kmax = int(np.ceil(np.max(wu[pos] * (Thi - T0u[pos])) / (2 * np.pi)))
-        for k in range(kmin, kmax + 1):
-            with np.errstate(divide="ignore", invalid="ignore"):
-                Tk = T0u + 2 * np.pi * k / wu
-            inside = pos & (Tk >= Tlo) & (Tk <= Thi)
-            if not np.any(inside):
+    for br, ch in chains:
+        if True:
+            w, b = ch[:, 0], ch[:, 2]
+            phi = np.unwrap(ch[:, 1])
+            pos = w > 0
+            if not np.any(pos):
                 continue
-            grow = inside | np.r_[inside[1:], False] | np.r_[False, inside[:-1]]
-            grow &= pos
-            idx = np.nonzero(grow)[0]
-            for run in np.split(idx, np.nonzero(np.diff(idx) > 1)[0] + 1):
-                if run.size < 2:
+            u = _chord(w, 1.0 / b)
+            dw, dp, db = _tangent(w, u), _tangent(phi, u), _tangent(1.0 / b, u)
+            kmin = int(np.floor(np.min(w[pos] * Tlo - phi[pos]) / (2 * np.pi)))
+            kmax = int(np.ceil(np.max(w[pos] * Thi - phi[pos]) / (2 * np.pi)))
+            for kk in range(kmin, kmax + 1):
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    Tk = (phi + 2 * np.pi * kk) / w
+                inside = pos & (Tk >= Tlo) & (Tk <= Thi)
+                if not np.any(inside):
                     continue
-                s = to_speed(Tk[run])
-                good = np.isfinite(s)
-                if np.count_nonzero(good) < 2:
-                    continue
-                out.append(_Curve(k, br, s[good], bu[run][good], fu[run][good]))
+                grow = (inside | np.r_[inside[1:], False] | np.r_[False, inside[:-1]]) & pos & (Tk > 0)
+                idx = np.nonzero(grow)[0]
+                for run in np.split(idx, np.nonzero(np.diff(idx) > 1)[0] + 1):
+                    if run.size < 2:
+                        continue
+                    s = to_speed(Tk[run])
+                    if not np.all(np.isfinite(s)):
+                        continue
+                    j = run[int(np.argmin(b[run]))]
+                    k_engine = kk + int(np.floor(phi[j] / (2 * np.pi)))
+                    if k_engine < 0:
+                        continue
+                    out.append(
+                        _Curve(
+                            k_engine, kk, br, u[run], w[run], phi[run], b[run], dw[run], dp[run], db[run], s
+                        )
+                    )
     return out
 
 
@@ -220,75 +343,138 @@ def _static_width(d: Any) -> float:
     return float(np.min(d.b_lim[m])) if np.any(m) else float("inf")
 
 
+class _Segments:
+    """Every piece between two samples of every lobe, flattened, with the
+    cubic Hermite data to evaluate it at any delay."""
+
+    def __init__(self, curves: list[_Curve]) -> None:
+        def cat(get: Any, a: int, e: int | None) -> np.ndarray:
+            return np.concatenate([get(c)[a:e] for c in curves]) if curves else np.zeros(0)
+
+        self.n = sum(c.omega.size - 1 for c in curves)
+        self.w0, self.w1 = cat(lambda c: c.omega, 0, -1), cat(lambda c: c.omega, 1, None)
+        self.p0, self.p1 = cat(lambda c: c.phi, 0, -1), cat(lambda c: c.phi, 1, None)
+        self.b0, self.b1 = cat(lambda c: c.width, 0, -1), cat(lambda c: c.width, 1, None)
+        self.dw0, self.dw1 = cat(lambda c: c.domega, 0, -1), cat(lambda c: c.domega, 1, None)
+        self.dp0, self.dp1 = cat(lambda c: c.dphi, 0, -1), cat(lambda c: c.dphi, 1, None)
+        self.db0, self.db1 = cat(lambda c: c.dwidth, 0, -1), cat(lambda c: c.dwidth, 1, None)
+        h = cat(lambda c: np.diff(c.u), 0, None)
+        for name in ("w", "p", "b"):
+            for e in "01":
+                setattr(self, f"d{name}{e}", getattr(self, f"d{name}{e}") * h)
+        self.kk = cat(lambda c: np.full(c.omega.size, 2 * np.pi * c.kk), 0, -1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.T0 = (self.p0 + self.kk) / self.w0
+            self.T1 = (self.p1 + self.kk) / self.w1
+
+    @staticmethod
+    def _herm(t: np.ndarray, y0: Any, y1: Any, m0: Any, m1: Any) -> tuple[np.ndarray, np.ndarray]:
+        t2, t3 = t * t, t * t * t
+        y = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * m1
+        dy = (6 * t2 - 6 * t) * (y0 - y1) + (3 * t2 - 4 * t + 1) * m0 + (3 * t2 - 2 * t) * m1
+        return y, dy
+
+    def at(self, s: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Width (m) and frequency (Hz) of segments ``s`` at delays ``T``, and
+        whether the delay lies on the segment: solve w(t) T = phi(t) + 2 pi kk
+        for t in [0, 1] by Newton from the linear root."""
+        w0, w1, p0, p1, kk = self.w0[s], self.w1[s], self.p0[s], self.p1[s], self.kk[s]
+        F0, F1 = w0 * T - p0 - kk, w1 * T - p1 - kk
+        den = F0 - F1
+        t = np.clip(np.where(den != 0, F0 / np.where(den != 0, den, 1.0), 0.5), 0.0, 1.0)
+        dw0, dw1, dp0, dp1 = self.dw0[s], self.dw1[s], self.dp0[s], self.dp1[s]
+        for _ in range(4):
+            w, dw = self._herm(t, w0, w1, dw0, dw1)
+            p, dp = self._herm(t, p0, p1, dp0, dp1)
+            F, dF = w * T - p - kk, dw * T - dp
+            t = np.clip(t - np.where(dF != 0, F / np.where(dF != 0, dF, 1.0), 0.0), 0.0, 1.0)
+        w, _ = self._herm(t, w0, w1, dw0, dw1)
+        p, _ = self._herm(t, p0, p1, dp0, dp1)
+        ok = np.abs(w * T - p - kk) <= 1e-9 * np.maximum(np.abs(p + kk), 1.0)
+        g, _ = self._herm(t, 1.0 / self.b0[s], 1.0 / self.b1[s], self.db0[s], self.db1[s])
+        return 1.0 / g, w / (2 * np.pi), ok
+
+
 def _envelope(
-    curves: list[_Curve], v: np.ndarray, static: float = float("inf")
+    segs: _Segments, v: np.ndarray, delay_of: Any, static: float = float("inf")
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Lower envelope of the lobes at the sorted speeds ``v``: the minimum over
-    every lobe segment covering each speed of the width interpolated linearly
-    in speed (exact for the polylines).  Returns the width (m, inf where no
-    lobe lies below the ceiling), the chatter frequency (Hz) and the index of
-    the active segment (-1: none) in the concatenated segment list."""
+    """Lower envelope of the lobes at the sorted speeds ``v``: the minimum,
+    over every lobe segment whose delays bracket the speed's delay, of the
+    segment's width there.  Returns the width (m, inf where no lobe lies
+    below the ceiling), the chatter frequency (Hz) and the active segment
+    (-1: none)."""
     n = v.size
     env, fq, act = np.full(n, np.inf), np.full(n, np.nan), np.full(n, -1)
-    if curves:
-        s0 = np.concatenate([c.speed[:-1] for c in curves])
-        s1 = np.concatenate([c.speed[1:] for c in curves])
-        b0 = np.concatenate([c.width[:-1] for c in curves])
-        b1 = np.concatenate([c.width[1:] for c in curves])
-        f0 = np.concatenate([c.freq[:-1] for c in curves])
-        f1 = np.concatenate([c.freq[1:] for c in curves])
-        i0 = np.searchsorted(v, np.minimum(s0, s1), "left")
-        i1 = np.searchsorted(v, np.maximum(s0, s1), "right")
+    T = np.asarray(delay_of(v), float)
+    if segs.n:
+        o = np.argsort(T)
+        Ts = T[o]
+        lo = np.minimum(segs.T0, segs.T1)
+        hi = np.maximum(segs.T0, segs.T1)
+        i0 = np.searchsorted(Ts, lo, "left")
+        i1 = np.searchsorted(Ts, hi, "right")
         cnt = np.maximum(i1 - i0, 0)
-        seg = np.repeat(np.arange(s0.size), cnt)
+        seg = np.repeat(np.arange(segs.n), cnt)
         if seg.size:
             start = np.cumsum(cnt) - cnt
-            gi = i0[seg] + np.arange(seg.size) - start[seg]
-            ds = s1[seg] - s0[seg]
-            t = np.where(ds != 0, (v[gi] - s0[seg]) / np.where(ds != 0, ds, 1.0), 0.0)
-            val = b0[seg] + t * (b1[seg] - b0[seg])
+            gi = o[i0[seg] + np.arange(seg.size) - start[seg]]
+            val, f, ok = segs.at(seg, T[gi])
+            gi, val, f, seg = gi[ok], val[ok], f[ok], seg[ok]
             order = np.lexsort((val, gi))
-            gi, val, seg, t = gi[order], val[order], seg[order], t[order]
+            gi, val, f, seg = gi[order], val[order], f[order], seg[order]
             first = np.r_[True, gi[1:] != gi[:-1]]
             g = gi[first]
-            env[g], act[g] = val[first], seg[first]
-            fq[g] = f0[seg[first]] + t[first] * (f1[seg[first]] - f0[seg[first]])
+            env[g], act[g], fq[g] = val[first], seg[first], f[first]
     if np.isfinite(static):
         st = static < env
         env[st], fq[st], act[st] = static, 0.0, -1
     return env, fq, act
 
 
+#: sub-points added between two grid speeds where the active lobe changes
+CUSP_SUBDIVISION = 8
+
+
 def _envelope_line(
-    curves: list[_Curve], v: np.ndarray, static: float
+    segs: _Segments, v: np.ndarray, delay_of: Any, static: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The envelope on the grid ``v`` with its cusps added: where the active
-    lobe segment changes between two grid speeds, the crossing of the two
-    segments' lines is inserted and the envelope evaluated there too, so the
-    line reaches the cusps instead of cutting them off between grid points.
-    Returns speed, width (m), chatter frequency (Hz)."""
-    env, fq, act = _envelope(curves, v, static)
-    if curves:
-        s0 = np.concatenate([c.speed[:-1] for c in curves])
-        s1 = np.concatenate([c.speed[1:] for c in curves])
-        b0 = np.concatenate([c.width[:-1] for c in curves])
-        b1 = np.concatenate([c.width[1:] for c in curves])
-        a, c = act[:-1], act[1:]
-        j = np.nonzero((a >= 0) & (c >= 0) & (a != c))[0]
-        if j.size:
-            sa, sc = a[j], c[j]
-            ma = (b1[sa] - b0[sa]) / np.where(s1[sa] != s0[sa], s1[sa] - s0[sa], np.inf)
-            mc = (b1[sc] - b0[sc]) / np.where(s1[sc] != s0[sc], s1[sc] - s0[sc], np.inf)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                x = (b0[sc] - mc * s0[sc] - b0[sa] + ma * s0[sa]) / (ma - mc)
-            keep = np.isfinite(x) & (x > v[j]) & (x < v[j + 1])
-            x = np.unique(x[keep])
-            if x.size:
-                e2, f2, _ = _envelope(curves, x, static)
-                vv = np.concatenate([v, x])
-                o = np.argsort(vv, kind="stable")
-                return vv[o], np.concatenate([env, e2])[o], np.concatenate([fq, f2])[o]
-    return v, env, fq
+    lobe changes between two grid speeds, the interval is subdivided, and
+    the crossing of the two active pieces (as lines through the sub-points)
+    is inserted, every added point evaluated exactly like the grid; the line
+    reaches the cusps instead of cutting them off.  Returns speed, width (m),
+    chatter frequency (Hz)."""
+    env, fq, act = _envelope(segs, v, delay_of, static)
+    j = np.nonzero((act[:-1] != act[1:]) & np.isfinite(env[:-1]) & np.isfinite(env[1:]))[0]
+    if not j.size:
+        return v, env, fq
+    t = np.arange(1, CUSP_SUBDIVISION) / CUSP_SUBDIVISION
+    sub = (v[j, None] + t[None, :] * (v[j + 1] - v[j])[:, None]).ravel()
+    e2, f2, a2 = _envelope(segs, sub, delay_of, static)
+    vv = np.concatenate([v, sub])
+    ee, ff, aa = np.concatenate([env, e2]), np.concatenate([fq, f2]), np.concatenate([act, a2])
+    o = np.argsort(vv, kind="stable")
+    vv, ee, ff, aa = vv[o], ee[o], ff[o], aa[o]
+    # the crossing of the pieces active at either end of each changing interval
+    c = np.nonzero((aa[:-1] != aa[1:]) & (aa[:-1] >= 0) & (aa[1:] >= 0))[0]
+    if c.size:
+        x0, x1 = vv[c], vv[c + 1]
+        T0, T1 = delay_of(x0), delay_of(x1)
+        A, B = aa[c], aa[c + 1]
+        a1, _, okA = segs.at(A, T1)
+        b0, _, okB = segs.at(B, T0)
+        sa = (a1 - ee[c]) / (x1 - x0)
+        sb = (ee[c + 1] - b0) / (x1 - x0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = x0 + (b0 - ee[c]) / (sa - sb)
+        keep = okA & okB & np.isfinite(x) & (x > x0) & (x < x1)
+        x = np.unique(x[keep])
+        if x.size:
+            e3, f3, _ = _envelope(segs, x, delay_of, static)
+            vv = np.concatenate([vv, x])
+            o = np.argsort(vv, kind="stable")
+            vv, ee, ff = vv[o], np.concatenate([ee, e3])[o], np.concatenate([ff, f3])[o]
+    return vv, ee, ff
 
 
 def _axes_pixels(ax: Any, dpi: float) -> float:
@@ -388,6 +574,8 @@ def _draw_lobe_panel(
     lo: float,
     hi: float,
     *,
+    segs: _Segments,
+    delay_of: Any,
     static: float,
     lobe_numbers: int,
     dense_ok: bool,
@@ -402,7 +590,7 @@ def _draw_lobe_panel(
     density = _density(curves, lo, hi, px)
     dense = dense_ok and density > 1
     vg = _speed_grid(ax, lo, hi, np.asarray(d.speed, float))
-    vx, env, fq = _envelope_line(curves, vg, static)
+    vx, env, fq = _envelope_line(segs, vg, delay_of, static)
     em = env * 1e3
     fin = np.isfinite(em)
     top = d.width_max * 1e3
@@ -594,6 +782,8 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
         lo, hi = lo * 0.95, hi * 1.05
     curves = _lobe_curves(d)
     static = _static_width(d)
+    segs = _Segments(curves)
+    delay_of = _speed_maps(d)[1] if d.lobes else (lambda s: np.asarray(s, float))
     created = axes is None
     if axes is None:
         # decide the layout on a figure of the final size (dpi of savefig: text is measured once)
@@ -614,7 +804,18 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
     axes = tuple(axes)
     ax, axf = axes[0], axes[-1]
     axz = axes[1] if len(axes) > 2 else None
-    main = _draw_lobe_panel(ax, d, curves, lo, hi, static=static, lobe_numbers=lobe_numbers, dense_ok=True)
+    main = _draw_lobe_panel(
+        ax,
+        d,
+        curves,
+        lo,
+        hi,
+        segs=segs,
+        delay_of=delay_of,
+        static=static,
+        lobe_numbers=lobe_numbers,
+        dense_ok=True,
+    )
     unit = d.speed_unit
     count = _lobe_count(curves, d)
     note = None
@@ -627,7 +828,16 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
     if axz is not None:
         zlo, zhi = _zoom_range(curves, d, lo, hi) if main["dense"] else (lo, hi)
         zoom = _draw_lobe_panel(
-            axz, d, curves, zlo, zhi, static=static, lobe_numbers=lobe_numbers, dense_ok=False
+            axz,
+            d,
+            curves,
+            zlo,
+            zhi,
+            segs=segs,
+            delay_of=delay_of,
+            static=static,
+            lobe_numbers=lobe_numbers,
+            dense_ok=False,
         )
         axz.set_ylabel("width of cut b [mm]")
         axz.set_xlabel(f"{d.speed_name} [{unit}] (zoom)")
