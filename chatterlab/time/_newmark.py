@@ -989,8 +989,59 @@ def newmark(
     if not isinstance(opts, NewmarkOptions):
         raise InputError(f"options must be a NewmarkOptions (got {type(opts).__name__})")
     n = _check_problem(problem)
+    plan = _plan(problem, n, opts, t_span, h, q0, v0, outputs, record_every, history)
+    run = _Stepper(plan)
+    status, reason, i_done = run.run(progress, callback)
+    return run.response(status, reason, i_done, time.perf_counter() - wall0)
 
-    # ---- time grid ---------------------------------------------------------------------
+
+@dataclass
+class _Plan:
+    """Everything :func:`newmark` fixes before the first step: the grid, the
+    scheme constants, the delay's place on the grid, the history samples,
+    the breakpoints, the output selection and the initial state."""
+
+    problem: Any
+    n: int
+    opts: NewmarkOptions
+    t0: float
+    t1: float
+    h: float
+    n_total: int  # steps
+    rec: int  # record every rec-th step
+    n_rec: int  # recorded times
+    out_idx: np.ndarray | None
+    out_sel: FloatArray | None
+    out_names: tuple[str, ...] | None
+    gam: float
+    bet: float
+    coef: tuple[float, float, float, float, float, float]  # c0, c1, c2, c3, dv1, dv2
+    A0: FloatArray
+    B0: FloatArray
+    C0: FloatArray
+    G0: FloatArray | None
+    T: float | None
+    exact: bool  # the delay is a whole number of steps
+    s_frac: float  # else: q(t - T) = q(t_j + s_frac h), j = i - shift
+    shift: int
+    keep: int  # stored steps the delayed term needs
+    chunk: int
+    cap: int  # rows of the state buffer
+    n_hist: int  # steps whose delayed time lies before t0
+    hist_vals: FloatArray  # (n_hist, n) history at those delayed times
+    bp_steps: set[int]
+    q0: FloatArray
+    v0: FloatArray
+    a0: FloatArray
+    notes: list[str]
+
+    @property
+    def has_delay(self) -> bool:
+        return self.G0 is not None
+
+
+def _time_grid(t_span: Any, h: Any, record_every: Any) -> tuple[float, float, float, int, int]:
+    """``(t0, t1, h, n_total, rec)`` from the arguments, checked."""
     try:
         t0, t1 = (float(x) for x in t_span)
     except (TypeError, ValueError):
@@ -1010,8 +1061,69 @@ def newmark(
         raise InputError(f"h = {h:.6g} s is longer than the duration t1 - t0 = {t1 - t0:.6g} s")
     if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
         raise InputError(f"record_every must be a positive integer (got {record_every!r})")
-    rec = int(record_every)
+    return t0, t1, h, n_total, int(record_every)
 
+
+def _scheme(
+    opts: NewmarkOptions, h: float, notes: list[str]
+) -> tuple[float, float, float, float, float, float]:
+    """Newmark constants ``(c0, c1, c2, c3, dv1, dv2)`` for step h (a note when
+    the parameters are not unconditionally stable)."""
+    gam, bet = float(opts.gamma), float(opts.beta)
+    if not opts.unconditionally_stable:
+        notes.append(
+            f"gamma={gam}, beta={bet} is not unconditionally stable in the sense of Bathe & "
+            "Wilson (gamma >= 1/2, beta >= (gamma + 1/2)^2/4)"
+        )
+    return (
+        1.0 / (bet * h * h),
+        gam / (bet * h),
+        1.0 / (bet * h),
+        1.0 / (2.0 * bet) - 1.0,
+        1.0 - gam / bet,
+        h * (1.0 - gam / (2.0 * bet)),
+    )
+
+
+def _delay_on_grid(T: Any, h: float) -> tuple[float, bool, float, int, int]:
+    """``(T, exact, s_frac, shift, keep)``: where q(t - T) lies on the step grid."""
+    if T is None:
+        raise InputError("problem.matrices returned G but problem.delay() is None")
+    T = float(T)
+    if not math.isfinite(T) or T <= 0:
+        raise InputError(f"problem.delay() must be a finite number > 0 s (got {T})")
+    d = T / h
+    if d < 1.0 - 1e-9:
+        raise InputError(
+            f"h = {h:.6g} s is larger than the delay T = {T:.6g} s: the delayed term "
+            f"G q(t - T) must be known before each step; use h <= T (e.g. h = T/"
+            f"{max(2, math.ceil(h / T))})"
+        )
+    m_round = round(d)
+    if abs(d - m_round) <= 1e-9 * max(1.0, d):
+        exact, m_del, s_frac = True, int(m_round), 0.0
+        shift = m_del  # j = i - m is a stored node
+    else:
+        exact, m_del = False, int(math.floor(d))
+        s_frac = 1.0 - (d - m_del)  # q(t_j + s h), j = i - m - 1
+        shift = m_del + 1
+    return T, exact, s_frac, shift, shift + 2
+
+
+def _plan(
+    problem: Any,
+    n: int,
+    opts: NewmarkOptions,
+    t_span: Any,
+    h: Any,
+    q0: Any,
+    v0: Any,
+    outputs: Any,
+    record_every: Any,
+    history: Any,
+) -> _Plan:
+    """Check the arguments and fix everything before the first step."""
+    t0, t1, h, n_total, rec = _time_grid(t_span, h, record_every)
     q0v = _vector("q0", q0, n)
     v0v = _vector("v0", v0, n)
     out_idx, out_sel, out_names = _outputs(outputs, n, getattr(problem, "names", None))
@@ -1025,21 +1137,8 @@ def newmark(
             "coordinates (outputs=...), thin the record (record_every=...) or raise "
             "NewmarkOptions.max_output_bytes"
         )
-
-    # ---- scheme constants --------------------------------------------------------------
-    gam, bet = float(opts.gamma), float(opts.beta)
-    c0 = 1.0 / (bet * h * h)
-    c1 = gam / (bet * h)
-    c2 = 1.0 / (bet * h)
-    c3 = 1.0 / (2.0 * bet) - 1.0
-    dv1 = 1.0 - gam / bet
-    dv2 = h * (1.0 - gam / (2.0 * bet))
     notes: list[str] = []
-    if not opts.unconditionally_stable:
-        notes.append(
-            f"gamma={gam}, beta={bet} is not unconditionally stable in the sense of Bathe & "
-            "Wilson (gamma >= 1/2, beta >= (gamma + 1/2)^2/4)"
-        )
+    coef = _scheme(opts, h, notes)
 
     # ---- initial state and delay -------------------------------------------------------
     t0a = np.array([t0])
@@ -1049,35 +1148,14 @@ def newmark(
     has_delay = G0 is not None
     if has_delay:
         G0 = _stack("G", G0, 1, n, t0a)[0]
-        if T is None:
-            raise InputError("problem.matrices returned G but problem.delay() is None")
-        T = float(T)
-        if not math.isfinite(T) or T <= 0:
-            raise InputError(f"problem.delay() must be a finite number > 0 s (got {T})")
-        d = T / h
-        if d < 1.0 - 1e-9:
-            raise InputError(
-                f"h = {h:.6g} s is larger than the delay T = {T:.6g} s: the delayed term "
-                f"G q(t - T) must be known before each step; use h <= T (e.g. h = T/"
-                f"{max(2, math.ceil(h / T))})"
-            )
-        m_round = round(d)
-        if abs(d - m_round) <= 1e-9 * max(1.0, d):
-            exact, m_del, s_frac = True, int(m_round), 0.0
-            shift = m_del  # j = i - m is a stored node
-        else:
-            exact, m_del = False, int(math.floor(d))
-            s_frac = 1.0 - (d - m_del)  # q(t_j + s h), j = i - m - 1
-            shift = m_del + 1
-        keep = shift + 2
+        T, exact, s_frac, shift, keep = _delay_on_grid(T, h)
     else:
         T = None
-        exact, m_del, s_frac, shift, keep = True, 0, 0.0, 0, 1
+        exact, s_frac, shift, keep = True, 0.0, 0, 1
 
     chunk = opts.chunk if opts.chunk is not None else int(np.clip(2**18 // (n * n), 16, 4096))
     chunk = int(min(chunk, n_total))
-    span = max(chunk, keep)
-    cap = keep + span + 1
+    cap = keep + max(chunk, keep) + 1
     hist_bytes = (cap * 4 + (shift + 1 if has_delay else 0)) * n * 8  # buffer + history samples
     if hist_bytes > opts.max_history_bytes:
         raise InputError(
@@ -1086,45 +1164,94 @@ def newmark(
             f"{opts.max_history_bytes / 2**30:.2f} GiB; use a larger step h, or raise "
             "NewmarkOptions(max_history_bytes=...) if the memory is available"
         )
-
     hist_f = _history_function(history, n, t0) if has_delay else None
-    n_hist = 0
-    hist_vals = np.zeros((0, n))
-    if has_delay:
-        # steps i whose delayed time t_i - T lies before t0 (i = 0 included); with a whole
-        # number m of steps per delay, step m (delayed time exactly t0) also reads the
-        # history: the left limit, the step that lands on the breakpoint t0 + T
-        n_hist = min(shift + 1 if exact else shift, n_total + 1)
-        th = t0 + h * np.arange(n_hist) - T  # type: ignore[operator]
-        hist_vals = np.ascontiguousarray(hist_f(th), dtype=float)  # type: ignore[misc]
-        if not np.all(np.isfinite(hist_vals)):
-            raise InputError("history(t) returned NaN or infinite values")
+    n_hist, hist_vals = _history_samples(hist_f, n, t0, h, T, exact, shift, n_total)
+    a0 = _initial_acceleration(problem, n, t0, A0, B0, C0, G0, hist_vals, q0v, v0v)
+    bp_steps = _breakpoint_steps(problem, hist_f, q0v, t0, T, h, n_total, notes)
+    _stability_note(opts, A0, C0, h, notes)
+    return _Plan(
+        problem, n, opts, t0, t1, h, n_total, rec, n_rec, out_idx, out_sel, out_names,
+        float(opts.gamma), float(opts.beta), coef, A0, B0, C0, G0, T, exact, s_frac, shift, keep,
+        chunk, cap, n_hist, hist_vals, bp_steps, q0v, v0v, a0, notes,
+    )  # fmt: skip
 
-    f0 = _force_at(problem, t0a, n)[0]
+
+def _history_samples(
+    hist_f: Callable[[FloatArray], FloatArray] | None,
+    n: int,
+    t0: float,
+    h: float,
+    T: float | None,
+    exact: bool,
+    shift: int,
+    n_total: int,
+) -> tuple[int, FloatArray]:
+    """The history at the delayed times of the first steps: ``(n_hist, (n_hist, n))``."""
+    if hist_f is None or T is None:
+        return 0, np.zeros((0, n))
+    # steps i whose delayed time t_i - T lies before t0 (i = 0 included); with a whole
+    # number m of steps per delay, step m (delayed time exactly t0) also reads the
+    # history: the left limit, the step that lands on the breakpoint t0 + T
+    n_hist = min(shift + 1 if exact else shift, n_total + 1)
+    th = t0 + h * np.arange(n_hist) - T
+    hist_vals = np.ascontiguousarray(hist_f(th), dtype=float)
+    if not np.all(np.isfinite(hist_vals)):
+        raise InputError("history(t) returned NaN or infinite values")
+    return n_hist, hist_vals
+
+
+def _initial_acceleration(
+    problem: Any,
+    n: int,
+    t0: float,
+    A0: FloatArray,
+    B0: FloatArray,
+    C0: FloatArray,
+    G0: FloatArray | None,
+    hist_vals: FloatArray,
+    q0v: FloatArray,
+    v0v: FloatArray,
+) -> FloatArray:
+    """a(t0) from the equation of motion."""
+    f0 = _force_at(problem, np.array([t0]), n)[0]
     rhs0 = f0 - B0 @ v0v - C0 @ q0v
-    if has_delay:
+    if G0 is not None:
         rhs0 = rhs0 + G0 @ hist_vals[0]
     try:
-        a0 = np.linalg.solve(A0, rhs0)
+        return np.linalg.solve(A0, rhs0)
     except np.linalg.LinAlgError:
         raise InputError(
             f"A(t0) is singular at t0 = {t0} s: the initial acceleration cannot be computed; "
             "A must be positive definite (no massless coordinates: condense them first)"
         ) from None
 
-    # ---- breakpoints: times where the coefficients or the force jump ---------------------
-    # The step landing on a breakpoint uses the left limits (data at t_b - delta), then the
-    # acceleration is recomputed from the equation of motion with the right limits: a
-    # restart, which keeps second order across the jump.
+
+def _breakpoint_steps(
+    problem: Any,
+    hist_f: Callable[[FloatArray], FloatArray] | None,
+    q0v: FloatArray,
+    t0: float,
+    T: float | None,
+    h: float,
+    n_total: int,
+    notes: list[str],
+) -> set[int]:
+    """Steps that land on a time where the coefficients or the force jump.
+
+    The step landing on a breakpoint uses the left limits (data at t_b - delta), then the
+    acceleration is recomputed from the equation of motion with the right limits: a
+    restart, which keeps second order across the jump.  Breakpoints off the grid are
+    reported in ``notes``.
+    """
     bp_times: list[float] = []
     bp_fn = getattr(problem, "breakpoints", None)
     if callable(bp_fn):
         bp_times.extend(float(b) for b in np.asarray(bp_fn(), dtype=float).reshape(-1))
-    if has_delay:
+    if hist_f is not None and T is not None:
         # an inconsistent history (history(t0) != q0) makes G q(t - T) jump at t0 + T
-        h_t0 = hist_f(np.array([t0]))[0]  # type: ignore[misc]
+        h_t0 = hist_f(np.array([t0]))[0]
         if np.any(np.abs(h_t0 - q0v) > 1e-12 * (np.abs(q0v) + np.abs(h_t0)) + 1e-300):
-            bp_times.append(t0 + T)  # type: ignore[operator]
+            bp_times.append(t0 + T)
     bp_steps: set[int] = set()
     off_grid: list[float] = []
     for tb in sorted(set(bp_times)):
@@ -1142,95 +1269,101 @@ def newmark(
             + (" ..." if len(off_grid) > 3 else "")
             + " s not on the step grid: first-order error at the jump; choose h dividing t_b - t0"
         )
+    return bp_steps
 
-    if opts.critical_omega_h < math.inf:
-        try:
-            import scipy.linalg as sla
 
-            w2 = sla.eigvals(C0, A0)
-            wmax = float(np.sqrt(np.max(np.abs(w2[np.isfinite(w2)]))))
-            hcr = opts.critical_omega_h / wmax if wmax > 0 else math.inf
-            msg = (
-                f"beta={bet} < gamma/2 is only conditionally stable: h must be < "
-                f"{opts.critical_omega_h:.4g}/w_max = {hcr:.4g} s at t0 (h = {h:.4g} s)"
-            )
-        except Exception:  # noqa: BLE001 - the estimate is only informative
-            msg = f"beta={bet} < gamma/2 is only conditionally stable"
-        notes.append(msg)
-        warnings.warn(msg, NewmarkStabilityWarning, stacklevel=2)
+def _stability_note(opts: NewmarkOptions, A0: FloatArray, C0: FloatArray, h: float, notes: list[str]) -> None:
+    """Note and warn when the scheme is only conditionally stable (with the
+    critical step estimated at t0)."""
+    if opts.critical_omega_h == math.inf:
+        return
+    bet = float(opts.beta)
+    try:
+        import scipy.linalg as sla
 
-    # ---- buffers -------------------------------------------------------------------------
-    # S[r] = [dq slot, q, v, a] of global step off + r; dq slot = q[r+1] - q[r].
-    S = np.zeros((cap, 4, n))
-    S[0, 1], S[0, 2], S[0, 3] = q0v, v0v, a0
-    off = 0
-    nb = 4 if has_delay else 3
-    xfull = np.zeros(nb * n)
-    X3 = xfull[: 3 * n].reshape(3, n)
-    qd = xfull[3 * n :]  # empty without a delay
-    rhs = np.zeros(n)
-    coefX = np.array(
-        [
-            [0.0, -1.0, 0.0, 0.0],  # multiplies C: -q
-            [0.0, 0.0, c2, c3],  # multiplies A
-            [0.0, 0.0, -dv1, -dv2],
-        ]
-    )  # multiplies B
-    Mupd = np.array(
-        [
-            [1.0, 1.0, 0.0, 0.0],  # q_new = q + dq
-            [c1, 0.0, dv1, dv2],  # v_new
-            [c0, 0.0, -c2, -c3],
-        ]
-    )  # a_new
-    w8 = np.zeros(8)
-    if has_delay and not exact:
-        w = _hermite_weights(s_frac, h)
-        w8[[1, 2, 5, 6]] = w
+        w2 = sla.eigvals(C0, A0)
+        wmax = float(np.sqrt(np.max(np.abs(w2[np.isfinite(w2)]))))
+        hcr = opts.critical_omega_h / wmax if wmax > 0 else math.inf
+        msg = (
+            f"beta={bet} < gamma/2 is only conditionally stable: h must be < "
+            f"{opts.critical_omega_h:.4g}/w_max = {hcr:.4g} s at t0 (h = {h:.4g} s)"
+        )
+    except Exception:  # noqa: BLE001 - the estimate is only informative
+        msg = f"beta={bet} < gamma/2 is only conditionally stable"
+    notes.append(msg)
+    warnings.warn(msg, NewmarkStabilityWarning, stacklevel=4)
 
-    t_rec = t0 + h * rec * np.arange(n_rec)
-    q_out = np.empty((n_out, n_rec))
-    v_out = np.empty((n_out, n_rec))
-    a_out = np.empty((n_out, n_rec))
 
-    def record(rows: FloatArray, j_first: int) -> None:
+class _Stepper:
+    """One integration in progress: the state buffer, the recorded outputs,
+    the preparation of each chunk of steps (matrices and batched inverses,
+    in worker threads) and the step loop.
+
+    ``S[r] = [dq slot, q, v, a]`` of global step ``off + r`` (dq slot =
+    q[r+1] - q[r]); only the last ``keep`` rows survive a wrap.
+    """
+
+    def __init__(self, p: _Plan) -> None:
+        self.p = p
+        n = p.n
+        c0, c1, c2, c3, dv1, dv2 = p.coef
+        self.S = np.zeros((p.cap, 4, n))
+        self.S[0, 1], self.S[0, 2], self.S[0, 3] = p.q0, p.v0, p.a0
+        self.off = 0
+        nb = 4 if p.has_delay else 3
+        self.xfull = np.zeros(nb * n)
+        self.X3 = self.xfull[: 3 * n].reshape(3, n)
+        self.qd = self.xfull[3 * n :]  # empty without a delay
+        self.rhs = np.zeros(n)
+        # multiply C: -q;  A;  B
+        self.coefX = np.array([[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, c2, c3], [0.0, 0.0, -dv1, -dv2]])
+        # q_new = q + dq; v_new; a_new
+        self.Mupd = np.array([[1.0, 1.0, 0.0, 0.0], [c1, 0.0, dv1, dv2], [c0, 0.0, -c2, -c3]])
+        self.w8 = np.zeros(8)
+        if p.has_delay and not p.exact:
+            self.w8[[1, 2, 5, 6]] = _hermite_weights(p.s_frac, p.h)
+        n_out = p.out_idx.size if p.out_idx is not None else p.out_sel.shape[0]  # type: ignore[union-attr]
+        self.t_rec = p.t0 + p.h * p.rec * np.arange(p.n_rec)
+        self.out = [np.empty((n_out, p.n_rec)) for _ in range(3)]  # q, v, a
+        self.record(self.S[0:1, 1:4], 0)
+        self.n_recorded = 1
+        self.tinv = bool(getattr(p.problem, "time_invariant", False))
+        self.P = np.empty((0, 0))
+        self.Kinv0 = np.empty((0, 0))
+        if self.tinv:
+            self.Kinv0 = _inverse((c0 * p.A0 + c1 * p.B0 + p.C0)[None], np.array([p.t0]))[0]
+            blocks = [p.C0, p.A0, p.B0] + ([p.G0] if p.G0 is not None else [])
+            self.P = np.ascontiguousarray(self.Kinv0 @ np.concatenate(blocks, axis=1))
+        self.lock = threading.Lock()
+
+    def record(self, rows: FloatArray, j_first: int) -> None:
         """Store states ``rows`` (k, 3, n) = [q, v, a] into outputs from record index j_first."""
         k = rows.shape[0]
         if k == 0:
             return
-        for slot, dst in ((0, q_out), (1, v_out), (2, a_out)):
+        p = self.p
+        for slot, dst in enumerate(self.out):
             blk = rows[:, slot, :]
-            if out_idx is not None:
-                dst[:, j_first : j_first + k] = blk[:, out_idx].T
+            if p.out_idx is not None:
+                dst[:, j_first : j_first + k] = blk[:, p.out_idx].T
             else:
-                dst[:, j_first : j_first + k] = out_sel @ blk.T
+                dst[:, j_first : j_first + k] = p.out_sel @ blk.T
 
-    record(S[0:1, 1:4], 0)
-    n_recorded = 1
-
-    # ---- precomputation ----------------------------------------------------------------
-    tinv = bool(getattr(problem, "time_invariant", False))
-    P = np.empty((0, 0))
-    if tinv:
-        Kinv0 = _inverse((c0 * A0 + c1 * B0 + C0)[None], t0a)[0]
-        blocks = [C0, A0, B0] + ([G0] if has_delay else [])
-        P = np.ascontiguousarray(Kinv0 @ np.concatenate(blocks, axis=1))
-
-    problem_lock = threading.Lock()
-
-    def prepare(i0: int, c: int) -> tuple[FloatArray, FloatArray, FloatArray | None]:
+    def prepare(self, i0: int, c: int) -> tuple[FloatArray, FloatArray, FloatArray | None]:
         """Matrices for steps i0+1 .. i0+c: (Kinv or None, F or Kinv F, blocks)."""
-        tt = t0 + h * np.arange(i0 + 1, i0 + c + 1)
-        if i0 + c in bp_steps:  # left limit at the breakpoint
-            tt[-1] -= max(1e-9 * h, 8 * np.spacing(abs(tt[-1])))
-        with problem_lock:  # the problem's own code is never called concurrently
-            F = _force_at(problem, tt, n)
-            if tinv:
-                return np.empty(0), np.ascontiguousarray(F @ Kinv0.T), None
-            A, B, C, G = problem.matrices(tt)
+        p, n = self.p, self.p.n
+        c0, c1 = p.coef[0], p.coef[1]
+        tt = p.t0 + p.h * np.arange(i0 + 1, i0 + c + 1)
+        if i0 + c in p.bp_steps:  # left limit at the breakpoint
+            tt[-1] -= max(1e-9 * p.h, 8 * np.spacing(abs(tt[-1])))
+        with self.lock:  # the problem's own code is never called concurrently
+            F = _force_at(p.problem, tt, n)
+            if self.tinv:
+                return np.empty(0), np.ascontiguousarray(F @ self.Kinv0.T), None
+            A, B, C, G = p.problem.matrices(tt)
         A, B, C = (_stack(nm, m, c, n, tt, False) for nm, m in zip("ABC", (A, B, C), strict=True))
         mats = [C, A, B]
-        if has_delay:
+        if p.has_delay:
             if G is None:
                 G = np.zeros((c, n, n))
             mats.append(_stack("G", G, c, n, tt))
@@ -1243,157 +1376,196 @@ def newmark(
         Kinv = _inverse(K, tt)
         return Kinv, np.ascontiguousarray(F), np.concatenate(mats, axis=2)
 
-    def restart(ib: int) -> None:
+    def restart(self, ib: int) -> None:
         """Acceleration at breakpoint step ib from the equation of motion, right limits."""
-        tb = np.array([t0 + ib * h])
-        with problem_lock:
-            Ab, Bb, Cb, Gb = problem.matrices(tb)
-            fb = _force_at(problem, tb, n)[0]
+        p, n, S, off = self.p, self.p.n, self.S, self.off
+        tb = np.array([p.t0 + ib * p.h])
+        with self.lock:
+            Ab, Bb, Cb, Gb = p.problem.matrices(tb)
+            fb = _force_at(p.problem, tb, n)[0]
         Ab, Bb, Cb = (_stack(nm, m, 1, n, tb)[0] for nm, m in zip("ABC", (Ab, Bb, Cb), strict=True))
         r = ib - off
         q, v = S[r, 1], S[r, 2]
         rhs_b = fb - Bb @ v - Cb @ q
-        if has_delay and Gb is not None:
-            j = ib - shift
+        if p.has_delay and Gb is not None:
+            j = ib - p.shift
             if j < 0:
-                qd_b = hist_vals[ib]
-            elif exact:
+                qd_b = p.hist_vals[ib]
+            elif p.exact:
                 qd_b = S[j - off, 1]
             else:
-                qd_b = w8 @ S[j - off : j - off + 2].reshape(8, n)
+                qd_b = self.w8 @ S[j - off : j - off + 2].reshape(8, n)
             rhs_b = rhs_b + _stack("G", Gb, 1, n, tb)[0] @ qd_b
         S[r, 3] = np.linalg.solve(Ab, rhs_b)
 
-    # ---- main loop ---------------------------------------------------------------------
-    status, reason = "ok", ""
-    i_done = 0  # global index of the last completed step
-    matmul, dot, add, copyto = np.matmul, np.dot, np.add, np.copyto
-    limit = float(opts.divergence_limit)
-    n_workers = int(opts.workers) if (not tinv and n_total > chunk) else 0
-    pool = ThreadPoolExecutor(max_workers=n_workers) if n_workers else None
-    bounds = sorted(set(range(0, n_total, chunk)) | {b for b in bp_steps if b < n_total})
-    bounds.append(n_total)
-    chunks = [(a, b - a) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    futures: deque[Any] = deque()
-    try:
-        if pool is not None:
-            for ch in chunks[:n_workers]:
-                futures.append(pool.submit(prepare, *ch))
-        for ci, (i0, c) in enumerate(chunks):
-            if pool is not None:
-                data = futures.popleft().result()
-                if ci + n_workers < len(chunks):
-                    futures.append(pool.submit(prepare, *chunks[ci + n_workers]))
-            else:
-                data = prepare(i0, c)
-            Kinv, F, Blk = data
-            # make room: keep the last `keep` rows when the chunk would overflow
-            r0 = i0 - off
-            if r0 + c + 1 > cap:
-                S[0:keep] = S[r0 - keep + 1 : r0 + 1].copy()
-                off = i0 - keep + 1
-                r0 = i0 - off
-            k = -1
-            with np.errstate(all="ignore"):
-                try:
-                    for k in range(c):
-                        Sk = S[r0 + k]
-                        matmul(coefX, Sk, out=X3)
-                        if has_delay:
-                            j = i0 + k + 1 - shift
-                            if i0 + k + 1 < n_hist:
-                                copyto(qd, hist_vals[i0 + k + 1])
-                            elif exact:
-                                copyto(qd, S[j - off, 1])
-                            else:
-                                matmul(w8, S[j - off : j - off + 2].reshape(8, n), out=qd)
-                        if tinv:
-                            dot(P, xfull, out=rhs)
-                            add(rhs, F[k], out=Sk[0])
-                        else:
-                            dot(Blk[k], xfull, out=rhs)
-                            rhs += F[k]
-                            dot(Kinv[k], rhs, out=Sk[0])
-                        matmul(Mupd, Sk, out=S[r0 + k + 1, 1:])
-                    k = c
-                    if i0 + c in bp_steps:
-                        restart(i0 + c)
-                except KeyboardInterrupt:
-                    status = "interrupted"
-                # rows r0+1 .. r0+k are complete (k steps of this chunk)
-                done = max(k, 0)
-                rows = S[r0 + 1 : r0 + done + 1, 1:]
-                bad = ~np.all(np.isfinite(rows), axis=(1, 2))
-                bad |= np.max(np.abs(rows[:, 0, :]), axis=1) > limit
-            if bad.any():
-                first = int(np.argmax(bad))
-                done = first
-                status = "diverged"
-                ib = i0 + first + 1
-                reason = (
-                    f"diverged at t = {t0 + ib * h:.9g} s (step {ib}): "
-                    f"non-finite state or |q| > divergence_limit = {limit:.3g}"
-                )
-            # record the steps of this chunk that fall on the record grid
-            g_first = i0 + 1
-            g_last = i0 + done
-            if g_last >= g_first:
-                j_a = -(-g_first // rec)
-                j_b = g_last // rec
-                if j_b >= j_a:
-                    gl = np.arange(j_a, j_b + 1) * rec
-                    record(S[gl - off, 1:4], j_a)
-                    n_recorded = j_b + 1
-            i_done = i0 + done
-            if status != "ok":
-                break
-            if progress is not None:
-                progress(i_done / n_total)
-            if callback is not None:
-                r = i_done - off
-                stop = callback(t0 + i_done * h, S[r, 1].copy(), S[r, 2].copy(), S[r, 3].copy())
-                if stop is True:
-                    status = "stopped"
-                    reason = f"stopped by callback at t = {t0 + i_done * h:.9g} s"
-                    break
-    except KeyboardInterrupt:
-        status = "interrupted"
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=False, cancel_futures=True)
+    def steps(self, i0: int, c: int, data: tuple[Any, ...]) -> tuple[int, bool]:
+        """The hot loop: steps i0+1 .. i0+c with the prepared ``data``; returns
+        the steps done and whether a KeyboardInterrupt stopped them.  Only
+        small in-place products per step (local names for speed)."""
+        p = self.p
+        Kinv, F, Blk = data
+        S, keep, n = self.S, p.keep, p.n
+        # make room: keep the last `keep` rows when the chunk would overflow
+        r0 = i0 - self.off
+        if r0 + c + 1 > p.cap:
+            S[0:keep] = S[r0 - keep + 1 : r0 + 1].copy()
+            self.off = i0 - keep + 1
+            r0 = i0 - self.off
+        off, shift, n_hist, hist_vals, exact = self.off, p.shift, p.n_hist, p.hist_vals, p.exact
+        has_delay, tinv, P = p.has_delay, self.tinv, self.P
+        coefX, Mupd, w8, X3, qd, xfull, rhs = (
+            self.coefX, self.Mupd, self.w8, self.X3, self.qd, self.xfull, self.rhs
+        )  # fmt: skip
+        matmul, dot, add, copyto = np.matmul, np.dot, np.add, np.copyto
+        k = -1
+        try:
+            for k in range(c):
+                Sk = S[r0 + k]
+                matmul(coefX, Sk, out=X3)
+                if has_delay:
+                    j = i0 + k + 1 - shift
+                    if i0 + k + 1 < n_hist:
+                        copyto(qd, hist_vals[i0 + k + 1])
+                    elif exact:
+                        copyto(qd, S[j - off, 1])
+                    else:
+                        matmul(w8, S[j - off : j - off + 2].reshape(8, n), out=qd)
+                if tinv:
+                    dot(P, xfull, out=rhs)
+                    add(rhs, F[k], out=Sk[0])
+                else:
+                    dot(Blk[k], xfull, out=rhs)
+                    rhs += F[k]
+                    dot(Kinv[k], rhs, out=Sk[0])
+                matmul(Mupd, Sk, out=S[r0 + k + 1, 1:])
+            k = c
+            if i0 + c in p.bp_steps:
+                self.restart(i0 + c)
+        except KeyboardInterrupt:
+            return max(k, 0), True
+        return max(k, 0), False
 
-    wall = time.perf_counter() - wall0
-    t_end = t0 + i_done * h
-    if status == "ok":
-        msg = (
-            f"{i_done} steps of h = {h:.6g} s from t = {t0:.6g} to {t_end:.6g} s in "
-            f"{wall:.3g} s ({i_done / max(wall, 1e-12):.0f} steps/s)"
+    def finish_chunk(self, i0: int, done: int) -> tuple[int, str]:
+        """Check the ``done`` new steps after i0 for divergence (returns the
+        steps to keep and a reason when it diverged) and record those on
+        the record grid."""
+        p = self.p
+        r0 = i0 - self.off
+        with np.errstate(all="ignore"):
+            rows = self.S[r0 + 1 : r0 + done + 1, 1:]
+            bad = ~np.all(np.isfinite(rows), axis=(1, 2))
+            bad |= np.max(np.abs(rows[:, 0, :]), axis=1) > p.opts.divergence_limit
+        reason = ""
+        if bad.any():
+            first = int(np.argmax(bad))
+            done = first
+            ib = i0 + first + 1
+            reason = (
+                f"diverged at t = {p.t0 + ib * p.h:.9g} s (step {ib}): "
+                f"non-finite state or |q| > divergence_limit = {float(p.opts.divergence_limit):.3g}"
+            )
+        # record the steps of this chunk that fall on the record grid
+        g_first, g_last = i0 + 1, i0 + done
+        if g_last >= g_first:
+            j_a = -(-g_first // p.rec)
+            j_b = g_last // p.rec
+            if j_b >= j_a:
+                gl = np.arange(j_a, j_b + 1) * p.rec
+                self.record(self.S[gl - self.off, 1:4], j_a)
+                self.n_recorded = j_b + 1
+        return done, reason
+
+    def run(
+        self,
+        progress: Callable[[float], Any] | None,
+        callback: Callable[[float, FloatArray, FloatArray, FloatArray], Any] | None,
+    ) -> tuple[str, str, int]:
+        """Step through all chunks (prepared ahead by the workers); returns
+        ``(status, reason, steps done)``."""
+        p = self.p
+        status, reason = "ok", ""
+        i_done = 0  # global index of the last completed step
+        n_workers = int(p.opts.workers) if (not self.tinv and p.n_total > p.chunk) else 0
+        pool = ThreadPoolExecutor(max_workers=n_workers) if n_workers else None
+        bounds = sorted(set(range(0, p.n_total, p.chunk)) | {b for b in p.bp_steps if b < p.n_total})
+        bounds.append(p.n_total)
+        chunks = [(a, b - a) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        futures: deque[Any] = deque()
+        try:
+            if pool is not None:
+                for ch in chunks[:n_workers]:
+                    futures.append(pool.submit(self.prepare, *ch))
+            for ci, (i0, c) in enumerate(chunks):
+                if pool is not None:
+                    data = futures.popleft().result()
+                    if ci + n_workers < len(chunks):
+                        futures.append(pool.submit(self.prepare, *chunks[ci + n_workers]))
+                else:
+                    data = self.prepare(i0, c)
+                with np.errstate(all="ignore"):
+                    done, interrupted = self.steps(i0, c, data)
+                if interrupted:
+                    status = "interrupted"
+                done, diverged = self.finish_chunk(i0, done)
+                if diverged:
+                    status, reason = "diverged", diverged
+                i_done = i0 + done
+                if status != "ok":
+                    break
+                if progress is not None:
+                    progress(i_done / p.n_total)
+                if callback is not None:
+                    r = i_done - self.off
+                    S = self.S
+                    stop = callback(p.t0 + i_done * p.h, S[r, 1].copy(), S[r, 2].copy(), S[r, 3].copy())
+                    if stop is True:
+                        status = "stopped"
+                        reason = f"stopped by callback at t = {p.t0 + i_done * p.h:.9g} s"
+                        break
+        except KeyboardInterrupt:
+            status = "interrupted"
+        finally:
+            if pool is not None:
+                pool.shutdown(wait=False, cancel_futures=True)
+        return status, reason, i_done
+
+    def response(self, status: str, reason: str, i_done: int, wall: float) -> TimeResponse:
+        """The :class:`TimeResponse` of the run, with its message."""
+        p = self.p
+        t0, h = p.t0, p.h
+        t_end = t0 + i_done * h
+        if status == "ok":
+            msg = (
+                f"{i_done} steps of h = {h:.6g} s from t = {t0:.6g} to {t_end:.6g} s in "
+                f"{wall:.3g} s ({i_done / max(wall, 1e-12):.0f} steps/s)"
+            )
+        elif status == "interrupted":
+            msg = f"interrupted after {i_done} of {p.n_total} steps (t = {t_end:.9g} s)"
+        else:
+            msg = reason
+        if p.notes:
+            msg += "; " + "; ".join(p.notes)
+        nr = self.n_recorded
+        q_out, v_out, a_out = self.out
+        return TimeResponse(
+            t=self.t_rec[:nr].copy(),
+            q=q_out[:, :nr].copy(),
+            v=v_out[:, :nr].copy(),
+            a=a_out[:, :nr].copy(),
+            names=p.out_names,
+            status=status,
+            message=msg,
+            n_steps=i_done,
+            wall_time=wall,
+            h=h,
+            attrs={
+                "gamma": p.gam,
+                "beta": p.bet,
+                "delay": p.T,
+                "t_span": (t0, p.t1),
+                "breakpoints": tuple(t0 + b * h for b in sorted(p.bp_steps)),
+            },
         )
-    elif status == "interrupted":
-        msg = f"interrupted after {i_done} of {n_total} steps (t = {t_end:.9g} s)"
-    else:
-        msg = reason
-    if notes:
-        msg += "; " + "; ".join(notes)
-    return TimeResponse(
-        t=t_rec[:n_recorded].copy(),
-        q=q_out[:, :n_recorded].copy(),
-        v=v_out[:, :n_recorded].copy(),
-        a=a_out[:, :n_recorded].copy(),
-        names=out_names,
-        status=status,
-        message=msg,
-        n_steps=i_done,
-        wall_time=wall,
-        h=h,
-        attrs={
-            "gamma": gam,
-            "beta": bet,
-            "delay": T,
-            "t_span": (t0, t1),
-            "breakpoints": tuple(t0 + b * h for b in sorted(bp_steps)),
-        },
-    )
 
 
 def _count(n: float) -> str:

@@ -740,6 +740,61 @@ def simulate(
         the memory limits of ``options``; a stroke outside the movable range).
     """
     mdl = system.model
+    width, duration, step, kin = _check_run(
+        system, feedback, width, passes, duration, step, speed, delay, position
+    )
+    T = float(kin.delay)
+    if duration is None:
+        duration = passes * T
+    outs = list(outputs) if outputs is not None else _default_outputs(mdl)
+    out_rows = [_output_map(system, name) for name in outs]  # refuse unknown outputs before the run
+    step = _time_step(system, kin, feedback, step, position, duration)
+    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces, method=method)
+    prob._t_end = float(duration)
+    run_prob = _run_problem(prob, loads, ground_motion)
+    with _blas_limits():
+        res = newmark(
+            run_prob,
+            (0.0, float(duration)),
+            step,
+            q0,
+            options=options,
+            record_every=record_every,
+            progress=progress,
+        )
+    data, units = _histories(prob, res, outs, out_rows)
+    s, _, cut, cd = kin.state(res.t)
+    return Simulation(
+        t=res.t,
+        data=data,
+        position=s,
+        in_cut=cut,
+        cut_distance=cd,
+        response=res,
+        terms=feedback,
+        width=float(width),
+        delay=T,
+        step=step,
+        passes=int(passes),
+        units=units,
+        model=mdl.source,
+        meta={"kinematics": type(kin).__name__, "coefficients": "+".join(sorted(prob.method_used))},
+    )
+
+
+def _check_run(
+    system: System,
+    feedback: str,
+    width: float | None,
+    passes: Any,
+    duration: float | None,
+    step: float | None,
+    speed: float | None,
+    delay: float | None,
+    position: float | None,
+) -> tuple[float, float | None, float | None, ShapingKinematics | SteadyKinematics]:
+    """The arguments of :func:`simulate` checked: ``(width, duration, step, kinematics)``."""
+    mdl = system.model
     if feedback not in FEEDBACK_CASES:
         raise InputError(f"feedback must be one of {', '.join(FEEDBACK_CASES)} (got {feedback!r})")
     if not mdl.couplings:
@@ -753,6 +808,14 @@ def simulate(
         duration = check_positive(duration, "duration", "s")
     if step is not None:
         step = check_positive(step, "step", "s")
+    return width, duration, step, _kinematics(system, speed, delay, position)
+
+
+def _kinematics(
+    system: System, speed: float | None, delay: float | None, position: float | None
+) -> ShapingKinematics | SteadyKinematics:
+    """The process kinematics, its stroke and position checked against the movable range."""
+    mdl = system.model
     kin = kinematics_for(mdl.process, speed=speed, delay=delay, position=position)
     if isinstance(kin, ShapingKinematics) and mdl.movable is not None:
         lo, hi = mdl.movable.range
@@ -766,11 +829,22 @@ def simulate(
             )
     if position is not None and mdl.movable is not None:
         system.positions(position)  # refuses a position outside the movable range
+    return kin
+
+
+def _time_step(
+    system: System,
+    kin: ShapingKinematics | SteadyKinematics,
+    feedback: str,
+    step: float | None,
+    position: float | None,
+    duration: float,
+) -> float:
+    """The step h, s: the given one, or a twentieth of the period of the
+    highest natural frequency below 300 Hz and at most T/20, rounded down
+    so that the process events fall on the step grid; checked against the
+    delay and the duration."""
     T = float(kin.delay)
-    if duration is None:
-        duration = passes * T
-    outs = list(outputs) if outputs is not None else _default_outputs(mdl)
-    out_rows = [_output_map(system, name) for name in outs]  # refuse unknown outputs before the run
     if step is None:
         from ..structure._modal import modes
 
@@ -791,41 +865,44 @@ def simulate(
         )
     if step > duration * (1 + 1e-12):
         raise InputError(f"step {step:g} s is longer than the duration {duration:g} s")
-    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces, method=method)
-    prob._t_end = float(duration)
+    return step
+
+
+def _run_problem(
+    prob: ParametricProblem,
+    loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None,
+    ground_motion: Mapping[str, Callable[[np.ndarray], Any]] | None,
+) -> Any:
+    """What newmark integrates: the parametric problem (with the external
+    loads and ground motion added), or for steady kinematics its constant
+    matrices at t = 0 (factored once)."""
     extra = _ExtraForce(prob, loads, ground_motion) if (loads or ground_motion) else None
-    if isinstance(kin, SteadyKinematics):
-        A, B, C, G = prob.matrices(np.array([0.0]))
-        f0 = np.array(prob.force(np.array([0.0]))[0])
-        force: Any = f0
-        if extra is not None:
+    if not isinstance(prob.kin, SteadyKinematics):
+        return prob if extra is None else _WithExtraForce(prob, extra)
+    A, B, C, G = prob.matrices(np.array([0.0]))
+    f0 = np.array(prob.force(np.array([0.0]))[0])
+    force: Any = f0
+    if extra is not None:
 
-            def force(tt: np.ndarray, f0: np.ndarray = f0, extra: _ExtraForce = extra) -> np.ndarray:
-                return f0[None, :] + extra(np.atleast_1d(tt))
+        def force(tt: np.ndarray, f0: np.ndarray = f0, extra: _ExtraForce = extra) -> np.ndarray:
+            return f0[None, :] + extra(np.atleast_1d(tt))
 
-        run_prob: Any = ConstantProblem(
-            A[0],
-            B[0],
-            C[0],
-            force=force,
-            G=None if G is None else G[0],
-            delay=prob.delay(),
-        )
-    else:
-        run_prob = prob if extra is None else _WithExtraForce(prob, extra)
-    with _blas_limits():
-        res = newmark(
-            run_prob,
-            (0.0, float(duration)),
-            step,
-            q0,
-            options=options,
-            record_every=record_every,
-            progress=progress,
-        )
-    t = res.t
-    s, v, cut, cd = kin.state(t)
-    q = res.q  # (n_i, n_t)
+    return ConstantProblem(
+        A[0],
+        B[0],
+        C[0],
+        force=force,
+        G=None if G is None else G[0],
+        delay=prob.delay(),
+    )
+
+
+def _histories(
+    prob: ParametricProblem, res: TimeResponse, outs: list[str], out_rows: list[np.ndarray]
+) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """The named time histories (requested outputs, then the CE relative
+    displacements) from q_i and their units."""
+    t, q = res.t, res.q  # q: (n_i, n_t)
     nce = prob.J.shape[0]
     rows = np.vstack([prob.J] + [r[None, :] for r in out_rows]) if out_rows else prob.J
     vals = np.empty((rows.shape[0], t.size))
@@ -839,26 +916,11 @@ def simulate(
     for j, name in enumerate(outs):
         data[name] = vals[nce + j]
         units[name] = "rad" if name.endswith(".rz") else "m"
-    for k, c in enumerate(mdl.couplings):
+    for k, c in enumerate(prob.system.model.couplings):
         for j in (0, 1):
             data[f"{c.id}.{j + 1}"] = vals[3 * k + j]
             units[f"{c.id}.{j + 1}"] = "m"
-    return Simulation(
-        t=t,
-        data=data,
-        position=s,
-        in_cut=cut,
-        cut_distance=cd,
-        response=res,
-        terms=feedback,
-        width=float(width),
-        delay=T,
-        step=step,
-        passes=int(passes),
-        units=units,
-        model=mdl.source,
-        meta={"kinematics": type(kin).__name__, "coefficients": "+".join(sorted(prob.method_used))},
-    )
+    return data, units
 
 
 def _blas_limits() -> Any:
