@@ -182,3 +182,33 @@ def test_too_dense_roots_are_a_status_not_a_memory_error():
     assert r.status == "not_converged" and "too dense" in r.message
     assert f"{AXIS_GRID_MAX:.0e}" in r.message
     assert peak < 2e8
+
+
+def test_unstable_delay_free_loop_with_long_delay_is_answered_fast(shaper_path):
+    """A width of 200 m (a unit slip) makes the delay-free loop unstable with
+    roots near Re = 3000 1/s; with T = 1.5 s the collocation would need an
+    8525 x 8525 eigenproblem (minutes).  The search reports that as a status,
+    and the verdict is still proven: Newton from the unstable delay-free pole
+    converges to a root of Delta with Re > 0 (e^{-lambda T} ~ e^{-4500} there)."""
+    from chatterlab.frequency import WINDOW_MAX
+
+    fz = cl.assemble(cl.load_model(shaper_path)).at(0.85)
+    st = stability(fz, width=200.0, speed=0.5, winding=False)
+    assert st.roots.status == "not_converged" and f"limit {WINDOW_MAX}" in st.roots.message
+    assert st.verdict == "unstable" and st.abscissa > 1000.0
+    # the root is a root: |det Delta| relative to its scale is round-off
+    from chatterlab.frequency import make_system
+    from chatterlab.process import feedback
+
+    fb = feedback(fz, width=200.0, speed=0.5)
+    sys_ = make_system(fz.A, fz.B, fz.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay)
+    # the reported abscissa is a root: the smallest singular value of
+    # Delta(lambda) at the best root near it is round-off of its largest
+    from chatterlab.frequency import newton_refine
+
+    p = sys_.delay_free_poles()
+    lam, ok = newton_refine(p[np.argsort(-p.real)][:2], fz.A, fz.B, fz.C, system=sys_)
+    best = lam[ok][np.argmax(lam[ok].real)]
+    assert best.real == pytest.approx(st.abscissa, rel=1e-9)
+    sv = np.linalg.svd(sys_.delta(np.array([best]))[0], compute_uv=False)
+    assert sv[-1] / sv[0] < 1e-12

@@ -7,6 +7,8 @@ from __future__ import annotations
 from ._bounds import Band, PoleResidue, certified_band
 from ._frf import FRF, ComplexModes, complex_modes, frequencies, frf, loop_determinant, resonance_grid
 from ._roots import (
+    AXIS_GRID_MAX,
+    WINDOW_MAX,
     DelaySystem,
     RootsResult,
     certified_top,
@@ -50,5 +52,7 @@ __all__ = [
     "stability",
     "loop_band",
     "certified_top",
+    "AXIS_GRID_MAX",
+    "WINDOW_MAX",
     "MARGINAL_TOL",
 ]

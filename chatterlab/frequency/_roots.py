@@ -100,6 +100,8 @@ __all__ = [
     "newton_refine",
     "chebyshev_nodes",
     "certified_top",
+    "AXIS_GRID_MAX",
+    "WINDOW_MAX",
 ]
 
 ComplexArray = NDArray[np.complex128]
@@ -857,7 +859,19 @@ class _Window:
     failed: str = ""
 
 
+#: largest generator matrix one window may need (its eigenvalues take seconds;
+#: beyond this the search reports a status instead of running for minutes)
+WINDOW_MAX = 1600
+
+
 def _solve_window(sys: DelaySystem, w: _Window, match_tol: float) -> None:
+    size = sys.A.shape[0] + w.N2 * sys.r
+    if size > WINDOW_MAX:
+        raise _TooLarge(
+            f"a window of radius {w.radius:.4g} rad/s at {w.centre / 2 / math.pi:.4g} Hz needs a"
+            f" {size} x {size} eigenproblem (limit {WINDOW_MAX}): roots far from the imaginary axis"
+            " (e.g. an unstable delay-free loop) with a long delay; pass omega_max or n_nodes"
+        )
     scale = _root_scale(sys)
     found = []
     for N in (w.N, w.N2):

@@ -168,6 +168,14 @@ def stability(
     if not np.isfinite(absc) or not r.converged:
         verdict = "undetermined"
         msg = f"root search: {r.message}"
+        found = _unstable_root(frozen, fb, DO)
+        if found is not None:
+            # one root right of the axis proves instability, complete search or not
+            verdict, absc = "unstable", float(found.real)
+            msg += (
+                f"; a root at {found.real:.6g} {found.imag:+.6g}j 1/s, refined by Newton from an unstable"
+                " delay-free pole, proves the cut unstable"
+            )
     else:
         scale = float(abs(r.roots[0])) if len(r.roots) else 1.0
         if abs(absc) <= MARGINAL_TOL * scale + 1e-9:
@@ -231,3 +239,21 @@ def loop_band(frozen: FrozenSystem, fb: Any, tol: float = 1e-4) -> float:
     if big.size == 0:
         return float(2.0 * wn.min())
     return float(min(wmax, 2.0 * w[big[-1]]))
+
+
+def _unstable_root(frozen: FrozenSystem, fb: Any, DO: Any) -> complex | None:
+    """A characteristic root with Re > 0 found by Newton from the delay-free
+    closed loop's unstable poles (where e^{-lambda T} is small the delayed
+    term barely moves them), or None."""
+    from ._roots import make_system, newton_refine
+
+    sys_ = make_system(
+        frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=DO, tau=fb.delay if DO is not None else None
+    )
+    p = sys_.delay_free_poles()
+    starts = p[(p.real > 0) & (p.imag >= 0)]
+    if starts.size == 0:
+        return None
+    lam, ok = newton_refine(starts[np.argsort(-starts.real)][:8], frozen.A, frozen.B, frozen.C, system=sys_)
+    good = lam[ok & (lam.real > 0)]
+    return complex(good[np.argmax(good.real)]) if good.size else None
