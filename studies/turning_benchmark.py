@@ -106,11 +106,14 @@ if __name__ == "__main__":
     import matplotlib
 
     matplotlib.use("Agg")
-    from chatterlab.plot._plot import savefig
+    from chatterlab.plot import plot_lobes, savefig
 
-    axes = r["diagram"].plot(title="1-DOF turning: chatterlab lobes and Tlusty's closed form")
-    axes[0].plot(r["diagram"].speed, r["reference"] * 1e3, "k:", lw=1, label="closed form (Tlusty)")
-    axes[0].legend(fontsize=8, loc="upper right")
+    d = r["diagram"]
+    axes = plot_lobes(
+        d,
+        title="1-DOF turning: chatterlab lobes and Tlusty's closed form",
+        references={"closed form (Tlusty), at the requested speeds": (d.speed, r["reference"])},
+    )
     out = Path(__file__).resolve().parents[1] / "docs" / "figures" / "turning_lobes.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     savefig(axes, str(out))

@@ -6,7 +6,7 @@ save; none calls ``plt.show()``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -579,6 +579,7 @@ def _draw_lobe_panel(
     static: float,
     lobe_numbers: int,
     dense_ok: bool,
+    references: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Lobes (one LineCollection), the exact envelope, the unstable region and
     the claims on one Axes over speeds [lo, hi].  Returns what was drawn."""
@@ -597,13 +598,13 @@ def _draw_lobe_panel(
     peak = float(np.max(em[fin])) if np.any(fin) else top
     ytop = top if 1.2 * peak >= top else 1.2 * peak
     handles: list[Any] = []
-    segs = [
+    polylines = [
         np.column_stack([c.speed, c.width * 1e3])
         for c in curves
         if c.speed.max() >= lo and c.speed.min() <= hi
     ]
     lc = LineCollection(
-        segs, colors="0.55", linewidths=0.2 if dense else 0.6, alpha=0.12 if dense else 1.0, zorder=1
+        polylines, colors="0.55", linewidths=0.2 if dense else 0.6, alpha=0.12 if dense else 1.0, zorder=1
     )
     lc.set_gid("lobes")
     ax.add_collection(lc)
@@ -652,9 +653,18 @@ def _draw_lobe_panel(
             label=f"min of range {m['width'] * 1e3:.4g} mm at {m['speed']:.4g} {d.speed_unit}",
         )
         handles.append(mk)
+    styles_ref = [("tab:green", ":"), ("k", ":"), ("tab:purple", "-.")]
+    for i, (lab, ref) in enumerate((references or {}).items()):
+        col, ls = styles_ref[i % len(styles_ref)]
+        if np.ndim(ref) == 0:
+            (rl,) = ax.plot([lo, hi], [float(ref) * 1e3] * 2, color=col, ls=ls, lw=1.2, zorder=4, label=lab)
+        else:
+            rv, rb = (np.asarray(x, float) for x in ref)
+            (rl,) = ax.plot(rv, rb * 1e3, color=col, ls=ls, lw=1.2, zorder=4, label=lab)
+        handles.append(rl)
     spans = _claim_spans(d)
     trans = ax.get_xaxis_transform()
-    styles = {
+    styles: dict[int, dict[str, Any]] = {
         1: dict(
             y=(0.93, 1.0),
             hatch="////",
@@ -756,7 +766,14 @@ def _label_lobes(
     return out
 
 
-def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: str | None = None) -> Any:
+def plot_lobes(
+    diagram: Any,
+    *,
+    axes: Any = None,
+    lobe_numbers: int = 8,
+    title: str | None = None,
+    references: Mapping[str, Any] | None = None,
+) -> Any:
     """Stability lobe diagram: width of cut (mm) against speed.
 
     Draws every lobe (one LineCollection), the exact lower envelope of the
@@ -771,7 +788,24 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
     is the chatter frequency along the envelope.  The title names the model,
     position, feedback, ceiling, chatter band and the verification.
 
-    Returns (ax_lobes, ax_freq), or (ax_lobes, ax_zoom, ax_freq) when dense.
+    Parameters
+    ----------
+    diagram : LobeDiagram
+    axes : sequence of Axes, optional
+        (ax_lobes, ax_freq) or (ax_lobes, ax_zoom, ax_freq); default: a new
+        figure, with the zoom panel when the lobes are dense.
+    lobe_numbers : int
+        Most lobe numbers written per panel (0: none).
+    title : str, optional
+        First title line (default: the model); the second says position,
+        feedback, ceiling, band and checks.
+    references : mapping, optional
+        Reference widths drawn on the lobe panels with a legend entry: label ->
+        width (m, a horizontal line) or (speeds, widths in m) (a dotted curve).
+
+    Returns
+    -------
+    (ax_lobes, ax_freq), or (ax_lobes, ax_zoom, ax_freq) when dense.
     """
     import matplotlib.pyplot as plt
 
@@ -791,6 +825,7 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
         probe = fig.add_axes((0.1, 0.1, 0.86, 0.8))
         dense = _density(curves, lo, hi, _axes_pixels(probe, DISPLAY_DPI)) > 1
         fig.clear()
+        axz: Any = None
         if dense:
             fig.set_size_inches(8.5, 9.5)
             gs = fig.add_gridspec(3, 1, height_ratios=[3, 2.4, 1.1])
@@ -815,6 +850,7 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
         static=static,
         lobe_numbers=lobe_numbers,
         dense_ok=True,
+        references=references,
     )
     unit = d.speed_unit
     count = _lobe_count(curves, d)
@@ -838,6 +874,7 @@ def plot_lobes(diagram: Any, *, axes: Any = None, lobe_numbers: int = 8, title: 
             static=static,
             lobe_numbers=lobe_numbers,
             dense_ok=False,
+            references=references,
         )
         axz.set_ylabel("width of cut b [mm]")
         axz.set_xlabel(f"{d.speed_name} [{unit}] (zoom)")
@@ -938,6 +975,7 @@ def plot_atlas(
     title: str | None = None,
     model: str | None = None,
     width_max: float | None = None,
+    terms: str | None = None,
 ) -> Any:
     """Stability atlas: b_lim (mm) over speed x slide position as a map,
     above the worst case along the stroke (the minimum over positions).
@@ -946,8 +984,9 @@ def plot_atlas(
     sweep (axes ``position``, ``speed``); ``model`` names it in the title
     (default: the result's ``model`` attribute or the name in its
     ``model_text``) and ``width_max`` (m) is the width ceiling: cells with
-    b_lim = inf (no chatter below it) are hatched grey, cells that failed
-    (NaN) white, each with a legend entry.  Returns (ax_map, ax_worst)."""
+    b_lim = inf (no chatter below it) are grey, cells that failed
+    (NaN) white, each with a legend entry; ``terms`` is the feedback (default:
+    the result's ``terms`` attribute).  Returns (ax_map, ax_worst)."""
     import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
@@ -973,22 +1012,18 @@ def plot_atlas(
     extra: list[Any] = []
     if pos.size > 1:
         mesh = ax.pcolormesh(v, pos, finite, shading="nearest", cmap="viridis", vmin=vmin, vmax=vmax)
-        cb = ax.figure.colorbar(mesh, ax=ax, extend="max" if np.nanmax(finite) > vmax else "neither")
+        # the colour bar outside the map's frame keeps both panels' speed axes aligned
+        cax = ax.inset_axes((1.015, 0.0, 0.02, 1.0))
+        cb = ax.figure.colorbar(mesh, cax=cax, extend="max" if np.nanmax(finite) > vmax else "neither")
         cb.set_label("b_lim [mm] (largest chatter-free width)")
         if np.any(isinf):
             ax.pcolor(
                 *np.meshgrid(_cell_edges(v), _cell_edges(pos)),
                 np.ma.masked_where(~isinf, np.ones_like(bl)),
-                cmap=ListedColormap(["0.85"]),
-                hatch="///",
-                edgecolor="0.6",
+                cmap=ListedColormap(["0.78"]),
                 lw=0,
             )
-            extra.append(
-                Patch(
-                    facecolor="0.85", edgecolor="0.6", hatch="///", label=f"inf: no chatter below {ceiling}"
-                )
-            )
+            extra.append(Patch(facecolor="0.78", label=f"grey: b_lim = inf, no chatter below {ceiling}"))
         if np.any(isnan):
             extra.append(Patch(facecolor="white", edgecolor="0.4", label="not computed (task failed)"))
         ax.set_ylabel("slide position s [m]")
@@ -1001,17 +1036,24 @@ def plot_atlas(
     ax.xaxis.set_tick_params(labelbottom=True)
     worst = np.min(np.where(isnan, np.inf, bl), axis=0)
     wfin = np.isfinite(worst)
-    ytop = float(np.max(worst[wfin])) * 1.15 if np.any(wfin) else 1.0
-    axw.fill_between(
+    ytop = float(np.max(worst[wfin])) * 1.35 if np.any(wfin) else 1.0
+    axw.plot(
         v,
         np.where(wfin, worst, np.nan),
-        ytop,
+        ".",
+        ms=2.5,
         color="tab:red",
-        alpha=0.15,
-        lw=0,
-        label="unstable somewhere on the stroke",
+        label=f"worst case over positions, at the {v.size} sampled speeds (unstable above)",
     )
-    axw.plot(v, np.where(wfin, worst, np.nan), color="tab:red", lw=1, label="worst case over positions")
+    if np.any(wfin):
+        m = float(np.min(worst[wfin]))
+        axw.axhline(m, color="k", ls="--", lw=1, label=f"smallest over the atlas {m:.4g} mm")
+    axw.set_title(
+        "worst case along the stroke, at the sampled speeds only: between them lobes may dip lower"
+        " (see the lobe diagram)",
+        fontsize=7.5,
+        loc="left",
+    )
     if np.any(~wfin):
         axw.fill_between(
             v,
@@ -1031,7 +1073,7 @@ def plot_atlas(
     axw.legend(fontsize=7, loc="upper right")
     axw.grid(alpha=0.3)
     name = _atlas_model_name(result, model)
-    terms = attrs.get("terms")
+    terms = terms or attrs.get("terms")
     sub = f"{pos.size} positions {pos.min():g}-{pos.max():g} m x {v.size} speeds"
     if terms:
         sub += f"; feedback {terms}"

@@ -9,7 +9,8 @@ the paper's feedback cases compared.
 * the atlas: b_lim over work speed x slide position, and its worst case.
 
 Run: ``python studies/traverse_shaper/lobes.py`` (prints the numbers and
-writes ``docs/figures/shaper_lobes.png`` and ``docs/figures/shaper_atlas.png``).
+writes ``docs/figures/shaper_lobes.png``, ``shaper_lobes_zoom.png`` and
+``shaper_atlas.png``).
 ``tests/test_studies.py`` checks the numbers.
 """
 
@@ -92,22 +93,31 @@ def report(r: dict) -> str:
     return "\n".join(lines)
 
 
-def plot(r: dict, outdir: Path) -> None:
+def plot(r: dict, outdir: Path) -> list[Path]:
+    """Draw the lobes (with case (b)'s limit for reference), a zoom computed
+    on its own speed range, and the atlas; returns the files written."""
     import matplotlib
 
     matplotlib.use("Agg")
-    from chatterlab.plot._plot import plot_atlas, savefig
+    from chatterlab.plot import plot_atlas, plot_lobes, savefig
 
-    axes = r["diagram"].plot(title="traverse shaper, case (c): stability lobes at s = 0.85 m")
-    bb = r["case_b_limit"] * 1e3
-    if np.isfinite(bb) and bb < r["diagram"].width_max * 1e3:
-        axes[0].axhline(bb, color="tab:green", ls=":", label=f"case (b) limit {bb:.3g} mm")
-        axes[0].legend(fontsize=8, loc="upper right")
-    savefig(axes, str(outdir / "shaper_lobes.png"))
+    d = r["diagram"]
+    bb = r["case_b_limit"]
+    refs = {}
+    if np.isfinite(bb) and bb < d.width_max:
+        refs[f"case (b), P + D without regeneration: {bb * 1e3:.3g} mm at any speed"] = bb
+    name = "traverse shaper (studies/traverse_shaper/model.toml)"
+    out = [outdir / "shaper_lobes.png", outdir / "shaper_lobes_zoom.png", outdir / "shaper_atlas.png"]
+    savefig(plot_lobes(d, title=f"{name}, case (c): stability lobes", references=refs), str(out[0]))
+    # a diagram of its own over a narrow range: every lobe resolved, numbered, verified
+    frozen = cl.assemble(cl.load_model(MODEL)).at()
+    zoom = lobes(frozen, np.linspace(0.49, 0.51, 400), width_max=d.width_max, terms="pdo", verify=4)
+    savefig(plot_lobes(zoom, title=f"{name}, case (c): lobes at 0.49-0.51 m/s", references=refs), str(out[1]))
     savefig(
-        plot_atlas(r["atlas"], r["process"], title="traverse shaper: stability atlas along the stroke"),
-        str(outdir / "shaper_atlas.png"),
+        plot_atlas(r["atlas"], r["process"], model=name, width_max=d.width_max, terms=d.terms),
+        str(out[2]),
     )
+    return out
 
 
 if __name__ == "__main__":
@@ -115,5 +125,5 @@ if __name__ == "__main__":
     print(report(res))
     out = HERE.parents[1] / "docs" / "figures"
     out.mkdir(parents=True, exist_ok=True)
-    plot(res, out)
-    print(f"wrote {out / 'shaper_lobes.png'} and {out / 'shaper_atlas.png'}")
+    for f in plot(res, out):
+        print(f"wrote {f}")
