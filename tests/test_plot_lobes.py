@@ -230,7 +230,7 @@ def test_lobe_numbers_are_the_engines_and_do_not_overlap(turning_diagram):
         v = t.xy[0]  # the lobe's bottom; the engine's lobe number at the nearest requested speed
         j = int(np.argmin(np.abs(d.speed - v)))
         assert int(t.get_text()) == d.lobe[j]
-    legend = " ".join(t.get_text() for t in ax.get_legend().get_texts())
+    legend = " ".join(" ".join(t.get_text() for t in ax.get_legend().get_texts()).split())
     assert f"{len(d.lobes)} lobes" in legend and "as in the summary" in legend
 
 
