@@ -15,7 +15,8 @@ distributed = pytest.importorskip("distributed")
 psutil = pytest.importorskip("psutil")
 
 from chatterlab.cli._main import main  # noqa: E402
-from chatterlab.sweep._engine import _local_cluster, sweep  # noqa: E402
+from chatterlab.sweep._backends import _local_cluster  # noqa: E402
+from chatterlab.sweep._engine import sweep  # noqa: E402
 
 
 def listeners() -> list[tuple[str, int]]:

@@ -1,0 +1,317 @@
+"""Running the chunks of a sweep: the worker side (:func:`_run_chunk`) and the
+serial, loky and dask runners."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+import warnings
+from collections.abc import Callable, Generator, Iterator, Mapping
+from contextlib import AbstractContextManager, contextmanager, nullcontext
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from chatterlab.errors import SweepError
+
+# =========================================================================== worker side
+
+
+@dataclass(frozen=True)
+class _Payload:
+    """What a worker needs to run any chunk (pickled with each chunk)."""
+
+    func: Callable[..., Mapping[str, Any]]
+    names: tuple[str, ...]
+    axes: tuple[np.ndarray, ...]
+    shape: tuple[int, ...]
+    outputs: tuple[str, ...]
+
+
+class _ChunkOut(NamedTuple):
+    chunk: int
+    start: int
+    values: np.ndarray  # (n_outputs, n_tasks) float64
+    failed_index: list[int]
+    failed_type: list[str]
+    failed_message: list[str]
+    contract: str | None  # a broken output contract: always fatal
+
+
+def _short(exc: BaseException, limit: int = 500) -> str:
+    msg = str(exc)
+    return msg if len(msg) <= limit else msg[: limit - 3] + "..."
+
+
+def _run_chunk(payload: _Payload, chunk: int, start: int, stop: int) -> _ChunkOut:
+    """Evaluate the tasks ``start <= i < stop`` (runs in the worker)."""
+    func, names, outputs = payload.func, payload.names, payload.outputs
+    n = stop - start
+    subs = np.unravel_index(np.arange(start, stop), payload.shape)
+    cols = [ax[s].tolist() for ax, s in zip(payload.axes, subs, strict=True)]
+    values = np.full((len(outputs), n), np.nan)
+    expected = set(outputs)
+    f_idx: list[int] = []
+    f_type: list[str] = []
+    f_msg: list[str] = []
+    for k in range(n):
+        point = {name: col[k] for name, col in zip(names, cols, strict=True)}
+        try:
+            res = func(**point)
+        except Exception as exc:  # noqa: BLE001 - any task error becomes a recorded failure
+            f_idx.append(start + k)
+            f_type.append(type(exc).__name__)
+            f_msg.append(_short(exc))
+            continue
+        if not isinstance(res, Mapping) or res.keys() != expected:
+            got = sorted(res) if isinstance(res, Mapping) else type(res).__name__
+            detail = ""
+            if isinstance(res, Mapping):
+                missing = sorted(expected - set(res))
+                extra = sorted(set(res) - expected)
+                detail = f" (missing {missing}, unexpected {extra})"
+            return _ChunkOut(
+                chunk,
+                start,
+                values,
+                f_idx,
+                f_type,
+                f_msg,
+                f"the swept function returned {got} at task {start + k} ({point}); it must "
+                f"return a dict with exactly the declared outputs {sorted(expected)}{detail}",
+            )
+        try:
+            for j, o in enumerate(outputs):
+                values[j, k] = float(res[o])
+        except (TypeError, ValueError) as exc:
+            values[:, k] = np.nan
+            f_idx.append(start + k)
+            f_type.append(type(exc).__name__)
+            f_msg.append(f"output {o!r} is not a real number: {_short(exc)}")
+    return _ChunkOut(chunk, start, values, f_idx, f_type, f_msg, None)
+
+
+# =========================================================================== runners
+
+
+def _blas_limit() -> AbstractContextManager[Any]:
+    """Single-threaded BLAS/OpenMP in this process, when threadpoolctl is installed."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return nullcontext()
+    return threadpool_limits(limits=1)
+
+
+def _serial_runner(
+    payload: _Payload, chunks: Iterator[tuple[int, int, int]]
+) -> Generator[_ChunkOut, None, None]:
+    with _blas_limit():
+        for c, s, e in chunks:
+            yield _run_chunk(payload, c, s, e)
+
+
+_WATCHDOG_PERIOD = 0.2  # s between two looks at the parent process
+
+
+def _watch_parent(parent: int) -> None:
+    """Worker initializer: a daemon thread ends this worker process as soon
+    as ``parent`` (the process that runs the sweep) is gone -- killed with
+    SIGKILL, it cannot tell its workers, and loky would keep them for its
+    idle timeout (5 minutes), holding the caller's stdout and stderr open."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(_WATCHDOG_PERIOD)
+            if os.getppid() != parent or not _alive(parent):
+                os._exit(0)
+
+    threading.Thread(target=watch, name="chatterlab-parent-watchdog", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def _loky_runner(
+    payload: _Payload, chunks: Iterator[tuple[int, int, int]], jobs: int
+) -> Generator[_ChunkOut, None, None]:
+    from joblib import Parallel, delayed, parallel_config
+
+    # inner_max_num_threads=1: loky starts its workers with OMP/OPENBLAS/MKL/...
+    # _NUM_THREADS=1 so that BLAS does not oversubscribe the cores.  Each
+    # worker watches this process and exits when it dies (_watch_parent).
+    with parallel_config(
+        backend="loky",
+        n_jobs=jobs,
+        inner_max_num_threads=1,
+        initializer=_watch_parent,
+        initargs=(os.getpid(),),
+    ):
+        par = Parallel(return_as="generator_unordered", pre_dispatch="2*n_jobs", batch_size=1)
+        gen = par(delayed(_run_chunk)(payload, c, s, e) for c, s, e in chunks)
+    try:
+        yield from gen
+    finally:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            gen.close()
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT while starting worker processes (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _dask_runner(
+    payload: _Payload,
+    chunks: Iterator[tuple[int, int, int]],
+    jobs: int,
+    scheduler: Any,
+    timeout: float,
+    security: Any = None,
+) -> Generator[_ChunkOut, None, None]:
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise SweepError(
+            "the dask backend needs dask.distributed, which is not installed: pip install chatterlab[dask]"
+        ) from None
+
+    cluster = None
+    own_client = True
+    if scheduler is None:
+        cluster, client = _local_cluster(jobs)
+    elif isinstance(scheduler, str):
+        try:
+            client = Client(scheduler, timeout=timeout, set_as_default=False, security=security)
+        except (OSError, TimeoutError) as exc:
+            raise SweepError(
+                f"cannot reach the dask scheduler at {scheduler!r} within {timeout:g} s "
+                f"({type(exc).__name__}: {exc}); check the address, or start one with "
+                "`dask scheduler` and workers with `dask worker ADDRESS`"
+            ) from None
+    else:  # an existing distributed.Client
+        client = scheduler
+        own_client = False
+    outstanding: set[Any] = set()
+    try:
+        try:
+            client.wait_for_workers(1, timeout=timeout)
+        except (OSError, TimeoutError):
+            raise SweepError(
+                f"the dask scheduler {client.scheduler.address} has no workers "
+                f"(waited {timeout:g} s); start some with `dask worker ADDRESS`"
+            ) from None
+        nthreads = sum(client.nthreads().values()) or 1
+        window = max(2, 2 * nthreads)
+        [pfut] = client.scatter([payload], broadcast=True, hash=False)
+        ac = as_completed(loop=client.loop)
+
+        def submit_next() -> bool:
+            nxt = next(chunks, None)
+            if nxt is None:
+                return False
+            c, s, e = nxt
+            fut = client.submit(_run_chunk, pfut, c, s, e, pure=False)
+            outstanding.add(fut)
+            ac.add(fut)
+            return True
+
+        for _ in range(window):
+            if not submit_next():
+                break
+        for fut in ac:
+            res = fut.result()
+            outstanding.discard(fut)
+            fut.release()
+            submit_next()
+            yield res
+    finally:
+        if outstanding:
+            try:
+                client.cancel(list(outstanding))
+            except Exception:  # noqa: BLE001 - best effort on the way out
+                pass
+        if own_client:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+@contextmanager
+def _local_cluster_config() -> Iterator[None]:
+    """dask settings for chatterlab's own local cluster: no dashboard and no
+    HTTP routes at all (the scheduler and the workers still open an HTTP
+    listener, on a random loopback port, that answers 404)."""
+    import dask
+
+    with dask.config.set(
+        {
+            "distributed.scheduler.http.routes": [],
+            "distributed.worker.http.routes": [],
+            "distributed.nanny.http.routes": [],
+        }
+    ):
+        yield
+
+
+def _local_cluster(jobs: int) -> tuple[Any, Any]:
+    """A local dask cluster of ``jobs`` single-threaded worker processes and
+    a client: listening on the loopback interface only, with no dashboard,
+    and (when ``cryptography`` is installed) TLS with temporary credentials."""
+    from distributed import Client, LocalCluster
+
+    with _sigint_ignored(), _local_cluster_config():  # the worker processes inherit SIG_IGN
+        security = _local_security()
+        cluster = LocalCluster(
+            n_workers=jobs,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address="127.0.0.1:0",  # its HTTP listener: loopback, a random port, not 8787
+            worker_dashboard_address=None,
+            scheduler_kwargs={"dashboard": False},  # ... and no dashboard behind it
+            **({"security": security, "protocol": "tls"} if security is not None else {"protocol": "tcp"}),
+        )
+    try:
+        client = Client(cluster, security=security, set_as_default=False)
+    except BaseException:
+        cluster.close()
+        raise
+    return cluster, client
+
+
+def _local_security() -> Any:
+    """Temporary TLS credentials for a local cluster, held in memory: only
+    this process and the workers it starts can talk to the scheduler, so
+    another user of the machine cannot submit code through its loopback
+    ports.  None (plain TCP on loopback) when ``cryptography`` is missing."""
+    try:
+        from distributed.security import Security
+
+        return Security.temporary()
+    except ImportError:
+        warnings.warn(
+            "the local dask cluster runs without TLS (install 'cryptography' for temporary TLS"
+            " credentials); its loopback ports accept any local user",
+            stacklevel=3,
+        )
+        return None

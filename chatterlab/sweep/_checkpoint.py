@@ -1,0 +1,203 @@
+"""The checkpoint of a sweep: a locked directory with a manifest and one .npz file
+per finished chunk, written atomically; resume loads the valid ones."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import warnings
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from chatterlab.errors import InputError
+from chatterlab.io._netcdf import atomic_write
+
+from ._backends import _ChunkOut
+from ._grid import Grid
+
+_MANIFEST = "manifest.json"
+_LOCK = ".lock"  # held (flock) by the run using the checkpoint; released by the kernel when it dies
+_SCRATCH = "scratch-"  # memmap folders of a run streaming to out=, inside the checkpoint
+_CHUNK_RE = re.compile(r"^chunk_(\d+)\.npz$")
+_CHECKPOINT_FORMAT = "chatterlab-sweep-checkpoint"
+_CHECKPOINT_VERSION = 1
+
+
+# =========================================================================== checkpoint
+
+
+def _open_checkpoint(
+    directory: Path, manifest: dict[str, Any], resume: bool, chunk_size: int | None
+) -> dict[str, Any]:
+    """Create or validate the checkpoint directory; return the manifest in force."""
+    if directory.exists() and not directory.is_dir():
+        raise InputError(f"checkpoint {str(directory)!r} exists and is not a directory")
+    existing = directory.is_dir() and any(
+        p.name != _LOCK and not p.name.startswith(_SCRATCH) for p in directory.iterdir()
+    )
+    where = f"checkpoint directory {str(directory)!r}"
+    if existing and not resume:
+        raise InputError(
+            f"{where} is not empty: pass resume=True (CLI: --resume) to continue the sweep "
+            "saved there, or delete the directory to start afresh"
+        )
+    mpath = directory / _MANIFEST
+    if not existing:
+        _write_json(mpath, manifest)
+        return manifest
+    if not mpath.is_file():
+        raise InputError(
+            f"{where} holds files but no {_MANIFEST}: it is not a chatterlab sweep checkpoint; "
+            "choose another directory"
+        )
+    try:
+        old = json.loads(mpath.read_text(encoding="utf-8"))
+        if old.get("format") != _CHECKPOINT_FORMAT:
+            raise ValueError("not a sweep checkpoint manifest")
+        old_grid = Grid.from_json(old["grid"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{where}: cannot read {_MANIFEST} ({exc}); delete the directory") from None
+    if old.get("version") != _CHECKPOINT_VERSION:
+        raise InputError(f"{where} was written by an incompatible version of chatterlab")
+    refuse = f"{where} was written for a different sweep"
+    fix = "; use another checkpoint directory or delete this one (resume only continues the same sweep)"
+    new_grid = Grid.from_json(manifest["grid"])
+    if old_grid != new_grid:
+        raise InputError(
+            f"{refuse}: grid {old_grid!r} there, {new_grid!r} now{_grid_diff(old_grid, new_grid)}{fix}"
+        )
+    if old["outputs"] != manifest["outputs"]:
+        raise InputError(f"{refuse}: outputs {old['outputs']} there, {manifest['outputs']} now{fix}")
+    if old["fingerprint"] != manifest["fingerprint"]:
+        raise InputError(
+            f"{refuse}: the function/model fingerprint differs ({str(old['fingerprint'])[:16]} "
+            f"there, {str(manifest['fingerprint'])[:16]} now), so the saved results may come "
+            f"from another model{fix}"
+        )
+    if chunk_size is not None and chunk_size != old["chunk_size"]:
+        raise InputError(
+            f"{where} uses chunk_size={old['chunk_size']}, not {chunk_size}: leave chunk_size "
+            "unset when resuming"
+        )
+    return old
+
+
+def _lock_checkpoint(directory: Path) -> Any:
+    """Create ``directory`` if needed and hold its lock file for this run.
+
+    A second run on the same checkpoint (two ``--resume`` at once) is refused
+    instead of computing the same chunks and reporting them "saved" in a
+    folder the other run removes.  The lock is an ``flock`` on ``.lock``: the
+    kernel releases it when this process ends, even by SIGKILL, so a killed
+    run never blocks its resume.  Returns the open lock file (close it to
+    release), or None where ``fcntl`` does not exist (Windows)."""
+    if directory.exists() and not directory.is_dir():
+        raise InputError(f"checkpoint {str(directory)!r} exists and is not a directory")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        fh = open(directory / _LOCK, "a+")  # noqa: SIM115 - held for the whole run
+    except OSError as exc:
+        raise InputError(
+            f"checkpoint directory {str(directory)!r} cannot be written ({exc.strerror or exc})"
+        ) from None
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: no lock
+        return fh
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.seek(0)
+        holder = fh.read().strip() or "another process"
+        fh.close()
+        raise InputError(
+            f"checkpoint directory {str(directory)!r} is in use by a running sweep (pid {holder}); wait"
+            " for it to finish, or stop it, before resuming"
+        ) from None
+    fh.seek(0)
+    fh.truncate()
+    fh.write(str(os.getpid()))
+    fh.flush()
+    # we hold the lock: scratch folders and temporary files here are a dead run's
+    for p in directory.iterdir():
+        if p.name.startswith(_SCRATCH) and p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        elif p.name.startswith(".") and ".tmp-" in p.name:
+            p.unlink(missing_ok=True)
+    return fh
+
+
+def _grid_diff(a: Grid, b: Grid) -> str:
+    if a.names != b.names:
+        return f" (axes {list(a.names)} vs {list(b.names)})"
+    for x, y in zip(a.axes, b.axes, strict=True):
+        if x != y:
+            return f" (axis {x.name!r} differs)"
+    return ""
+
+
+def _write_json(path: Path, obj: Any) -> None:
+    with atomic_write(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=1), encoding="utf-8")
+
+
+def _chunk_path(directory: Path, chunk: int) -> Path:
+    return directory / f"chunk_{chunk:06d}.npz"
+
+
+def _save_chunk(directory: Path, out: _ChunkOut, stop: int) -> None:
+    with atomic_write(_chunk_path(directory, out.chunk)) as tmp:
+        with open(tmp, "xb") as fh:
+            np.savez(
+                fh,
+                start=np.int64(out.start),
+                stop=np.int64(stop),
+                values=out.values,
+                failed_index=np.asarray(out.failed_index, dtype=np.int64),
+                failed_type=np.asarray(out.failed_type, dtype=np.str_).reshape(-1),
+                failed_message=np.asarray(out.failed_message, dtype=np.str_).reshape(-1),
+            )
+
+
+def _load_chunks(
+    directory: Path,
+    n_chunks: int,
+    bounds: Callable[[int], tuple[int, int]],
+    n_out: int,
+    retry_failed: bool,
+) -> Iterator[_ChunkOut]:
+    """Yield the valid finished chunks of a checkpoint (and clean stale temp files)."""
+    for p in sorted(directory.iterdir()):
+        m = _CHUNK_RE.match(p.name)
+        if not m:
+            continue
+        c = int(m[1])
+        if c >= n_chunks:
+            continue
+        s, e = bounds(c)
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                out = _ChunkOut(
+                    c,
+                    int(z["start"]),
+                    np.array(z["values"], dtype=np.float64),
+                    z["failed_index"].tolist(),
+                    z["failed_type"].tolist(),
+                    z["failed_message"].tolist(),
+                    None,
+                )
+                ok = (int(z["start"]), int(z["stop"])) == (s, e) and out.values.shape == (n_out, e - s)
+        except Exception as exc:  # noqa: BLE001 - a damaged chunk is recomputed
+            warnings.warn(f"checkpoint chunk {p.name} is unreadable ({exc}); recomputing it", stacklevel=3)
+            continue
+        if not ok:
+            warnings.warn(f"checkpoint chunk {p.name} does not match the grid; recomputing it", stacklevel=3)
+            continue
+        if retry_failed and out.failed_index:
+            continue
+        yield out

@@ -1,0 +1,329 @@
+"""The result of a sweep: :class:`SweepResult` (arrays shaped like the grid, per-point
+status, failures), its files, and :class:`TaskFailure` / :class:`SweepInterrupted`."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from chatterlab.errors import InputError
+from chatterlab.io._netcdf import read_netcdf, write_csv, write_netcdf
+
+from ._grid import Axis, Grid
+
+_FILE_FAILURES = 100  # failures written to the netCDF ``failures`` attribute
+STATUS_VARIABLE = "task_status"  # per grid point: 0 ok, k > 0 failed for reasons[k - 1]
+
+
+# =========================================================================== results
+
+
+class TaskFailure(NamedTuple):
+    """One failed task: where, and what was raised."""
+
+    point: dict[str, float]
+    """The grid point ``{name: value}``."""
+    error_type: str
+    """The exception class name, e.g. ``"LinAlgError"``."""
+    message: str
+    """``str(exception)`` (truncated to 500 characters)."""
+    task_index: int
+    """The flat task index (``grid.point(task_index) == point``)."""
+
+    def describe(self, grid: Grid | None = None) -> str:
+        """``"at width=0.003 m, speed=2 m/s: ZeroDivisionError: division by zero"``."""
+        where = (
+            grid.format_point(self.point)
+            if grid
+            else ", ".join(f"{k}={v:.10g}" for k, v in self.point.items())
+        )
+        return f"at {where}: {self.error_type}: {self.message}"
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Raised (instead of a bare :class:`KeyboardInterrupt`) when a sweep is
+    interrupted with Ctrl-C.  Its message says how many chunks are done and
+    how to resume; ``except KeyboardInterrupt`` still catches it."""
+
+    def __init__(self, message: str, *, done: int, total: int, checkpoint: str | None) -> None:
+        super().__init__(message)
+        self.done = done
+        self.total = total
+        self.checkpoint = checkpoint
+
+
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """The outcome of :func:`sweep`.
+
+    Attributes
+    ----------
+    grid : Grid
+        The swept grid.
+    data : dict
+        ``output name -> float64 array`` of shape ``grid.shape`` (NaN where a
+        task failed).  Read-only; when the sweep streamed to ``out=``, these
+        are memory maps of that netCDF file.
+    units : dict
+        ``output name -> unit``.
+    status : {"ok", "partial"}
+        ``"partial"`` when some tasks failed.
+    message : str
+        A one-line summary; names the first failing grid point, if any.
+    failures : tuple of TaskFailure
+        The failed tasks, by increasing index (the first 1000 only;
+        ``n_failed`` counts them all).
+    attrs : dict
+        Caller attributes (e.g. the model text), written to files as global
+        attributes.
+    long_names : dict
+        ``output name -> long name`` (defaults to the name).
+    n_computed, n_resumed, n_failed : int
+        Tasks computed in this call, loaded from the checkpoint, failed.
+    elapsed : float
+        Wall time of the call, in seconds.
+    task_status : ndarray of int32, optional
+        Shaped like the grid: 0 where the task succeeded, ``k > 0`` where it
+        failed, for the reason ``reasons[k - 1]`` (``"ErrorType: message"``).
+        Written to files: a ``task_status`` variable and a ``reasons``
+        attribute (netCDF), ``status`` and ``reason`` columns (CSV).
+    reasons : tuple of str
+        The distinct failure reasons, in the order of their first grid point.
+    """
+
+    grid: Grid
+    data: dict[str, np.ndarray]
+    units: dict[str, str]
+    status: str = "ok"
+    message: str = ""
+    failures: tuple[TaskFailure, ...] = ()
+    attrs: dict[str, Any] = field(default_factory=dict)
+    long_names: dict[str, str] = field(default_factory=dict)
+    n_computed: int = 0
+    n_resumed: int = 0
+    n_failed: int = 0
+    elapsed: float = 0.0
+    task_status: np.ndarray | None = field(default=None, repr=False)
+    reasons: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """True when every task succeeded."""
+        return self.status == "ok"
+
+    def __getitem__(self, output: str) -> np.ndarray:
+        try:
+            return self.data[output]
+        except KeyError:
+            raise KeyError(f"no output {output!r}; outputs are {list(self.data)}") from None
+
+    # ------------------------------------------------------------------ files
+
+    def file_attrs(self) -> dict[str, Any]:
+        """Global attributes written to files: ``attrs`` plus the run status."""
+        out = dict(self.attrs)
+        out["status"] = self.status
+        out["message"] = self.message
+        out["n_failed"] = int(self.n_failed)
+        if self.task_status is not None:
+            out["reasons"] = json.dumps(list(self.reasons))
+        if self.failures:
+            out["failures"] = json.dumps(
+                [
+                    {
+                        "task_index": f.task_index,
+                        "point": f.point,
+                        "error_type": f.error_type,
+                        "message": f.message,
+                    }
+                    for f in self.failures[:_FILE_FAILURES]
+                ]
+            )
+        return out
+
+    def _data_specs(self) -> dict[str, tuple[np.ndarray, str, str]]:
+        return {n: (a, self.units.get(n, ""), self.long_names.get(n, n)) for n, a in self.data.items()}
+
+    def _status_spec(self) -> dict[str, tuple[np.ndarray, str, str]]:
+        if self.task_status is None:
+            return {}
+        return {
+            STATUS_VARIABLE: (
+                self.task_status,
+                "1",
+                "task status: 0 ok, k > 0 failed for the k-th entry of the reasons attribute",
+            )
+        }
+
+    def to_netcdf(self, path: str | os.PathLike[str], *, provenance: bool = True) -> Path:
+        """Write a netCDF classic file (see :func:`chatterlab.io._netcdf.write_netcdf`).
+
+        Grid axes become coordinate variables, outputs data variables with
+        ``units`` and ``long_name``; ``attrs``, ``status``, ``message``,
+        ``n_failed`` (and the first failures, as JSON) become global
+        attributes, plus provenance unless ``provenance=False`` or ``attrs``
+        fixes it (e.g. ``attrs={"created": "..."}`` for reproducible bytes).
+        """
+        return write_netcdf(
+            path,
+            self.grid.coords,
+            self._data_specs() | self._status_spec(),
+            self.file_attrs(),
+            provenance=provenance,
+        )
+
+    def to_csv(self, path: str | os.PathLike[str]) -> Path:
+        """Write a long-format CSV file: one row per grid point, header ``name [unit]``,
+        then (when the task status is known) ``status`` (``ok``/``failed``) and
+        ``reason`` (empty, or ``ErrorType: message``)."""
+        coded = None
+        if self.task_status is not None:
+            coded = {
+                "status": (self.task_status, ["ok"] + ["failed"] * len(self.reasons)),
+                "reason": (self.task_status, ["", *self.reasons]),
+            }
+        return write_csv(path, self.grid.coords, self._data_specs(), coded=coded)
+
+    @classmethod
+    def from_netcdf(cls, path: str | os.PathLike[str], *, mmap: bool = False) -> SweepResult:
+        """Read a file written by :meth:`to_netcdf` (or by ``sweep(..., out=path)``)."""
+        f = read_netcdf(path, mmap=mmap)
+        grid = Grid({n: (v, u) for n, (v, u) in f.coords.items()})
+        attrs = dict(f.attrs)
+        status = str(attrs.pop("status", "ok"))
+        message = str(attrs.pop("message", ""))
+        n_failed = int(attrs.pop("n_failed", 0))
+        failures: tuple[TaskFailure, ...] = ()
+        if "failures" in attrs:
+            try:
+                failures = tuple(
+                    TaskFailure(d["point"], d["error_type"], d["message"], d["task_index"])
+                    for d in json.loads(attrs.pop("failures"))
+                )
+            except (ValueError, KeyError, TypeError):
+                pass
+        reasons: tuple[str, ...] = ()
+        if "reasons" in attrs:
+            try:
+                reasons = tuple(str(r) for r in json.loads(attrs.pop("reasons")))
+            except (ValueError, TypeError):
+                reasons = ()
+        data, units, long_names = {}, {}, {}
+        task_status = None
+        for name, (arr, unit, long_name) in f.data.items():
+            if f.dims.get(name) != grid.names:
+                continue
+            if name == STATUS_VARIABLE:
+                task_status = np.asarray(arr, dtype=np.int32)
+                continue
+            data[name], units[name], long_names[name] = arr, unit, long_name
+        return cls(
+            grid,
+            data,
+            units,
+            status,
+            message,
+            failures,
+            attrs,
+            long_names,
+            n_failed=n_failed,
+            task_status=task_status,
+            reasons=reasons,
+        )
+
+    def to_dataset(self) -> Any:
+        """An :class:`xarray.Dataset` (needs xarray: ``pip install xarray``)."""
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError(
+                "SweepResult.to_dataset needs xarray, which chatterlab does not depend on: pip install xarray"
+            ) from None
+        names = self.grid.names
+        coords = {a.name: (a.name, np.asarray(a.values), {"units": a.unit}) for a in self.grid.axes}
+        data_vars = {
+            n: (names, np.asarray(a), {"units": u, "long_name": ln})
+            for n, (a, u, ln) in self._data_specs().items()
+        }
+        return xr.Dataset(data_vars, coords=coords, attrs=self.file_attrs())
+
+    # ------------------------------------------------------------------ plotting
+
+    def plot(
+        self,
+        output: str,
+        ax: Any = None,
+        *,
+        x: str | None = None,
+        at: Mapping[str, float] | None = None,
+    ) -> Any:
+        """Plot one output: a line over a 1-D grid, a colour map over a 2-D grid.
+
+        Parameters
+        ----------
+        output : str
+            The output to plot.
+        ax : matplotlib Axes, optional
+            Where to draw (a new figure otherwise).
+        x : str, optional
+            For a 2-D map, the axis on the abscissa (default: the last free
+            axis, i.e. the fastest-varying one).
+        at : mapping, optional
+            Values for the axes to hold fixed (nearest grid value) when the
+            grid has more than two axes, e.g. ``at={"depth": 2e-3}``.
+
+        Returns
+        -------
+        matplotlib.axes.Axes
+        """
+        import matplotlib.pyplot as plt
+
+        arr = np.asarray(self[output], dtype=float)
+        at = dict(at or {})
+        for name in at:
+            self.grid[name]  # KeyError for an unknown axis
+        sel: list[Any] = []
+        free: list[Axis] = []
+        for a in self.grid.axes:
+            if a.name in at:
+                sel.append(int(np.argmin(np.abs(a.values - float(at[a.name])))))
+            else:
+                sel.append(slice(None))
+                free.append(a)
+        sub = arr[tuple(sel)]
+        if not 1 <= len(free) <= 2:
+            raise InputError(
+                f"plot({output!r}): {len(free)} free axes {[a.name for a in free]}; hold all "
+                "but one or two fixed with at={name: value}"
+            )
+        if ax is None:
+            _, ax = plt.subplots()
+        unit = self.units.get(output, "")
+        label = self.long_names.get(output, output) + (f" [{unit}]" if unit else "")
+
+        def axis_label(a: Axis) -> str:
+            return a.name + (f" [{a.unit}]" if a.unit else "")
+
+        if len(free) == 1:
+            ax.plot(free[0].values, sub, marker="." if sub.size < 60 else None)
+            ax.set_xlabel(axis_label(free[0]))
+            ax.set_ylabel(label)
+        else:
+            xa = free[1] if x is None else self.grid[x]
+            if xa not in free:
+                raise InputError(f"plot: x={x!r} is held fixed by at=")
+            ya = free[0] if xa is free[1] else free[1]
+            c = sub if xa is free[1] else sub.T
+            mesh = ax.pcolormesh(xa.values, ya.values, np.ma.masked_invalid(c), shading="auto")
+            ax.set_xlabel(axis_label(xa))
+            ax.set_ylabel(axis_label(ya))
+            ax.figure.colorbar(mesh, ax=ax, label=label)
+        if at:
+            ax.set_title(self.grid.format_point({k: float(v) for k, v in at.items()}))
+        return ax
