@@ -72,7 +72,7 @@ def _read_bodies(src: str, raw: dict[str, Any], ids: _Ids, movable: Movable | No
         for b in movable.bodies:
             if b not in body_ids:
                 raise ModelError(
-                    f"bodies: '{b}' is not a [[body]] (known: {', '.join(sorted(body_ids)) or 'none'})",
+                    f"bodies: {b!r} is not a [[body]] (known: {', '.join(sorted(body_ids)) or 'none'})",
                     source=src,
                     item="[movable]",
                     field="bodies",
@@ -113,7 +113,7 @@ def _read_beams(
         for n in nl:
             if n not in node_xy:
                 raise it.err(
-                    "nodes", f"node '{n}' is not defined (known: {', '.join(sorted(node_xy)) or 'none'})"
+                    "nodes", f"node {n!r} is not defined (known: {', '.join(sorted(node_xy)) or 'none'})"
                 )
         if nl[0] == nl[1]:
             raise it.err("nodes", "the two nodes must differ")
@@ -220,7 +220,7 @@ def _read_attachments(
             ids.register("attachment", iid)
         n = it.str("node")
         if n not in node_xy:
-            raise it.err("node", f"node '{n}' is not defined (known: {', '.join(sorted(node_xy)) or 'none'})")
+            raise it.err("node", f"node {n!r} is not defined (known: {', '.join(sorted(node_xy)) or 'none'})")
         b = it.str("body")
         if b != GROUND and b not in body_ids:
             raise it.err(
