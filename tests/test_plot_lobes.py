@@ -158,12 +158,17 @@ def test_envelope_is_fine_enough_for_the_pixels(shaper_diagram):
 
 
 def test_lobes_are_one_line_collection(shaper_diagram, turning_diagram):
-    for d in (shaper_diagram, turning_diagram):
-        for ax in _lobe_panels(plot_lobes(d)):
-            lcs = [c for c in ax.collections if isinstance(c, LineCollection)]
-            assert len(lcs) == 1 and lcs[0].get_gid() == "lobes"
-            assert len(lcs[0].get_segments()) > 5
-            assert len(ax.get_lines()) < 10  # not one Line2D per lobe
+    # the shaper's zoom panel and the turning panel draw their lobes; the dense
+    # panel draws the band the lobes sweep instead of 866 grey curves
+    for ax in [plot_lobes(shaper_diagram)[1], plot_lobes(turning_diagram)[0]]:
+        lcs = [c for c in ax.collections if isinstance(c, LineCollection)]
+        assert len(lcs) == 1 and lcs[0].get_gid() == "lobes"
+        assert len(lcs[0].get_segments()) > 5
+        assert len(ax.get_lines()) < 10  # not one Line2D per lobe
+    ax = plot_lobes(shaper_diagram)[0]
+    assert not [c for c in ax.collections if isinstance(c, LineCollection)]
+    assert [c for c in ax.collections if c.get_gid() == "lobe-band"]
+    assert len(ax.get_lines()) < 10
     # the turning model keeps every lobe: one curve each
     (ax, _) = plot_lobes(turning_diagram)
     (lc,) = [c for c in ax.collections if isinstance(c, LineCollection)]

@@ -124,18 +124,13 @@ DENSE_PIXELS = 3
 ZOOM_LOBES = 3
 
 
-@dataclass(frozen=True)
-class _Curve:
-    """One lobe: a run of consecutive samples along a branch of the boundary.
+@dataclass(frozen=True, eq=False)
+class _Chain:
+    """One branch of the boundary as a run of samples in curve order:
+    ``omega`` (rad/s), ``phi`` (rad, continuous), ``width`` (m), a chord
+    parameter ``u`` and the derivatives along it of omega, phi and 1/width
+    (the cubic Hermite data between samples)."""
 
-    ``omega`` (rad/s), ``phi`` (rad, continuous along the branch) and
-    ``width`` (m) with their derivatives along the run (``d*``, per sample)
-    define a cubic Hermite curve between samples; the delay on it is
-    T = (phi + 2 pi kk) / omega.  ``k`` is the engine's lobe number at the
-    lobe's bottom (the number in the summary, files and labels)."""
-
-    k: int
-    kk: int
     branch: int
     u: np.ndarray
     omega: np.ndarray
@@ -143,12 +138,29 @@ class _Curve:
     width: np.ndarray
     domega: np.ndarray
     dphi: np.ndarray
-    dwidth: np.ndarray
-    speed: np.ndarray  # at the samples, for drawing
+    dinv: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Curve:
+    """One lobe: samples ``start:stop`` of a chain with T = (phi + 2 pi kk) / omega.
+    ``k`` is the engine's lobe number at the lobe's bottom (the number in the
+    summary, files and labels)."""
+
+    k: int
+    kk: int
+    chain: _Chain
+    start: int
+    stop: int
+    speed: np.ndarray  # at the samples (for drawing)
 
     @property
-    def freq(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
+    def branch(self) -> int:
+        return self.chain.branch
+
+    @property
+    def width(self) -> np.ndarray:
+        return self.chain.width[self.start : self.stop]
 
 
 def _speed_maps(d: Any) -> tuple[Any, Any]:
@@ -194,29 +206,26 @@ def _branch_chains(lbs: list[Any]) -> list[np.ndarray]:
     order); their consecutive pairs are the branch's links."""
     from graphlib import TopologicalSorter
 
-    key: dict[tuple[float, float], int] = {}
-    rows: list[tuple[float, float, float]] = []
-    succ: dict[int, set[int]] = {}
-    links: set[tuple[int, int]] = set()
-    for lb in lbs:
-        w = 2 * np.pi * np.asarray(lb.frequency_hz, float)
-        phi = np.mod(w * np.asarray(lb.delay, float) - 2 * np.pi * lb.k, 2 * np.pi)
-        ids = []
-        for f, b, p, ww in zip(
-            lb.frequency_hz.tolist(), lb.width.tolist(), phi.tolist(), w.tolist(), strict=True
-        ):
-            i = key.get((f, b))
-            if i is None:
-                i = key[(f, b)] = len(rows)
-                rows.append((ww, p, b))
-            ids.append(i)
-        for a, e in zip(ids[:-1], ids[1:], strict=True):
-            succ.setdefault(e, set()).add(a)
-            links.add((a, e))
-    order = list(TopologicalSorter({i: succ.get(i, set()) for i in range(len(rows))}).static_order())
-    arr = np.array(rows)[order]
-    cut = [j + 1 for j in range(len(order) - 1) if (order[j], order[j + 1]) not in links]
-    return [c for c in np.split(arr, cut) if len(c) >= 2]
+    f = np.concatenate([lb.frequency_hz for lb in lbs])
+    b = np.concatenate([lb.width for lb in lbs])
+    w = 2 * np.pi * f
+    T = np.concatenate([lb.delay for lb in lbs])
+    k = np.concatenate([np.full(lb.delay.size, lb.k) for lb in lbs])
+    phi = np.mod(w * T - 2 * np.pi * k, 2 * np.pi)
+    # one id per sample of the branch (the same (frequency, width) in every lobe)
+    _, first, ids = np.unique(np.column_stack([f, b]), axis=0, return_index=True, return_inverse=True)
+    ids = ids.ravel()
+    same_lobe = np.ones(f.size - 1, bool)
+    same_lobe[np.cumsum([lb.delay.size for lb in lbs])[:-1] - 1] = False
+    edges = np.unique(np.column_stack([ids[:-1], ids[1:]])[same_lobe], axis=0)
+    succ: dict[int, set[int]] = {i: set() for i in range(first.size)}
+    for a_, e_ in edges.tolist():
+        succ[e_].add(a_)
+    order = np.array(list(TopologicalSorter(succ).static_order()), dtype=int)
+    rows = np.column_stack([w[first], phi[first], b[first]])[order]
+    links = set(map(tuple, edges.tolist()))
+    cut = [j + 1 for j in range(order.size - 1) if (int(order[j]), int(order[j + 1])) not in links]
+    return [c for c in np.split(rows, cut) if len(c) >= 2]
 
 
 def _chord(w: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -300,39 +309,37 @@ def _lobe_curves(d: Any) -> list[_Curve]:
     chains = _with_envelope_points(d, chains)
     out: list[_Curve] = []
     for br, ch in chains:
-        if True:
-            w, b = ch[:, 0], ch[:, 2]
-            phi = np.unwrap(ch[:, 1])
-            pos = w > 0
-            if not np.any(pos):
+        w, b = ch[:, 0], ch[:, 2]
+        phi = np.unwrap(ch[:, 1])
+        pos = w > 0
+        if not np.any(pos):
+            continue
+        u = _chord(w, 1.0 / b)
+        chain = _Chain(br, u, w, phi, b, _tangent(w, u), _tangent(phi, u), _tangent(1.0 / b, u))
+        kmin = int(np.floor(np.min(w[pos] * Tlo - phi[pos]) / (2 * np.pi)))
+        kmax = int(np.ceil(np.max(w[pos] * Thi - phi[pos]) / (2 * np.pi)))
+        K = np.arange(kmin, kmax + 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Tk = (phi[None, :] + 2 * np.pi * K[:, None]) / w[None, :]  # (lobes, samples)
+        inside = pos[None, :] & (Tk >= Tlo) & (Tk <= Thi)
+        grow = inside.copy()
+        grow[:, 1:] |= inside[:, :-1]
+        grow[:, :-1] |= inside[:, 1:]
+        grow &= pos[None, :] & (Tk > 0)
+        edge = np.diff(np.pad(grow, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+        rs, cs = np.nonzero(edge == 1)  # runs start ...
+        _, ce = np.nonzero(edge == -1)  # ... and end (exclusive), row by row
+        for r, c0, c1 in zip(rs.tolist(), cs.tolist(), ce.tolist(), strict=True):
+            if c1 - c0 < 2:
                 continue
-            u = _chord(w, 1.0 / b)
-            dw, dp, db = _tangent(w, u), _tangent(phi, u), _tangent(1.0 / b, u)
-            kmin = int(np.floor(np.min(w[pos] * Tlo - phi[pos]) / (2 * np.pi)))
-            kmax = int(np.ceil(np.max(w[pos] * Thi - phi[pos]) / (2 * np.pi)))
-            for kk in range(kmin, kmax + 1):
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    Tk = (phi + 2 * np.pi * kk) / w
-                inside = pos & (Tk >= Tlo) & (Tk <= Thi)
-                if not np.any(inside):
-                    continue
-                grow = (inside | np.r_[inside[1:], False] | np.r_[False, inside[:-1]]) & pos & (Tk > 0)
-                idx = np.nonzero(grow)[0]
-                for run in np.split(idx, np.nonzero(np.diff(idx) > 1)[0] + 1):
-                    if run.size < 2:
-                        continue
-                    s = to_speed(Tk[run])
-                    if not np.all(np.isfinite(s)):
-                        continue
-                    j = run[int(np.argmin(b[run]))]
-                    k_engine = kk + int(np.floor(phi[j] / (2 * np.pi)))
-                    if k_engine < 0:
-                        continue
-                    out.append(
-                        _Curve(
-                            k_engine, kk, br, u[run], w[run], phi[run], b[run], dw[run], dp[run], db[run], s
-                        )
-                    )
+            sp = to_speed(Tk[r, c0:c1])
+            if not np.all(np.isfinite(sp)):
+                continue
+            j = c0 + int(np.argmin(b[c0:c1]))
+            k_engine = int(K[r]) + int(np.floor(phi[j] / (2 * np.pi)))
+            if k_engine < 0:
+                continue
+            out.append(_Curve(k_engine, int(K[r]), chain, c0, c1, sp))
     return out
 
 
@@ -348,24 +355,27 @@ class _Segments:
     cubic Hermite data to evaluate it at any delay."""
 
     def __init__(self, curves: list[_Curve]) -> None:
-        def cat(get: Any, a: int, e: int | None) -> np.ndarray:
-            return np.concatenate([get(c)[a:e] for c in curves]) if curves else np.zeros(0)
+        chains = list({id(c.chain): c.chain for c in curves}.values())
+        offset = {
+            id(ch): o for ch, o in zip(chains, np.cumsum([0] + [ch.u.size for ch in chains]), strict=False)
+        }
 
-        self.n = sum(c.omega.size - 1 for c in curves)
-        self.w0, self.w1 = cat(lambda c: c.omega, 0, -1), cat(lambda c: c.omega, 1, None)
-        self.p0, self.p1 = cat(lambda c: c.phi, 0, -1), cat(lambda c: c.phi, 1, None)
-        self.b0, self.b1 = cat(lambda c: c.width, 0, -1), cat(lambda c: c.width, 1, None)
-        self.dw0, self.dw1 = cat(lambda c: c.domega, 0, -1), cat(lambda c: c.domega, 1, None)
-        self.dp0, self.dp1 = cat(lambda c: c.dphi, 0, -1), cat(lambda c: c.dphi, 1, None)
-        self.db0, self.db1 = cat(lambda c: c.dwidth, 0, -1), cat(lambda c: c.dwidth, 1, None)
-        h = cat(lambda c: np.diff(c.u), 0, None)
-        for name in ("w", "p", "b"):
-            for e in "01":
-                setattr(self, f"d{name}{e}", getattr(self, f"d{name}{e}") * h)
-        self.kk = cat(lambda c: np.full(c.omega.size, 2 * np.pi * c.kk), 0, -1)
+        def cat(name: str) -> np.ndarray:
+            return np.concatenate([getattr(ch, name) for ch in chains]) if chains else np.zeros(0)
+
+        self.w, self.p, self.b = cat("omega"), cat("phi"), cat("width")
+        self.dw, self.dp, self.dg, u = cat("domega"), cat("dphi"), cat("dinv"), cat("u")
+        # segment i runs from sample g[i] to g[i] + 1 of the concatenated chains, on lobe kk[i]
+        starts = np.array([offset[id(c.chain)] + c.start for c in curves], dtype=int)
+        counts = np.array([c.stop - c.start - 1 for c in curves], dtype=int)
+        self.n = int(counts.sum())
+        first = np.cumsum(counts) - counts
+        self.g = np.repeat(starts - first, counts) + np.arange(self.n)
+        self.kk = np.repeat(np.array([2 * np.pi * c.kk for c in curves]), counts)
+        self.h = (u[1:] - u[:-1]) if u.size else u
         with np.errstate(divide="ignore", invalid="ignore"):
-            self.T0 = (self.p0 + self.kk) / self.w0
-            self.T1 = (self.p1 + self.kk) / self.w1
+            self.T0 = (self.p[self.g] + self.kk) / self.w[self.g]
+            self.T1 = (self.p[self.g + 1] + self.kk) / self.w[self.g + 1]
 
     @staticmethod
     def _herm(t: np.ndarray, y0: Any, y1: Any, m0: Any, m1: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -378,11 +388,13 @@ class _Segments:
         """Width (m) and frequency (Hz) of segments ``s`` at delays ``T``, and
         whether the delay lies on the segment: solve w(t) T = phi(t) + 2 pi kk
         for t in [0, 1] by Newton from the linear root."""
-        w0, w1, p0, p1, kk = self.w0[s], self.w1[s], self.p0[s], self.p1[s], self.kk[s]
+        g, kk = self.g[s], self.kk[s]
+        h = self.h[g]
+        w0, w1, p0, p1 = self.w[g], self.w[g + 1], self.p[g], self.p[g + 1]
         F0, F1 = w0 * T - p0 - kk, w1 * T - p1 - kk
         den = F0 - F1
         t = np.clip(np.where(den != 0, F0 / np.where(den != 0, den, 1.0), 0.5), 0.0, 1.0)
-        dw0, dw1, dp0, dp1 = self.dw0[s], self.dw1[s], self.dp0[s], self.dp1[s]
+        dw0, dw1, dp0, dp1 = self.dw[g] * h, self.dw[g + 1] * h, self.dp[g] * h, self.dp[g + 1] * h
         for _ in range(4):
             w, dw = self._herm(t, w0, w1, dw0, dw1)
             p, dp = self._herm(t, p0, p1, dp0, dp1)
@@ -391,8 +403,8 @@ class _Segments:
         w, _ = self._herm(t, w0, w1, dw0, dw1)
         p, _ = self._herm(t, p0, p1, dp0, dp1)
         ok = np.abs(w * T - p - kk) <= 1e-9 * np.maximum(np.abs(p + kk), 1.0)
-        g, _ = self._herm(t, 1.0 / self.b0[s], 1.0 / self.b1[s], self.db0[s], self.db1[s])
-        return 1.0 / g, w / (2 * np.pi), ok
+        inv, _ = self._herm(t, 1.0 / self.b[g], 1.0 / self.b[g + 1], self.dg[g] * h, self.dg[g + 1] * h)
+        return 1.0 / inv, w / (2 * np.pi), ok
 
 
 def _envelope(
@@ -598,18 +610,17 @@ def _draw_lobe_panel(
     peak = float(np.max(em[fin])) if np.any(fin) else top
     ytop = top if 1.2 * peak >= top else 1.2 * peak
     handles: list[Any] = []
-    polylines = [
-        np.column_stack([c.speed, c.width * 1e3])
-        for c in curves
-        if c.speed.max() >= lo and c.speed.min() <= hi
-    ]
-    lc = LineCollection(
-        polylines, colors="0.55", linewidths=0.2 if dense else 0.6, alpha=0.12 if dense else 1.0, zorder=1
-    )
-    lc.set_gid("lobes")
-    ax.add_collection(lc)
-    handles.append(lc)
-    lc.set_label("lobes (each an exact boundary curve)")
+    if not dense:  # dense lobes would only grey the unstable region: the band below says it
+        polylines = [
+            np.column_stack([c.speed, c.width * 1e3])
+            for c in curves
+            if c.speed.max() >= lo and c.speed.min() <= hi
+        ]
+        lc = LineCollection(polylines, colors="0.55", linewidths=0.6, zorder=1)
+        lc.set_gid("lobes")
+        ax.add_collection(lc)
+        handles.append(lc)
+        lc.set_label("lobes (each an exact boundary curve)")
     ax.fill_between(vx, np.where(fin, em, np.nan), ytop * 2, color="tab:red", alpha=0.15, lw=0, zorder=0)
     handles.append(Patch(color="tab:red", alpha=0.15, label="unstable (chatter)"))
     if dense:
