@@ -444,7 +444,7 @@ def _envelope(
 
 
 #: sub-points added between two grid speeds where the active lobe changes
-CUSP_SUBDIVISION = 8
+CUSP_SUBDIVISION = 4
 
 
 def _envelope_line(
@@ -833,9 +833,7 @@ def plot_lobes(
     if axes is None:
         # decide the layout on a figure of the final size (dpi of savefig: text is measured once)
         fig = plt.figure(figsize=(11.5, 6.5), dpi=130)
-        probe = fig.add_axes((0.06, 0.1, 0.695, 0.8))
-        dense = _density(curves, lo, hi, _axes_pixels(probe, DISPLAY_DPI)) > 1
-        fig.clear()
+        dense = _density(curves, lo, hi, 0.695 * 11.5 * DISPLAY_DPI) > 1  # the panels' width
         axz: Any = None
         if dense:
             fig.set_size_inches(11.5, 9.5)  # legends right of the panels: the lobes fill the frame
