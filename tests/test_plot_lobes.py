@@ -220,6 +220,24 @@ def test_inf_is_shown_with_a_legend_entry(turning):
     assert ax.get_ylim()[1] == pytest.approx(1.0)  # the ceiling is the data's top here
 
 
+def test_undetermined_is_shown_between_samples_too(turning):
+    # a band given by the caller is not proven: where no lobe lies below the
+    # ceiling in it, nothing is claimed -- also between the requested speeds
+    d = lobes(turning, np.linspace(2000.0, 12000.0, 100), width_max=1e-3, fmin=505, fmax=530, verify=0)
+    assert not d.band_certified and np.any(d.claim == 2)
+    ax = plot_lobes(d)[0]
+    spans = [c for c in ax.collections if c.get_gid() == "claim-2"]
+    assert spans and not [c for c in ax.collections if c.get_gid() == "claim-1"]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any(t.startswith("undetermined") for t in legend)
+    x, y = _envelope(ax)
+    covered = np.zeros(x.size, bool)
+    for c in spans:
+        xs = c.get_paths()[0].vertices[:, 0]
+        covered |= (x >= xs.min()) & (x <= xs.max())
+    assert np.all(covered[~np.isfinite(y)])  # every inf pixel is marked undetermined
+
+
 def test_lobe_numbers_are_the_engines_and_do_not_overlap(turning_diagram):
     d = turning_diagram
     ax = plot_lobes(d)[0]

@@ -565,18 +565,39 @@ def _subtitle(d: Any) -> str:
     )
 
 
-def _claim_spans(d: Any) -> dict[int, list[tuple[float, float]]]:
-    """Speed ranges (half-way to the neighbours) of each claim code."""
+def _claim_spans(d: Any, vx: np.ndarray, env: np.ndarray) -> dict[int, list[tuple[float, float]]]:
+    """Speed ranges of the claims that are not a boundary: where the drawn
+    envelope is inf (no lobe below the ceiling), code 1 if the band is proven
+    and 2 if not -- between the requested speeds too; code 3 (a check
+    contradicts the diagram) half-way to the neighbouring requested speeds."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    inf = ~np.isfinite(env)
+    if np.any(inf):
+        edges = np.nonzero(np.diff(np.r_[False, inf, False].astype(np.int8)))[0]
+        code = 1 if d.band_certified else 2
+        mid = 0.5 * (vx[1:] + vx[:-1])
+        left, right = np.r_[vx[0], mid], np.r_[mid, vx[-1]]
+        out[code] = [
+            (float(left[a]), float(right[e - 1])) for a, e in zip(edges[::2], edges[1::2], strict=True)
+        ]
+    for a_, b_ in _requested_spans(d, 3):
+        out.setdefault(3, []).append((a_, b_))
+    return out
+
+
+def _requested_spans(d: Any, which: int) -> list[tuple[float, float]]:
+    """Speed ranges (half-way to the neighbours) of the requested speeds whose claim is ``which``."""
     v = np.asarray(d.speed, float)
     o = np.argsort(v)
     v, code = v[o], np.asarray(d.claim)[o]
     mid = 0.5 * (v[1:] + v[:-1])
     left, right = np.r_[v[0], mid], np.r_[mid, v[-1]]
-    out: dict[int, list[tuple[float, float]]] = {}
     edges = np.nonzero(np.r_[True, code[1:] != code[:-1], True])[0]
-    for a, e in zip(edges[:-1], edges[1:], strict=True):
-        out.setdefault(int(code[a]), []).append((float(left[a]), float(right[e - 1])))
-    return out
+    return [
+        (float(left[a]), float(right[e - 1]))
+        for a, e in zip(edges[:-1], edges[1:], strict=True)
+        if int(code[a]) == which
+    ]
 
 
 def _draw_lobe_panel(
@@ -673,7 +694,7 @@ def _draw_lobe_panel(
             rv, rb = (np.asarray(x, float) for x in ref)
             (rl,) = ax.plot(rv, rb * 1e3, color=col, ls=ls, lw=1.2, zorder=4, label=lab)
         handles.append(rl)
-    spans = _claim_spans(d)
+    spans = _claim_spans(d, vx, em)
     trans = ax.get_xaxis_transform()
     styles: dict[int, dict[str, Any]] = {
         1: dict(
