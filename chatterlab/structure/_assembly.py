@@ -26,6 +26,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from types import MappingProxyType
@@ -713,57 +714,16 @@ def assemble(model: Model) -> System:
     if model.is_matrix_model:
         return _assemble_matrices(model)
     src = model.source
-    names: list[str] = []
-    for b in model.bodies:
-        names += [f"{b.id}.{d}" for d in DIRECTIONS]
-    for c in model.contacts:
-        names += [f"{c.id}.{d}" for d in DIRECTIONS]
-    for nd in model.nodes:
-        names += [f"{nd.id}.{d}" for d in DIRECTIONS]
-    for bm in model.beams:
-        for j in range(1, bm.elements):
-            names += [f"{bm.id}#{j}.{d}" for d in DIRECTIONS]
-    names += [f"{GROUND}.{d}" for d in DIRECTIONS]
+    names = _coordinate_names(model)
     index = {nm: k for k, nm in enumerate(names)}
     n = len(names)
 
     def cols(item: str) -> np.ndarray:
         return np.array([index[f"{item}.{d}"] for d in DIRECTIONS])
 
-    M = np.zeros((n, n))
-    L = np.zeros((n, n))
-    K = np.zeros((n, n))
-
-    for b in model.bodies:
-        c3 = cols(b.id)
-        M[c3, c3] += (b.mass, b.mass, b.inertia)
-
-    node_xy = {nd.id: np.array(nd.xy, float) for nd in model.nodes}
-    elements: dict[str, tuple[_Element, ...]] = {}
-    for bm in model.beams:
-        p0, e, Lb = beam_axes(model, bm)
-        ids = [bm.nodes[0]] + [f"{bm.id}#{j}" for j in range(1, bm.elements)] + [bm.nodes[1]]
-        h = Lb / bm.elements
-        els = []
-        for j in range(bm.elements):
-            xy_i = p0 + j * h * e
-            xy_j = p0 + (j + 1) * h * e
-            c6 = np.concatenate([cols(ids[j]), cols(ids[j + 1])])
-            sec = bm.section
-            Me, Le, Ke = beam_matrices(
-                xy_i, xy_j, E=sec.E, G=sec.G, A=sec.A, I=sec.I, kappa=sec.kappa, rho=sec.rho, eta=sec.eta
-            )
-            ix = np.ix_(c6, c6)
-            M[ix] += Me
-            L[ix] += Le
-            K[ix] += Ke
-            els.append(_Element(bm, j * h, h, xy_i, xy_j, c6))
-        elements[bm.id] = tuple(els)
-    del node_xy
-
+    M, L, K, elements = _element_matrices(model, n, cols)
     given: set[int] = set(cols(GROUND).tolist())
     dependent: dict[int, str] = {}
-    rows: list[np.ndarray] = []
 
     def mark_dependent(k: int, why: str) -> None:
         if k in dependent:
@@ -774,58 +734,8 @@ def assemble(model: Model) -> System:
             )
         dependent[k] = why
 
-    for s_ in model.supports:
-        if s_.target in index:  # pragma: no cover - coordinate supports are matrix-model only
-            given.add(index[s_.target])
-            continue
-        for d in s_.dofs:
-            given.add(index[f"{s_.target}.{d}"])
-
-    for a in model.attachments:
-        nc = cols(a.node)
-        if a.body == GROUND:
-            given.update(nc.tolist())
-            continue
-        bc = cols(a.body)
-        arm = node_xy_of(model, a.node) - body_centre(model, a.body)
-        R = rigid_point_matrix(arm)
-        for r in range(3):
-            row = np.zeros(n)
-            row[nc[r]] = 1.0
-            row[bc] -= R[r]
-            rows.append(row)
-            mark_dependent(int(nc[r]), f'[[attachment]] "{a.id}"')
-
-    for con in model.constraints:
-        for dname in con.dependent:
-            mark_dependent(index[dname], f'[[constraint]] "{con.id}"')
-        for eq in con.equations:
-            row = np.zeros(n)
-            for cname, coef in eq:
-                row[index[cname]] += coef
-            rows.append(row)
-
-    contact_rows = []
-    mv = model.movable
-    for c in model.contacts:
-        for k in cols(c.id):
-            mark_dependent(int(k), f'[[contact]] "{c.id}"')
-        track: list[_Element] = []
-        start = 0.0
-        for bid in c.beams:
-            for el in elements[bid]:
-                track.append(_Element(el.beam, start + el.start, el.length, el.xy_i, el.xy_j, el.cols))
-            start += beam_axes(model, next(b for b in model.beams if b.id == bid))[2]
-        beams0 = next(b for b in model.beams if b.id == c.beams[0])
-        p0, e, _ = beam_axes(model, beams0)
-        s_ref = mv.position if mv is not None else 0.0
-        x_ref = float((body_centre(model, c.follows, s_ref) - p0) @ e) + c.shift
-        rate = float(np.array(mv.direction) @ e) if mv is not None else 0.0
-        contact_rows.append(
-            _ContactRows(
-                cols(c.id), tuple(track), x_ref, s_ref, rate, c.offset, start, c.id, c.outside == "clamp"
-            )
-        )
+    rows = _constraint_rows(model, index, n, cols, given, mark_dependent)
+    contact_rows = _contact_rows(model, elements, cols, mark_dependent)
 
     overlap = sorted(set(dependent) & given)
     if overlap:
@@ -862,6 +772,134 @@ def assemble(model: Model) -> System:
     _check_constraints(sysm)
     _check_mass(sysm)
     return sysm
+
+
+def _coordinate_names(model: Model) -> list[str]:
+    """All coordinates: bodies, contacts, nodes, inner beam nodes, the ground."""
+    names: list[str] = []
+    for b in model.bodies:
+        names += [f"{b.id}.{d}" for d in DIRECTIONS]
+    for c in model.contacts:
+        names += [f"{c.id}.{d}" for d in DIRECTIONS]
+    for nd in model.nodes:
+        names += [f"{nd.id}.{d}" for d in DIRECTIONS]
+    for bm in model.beams:
+        for j in range(1, bm.elements):
+            names += [f"{bm.id}#{j}.{d}" for d in DIRECTIONS]
+    names += [f"{GROUND}.{d}" for d in DIRECTIONS]
+    return names
+
+
+def _element_matrices(
+    model: Model, n: int, cols: Callable[[str], np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, tuple[_Element, ...]]]:
+    """M, L, K of the decoupled system (Eq. 2.13): rigid bodies and beam
+    elements, and each beam's elements."""
+    M = np.zeros((n, n))
+    L = np.zeros((n, n))
+    K = np.zeros((n, n))
+
+    for b in model.bodies:
+        c3 = cols(b.id)
+        M[c3, c3] += (b.mass, b.mass, b.inertia)
+
+    elements: dict[str, tuple[_Element, ...]] = {}
+    for bm in model.beams:
+        p0, e, Lb = beam_axes(model, bm)
+        ids = [bm.nodes[0]] + [f"{bm.id}#{j}" for j in range(1, bm.elements)] + [bm.nodes[1]]
+        h = Lb / bm.elements
+        els = []
+        for j in range(bm.elements):
+            xy_i = p0 + j * h * e
+            xy_j = p0 + (j + 1) * h * e
+            c6 = np.concatenate([cols(ids[j]), cols(ids[j + 1])])
+            sec = bm.section
+            Me, Le, Ke = beam_matrices(
+                xy_i, xy_j, E=sec.E, G=sec.G, A=sec.A, I=sec.I, kappa=sec.kappa, rho=sec.rho, eta=sec.eta
+            )
+            ix = np.ix_(c6, c6)
+            M[ix] += Me
+            L[ix] += Le
+            K[ix] += Ke
+            els.append(_Element(bm, j * h, h, xy_i, xy_j, c6))
+        elements[bm.id] = tuple(els)
+    return M, L, K, elements
+
+
+def _constraint_rows(
+    model: Model,
+    index: dict[str, int],
+    n: int,
+    cols: Callable[[str], np.ndarray],
+    given: set[int],
+    mark_dependent: Callable[[int, str], None],
+) -> list[np.ndarray]:
+    """The constant constraint rows (attachments to bodies, [[constraint]]
+    equations); supports and ground attachments add to ``given``."""
+    rows: list[np.ndarray] = []
+    for s_ in model.supports:
+        if s_.target in index:  # pragma: no cover - coordinate supports are matrix-model only
+            given.add(index[s_.target])
+            continue
+        for d in s_.dofs:
+            given.add(index[f"{s_.target}.{d}"])
+
+    for a in model.attachments:
+        nc = cols(a.node)
+        if a.body == GROUND:
+            given.update(nc.tolist())
+            continue
+        bc = cols(a.body)
+        arm = node_xy_of(model, a.node) - body_centre(model, a.body)
+        R = rigid_point_matrix(arm)
+        for r in range(3):
+            row = np.zeros(n)
+            row[nc[r]] = 1.0
+            row[bc] -= R[r]
+            rows.append(row)
+            mark_dependent(int(nc[r]), f'[[attachment]] "{a.id}"')
+
+    for con in model.constraints:
+        for dname in con.dependent:
+            mark_dependent(index[dname], f'[[constraint]] "{con.id}"')
+        for eq in con.equations:
+            row = np.zeros(n)
+            for cname, coef in eq:
+                row[index[cname]] += coef
+            rows.append(row)
+    return rows
+
+
+def _contact_rows(
+    model: Model,
+    elements: dict[str, tuple[_Element, ...]],
+    cols: Callable[[str], np.ndarray],
+    mark_dependent: Callable[[int, str], None],
+) -> list[_ContactRows]:
+    """Each contact's track (its beams' elements end to end) and where it is
+    on it as the slide moves."""
+    contact_rows = []
+    mv = model.movable
+    for c in model.contacts:
+        for k in cols(c.id):
+            mark_dependent(int(k), f'[[contact]] "{c.id}"')
+        track: list[_Element] = []
+        start = 0.0
+        for bid in c.beams:
+            for el in elements[bid]:
+                track.append(_Element(el.beam, start + el.start, el.length, el.xy_i, el.xy_j, el.cols))
+            start += beam_axes(model, next(b for b in model.beams if b.id == bid))[2]
+        beams0 = next(b for b in model.beams if b.id == c.beams[0])
+        p0, e, _ = beam_axes(model, beams0)
+        s_ref = mv.position if mv is not None else 0.0
+        x_ref = float((body_centre(model, c.follows, s_ref) - p0) @ e) + c.shift
+        rate = float(np.array(mv.direction) @ e) if mv is not None else 0.0
+        contact_rows.append(
+            _ContactRows(
+                cols(c.id), tuple(track), x_ref, s_ref, rate, c.offset, start, c.id, c.outside == "clamp"
+            )
+        )
+    return contact_rows
 
 
 def node_xy_of(model: Model, nid: str) -> np.ndarray:
