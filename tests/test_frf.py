@@ -202,8 +202,14 @@ def test_modal_all_modes_matches_direct_to_round_off(shaper):
     assert peak_relative_error(modal.data, direct.data) < 2 * bound
     trunc = frf(shaper, om, inputs=CONTACT, outputs=CONTACT, method="modal", modes_above=4.0)
     assert peak_relative_error(trunc.data, direct.data) > 100 * bound
-    with pytest.raises(cl.InputError, match="modes_above"):
-        frf(shaper, om, inputs=CONTACT, outputs=CONTACT, method="modal", modes_above=0.0)
+    for bad in (0.0, -1.0, float("nan"), True, "4"):
+        with pytest.raises(cl.InputError, match="modes_above"):
+            frf(shaper, om, inputs=CONTACT, outputs=CONTACT, method="modal", modes_above=bad)
+    # a NumPy factor is a factor: the truncated route, as with a float
+    np.testing.assert_array_equal(
+        frf(shaper, om, inputs=CONTACT, outputs=CONTACT, method="modal", modes_above=np.float64(4.0)).data,
+        trunc.data,
+    )
 
 
 def test_modal_with_residual_matches_direct_below_the_kept_modes(shaper):
