@@ -913,7 +913,12 @@ def plot_lobes(
         note = textwrap.fill(
             f"Lobes denser than the plot: up to {main['density']:.0f} lobe bottoms in {DENSE_PIXELS} pixel"
             " columns. Where dense, each pixel column shows the band b_lim sweeps in it, from the lobe"
-            " bottoms to the cusps; individual lobes in the zoom below.",
+            " bottoms to the cusps; "
+            + (
+                "individual lobes in the zoom below."
+                if axz is not None
+                else "pass three axes for a zoom panel."
+            ),
             46,
         )
     if axz is not None:
@@ -947,6 +952,7 @@ def plot_lobes(
         )
         _lobe_legend(axz, zoom, curves, d, "outside", count)
         axz.set_title(f"zoom on {zlo:.5g}-{zhi:.5g} {unit} around the minimum: individual lobes", fontsize=8)
+    if axz is not None or main["dense"]:
         leg = ax.legend(
             handles=main["handles"],
             loc="upper left",
