@@ -113,11 +113,20 @@ def _width_m(args: argparse.Namespace) -> float:
 # a value outside them is named on one line of standard error (--quiet: none).
 
 
+#: warnings of the running command: printed when it has run (an input error
+#: is one line on its own, so they are dropped then)
+_WARNINGS: list[str] = []
+
+
 def _warn(args: argparse.Namespace, lines: list[str]) -> None:
-    if getattr(args, "quiet", False):
-        return
-    for line in lines:
-        print(f"chatterlab: warning: {line}", file=sys.stderr)
+    if not getattr(args, "quiet", False):
+        _WARNINGS.extend(f"chatterlab: warning: {line}" for line in lines if line not in _WARNINGS)
+
+
+def _flush_warnings() -> None:
+    for line in dict.fromkeys(_WARNINGS):
+        print(line, file=sys.stderr)
+    _WARNINGS.clear()
 
 
 def _width_slips(b: float, option: str) -> list[str]:
@@ -1075,10 +1084,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.command:
         parser.print_help()
         return 2
+    _WARNINGS.clear()
     try:
         _check_numbers(args)
-        return COMMANDS[args.command](args)
+        code = COMMANDS[args.command](args)
+        _flush_warnings()
+        return code
     except ChatterlabError as exc:
+        _WARNINGS.clear()
         print(f"chatterlab: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
