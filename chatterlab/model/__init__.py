@@ -1,9 +1,13 @@
 """Model files -> :class:`Model`: the immutable machine description.
 
 ``_items``: the frozen dataclasses (bodies, beams, springs, couplings, the
-process, ...); ``_reader``: the TOML reader and its validation (one
-:class:`~chatterlab.errors.ModelError` line per problem); ``_geometry``:
-point positions and the geometric checks.
+process, ...); ``_reader``: the TOML reader (file, limits, variants and
+parameter paths, :func:`build_model`), with one reader per table in
+``_tables`` (structural tables), ``_points`` (points, springs, couplings,
+the process) and ``_matrices`` ([matrices] and its files), on the typed
+field access of ``_fields`` -- every problem one
+:class:`~chatterlab.errors.ModelError` line; ``_geometry``: point positions
+and the geometric checks.
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
-"""Time domain: the generic Newmark solver (``_newmark``), the parametric
-problem of Eq. 2.28 and the simulation of a cut (``_simulate``), spectra and
-growth rates (``_signals``)."""
+"""Time domain: the generic Newmark solver (``_newmark``: the integrator;
+``_problems``: what it integrates; ``_options``: its options and
+:class:`TimeResponse`; ``_plan``: the checks and setup before the first
+step), the parametric problem of Eq. 2.28 (``_parametric``) and the
+simulation of a cut (``_simulate``), spectra and growth rates (``_signals``)."""
 
 from __future__ import annotations
 
