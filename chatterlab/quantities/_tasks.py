@@ -202,7 +202,7 @@ class QuantityTask:
         """Refuse a grid whose axes are unknown (see :meth:`check_axes`) or
         whose built-in axes hold invalid values (a width, speed or delay
         <= 0, a non-finite position), before anything is computed."""
-        self.check_axes(list(grid.names))
+        self.check_axes(list(grid.names), {ax.name: np.asarray(ax.values).tolist() for ax in grid.axes})
         for ax in grid.axes:
             name = self.aliases.get(ax.name, ax.name)
             if name in _BUILTIN_AXES:
@@ -213,12 +213,17 @@ class QuantityTask:
     def outputs(self) -> dict[str, str]:
         return QUANTITIES[self.quantity]
 
-    def check_axes(self, names: list[str] | tuple[str, ...]) -> None:
-        """Refuse grid axes that are neither built in nor model parameters
-        (a parameter path is checked by building the model once)."""
+    def check_axes(
+        self, names: list[str] | tuple[str, ...], values: dict[str, list[Any]] | None = None
+    ) -> None:
+        """Refuse grid axes that are neither built in nor model parameters.
+
+        A parameter path is checked by building the model at the ends of its
+        axis (``values``), so every documented field can be swept, also one the
+        file leaves at its default; without values, at the file's own value."""
         params = {}
-        for nm in names:
-            nm = self.aliases.get(nm, nm)
+        for axis in names:
+            nm = self.aliases.get(axis, axis)
             if nm in _BUILTIN_AXES:
                 continue
             if "." not in nm:
@@ -226,7 +231,12 @@ class QuantityTask:
                     f"grid axis '{nm}' is not one of {', '.join(sorted(_BUILTIN_AXES))} and not a model"
                     " parameter path KIND.ID.FIELD (e.g. spring.leg3-foundation.c2)"
                 )
-            params[nm] = _current_value(self.model, nm)
+            given = (values or {}).get(axis) or (values or {}).get(nm)
+            if given:
+                for v in (given[0], given[-1]):
+                    self.model.with_parameters({nm: v})
+            else:
+                params[nm] = _current_value(self.model, nm)
         if params:
             self.model.with_parameters(params)
         if (
