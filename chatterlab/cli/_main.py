@@ -647,7 +647,10 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outp
     if args.plot:
         from ..plot._plot import plot_atlas, savefig
 
-        savefig(plot_atlas(res, model.process), outs.path(args.plot))
+        savefig(
+            plot_atlas(res, model.process, model=model.source, width_max=wmax, terms=args.terms),
+            outs.path(args.plot),
+        )
     return 0 if res.status == "ok" else 1
 
 
@@ -998,7 +1001,7 @@ class _Parser(argparse.ArgumentParser):
     """An argparse parser whose errors suggest the nearest option of the
     (sub)command for a misspelled one, with that command's own usage."""
 
-    def error(self, message: str) -> Any:  # type: ignore[override]
+    def error(self, message: str) -> Any:
         import difflib
 
         known = [o for a in self._actions for o in a.option_strings]
@@ -1068,7 +1071,7 @@ _EXTRA_PARSERS: list[Callable[[Any], None]] = [_more_parsers]
 def _subparser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
     for a in parser._actions:
         if isinstance(a, argparse._SubParsersAction):
-            return a.choices[name]  # type: ignore[no-any-return]
+            return a.choices[name]
     return parser
 
 
@@ -1087,7 +1090,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     _WARNINGS.clear()
     try:
         _check_numbers(args)
-        code = COMMANDS[args.command](args)
+        # one BLAS thread: chatterlab's work is many small dense problems, and
+        # on a 2-core machine with any other load, threaded BLAS oversubscribes
+        # (README main job, load 2-3: 8.9 s with default threads, 2.5 s with one);
+        # parallel work goes through the sweep engine's worker processes
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1):
+            code = COMMANDS[args.command](args)
         _flush_warnings()
         return code
     except ChatterlabError as exc:
