@@ -111,6 +111,10 @@ class LobeDiagram:
         Why the band is (or is not) complete.
     folds : int
         Folds of the boundary curve located and followed.
+    n_lobes : int
+        Lobes crossing the speed range; when they are denser than 400 per
+        branch, ``lobes`` keeps only those that form the envelope at the
+        requested speeds.
     """
 
     speed: np.ndarray
@@ -135,6 +139,7 @@ class LobeDiagram:
     band_certified: bool = False
     band_note: str = ""
     folds: int = 0
+    n_lobes: int = 0
 
     @property
     def verified(self) -> bool | None:
@@ -150,7 +155,13 @@ class LobeDiagram:
             + (f", position {self.position:g} m" if self.position is not None else "")
             + ")",
             f"  speeds {self.speed.min():g} .. {self.speed.max():g} {self.speed_unit} ({self.speed.size} points),"
-            f" {len(self.lobes)} lobes, {self.n_frequencies} chatter frequencies, {self.elapsed:.2f} s",
+            f" {self.n_lobes} lobes"
+            + (
+                f" ({len(self.lobes)} of them on the envelope kept as curves)"
+                if self.n_lobes > len(self.lobes)
+                else ""
+            )
+            + f", {self.n_frequencies} chatter frequencies, {self.elapsed:.2f} s",
         ]
         if np.isfinite(m["width"]):
             lines.append(
@@ -845,10 +856,12 @@ def lobes(
     # every lobe in the range of delays, as curves on the frequency grid
     lobe_list: list[Lobe] = []
     Tlo, Thi = float(T.min()), float(T.max())
+    n_in_range = 0
     for sg in segs:
         phi = np.mod(-np.angle(sg.z), 2 * np.pi)  # w T = phi + 2 pi k, phi in [0, 2 pi)
         kmin = max(int(np.floor((sg.omega * Tlo - phi).min() / (2 * np.pi))), 0)
         kmax = int(np.ceil((sg.omega * Thi - phi).max() / (2 * np.pi)))
+        n_in_range += _lobes_crossing(sg.omega, phi, Tlo, Thi)
         if kmax - kmin > 400:  # a dense diagram: keep the lobes that form the envelope
             ks = np.unique(lobe_k[lobe_k >= 0])
             krange = ks if ks.size else np.arange(kmin, kmin + 50)
@@ -901,9 +914,30 @@ def lobes(
         band_certified=bd.band.certified,
         band_note=bd.band.reason,
         folds=bd.folds,
+        n_lobes=n_in_range,
     )
     checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
     return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
+
+
+def _lobes_crossing(omega: np.ndarray, phi: np.ndarray, Tlo: float, Thi: float) -> int:
+    """Number of lobes k of one branch that cross [Tlo, Thi]: the union over
+    the branch's samples of the integers k with T_k = (phi + 2 pi k) / w in it."""
+    ok = omega > 0
+    lo = np.ceil((omega[ok] * Tlo - phi[ok]) / (2 * np.pi)).astype(np.int64)
+    hi = np.floor((omega[ok] * Thi - phi[ok]) / (2 * np.pi)).astype(np.int64)
+    lo = np.maximum(lo, 0)
+    keep = hi >= lo
+    if not np.any(keep):
+        return 0
+    order = np.argsort(lo[keep])
+    a, b = lo[keep][order], hi[keep][order]
+    reach = np.maximum.accumulate(b)
+    starts = np.r_[True, a[1:] > reach[:-1] + 1]
+    # merge overlapping intervals: each run from a start to the next start
+    idx = np.nonzero(starts)[0]
+    ends = np.r_[idx[1:] - 1, a.size - 1]
+    return int(np.sum(reach[ends] - a[idx] + 1))
 
 
 def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[str, float]:
