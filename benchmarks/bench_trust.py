@@ -50,18 +50,18 @@ PRELUDE = (
 CWD = tempfile.gettempdir()
 
 MAIN_JOB = PRELUDE + (
-    "import sys; from chatterlab.cli._main import main; sys.argv = ['chatterlab', 'lobes', {model!r}, '--speed', '0.1',"
+    "import sys; from chatterlab.cli import main; sys.argv = ['chatterlab', 'lobes', {model!r}, '--speed', '0.1',"
     " '1.0', '--width-max', '1', '--out', {out!r}, '--plot', {png!r}{extra}]; sys.exit(main())"
 )
 REFINED = (
     PRELUDE
     + """
 import chatterlab as cl
-from chatterlab.frequency._stability import stability
+
 m = cl.load_model({model!r})
 m = m.with_parameters({{f"beam.{{b.id}}.elements": 8 for b in m.beams}})
 fz = cl.assemble(m).at(0.85)
-st = stability(fz, width=2e-4, speed=0.1)
+st = cl.stability(fz, width=2e-4, speed=0.1)
 print(st.verdict, st.abscissa, fz.A.shape[0])
 """
 )
@@ -70,7 +70,7 @@ CLAIMS = (
     + """
 import json, numpy as np
 import chatterlab as cl
-from chatterlab.lobes._diagram import lobes
+from chatterlab.lobes import lobes
 fz = cl.assemble(cl.load_model({model!r})).at(0.85)
 d = lobes(fz, np.linspace(0.1, 1.0, 20), width_max=5e-3, verify=0)
 print(json.dumps([d.b_lim.tolist(), d.delay.tolist()]))
@@ -113,7 +113,7 @@ def check_claims(b_lim: list[float], delay: list[float]) -> dict[str, object]:
     import numpy as np
 
     import chatterlab as cl
-    from chatterlab.frequency._stability import stability
+    from chatterlab.frequency import stability
 
     fz = cl.assemble(cl.load_model(MODEL)).at(0.85)
 
@@ -172,7 +172,7 @@ def _cli_help(pythonpath: str) -> str:
         [
             sys.executable,
             "-c",
-            PRELUDE + "from chatterlab.cli._main import main; sys.argv=['x','lobes','-h']; main()",
+            PRELUDE + "from chatterlab.cli import main; sys.argv=['x','lobes','-h']; main()",
         ],
         env=dict(os.environ, PYTHONPATH=pythonpath),
         capture_output=True,
