@@ -95,6 +95,7 @@ __all__ = [
     "make_first_order_system",
     "characteristic_roots",
     "characteristic_roots_first_order",
+    "characteristic_roots_system",
     "char_matrix",
     "char_matrix_derivative",
     "newton_refine",
@@ -1572,6 +1573,22 @@ def characteristic_roots(
     .. [3] L. N. Trefethen, *Spectral Methods in MATLAB*, SIAM 2000.
     """
     sys = make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
+    return _dispatch(sys, count, method, omega_max, n_nodes, match_tol, max_windows)
+
+
+def characteristic_roots_system(
+    sys: DelaySystem,
+    *,
+    count: int = 6,
+    method: str = "auto",
+    omega_max: float | None = None,
+    n_nodes: int | None = None,
+    match_tol: float = 1e-6,
+    max_windows: int = 60,
+) -> RootsResult:
+    """:func:`characteristic_roots` for a prepared :class:`DelaySystem` (its
+    partial fractions and band are then shared with, e.g.,
+    :func:`chatterlab.frequency.rhp_count_system`)."""
     return _dispatch(sys, count, method, omega_max, n_nodes, match_tol, max_windows)
 
 

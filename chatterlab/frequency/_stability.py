@@ -150,25 +150,20 @@ def stability(
     -------
     Stability
     """
-    from ._roots import characteristic_roots
+    from ._roots import characteristic_roots_system, make_system
 
     fb = feedback(frozen, width=width, speed=speed, delay=delay, terms=terms, couplings=couplings)
     DO = (fb.U, fb.V) if fb.U.shape[1] else None
-    r = characteristic_roots(
-        frozen.A,
-        frozen.B,
-        frozen.C,
-        DP=fb.DP,
-        DV=fb.DV,
-        DO=DO,
-        tau=fb.delay if DO is not None else None,
-        count=count,
+    # one delay system for both routes: they share its partial fractions and bands
+    sys_ = make_system(
+        frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=DO, tau=fb.delay if DO is not None else None
     )
+    r = characteristic_roots_system(sys_, count=count)
     absc = float(r.abscissa)
     if not np.isfinite(absc) or not r.converged:
         verdict = "undetermined"
         msg = f"root search: {r.message}"
-        found = _unstable_root(frozen, fb, DO)
+        found = _unstable_root(sys_)
         if found is not None:
             # one root right of the axis proves instability, complete search or not
             verdict, absc = "unstable", float(found.real)
@@ -186,18 +181,9 @@ def stability(
     w = None
     agree = None
     if winding:
-        from ._winding import rhp_count
+        from ._winding import rhp_count_system
 
-        w = rhp_count(
-            frozen.A,
-            frozen.B,
-            frozen.C,
-            DP=fb.DP,
-            DV=fb.DV,
-            DO=DO,
-            tau=fb.delay if DO is not None else None,
-            omega_max=loop_band(frozen, fb),
-        )
+        w = rhp_count_system(sys_, omega_max=loop_band(frozen, fb))
         if verdict in ("stable", "unstable") and w.status == "converged":
             agree = (w.count == 0) == (verdict == "stable")
             if not agree:
@@ -241,19 +227,16 @@ def loop_band(frozen: FrozenSystem, fb: Any, tol: float = 1e-4) -> float:
     return float(min(wmax, 2.0 * w[big[-1]]))
 
 
-def _unstable_root(frozen: FrozenSystem, fb: Any, DO: Any) -> complex | None:
+def _unstable_root(sys_: Any) -> complex | None:
     """A characteristic root with Re > 0 found by Newton from the delay-free
     closed loop's unstable poles (where e^{-lambda T} is small the delayed
     term barely moves them), or None."""
-    from ._roots import make_system, newton_refine
+    from ._roots import _newton
 
-    sys_ = make_system(
-        frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=DO, tau=fb.delay if DO is not None else None
-    )
     p = sys_.delay_free_poles()
     starts = p[(p.real > 0) & (p.imag >= 0)]
     if starts.size == 0:
         return None
-    lam, ok = newton_refine(starts[np.argsort(-starts.real)][:8], frozen.A, frozen.B, frozen.C, system=sys_)
+    lam, ok = _newton(sys_, starts[np.argsort(-starts.real)][:8])
     good = lam[ok & (lam.real > 0)]
     return complex(good[np.argmax(good.real)]) if good.size else None
