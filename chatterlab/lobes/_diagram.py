@@ -567,9 +567,10 @@ def _band(plant: Plant, fmin: float | None, fmax: float | None, width_max: float
     """The chatter-frequency band searched (rad/s) and whether it is proven
     to hold every boundary point below ``width_max``.  A band given by the
     caller (either end) is searched as given and proves nothing outside it."""
-    auto = _auto_band(plant, width_max)
-    if fmin is None and fmax is None:
-        return auto
+    if fmin is None or fmax is None:
+        auto = _auto_band(plant, width_max)
+        if fmin is None and fmax is None:
+            return auto
     lo = 2 * np.pi * fmin if fmin is not None else auto.lo
     hi = 2 * np.pi * fmax if fmax is not None else auto.hi
     if not hi > lo >= 0:
