@@ -157,3 +157,15 @@ Kf = {float(Kf)!r}
 kind = "turning"
 rpm = {float(rpm)!r}
 """
+
+
+def assert_clean_error(code, err, *words):
+    """A refused input: status 2 and one line ``chatterlab: error: ...`` on
+    standard error (no traceback) holding every one of ``words``."""
+    assert code == 2, err
+    lines = [ln for ln in err.strip().splitlines() if ln]
+    assert len(lines) == 1, err  # one line, no traceback
+    assert lines[0].startswith("chatterlab: error:"), err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in lines[0], lines[0]

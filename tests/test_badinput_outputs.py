@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import turning_text
+from conftest import assert_clean_error, turning_text
 
 from chatterlab.cli._main import main
 from chatterlab.io import _files as _io
@@ -24,15 +24,6 @@ def turning(tmp_path):
     p = tmp_path / "turning.toml"
     p.write_text(TURNING)
     return str(p)
-
-
-def assert_clean_error(code, err, *words):
-    assert code == 2, err
-    lines = [ln for ln in err.strip().splitlines() if ln]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("chatterlab: error:"), err
-    for w in words:
-        assert w in lines[0], lines[0]
 
 
 def files(folder: Path) -> list[str]:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_clean_error
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -34,15 +35,6 @@ K = [[2.0e6, -1.0e6], [-1.0e6, 1.0e6]]
 kind = "turning"
 rpm = 1500
 """
-
-
-def assert_clean_error(code, err, *words):
-    assert code == 2, err
-    lines = [ln for ln in err.strip().splitlines() if ln]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("chatterlab: error:"), err
-    for w in words:
-        assert w in lines[0], lines[0]
 
 
 def check(capsys, path, *more):

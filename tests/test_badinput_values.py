@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import turning_text
+from conftest import assert_clean_error, turning_text
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -28,15 +28,6 @@ def turning(tmp_path):
     p = tmp_path / "turning.toml"
     p.write_text(TURNING)
     return str(p)
-
-
-def assert_clean_error(code, err, *words):
-    assert code == 2, err
-    lines = [ln for ln in err.strip().splitlines() if ln]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("chatterlab: error:"), err
-    for w in words:
-        assert w in lines[0], lines[0]
 
 
 BAD = ["-1", "0", "nan", "inf", "-inf", "-0.0", "1e400"]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import turning_text
+from conftest import assert_clean_error, turning_text
 
 from chatterlab.cli._main import main
 from chatterlab.io._netcdf import read_netcdf
@@ -61,16 +61,6 @@ def run(capsys, *argv):
     code = main(list(argv))
     out = capsys.readouterr()
     return code, out.out, out.err
-
-
-def assert_clean_error(code, err, *words):
-    assert code == 2
-    lines = [ln for ln in err.strip().splitlines() if ln]
-    assert len(lines) == 1, err  # one line, no traceback
-    assert lines[0].startswith("chatterlab: error:")
-    assert "Traceback" not in err
-    for w in words:
-        assert w in lines[0], lines[0]
 
 
 def test_check_summarises_the_shaper(capsys):
@@ -272,7 +262,9 @@ def test_simulate_continuous_cut_writes_csv(capsys, turning, tmp_path):
 
 
 def test_console_script_and_light_import():
-    r = subprocess.run([sys.executable, "-m", "chatterlab.cli._main", "--version"], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "chatterlab.cli._main", "--version"], capture_output=True, text=True
+    )
     assert r.returncode == 0 and r.stdout.startswith("chatterlab ")
     code = "import sys, chatterlab; print(sorted(m for m in ('matplotlib', 'joblib', 'control', 'dask') if m in sys.modules))"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
