@@ -111,6 +111,9 @@ class PointRef:
     distance: float = 0.0
     coords: tuple[str, str, str] = ("", "", "")
     label: str = ""  #: how the user wrote it, for messages
+    #: modal models: per direction (x, y, rz) the modal coordinates and shape
+    #: entries that make up the physical coordinate named in ``coords``
+    weights: tuple[tuple[tuple[str, float], ...], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -315,6 +318,24 @@ class MatrixBlock:
     given: tuple[str, ...] = ()
 
 
+@dataclass(frozen=True)
+class Mode:
+    """One mode of a modal model (``[[mode]]``): natural frequency ``omega``
+    (rad/s), damping ratio, modal stiffness k (N/m) for the shape as written,
+    and the shape entries ((physical coordinate, value), ...)."""
+
+    id: str
+    omega: float
+    damping_ratio: float
+    stiffness: float
+    shape: tuple[tuple[str, float], ...]
+
+    @property
+    def mass(self) -> float:
+        """Modal mass k / w^2, kg."""
+        return self.stiffness / self.omega**2
+
+
 @dataclass(frozen=True, eq=False)
 class Model:
     """An immutable machine description (the seed paper's Section 2 model).
@@ -338,6 +359,7 @@ class Model:
     process: Process | None = None
     movable: Movable | None = None
     matrices: MatrixBlock | None = None
+    modes: tuple[Mode, ...] = ()  #: a modal model's [[mode]] tables (``matrices`` holds their matrices)
     variant: str | None = None
     overrides: tuple[tuple[str, Any], ...] = ()
     text: str = ""  #: the model file's text (kept for result files)

@@ -18,8 +18,10 @@ from ._items import DIRECTIONS, GROUND, Coupling, Movable, Point, PointRef, Proc
 class _RefContext:
     """Resolves how the file names a point into a :class:`PointRef`."""
 
-    def __init__(self, src, body_ids, node_xy, beam_len, contact_ids, coord_names, points):
+    def __init__(self, src, body_ids, node_xy, beam_len, contact_ids, coord_names, points, shapes=None):
         self.src = src
+        #: modal models: physical coordinate -> ((mode id, shape entry), ...)
+        self.shapes: dict[str, tuple[tuple[str, float], ...]] = shapes or {}
         self.body_ids = body_ids
         self.node_xy = node_xy
         self.beam_len = beam_len
@@ -67,13 +69,18 @@ class _RefContext:
                     f("coords"),
                     f'must be a table like {{ x = "q1", y = "q2" }} with keys from {list(DIRECTIONS)}',
                 )
+            where = "the [[mode]] shapes" if self.shapes else "[matrices] coordinates"
             for c in cs.values():
                 if c not in self.coord_names:
                     raise it.err(
                         f("coords"),
-                        f"'{c}' is not in [matrices] coordinates (known: {', '.join(sorted(self.coord_names))})",
+                        f"'{c}' is not in {where} (known: {', '.join(sorted(self.coord_names))})",
                     )
-            return PointRef("coords", "", coords=tuple(cs.get(d, "") for d in DIRECTIONS), label=label)
+            coords = tuple(cs.get(d, "") for d in DIRECTIONS)
+            if self.shapes:  # a modal model: the physical coordinate is a weighted sum of modes
+                weights = tuple(self.shapes[c] if c else () for c in coords)
+                return PointRef("coords", "", coords=coords, label=label, weights=weights)
+            return PointRef("coords", "", coords=coords, label=label)
         target = t[kind]
         if not isinstance(target, str):
             raise it.err(f(kind), f"must be an id string, got {target!r}")

@@ -20,8 +20,9 @@ import numpy as np
 
 from ..errors import ChatterlabError, ModelError
 from ._fields import _Ids, _Item
-from ._items import Model
+from ._items import Mode, Model
 from ._matrices import _read_matrix_model
+from ._modes import read_modal_model, shape_coordinates
 from ._points import _check_stroke, _read_couplings, _read_points, _read_process, _read_springs, _RefContext
 from ._tables import (
     _check_massless,
@@ -51,6 +52,7 @@ _LISTS = (
     "contact",
     "constraint",
     "coupling",
+    "mode",
 )
 _TABLES = ("model", "movable", "process", "matrices", "variant")
 
@@ -344,12 +346,18 @@ def _build_model(
     beams, beam_len = _read_beams(src, raw, ids, node_xy)
     contacts = _read_contacts(src, raw, ids, beams, node_xy, body_ids, mov_bodies)
     matrices = _read_matrix_model(src, raw, base_dir, files_outside)
-    coord_names = set(matrices.coordinates) if matrices else set()
-    ctx = _RefContext(src, body_ids, node_xy, beam_len, {c.id for c in contacts}, coord_names, {})
+    modal = read_modal_model(src, raw)
+    modes: tuple[Mode, ...] = ()
+    shapes: dict[str, tuple[tuple[str, float], ...]] = {}
+    if modal is not None:
+        modes, matrices = modal
+        shapes = shape_coordinates(modes)
+    coord_names = set(matrices.coordinates) if matrices and not modes else set(shapes)
+    ctx = _RefContext(src, body_ids, node_xy, beam_len, {c.id for c in contacts}, coord_names, {}, shapes)
     points = _read_points(src, raw, ids, ctx)
     springs = _read_springs(src, raw, ids, ctx)
     attachments = _read_attachments(src, raw, ids, node_xy, body_ids, mov_bodies)
-    supports = _read_supports(src, raw, node_xy, body_ids, coord_names)
+    supports = _read_supports(src, raw, node_xy, body_ids, set() if modes else coord_names)
     constraints = _read_constraints(src, raw, _coordinate_names(bodies, nodes, beams, contacts, matrices))
     _check_massless(src, bodies, constraints)
     couplings = _read_couplings(src, raw, ids, ctx)
@@ -372,6 +380,7 @@ def _build_model(
         process=process,
         movable=movable,
         matrices=matrices,
+        modes=modes,
         variant=variant,
         overrides=tuple((overrides or {}).items()),
         text=text,
@@ -380,7 +389,8 @@ def _build_model(
     )
     if not matrices and not bodies and not beams:
         raise ModelError(
-            "the model has no [[body]], no [[beam]] and no [matrices]; nothing to analyse", source=src
+            "the model has no [[body]], no [[beam]], no [matrices] and no [[mode]]; nothing to analyse",
+            source=src,
         )
     if movable is not None or contacts:
         _check_movable(model)

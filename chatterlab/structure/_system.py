@@ -321,6 +321,11 @@ class System:
         point names no coordinate)."""
         T = np.zeros((3, self.n))
         mdl = self.model
+        if ref.kind == "coords" and ref.weights:  # a modal model: u = sum_k phi_k eta_k
+            for r, entries in enumerate(ref.weights):
+                for cname, w in entries:
+                    T[r, self.index[cname]] += w
+            return T
         if ref.kind == "coords":
             for r, cname in enumerate(ref.coords):
                 if cname:
