@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from ._cutting import TERMS, Feedback, ce_maps, delay_for, feedback
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
+from ._milling import Milling
 
 __all__ = [
     "Feedback",
@@ -16,4 +17,5 @@ __all__ = [
     "ShapingKinematics",
     "SteadyKinematics",
     "kinematics_for",
+    "Milling",
 ]
