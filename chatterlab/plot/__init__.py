@@ -1,9 +1,19 @@
-"""Every matplotlib line of chatterlab: plots take result objects, accept
-``axes=`` and return the Axes.  Importing this package imports matplotlib."""
+"""Every matplotlib line of chatterlab: plots take result objects (or plain
+arrays), accept ``ax=`` and return the Axes they drew on (a tuple of Axes for
+a multi-panel plot; each docstring says which).  matplotlib is imported
+inside the functions, so importing this package is light.
+
+One module per subject: ``_lobes`` (with ``_lobe_panel`` and the geometry in
+``_envelope``), ``_atlas``, ``_frf`` (FRF, Nyquist), ``_time`` (histories,
+spectra), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 
 from __future__ import annotations
 
-from ._plot import plot_atlas, plot_frf, plot_histories, plot_lobes, plot_nyquist, plot_spectra, savefig
+from ._atlas import plot_atlas
+from ._frf import plot_frf, plot_nyquist
+from ._lobes import plot_lobes
+from ._style import savefig
+from ._time import plot_histories, plot_spectra
 
 __all__ = [
     "plot_frf",

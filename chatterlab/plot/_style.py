@@ -1,0 +1,59 @@
+"""Shared by every plot: the axes keyword, saving a figure, cell edges.
+
+Every plot function of chatterlab takes ``ax=`` (one Axes, or a sequence of
+Axes for a multi-panel plot, in the order its docstring gives) and returns
+what it drew on; none calls ``plt.show()``.  matplotlib is imported inside
+the functions, never at import.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+#: gid of a figure whose plot function already tightened its layout (savefig skips it)
+LAID_OUT = "chatterlab:laid-out"
+
+
+def axes_arg(ax: Any, axes: Any, func: str) -> Any:
+    """The Axes a plot draws on: ``ax``, or the deprecated ``axes=`` alias
+    (with a DeprecationWarning); both given is an error."""
+    if axes is None:
+        return ax
+    if ax is not None:
+        raise TypeError(f"{func}: pass the Axes once, as ax= (axes= is its deprecated alias)")
+    warnings.warn(f"{func}(axes=...) is deprecated; pass ax=", DeprecationWarning, stacklevel=3)
+    return axes
+
+
+def index_of(names: Sequence[str], key: int | str) -> int:
+    """Position of ``key`` (a name or an index) in ``names``."""
+    return names.index(key) if isinstance(key, str) else int(key)
+
+
+def cell_edges(x: np.ndarray) -> np.ndarray:
+    """Edges of cells centred on the sorted values x."""
+    if x.size == 1:
+        return np.array([x[0] - 0.5, x[0] + 0.5])
+    mid = 0.5 * (x[1:] + x[:-1])
+    return np.r_[x[0] - (mid[0] - x[0]), mid, x[-1] + (x[-1] - mid[-1])]
+
+
+def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
+    """Save the figure holding the given Axes and close it.  The layout is
+    tightened first unless the plot laid the figure out itself (figure gid
+    ``LAID_OUT``)."""
+    import matplotlib.pyplot as plt
+
+    ax = ax_or_axes[0] if isinstance(ax_or_axes, list | tuple | np.ndarray) else ax_or_axes
+    fig = ax.figure
+    if fig.get_gid() != LAID_OUT:
+        fig.tight_layout()
+    # zlib level 1: several times faster than the default 6 on a dense figure, a little larger file
+    extra = {"pil_kwargs": {"compress_level": 1}} if str(path).lower().endswith(".png") else {}
+    fig.savefig(path, dpi=dpi, **extra)
+    plt.close(fig)
+
