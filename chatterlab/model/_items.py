@@ -11,6 +11,7 @@ All quantities are SI: m, kg, kg m^2, N/m, N m/rad, N s/m, s, rad.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -219,6 +220,48 @@ class Coupling:
 
 
 @dataclass(frozen=True)
+class MillingCut:
+    """The cutter and the cut of a milling process (``[process] kind =
+    "milling"``), SI units and radians.  The analyses turn it into
+    :class:`chatterlab.process.Milling` (periodic directional matrices,
+    delays); :meth:`average_directional` is the zeroth-order average that
+    the ``model = "milling"`` coupling feeds to the frequency-domain engines.
+
+    Angles follow Insperger & Stepan (2004): a tooth's angle phi is measured
+    from +y, clockwise towards +x (the feed direction, CE axis 1);
+    down-milling exits at phi = pi.
+    """
+
+    teeth: int
+    diameter: float  #: m
+    Kt: float  #: tangential cutting-force coefficient, N/m^2
+    Kn: float  #: normal (radial) cutting-force coefficient, N/m^2
+    entry: float  #: rad
+    exit: float  #: rad
+    pitch: tuple[float, ...] = ()  #: rad, one per tooth (sum 2 pi); () uniform
+    helix: float = 0.0  #: rad
+    Kte: float = 0.0  #: N/m
+    Kne: float = 0.0  #: N/m
+    runout: tuple[float, ...] = ()  #: radial offset of each tooth, m (time domain only)
+    feed_per_tooth: float = 0.0  #: f_z, m (time domain only: the static chip)
+
+    def average_directional(self) -> np.ndarray:
+        """H0 = (N / 2 pi) int_entry^exit H(phi) dphi (N/m^2, 2x2): the mean of
+        the directional matrix over a revolution (Altintas & Budak 1995),
+        with H(phi) = [K_t (cos, -sin) + K_n (sin, cos)] (sin, cos)^T."""
+
+        def primitive(p: float) -> np.ndarray:
+            s2, half, q = math.sin(p) ** 2 / 2, p / 2, math.sin(2 * p) / 4
+            kt, kn = self.Kt, self.Kn
+            return np.array(
+                [[kt * s2 + kn * (half - q), kt * (half + q) + kn * s2],
+                 [-kt * (half - q) + kn * s2, -kt * s2 + kn * (half + q)]]
+            )  # fmt: skip
+
+        return self.teeth / (2 * math.pi) * (primitive(self.exit) - primitive(self.entry))
+
+
+@dataclass(frozen=True)
 class Process:
     """Process kinematics: how the cutting speed sets the delay T.
 
@@ -229,9 +272,13 @@ class Process:
       The speed variable is v_w in m/s.
     * ``"turning"``: spindle speed n (rpm); T = 60/n.  Speed variable: rpm.
     * ``"delay"``: T given directly (s).
+    * ``"milling"``: spindle speed n (rpm); T = 60/(N n), the tooth period
+      (for a variable pitch the mean one: each tooth's own delay is
+      pitch_j / Omega, see :class:`chatterlab.process.Milling`); the cutter
+      and the cut are in ``milling``.
     """
 
-    kind: Literal["shaping", "turning", "delay"]
+    kind: Literal["shaping", "turning", "delay", "milling"]
     speed: float = 0.0  #: the default value of the speed variable
     delay_value: float = 0.0
     run_in: float = 0.0
@@ -240,14 +287,21 @@ class Process:
     return_speed: float = 0.0
     start: float = 0.0  #: slide position s at the start of the work stroke, m
     direction: float = -1.0  #: +1 / -1: s increases / decreases in the work stroke
+    milling: MillingCut | None = None
 
     @property
     def speed_unit(self) -> str:
-        return {"shaping": "m/s", "turning": "rpm", "delay": "s"}[self.kind]
+        return {"shaping": "m/s", "turning": "rpm", "delay": "s", "milling": "rpm"}[self.kind]
 
     @property
     def speed_name(self) -> str:
-        return {"shaping": "work speed", "turning": "spindle speed", "delay": "delay"}[self.kind]
+        names = {
+            "shaping": "work speed",
+            "turning": "spindle speed",
+            "delay": "delay",
+            "milling": "spindle speed",
+        }
+        return names[self.kind]
 
     def delay(self, speed: float | np.ndarray | None = None) -> float | np.ndarray:
         """Delay T (s) at the given speed (in :attr:`speed_unit`)."""
@@ -265,6 +319,8 @@ class Process:
             out = stroke / v + stroke / self.return_speed
         elif self.kind == "turning":
             out = 60.0 / v
+        elif self.kind == "milling":
+            out = 60.0 / (self._teeth * v)
         else:
             out = v if speed is not None else np.asarray(self.delay_value)
         if speed is not None and np.any(out > MAX_DELAY):
@@ -281,9 +337,15 @@ class Process:
             out = stroke / (T - stroke / self.return_speed)
         elif self.kind == "turning":
             out = 60.0 / T
+        elif self.kind == "milling":
+            out = 60.0 / (self._teeth * T)
         else:
             out = T
         return float(out) if out.ndim == 0 else out
+
+    @property
+    def _teeth(self) -> int:
+        return self.milling.teeth if self.milling is not None else 1
 
     @property
     def min_delay(self) -> float:

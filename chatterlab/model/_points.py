@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import ModelError
 from ._fields import _id_of, _Ids, _Item
-from ._items import DIRECTIONS, GROUND, Coupling, Movable, Point, PointRef, Process, Spring
+from ._items import DIRECTIONS, GROUND, Coupling, MillingCut, Movable, Point, PointRef, Process, Spring
 
 
 class _RefContext:
@@ -192,6 +193,7 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
         "matrices": ("DP", "DV", "DO"),
         "grasso": tuple(f"K{i}" for i in range(1, 9)),
         "regenerative": ("Kf", "force_angle_deg", "normal_angle_deg", "Kv"),
+        "milling": (),
     }
     if not isinstance(model_kind, str) or model_kind not in extra:
         raise ModelError(
@@ -200,14 +202,19 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
             item=label,
             field="model",
         )
+    if model_kind == "milling":
+        base = tuple(k for k in base if k != "width_ref")  # the width is the axial depth a_p itself
     it = _Item(src, label, t, base + extra[model_kind])
     a = ctx.ref(it, "a")
     b = ctx.ref(it, "b")
-    width_ref = it.num("width_ref", unit="m", positive=True)
+    width_ref = 1.0 if model_kind == "milling" else it.num("width_ref", unit="m", positive=True)
     f1, f2, f3 = it.vec("forces", 3, (0.0, 0.0, 0.0), unit="N")
     forces = (f1, f2, f3)
     angle = math.radians(it.num("angle_deg", 0.0))
     params: tuple[tuple[str, float], ...] = ()
+    if model_kind == "milling":  # the averaged directional matrix is set from [process] (milling_couplings)
+        zero = ((0.0, 0.0, 0.0),) * 3
+        return Coupling(iid, a, b, zero, zero, zero, width_ref, forces, angle, model_kind, params)
     if model_kind == "matrices":
         DP, DV, DO = it.matrix3("DP"), it.matrix3("DV"), it.matrix3("DO")
         if not any(any(r) for r in DP + DV + DO):
@@ -241,6 +248,39 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
     return Coupling(iid, a, b, DP, DV, DO, width_ref, forces, angle, model_kind, params)
 
 
+def milling_couplings(src: str, couplings: list[Coupling], process: Process | None) -> list[Coupling]:
+    """``model = "milling"`` couplings get the zeroth-order (averaged)
+    feedback of the cutter in [process]: F = -a_p H0 [dw(t) - dw(t - tau)]
+    on the tool, i.e. D_P = H0 and D_O = -H0 per metre of a_p in the
+    feed (CE axis 1) / normal (CE axis 2) plane (Altintas & Budak 1995)."""
+    out = []
+    for c in couplings:
+        if c.kind == "milling":
+            if process is None or process.milling is None:
+                raise ModelError(
+                    'model = "milling" needs [process] kind = "milling" (the cutter: teeth, diameter, Kt, Kn,'
+                    " immersion); add it or use another coupling model",
+                    source=src,
+                    item=f'[[coupling]] "{c.id}"',
+                    field="model",
+                )
+            H0 = process.milling.average_directional()
+            P = np.zeros((3, 3))
+            P[:2, :2] = H0
+            as_rows = lambda A: tuple(tuple(float(x) for x in r) for r in A)  # noqa: E731
+            c = replace(c, DP=as_rows(P), DO=as_rows(-P))
+        out.append(c)
+    if process is not None and process.kind == "milling" and not any(c.kind == "milling" for c in out):
+        raise ModelError(
+            'kind = "milling" needs a [[coupling]] with model = "milling" between the tool point and the'
+            ' workpiece (or "ground")',
+            source=src,
+            item="[process]",
+            field="kind",
+        )
+    return out
+
+
 def _read_process(src: str, t: Any) -> Process:
     kind = t.get("kind") if isinstance(t, dict) else None
     allowed = {
@@ -257,6 +297,7 @@ def _read_process(src: str, t: Any) -> Process:
         ),
         "turning": ("kind", "rpm", "description"),
         "delay": ("kind", "delay", "description"),
+        "milling": _MILLING_FIELDS,
     }
     if not isinstance(kind, str) or kind not in allowed:
         raise ModelError(
@@ -284,10 +325,102 @@ def _read_process(src: str, t: Any) -> Process:
         )
     if kind == "turning":
         return Process("turning", speed=it.num("rpm", unit="rpm", positive=True))
+    if kind == "milling":
+        return Process("milling", speed=it.num("rpm", unit="rpm", positive=True), milling=_read_milling(it))
     return Process(
         "delay",
         speed=it.num("delay", unit="s", positive=True),
         delay_value=it.num("delay", unit="s", positive=True),
+    )
+
+
+_MILLING_FIELDS = (
+    "kind",
+    "rpm",
+    "teeth",
+    "diameter",
+    "Kt",
+    "Kn",
+    "Kte",
+    "Kne",
+    "radial_immersion",
+    "milling",
+    "entry_deg",
+    "exit_deg",
+    "pitch_deg",
+    "helix_deg",
+    "runout",
+    "feed_per_tooth",
+    "description",
+)
+
+
+def _read_milling(it: _Item) -> MillingCut:
+    """The cutter and the cut of ``[process] kind = "milling"``."""
+    teeth = it.raw("teeth")
+    if isinstance(teeth, bool) or not isinstance(teeth, int) or teeth < 1:
+        raise it.err("teeth", f"must be a whole number of teeth >= 1 (got {teeth!r})")
+    if teeth > 1000:
+        raise it.err("teeth", f"{teeth} teeth: at most 1000 are allowed")
+    diameter = it.num("diameter", unit="m", positive=True)
+    Kt = it.num("Kt", unit="N/m^2", positive=True)
+    Kn = it.num("Kn", unit="N/m^2", nonneg=True)
+    by_angles = it.has("entry_deg") or it.has("exit_deg")
+    if by_angles == it.has("radial_immersion"):
+        raise it.err(
+            "radial_immersion",
+            'give either radial_immersion (a_e/D, with milling = "down" or "up") or entry_deg and exit_deg',
+        )
+    if by_angles:
+        if it.has("milling"):
+            raise it.err(
+                "milling", "up/down milling goes with radial_immersion; entry_deg and exit_deg say it all"
+            )
+        a, b = it.num("entry_deg", unit="deg"), it.num("exit_deg", unit="deg")
+        if not (0.0 <= a <= 180.0 and 0.0 <= b <= 180.0):
+            raise it.err("entry_deg", f"entry and exit angles must lie in [0, 180] deg (got {a:g}, {b:g})")
+        if not a < b:
+            raise it.err("exit_deg", f"the entry angle {a:g} deg must come before the exit angle {b:g} deg")
+        entry, exit_ = math.radians(a), math.radians(b)
+    else:
+        r = it.num("radial_immersion")
+        if not 0.0 < r <= 1.0:
+            raise it.err(
+                "radial_immersion", f"a_e/D must be in (0, 1] (got {r:g}); a_e is at most the diameter"
+            )
+        mode = it.str("milling", "down")
+        if mode not in ("down", "up"):
+            raise it.err("milling", f'must be "down" or "up" (got {mode!r})')
+        # Insperger & Stepan (2004): down-milling cuts from arccos(2 a_e/D - 1) to pi, up-milling from 0
+        if mode == "down":
+            entry, exit_ = math.acos(2.0 * r - 1.0), math.pi
+        else:
+            entry, exit_ = 0.0, math.acos(1.0 - 2.0 * r)
+    pitch: tuple[float, ...] = ()
+    if it.has("pitch_deg"):
+        p = it.vec("pitch_deg", teeth, unit="deg")
+        if min(p) <= 0:
+            raise it.err("pitch_deg", f"every pitch angle must be > 0 deg (got {list(p)})")
+        if abs(sum(p) - 360.0) > 1e-9 * 360.0:
+            raise it.err("pitch_deg", f"the pitch angles sum to {sum(p):.10g} deg; they must sum to 360 deg")
+        pitch = tuple(math.radians(x) for x in p)
+    helix = it.num("helix_deg", 0.0, unit="deg")
+    if not 0.0 <= helix < 90.0:
+        raise it.err("helix_deg", f"must be in [0, 90) deg (got {helix:g})")
+    runout = it.vec("runout", teeth, (), unit="m")
+    return MillingCut(
+        teeth=teeth,
+        diameter=diameter,
+        Kt=Kt,
+        Kn=Kn,
+        entry=entry,
+        exit=exit_,
+        pitch=pitch,
+        helix=math.radians(helix),
+        Kte=it.num("Kte", 0.0, unit="N/m"),
+        Kne=it.num("Kne", 0.0, unit="N/m"),
+        runout=tuple(runout),
+        feed_per_tooth=it.num("feed_per_tooth", 0.0, unit="m", nonneg=True),
     )
 
 

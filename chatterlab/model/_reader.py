@@ -23,7 +23,15 @@ from ._fields import _Ids, _Item
 from ._items import Mode, Model
 from ._matrices import _read_matrix_model
 from ._modes import read_modal_model, shape_coordinates
-from ._points import _check_stroke, _read_couplings, _read_points, _read_process, _read_springs, _RefContext
+from ._points import (
+    _check_stroke,
+    _read_couplings,
+    _read_points,
+    _read_process,
+    _read_springs,
+    _RefContext,
+    milling_couplings,
+)
 from ._tables import (
     _check_massless,
     _check_movable,
@@ -362,6 +370,7 @@ def _build_model(
     _check_massless(src, bodies, constraints)
     couplings = _read_couplings(src, raw, ids, ctx)
     process = _read_process(src, raw["process"]) if "process" in raw else None
+    couplings = milling_couplings(src, couplings, process)
     _check_stroke(src, process, movable)
 
     model = Model(
