@@ -14,6 +14,17 @@ from ._files import (
     json_text,
     text_out,
 )
+from ._frf_files import (
+    FRF_SUFFIXES,
+    FRFTable,
+    parse_frf_units,
+    read_frf,
+    read_frf_csv,
+    read_frf_cutpro,
+    read_frf_uff,
+    write_frf_csv,
+    write_frf_uff,
+)
 from ._netcdf import (
     LabelledData,
     atomic_write,
@@ -41,4 +52,13 @@ __all__ = [
     "read_netcdf",
     "write_csv",
     "write_netcdf",
+    "FRF_SUFFIXES",
+    "FRFTable",
+    "parse_frf_units",
+    "read_frf",
+    "read_frf_csv",
+    "read_frf_cutpro",
+    "read_frf_uff",
+    "write_frf_csv",
+    "write_frf_uff",
 ]

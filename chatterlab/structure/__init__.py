@@ -15,6 +15,7 @@ from ._elements import (
     rigid_point_matrix,
     rotation3,
 )
+from ._measured import MeasuredFRF
 from ._modal import Modes, modes, rigid_body_description
 
 __all__ = [
@@ -37,4 +38,5 @@ __all__ = [
     "Modes",
     "modes",
     "rigid_body_description",
+    "MeasuredFRF",
 ]
