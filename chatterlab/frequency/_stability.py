@@ -231,12 +231,12 @@ def _unstable_root(sys_: Any) -> complex | None:
     """A characteristic root with Re > 0 found by Newton from the delay-free
     closed loop's unstable poles (where e^{-lambda T} is small the delayed
     term barely moves them), or None."""
-    from ._roots import _newton
+    from ._newton import newton
 
     p = sys_.delay_free_poles()
     starts = p[(p.real > 0) & (p.imag >= 0)]
     if starts.size == 0:
         return None
-    lam, ok = _newton(sys_, starts[np.argsort(-starts.real)][:8])
+    lam, ok = newton(sys_, starts[np.argsort(-starts.real)][:8])
     good = lam[ok & (lam.real > 0)]
     return complex(good[np.argmax(good.real)]) if good.size else None

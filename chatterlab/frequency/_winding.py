@@ -72,7 +72,8 @@ import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
 
 from chatterlab.errors import InputError
-from chatterlab.frequency._roots import DelaySystem, _blas_limits, make_system
+
+from ._delay_system import DelaySystem, make_system, single_threaded_blas
 
 __all__ = ["WindingResult", "rhp_count", "rhp_count_system"]
 
@@ -241,10 +242,7 @@ def rhp_count_system(
             delay_free_count=z_p,
             winding=float(z_open - z_p),
         )
-    pf = sys._cache.get("pf", "unset")
-    if pf == "unset":
-        sys.transfer_fast(np.zeros(1, complex))
-        pf = sys._cache.get("pf")
+    pf = sys.partial_fractions()
     if direct or pf is None or np.any(np.abs(p.real) <= axis_tol):
         mode = "direct"
         if pf is None and not direct:
@@ -495,7 +493,7 @@ def rhp_count(
     """
     sys = make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
     _check_options(omega_max, n_points)
-    with _blas_limits():
+    with single_threaded_blas():
         return rhp_count_system(sys, omega_max=omega_max, n_points=n_points, direct=direct)
 
 

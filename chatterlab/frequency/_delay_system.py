@@ -1,0 +1,495 @@
+"""The delay system: one value for the delay equation every root method solves.
+
+The frozen closed loop of Wittbrodt & Kaliński (Eq. 2.1 with the feedback
+matrix of Eq. 2.23; time domain Eqs. 2.25, 2.28) has the characteristic matrix
+
+.. math::
+
+    \\Delta(\\lambda) = P(\\lambda) - U V^T e^{-\\lambda\\tau},\\qquad
+    P(\\lambda) = \\lambda^2 M + \\lambda (C - D_V) + (K - D_P),
+
+with the delayed feedback :math:`D_O = U V^T` of small rank :math:`r` (the
+cutting process acts through a few coordinates of a coupling element).
+:class:`DelaySystem` holds it once, validated, with its first-order
+linearisation; :func:`make_system` builds it from the seven matrices
+``M, C, K, DP, DV, DO, tau`` (the only place they are read),
+:func:`make_first_order_system` from :math:`\\dot x = A_0 x + A_1 x(t-\\tau)`.
+:func:`char_matrix` and :func:`char_matrix_derivative` are thin wrappers
+that take the seven matrices.
+
+References
+----------
+.. [1] E. Wittbrodt, K. J. Kaliński, "Transient vibration of unsteady linear
+   closed loop systems" (the seed paper of chatterlab), Eqs. 2.1, 2.22-2.28.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+from numpy.typing import ArrayLike, NDArray
+
+from chatterlab.errors import InputError
+
+__all__ = [
+    "DelaySystem",
+    "make_system",
+    "make_first_order_system",
+    "char_matrix",
+    "char_matrix_derivative",
+]
+
+ComplexArray = NDArray[np.complex128]
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DelaySystem:
+    """Validated delay system :math:`\\Delta(\\lambda) = P(\\lambda) - U V^T e^{-\\lambda\\tau}`.
+
+    Attributes
+    ----------
+    coeffs : tuple of ndarray, each shape (n, n)
+        :math:`P(\\lambda) = \\sum_k \\lambda^k` ``coeffs[k]`` (the delay-free
+        closed loop; ``(K - D_P, C - D_V, M)`` for the second-order form,
+        ``(-A0, I)`` for the first-order form).
+    U, V : ndarray, shape (n, r)
+        Factors of the delayed feedback matrix :math:`D_O = U V^T`; ``r = 0``
+        without delay.
+    tau : float
+        Delay in s (0.0 when ``r == 0``).
+    A : ndarray, shape (m, m)
+        First-order linearisation of :math:`P`: state ``(q, qdot)`` (``m = 2n``)
+        or ``x`` (``m = n``).
+    B : ndarray, shape (m, r)
+        Input of the delayed output into the state equation.
+    Cz : ndarray, shape (r, m)
+        Delayed output ``z = V^T q`` from the state.
+    open_coeffs : tuple of ndarray
+        Coefficients of the open-loop structure :math:`P_0` (``(K, C, M)``),
+        used by the winding count.
+    """
+
+    coeffs: tuple[NDArray[np.float64], ...]
+    U: NDArray[np.float64]
+    V: NDArray[np.float64]
+    tau: float
+    A: NDArray[np.float64]
+    B: NDArray[np.float64]
+    Cz: NDArray[np.float64]
+    open_coeffs: tuple[NDArray[np.float64], ...]
+    _cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def n(self) -> int:
+        """Number of coordinates."""
+        return int(self.coeffs[0].shape[0])
+
+    @property
+    def r(self) -> int:
+        """Rank of the delayed feedback."""
+        return int(self.U.shape[1])
+
+    @property
+    def has_delay(self) -> bool:
+        """Whether a delayed term is present."""
+        return self.r > 0
+
+    @property
+    def DO(self) -> NDArray[np.float64]:
+        """Dense delayed feedback matrix ``U @ V.T``, shape (n, n)."""
+        return self.U @ self.V.T
+
+    def P(self, lam: ArrayLike) -> ComplexArray:
+        """Delay-free part :math:`P(\\lambda)`, shape ``lam.shape + (n, n)``."""
+        return _horner(self.coeffs, lam)
+
+    def dP(self, lam: ArrayLike) -> ComplexArray:
+        """Derivative :math:`P'(\\lambda)`, shape ``lam.shape + (n, n)``."""
+        return _horner(self.coeffs, lam, derivative=True)
+
+    def P0(self, lam: ArrayLike) -> ComplexArray:
+        """Open-loop structure :math:`P_0(\\lambda)` (no feedback at all), shape ``lam.shape + (n, n)``."""
+        return _horner(self.open_coeffs, lam)
+
+    def delta(self, lam: ArrayLike) -> ComplexArray:
+        """Characteristic matrix :math:`\\Delta(\\lambda)`, shape ``lam.shape + (n, n)``."""
+        lam = np.asarray(lam, dtype=complex)
+        out = self.P(lam)
+        if self.has_delay:
+            with np.errstate(over="ignore", invalid="ignore"):
+                e = np.exp(-lam * self.tau)[..., None, None]
+                out = out - e * self.DO
+        return out
+
+    def ddelta(self, lam: ArrayLike) -> ComplexArray:
+        """Derivative :math:`\\Delta'(\\lambda)`, shape ``lam.shape + (n, n)``."""
+        lam = np.asarray(lam, dtype=complex)
+        out = self.dP(lam)
+        if self.has_delay:
+            with np.errstate(over="ignore", invalid="ignore"):
+                e = np.exp(-lam * self.tau)[..., None, None]
+                out = out + (self.tau * e) * self.DO
+        return out
+
+    def transfer(self, lam: ArrayLike) -> ComplexArray:
+        """Low-rank loop transfer :math:`H(\\lambda) = V^T P(\\lambda)^{-1} U`.
+
+        Returns shape ``lam.shape + (r, r)``; direct solves (accurate near
+        poles too).
+        """
+        lam = np.asarray(lam, dtype=complex)
+        Pm = self.P(lam)
+        Ub = np.broadcast_to(self.U.astype(complex), Pm.shape[:-1] + (self.r,))
+        X = batched_solve(Pm, Ub)
+        return np.einsum("ki,...kj->...ij", self.V, X)
+
+    def transfer_fast(self, lam: ArrayLike) -> ComplexArray:
+        r""":math:`H(\lambda)` by partial fractions of the linearisation.
+
+        ``H = (Cz S) diag(1/(lam - p)) (S^{-1} B)`` with ``A = S diag(p) S^{-1}``;
+        O(m r^2) per point.  Falls back to :meth:`transfer` when the
+        eigenvector matrix is ill-conditioned (cond > 1e8).  Used only for
+        predictions (root locations are always refined on Delta itself).
+        """
+        lam = np.asarray(lam, dtype=complex)
+        pf = self.partial_fractions()
+        if pf is None:
+            return self.transfer(lam)
+        p, L, R = pf
+        with np.errstate(all="ignore"):
+            g = 1.0 / (lam[..., None] - p)
+        return np.einsum("ik,...k,kj->...ij", L, g, R)
+
+    def partial_fractions(self) -> tuple[ComplexArray, ComplexArray, ComplexArray] | None:
+        """``(p, L, R)`` with :math:`H(\\lambda) = L \\operatorname{diag}(1/(\\lambda - p)) R`
+        (from ``A = S diag(p) S^{-1}``: ``L = Cz S``, ``R = S^{-1} B``), or
+        None when the eigenvector matrix is ill-conditioned (cond > 1e8)."""
+
+        def compute() -> tuple[ComplexArray, ComplexArray, ComplexArray] | None:
+            p, S = np.linalg.eig(self.A)
+            ok = np.linalg.cond(S) < 1e8
+            return (p, self.Cz @ S, np.linalg.solve(S, self.B)) if ok else None
+
+        return self.cached("pf", compute)
+
+    def delay_free_poles(self) -> ComplexArray:
+        """Eigenvalues of the delay-free closed loop :math:`P`, shape (m,)."""
+        return self.cached("poles", lambda: np.linalg.eigvals(self.A))
+
+    def open_loop_poles(self) -> NDArray[np.inexact[Any]]:
+        """Roots of the open-loop structure :math:`P_0`, shape (m,) (real
+        float64 when all are real: what ``np.linalg.eigvals`` returns)."""
+
+        def compute() -> NDArray[np.inexact[Any]]:
+            if len(self.open_coeffs) == 2:  # first-order form: P0 = lambda I - A0
+                return np.linalg.eigvals(-self.open_coeffs[0])
+            K, C, M = self.open_coeffs
+            return np.linalg.eigvals(_companion(sla.cho_factor(M), K, C))
+
+        return self.cached("open_poles", compute)
+
+    def cached(self, key: str, compute: Callable[[], Any]) -> Any:
+        """``compute()``, memoised on this system under ``key`` (the system is
+        immutable, so a derived quantity is computed once and shared by the
+        root search, the argument principle and the band)."""
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
+
+def _horner(coeffs: tuple[FloatArray, ...], lam: ArrayLike, derivative: bool = False) -> ComplexArray:
+    """:math:`\\sum_k \\lambda^k` ``coeffs[k]`` (or its derivative) by Horner's
+    rule, shape ``lam.shape + (n, n)``."""
+    lam = np.asarray(lam, dtype=complex)[..., None, None]
+    n = coeffs[0].shape[0]
+    out = np.zeros(lam.shape[:-2] + (n, n), dtype=complex)
+    if derivative:
+        for k in range(len(coeffs) - 1, 0, -1):
+            out = out * lam + k * coeffs[k]
+    else:
+        for k in range(len(coeffs) - 1, -1, -1):
+            out = out * lam + coeffs[k]
+    return out
+
+
+def _companion(cho: Any, K: FloatArray, C: FloatArray) -> FloatArray:
+    """First-order form ``A`` of :math:`M\\ddot q + C\\dot q + K q`, state ``(q, qdot)``;
+    ``cho`` is the Cholesky factor of ``M``."""
+    n = K.shape[0]
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -sla.cho_solve(cho, K)
+    A[n:, n:] = -sla.cho_solve(cho, C)
+    return A
+
+
+def single_threaded_blas() -> Any:
+    """Single-threaded BLAS for the many small dense problems, if possible.
+
+    The matrices here are a few hundred wide; multi-threaded OpenBLAS gains
+    nothing on them and loses 10x or more when the cores are shared.  Uses
+    ``threadpoolctl`` when it is installed (optional), else does nothing.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def batched_solve(A: ComplexArray, B: ComplexArray, singular: Any = np.nan) -> ComplexArray:
+    """Solve ``A X = B`` for a stack; exactly singular members give ``singular``.
+
+    Never raises: non-finite members give NaN.
+    """
+    try:
+        return np.linalg.solve(A, B)  # type: ignore[return-value]  # numpy stubs: complex128 in, complexfloating[Any, Any] out
+    except np.linalg.LinAlgError:
+        out = np.full(np.broadcast_shapes(A.shape[:-2], B.shape[:-2]) + B.shape[-2:], np.nan + 0j)
+        Ab = np.broadcast_to(A, out.shape[:-2] + A.shape[-2:])
+        Bb = np.broadcast_to(B, out.shape)
+        for idx in np.ndindex(out.shape[:-2]):
+            if not (np.all(np.isfinite(Ab[idx])) and np.all(np.isfinite(Bb[idx]))):
+                continue
+            try:
+                out[idx] = np.linalg.solve(Ab[idx], Bb[idx])
+            except np.linalg.LinAlgError:
+                out[idx] = singular
+        return out
+
+
+def _as_real_matrix(x: Any, name: str, n: int | None = None) -> NDArray[np.float64]:
+    try:
+        a = np.asarray(x)
+    except Exception as exc:  # pragma: no cover - exotic inputs
+        raise InputError(f"{name} must be a real matrix ({exc})") from exc
+    if a.dtype.kind == "c":
+        raise InputError(f"{name} must be real (got complex entries)")
+    if a.dtype.kind not in "biuf":
+        raise InputError(f"{name} must be a real numeric matrix (got dtype {a.dtype})")
+    a = np.atleast_2d(a.astype(float))
+    if a.ndim != 2 or a.shape[0] != a.shape[1]:
+        raise InputError(f"{name} must be a square matrix (got shape {np.shape(x)})")
+    if n is not None and a.shape[0] != n:
+        raise InputError(f"{name} must have shape ({n}, {n}) like M (got {a.shape})")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name} has non-finite entries (NaN or inf)")
+    return a
+
+
+def _factor_DO(DO: Any, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return ``(U, V)`` with ``DO = U V^T`` (r may be 0)."""
+    if DO is None:
+        return np.zeros((n, 0)), np.zeros((n, 0))
+    if isinstance(DO, tuple | list) and len(DO) == 2:
+        U = np.asarray(DO[0])
+        V = np.asarray(DO[1])
+        for nm, a in (("DO[0] (U)", U), ("DO[1] (V)", V)):
+            if a.dtype.kind == "c":
+                raise InputError(f"{nm} must be real (got complex entries)")
+            if a.dtype.kind not in "biuf":
+                raise InputError(f"{nm} must be numeric (got dtype {a.dtype})")
+        U = U.astype(float)
+        V = V.astype(float)
+        if U.ndim == 1:
+            U = U[:, None]
+        if V.ndim == 1:
+            V = V[:, None]
+        if U.ndim != 2 or V.ndim != 2 or U.shape != V.shape or U.shape[0] != n:
+            raise InputError(
+                f"DO=(U, V) factors must both have shape (n, r) with n={n} (got U {U.shape}, V {V.shape})"
+            )
+        if not (np.all(np.isfinite(U)) and np.all(np.isfinite(V))):
+            raise InputError("DO=(U, V) factors have non-finite entries")
+        if U.shape[1] > 0 and (np.abs(U).max() == 0.0 or np.abs(V).max() == 0.0):
+            return np.zeros((n, 0)), np.zeros((n, 0))
+        return U, V
+    D = _as_real_matrix(DO, "DO", n)
+    if not np.any(D):
+        return np.zeros((n, 0)), np.zeros((n, 0))
+    W, s, Zt = np.linalg.svd(D)
+    keep = s > 1e-12 * s[0]
+    return W[:, keep] * s[keep], Zt[keep].T.copy()
+
+
+def _check_tau(tau: Any, needed: bool) -> float:
+    if not needed:
+        return 0.0
+    if tau is None:
+        raise InputError("tau must be given (> 0, in s) when a delayed term DO is present")
+    try:
+        t = float(tau)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"tau must be a positive number in s (got {tau!r})") from exc
+    if not math.isfinite(t) or t <= 0.0:
+        raise InputError(f"tau must be finite and > 0 s when DO is given (got {tau!r})")
+    return t
+
+
+def make_system(
+    M: ArrayLike,
+    C: ArrayLike,
+    K: ArrayLike,
+    *,
+    DP: ArrayLike | None = None,
+    DV: ArrayLike | None = None,
+    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
+    tau: float | None = None,
+) -> DelaySystem:
+    """Validate the second-order closed-loop data and build a :class:`DelaySystem`.
+
+    Parameters
+    ----------
+    M, C, K : array_like, shape (n, n)
+        Inertia (kg, SPD), damping (N s/m) and stiffness (N/m) matrices.
+    DP, DV : array_like, shape (n, n), optional
+        Proportional (N/m) and velocity (N s/m) feedback, Eq. 2.23.
+    DO : array_like, shape (n, n), or tuple ``(U, V)`` of shape (n, r), optional
+        Delayed feedback (N/m); ``(U, V)`` means ``DO = U @ V.T``.  A dense
+        matrix is factored by SVD (singular values below 1e-12 of the largest
+        are dropped).
+    tau : float, optional
+        Delay in s; required (> 0) when ``DO`` is non-zero.
+
+    Returns
+    -------
+    DelaySystem
+
+    Raises
+    ------
+    InputError
+        Non-square, mismatched or non-finite matrices, ``M`` not symmetric
+        positive definite, ``tau <= 0`` with ``DO`` given.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
+    """
+    Mm = _as_real_matrix(M, "M")
+    n = Mm.shape[0]
+    Cm = _as_real_matrix(C, "C", n)
+    Km = _as_real_matrix(K, "K", n)
+    DPm = np.zeros((n, n)) if DP is None else _as_real_matrix(DP, "DP", n)
+    DVm = np.zeros((n, n)) if DV is None else _as_real_matrix(DV, "DV", n)
+    if not np.allclose(Mm, Mm.T, rtol=1e-10, atol=1e-14 * np.abs(Mm).max()):
+        raise InputError("M must be symmetric positive definite (it is not symmetric)")
+    try:
+        cho = sla.cho_factor(Mm)
+    except np.linalg.LinAlgError as exc:
+        raise InputError("M must be symmetric positive definite (Cholesky failed)") from exc
+    U, V = _factor_DO(DO, n)
+    t = _check_tau(tau, U.shape[1] > 0)
+    Ct = Cm - DVm
+    Kt = Km - DPm
+    r = U.shape[1]
+    A = _companion(cho, Kt, Ct)
+    B = np.zeros((2 * n, r))
+    if r:
+        B[n:] = sla.cho_solve(cho, U)
+    Cz = np.zeros((r, 2 * n))
+    Cz[:, :n] = V.T
+    return DelaySystem(coeffs=(Kt, Ct, Mm), U=U, V=V, tau=t, A=A, B=B, Cz=Cz, open_coeffs=(Km, Cm, Mm))
+
+
+def make_first_order_system(
+    A0: ArrayLike, A1: ArrayLike | tuple[ArrayLike, ArrayLike] | None, tau: float | None
+) -> DelaySystem:
+    """Build a :class:`DelaySystem` for :math:`\\dot x = A_0 x + A_1 x(t-\\tau)`.
+
+    Parameters
+    ----------
+    A0 : array_like, shape (n, n)
+        Undelayed state matrix (1/s).
+    A1 : array_like, shape (n, n), or tuple ``(U, V)``, or None
+        Delayed state matrix (1/s), optionally factored ``A1 = U @ V.T``.
+    tau : float or None
+        Delay in s (> 0 when ``A1`` is non-zero).
+
+    Returns
+    -------
+    DelaySystem
+        With ``coeffs = (-A0, I)``; :math:`\\Delta(\\lambda) = \\lambda I - A_0
+        - A_1 e^{-\\lambda\\tau}`.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
+    """
+    A = _as_real_matrix(A0, "A0")
+    n = A.shape[0]
+    try:
+        U, V = _factor_DO(A1, n)
+    except InputError as exc:
+        raise InputError(str(exc).replace("DO", "A1")) from exc
+    t = _check_tau(tau, U.shape[1] > 0)
+    return DelaySystem(
+        coeffs=(-A, np.eye(n)),
+        U=U,
+        V=V,
+        tau=t,
+        A=A.copy(),
+        B=U.copy(),
+        Cz=V.T.copy(),
+        open_coeffs=(-A, np.eye(n)),
+    )
+
+
+def char_matrix(
+    lam: ArrayLike,
+    M: ArrayLike,
+    C: ArrayLike,
+    K: ArrayLike,
+    *,
+    DP: ArrayLike | None = None,
+    DV: ArrayLike | None = None,
+    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
+    tau: float | None = None,
+) -> ComplexArray:
+    """Characteristic matrix :math:`\\Delta(\\lambda)` of Eq. 2.1 with Eq. 2.23.
+
+    Parameters
+    ----------
+    lam : complex or array_like of complex, shape (...)
+        Laplace variable(s) in rad/s.
+    M, C, K, DP, DV, DO, tau
+        As in :func:`make_system`.
+
+    Returns
+    -------
+    ndarray of complex, shape ``(...) + (n, n)``
+        :math:`\\lambda^2 M + \\lambda (C - D_V) + K - D_P - D_O e^{-\\lambda\\tau}`.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
+    """
+    return make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau).delta(lam)
+
+
+def char_matrix_derivative(
+    lam: ArrayLike,
+    M: ArrayLike,
+    C: ArrayLike,
+    K: ArrayLike,
+    *,
+    DP: ArrayLike | None = None,
+    DV: ArrayLike | None = None,
+    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
+    tau: float | None = None,
+) -> ComplexArray:
+    """Derivative :math:`\\Delta'(\\lambda) = 2\\lambda M + C - D_V + \\tau D_O e^{-\\lambda\\tau}`.
+
+    Same parameters and shapes as :func:`char_matrix`.
+
+    References
+    ----------
+    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
+    """
+    return make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau).ddelta(lam)
