@@ -1,7 +1,7 @@
 """Stability lobes: the D-subdivision boundary found completely
 (``_boundary``), the lobe diagram and its verification (``_diagram``),
 time-domain confirmation (``_confirm``), python-control structures
-(``_control``).
+(``_control``), a measured FRF as the structure (``_measured``).
 
 The diagram is computed by :func:`lobes` (``from chatterlab.lobes import lobes``).
 """
@@ -11,6 +11,7 @@ from __future__ import annotations
 from ._confirm import Confirmation, confirm
 from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_lti, lti_plant
 from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary, lobes
+from ._measured import lobes_measured, measured_plant, regenerative_matrices
 
 __all__ = [
     "Lobe",
@@ -26,4 +27,7 @@ __all__ = [
     "lobes_lti",
     "closed_loop_lti",
     "coupling_matrices",
+    "measured_plant",
+    "lobes_measured",
+    "regenerative_matrices",
 ]

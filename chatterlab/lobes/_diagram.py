@@ -111,6 +111,10 @@ class LobeDiagram:
         Why the band is (or is not) complete.
     folds : int
         Folds of the boundary curve located and followed.
+    band_measured : bool
+        The structure is a measured FRF and ``band_hz`` its measured band:
+        outside it nothing is known, so an ``inf`` is "undetermined" and a
+        finite b_lim is the boundary within the band only (claims 2 and 4).
     n_lobes : int
         Lobes crossing the speed range; when they are denser than 400 per
         branch, ``lobes`` keeps only those that form the envelope at the
@@ -140,6 +144,7 @@ class LobeDiagram:
     band_note: str = ""
     folds: int = 0
     n_lobes: int = 0
+    band_measured: bool = False
 
     @property
     def verified(self) -> bool | None:
@@ -167,6 +172,7 @@ class LobeDiagram:
             lines.append(
                 f"  minimum b_lim in range: {m['width'] * 1e3:.4g} mm at {m['speed']:.5g} {self.speed_unit},"
                 f" chatter {m['chatter_hz']:.2f} Hz"
+                + (" (from the measured band; chatter outside it is unknown)" if self.band_measured else "")
             )
         elif self.band_certified:
             lines.append(f"  no chatter below {self.width_max * 1e3:g} mm in this speed range")
@@ -218,6 +224,7 @@ class LobeDiagram:
         "stable below width_max (band proven)",
         "undetermined (band not proven)",
         "contradicted by a check",
+        "boundary in the measured band (outside it unknown)",
     )
 
     @property
@@ -225,8 +232,12 @@ class LobeDiagram:
         """What the diagram claims at each speed, as an index into
         :attr:`CLAIMS`: 0 a boundary at b_lim, 1 no boundary below
         ``width_max`` in a proven band, 2 no boundary found in a band that is
-        not proven complete, 3 a check at this speed disagrees."""
-        code = np.where(np.isfinite(self.b_lim), 0, 1 if self.band_certified else 2)
+        not proven complete, 3 a check at this speed disagrees, 4 a boundary
+        within a measured band (a lower one at a chatter frequency outside
+        the band is not excluded)."""
+        code = np.where(
+            np.isfinite(self.b_lim), 4 if self.band_measured else 0, 1 if self.band_certified else 2
+        )
         for c in self.checks:
             if not c["agrees"]:
                 code[np.nonzero(self.speed == c["speed"])[0]] = 3
@@ -284,6 +295,7 @@ class LobeDiagram:
             "chatter_band_hz": list(self.band_hz),
             "chatter_band_certified": str(self.band_certified),
             "chatter_band_note": self.band_note,
+            "chatter_band_measured": str(self.band_measured),
             "checks": json.dumps(list(self.checks)),
         }
         a.update(self.meta)
@@ -323,8 +335,15 @@ class Plant:
     matrices at width b = 1 m (so that beta is the width in m), and, when
     known, its pole-residue form (which proves the searched band complete).
 
-    Built from a frozen RDFEM system (:meth:`from_frozen`) or from a
-    python-control LTI system (:func:`chatterlab.lobes._control.lti_plant`).
+    Built from a frozen RDFEM system (:meth:`from_frozen`), from a
+    python-control LTI system (:func:`chatterlab.lobes._control.lti_plant`)
+    or from a measured FRF (:func:`chatterlab.lobes._measured.measured_plant`).
+
+    A measured plant has no poles and no pole-residue form; instead
+    ``measured_band`` (rad/s) is the band its FRF covers -- the band searched,
+    never certified, so that chatter outside it is "unknown" -- and
+    ``grid`` the measured frequencies, which the boundary's frequency grid
+    keeps.
     """
 
     def __init__(
@@ -335,11 +354,16 @@ class Plant:
         Dl_V: np.ndarray,
         Dl_O: np.ndarray,
         residues: PoleResidue | None = None,
+        *,
+        measured_band: Band | None = None,
+        grid: np.ndarray | None = None,
     ) -> None:
         self.H = H
         self.poles = np.asarray(poles, dtype=complex)
         self.Dl_P, self.Dl_V, self.Dl_O = (np.asarray(x, dtype=float) for x in (Dl_P, Dl_V, Dl_O))
         self.residues = residues
+        self.measured_band = measured_band
+        self.grid = None if grid is None else np.asarray(grid, dtype=float)
 
     @classmethod
     def from_frozen(cls, frozen: FrozenSystem, fb_ref: Feedback) -> Plant:
@@ -357,7 +381,16 @@ class Plant:
 
     def with_terms_o(self) -> Plant:
         """The same structure with only the delayed term of the process."""
-        return Plant(self.H, self.poles, 0 * self.Dl_P, 0 * self.Dl_V, self.Dl_O, self.residues)
+        return Plant(
+            self.H,
+            self.poles,
+            0 * self.Dl_P,
+            0 * self.Dl_V,
+            self.Dl_O,
+            self.residues,
+            measured_band=self.measured_band,
+            grid=self.grid,
+        )
 
 
 _Ops = Ops
@@ -547,7 +580,11 @@ def _refine_rows(plant: Plant, T: np.ndarray, info: np.ndarray) -> tuple[np.ndar
 def _grid(plant: Plant, lo: float, hi: float, n_base: int) -> np.ndarray:
     """Frequency grid on [lo, hi] (rad/s): logarithmic below a quarter of the
     first natural frequency, uniform above, plus clusters that resolve every
-    resonance."""
+    resonance.  A measured plant: its measured frequencies in [lo, hi] and
+    ``n_base`` uniform points between them (spline-interpolated FRF)."""
+    if plant.grid is not None:
+        w = np.unique(np.concatenate([plant.grid, np.linspace(lo, hi, n_base)]))
+        return w[(w >= lo) & (w <= hi)]
     w1 = _first_mode(plant)
     parts = [resonance_grid(plant.poles, max(lo, min(0.25 * w1, hi)), hi, n_base)]
     if lo < 0.25 * w1:
@@ -566,7 +603,11 @@ def _first_mode(plant: Plant) -> float:
 def _band(plant: Plant, fmin: float | None, fmax: float | None, width_max: float) -> Band:
     """The chatter-frequency band searched (rad/s) and whether it is proven
     to hold every boundary point below ``width_max``.  A band given by the
-    caller (either end) is searched as given and proves nothing outside it."""
+    caller (either end) is searched as given and proves nothing outside it.
+    A measured plant's band is the measured one (or the part of it between
+    fmin and fmax), never certified."""
+    if plant.measured_band is not None:
+        return _measured_search_band(plant.measured_band, fmin, fmax)
     if fmin is None or fmax is None:
         auto = _auto_band(plant, width_max)
         if fmin is None and fmax is None:
@@ -578,6 +619,22 @@ def _band(plant: Plant, fmin: float | None, fmax: float | None, width_max: float
             f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
         )
     return Band(lo, hi, False, "band given by the caller (fmin/fmax): outside it nothing is claimed")
+
+
+def _measured_search_band(mb: Band, fmin: float | None, fmax: float | None) -> Band:
+    lo = mb.lo if fmin is None else 2 * np.pi * fmin
+    hi = mb.hi if fmax is None else 2 * np.pi * fmax
+    tol = 1e-12 * mb.hi
+    if lo < mb.lo - tol or hi > mb.hi + tol:
+        raise InputError(
+            f"the chatter band {lo / 2 / np.pi:g} .. {hi / 2 / np.pi:g} Hz reaches outside the measured band"
+            f" {mb.lo / 2 / np.pi:g} .. {mb.hi / 2 / np.pi:g} Hz; a measured FRF is not extrapolated: keep fmin/fmax inside it"
+        )
+    if not hi > lo:
+        raise InputError(
+            f"the chatter frequency band is empty: fmin {lo / 2 / np.pi:g} Hz, fmax {hi / 2 / np.pi:g} Hz"
+        )
+    return Band(max(lo, mb.lo), min(hi, mb.hi), False, mb.reason)
 
 
 def _auto_band(plant: Plant, width_max: float) -> Band:
@@ -916,6 +973,7 @@ def lobes(
         band_note=bd.band.reason,
         folds=bd.folds,
         n_lobes=n_in_range,
+        band_measured=bd.plant.measured_band is not None,
     )
     checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
     return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)

@@ -1,0 +1,199 @@
+"""Stability lobes straight from a measured FRF (no modal fit).
+
+:func:`measured_plant` turns a :class:`~chatterlab.structure.MeasuredFRF`
+into the lobe engine's :class:`~chatterlab.lobes._diagram.Plant`:
+
+* **H(jw)** between the cut's coordinates is the measured receptance,
+  interpolated between the measured frequencies by the FRF's cubic spline
+  on Re H and Im H (:meth:`MeasuredFRF.interpolate`); NaN outside the band,
+  which the engine never asks for.
+* **The process** is the same as a model's ``[[coupling]]``: the
+  regenerative model (D_P = K_f f n^T, D_O = -D_P, D_V = K_v f n^T per unit
+  width, f the force direction on the tool and n the chip-thickness normal
+  in the plane of the measured coordinates; docs/model-format.md) or the
+  matrices D_P, D_V, D_O at a reference width.  For the classical
+  regenerative cut the boundary is Tlusty's b_lim = -1 / (2 K_f Re[n^T H f])
+  with the oriented FRF n^T H f [1].
+* **The band** is the measured one, never certified: a measured FRF says
+  nothing about frequencies it does not cover, so where the diagram finds
+  no boundary it says "undetermined", and a finite b_lim is the boundary
+  within the band only (:attr:`LobeDiagram.claim` 2 and 4).
+* **The frequency grid** is the measured frequencies plus ``n_frequencies``
+  uniform points across the band; folds are bisected and each envelope
+  crossing is refined by regula falsi on the spline-interpolated FRF, as for
+  a model.  The lobes are then those of the spline through the data: their
+  error is the interpolation error of H near the chatter frequency, carried
+  to b_lim to first order by |db|/b <= |dG|/|Re G| + |d ln b/dT| |dpsi|/w
+  (dG the error of the oriented FRF, dpsi <= |dG|/|G| its phase error), so
+  the envelope converges like the spline, O(h^4) in the spacing h
+  (docs/measured-frf.md derives and tests it).
+
+References
+----------
+.. [1] J. Tlusty, M. Polacek, "The stability of machine tools against self
+   excited vibrations in machining", Int. Res. Prod. Eng., ASME, 465-474, 1963.
+.. [2] Y. Altintas, *Manufacturing Automation*, 2nd ed., Cambridge
+   University Press, 2012, ch. 3.3 (lobes from a measured, oriented FRF).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError, check_finite, check_nonneg, check_positive, check_width
+from ..frequency._bounds import Band
+from ..model._items import Process
+from ..structure._measured import MeasuredFRF
+from ._control import _matrices
+from ._diagram import LobeDiagram, Plant, lobes
+
+__all__ = ["measured_plant", "lobes_measured", "regenerative_matrices"]
+
+
+def regenerative_matrices(
+    m: int, Kf: float, force_angle: float = 0.0, normal_angle: float = 0.0, Kv: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(D_P, D_V, D_O) per unit width (m x m) of the regenerative cut on m
+    measured coordinates (1: axis 1 only; 2: axes 1 and 2 of the plane).
+
+    f = (cos a_f, sin a_f), n = (cos a_n, sin a_n) truncated to m entries:
+    D_P = K_f f n^T, D_O = -D_P, D_V = K_v f n^T (N/m^2, N s/m^2)."""
+    Kf = check_positive(Kf, "Kf", "N/m^2")
+    Kv = check_nonneg(Kv, "Kv", "N s/m^2")
+    af = check_finite(force_angle, "force_angle", "rad")
+    an = check_finite(normal_angle, "normal_angle", "rad")
+    if m not in (1, 2):
+        raise InputError(
+            f"the regenerative cut acts in a plane: give an FRF on 1 or 2 coordinates (got {m}); select() them"
+        )
+    f = np.array([np.cos(af), np.sin(af)])[:m]
+    n = np.array([np.cos(an), np.sin(an)])[:m]
+    fn = np.outer(f, n)
+    if not np.any(np.abs(fn) > 1e-12):
+        raise InputError(
+            "the force and the chip-thickness normal have no component on the measured coordinate:"
+            " with one coordinate, the angles must not be +-90 deg"
+        )
+    return Kf * fn, Kv * fn, -Kf * fn
+
+
+def measured_plant(
+    frf: MeasuredFRF,
+    *,
+    coordinates: Sequence[str] | None = None,
+    Kf: float | None = None,
+    force_angle: float = 0.0,
+    normal_angle: float = 0.0,
+    Kv: float = 0.0,
+    DP: Any = None,
+    DV: Any = None,
+    DO: Any = None,
+    width_ref: float | None = None,
+) -> Plant:
+    """A lobe-engine plant from a measured FRF.
+
+    Parameters
+    ----------
+    frf : MeasuredFRF
+        Receptance (m/N) of the tool relative to the workpiece at the cut.
+    coordinates : sequence of str, optional
+        The coordinates of the cut, in the order of the process matrices'
+        axes (default: the FRF's outputs).  The FRF must hold every
+        (output, input) pair among them: a driving-point matrix.  A 1 x 1
+        FRF may name different response and reference (a tap test names
+        hammer and accelerometer separately).
+    Kf : float
+        Regenerative model: cutting-force coefficient, N/m^2 ...
+    force_angle, normal_angle : float
+        ... the force direction on the tool and the chip-thickness normal,
+        rad from coordinate 1 towards coordinate 2 ...
+    Kv : float
+        ... and the process damping, N s/m^2.
+    DP, DV, DO : array (m, m), optional
+        Instead of ``Kf``: the process matrices at ``width_ref`` (m), the
+        CE convention of a model's ``[[coupling]]`` (a 3 x 3 matrix is cut
+        to the m measured coordinates).
+
+    Returns
+    -------
+    Plant
+        For :func:`chatterlab.lobes.lobes` ``(None, speeds, plant=...,
+        process=...)``; its band is the measured band, not certified.
+    """
+    if not isinstance(frf, MeasuredFRF):
+        raise InputError(f"expected a MeasuredFRF, got {type(frf).__name__}")
+    sub = _driving_point(frf, coordinates)
+    m = sub.H.shape[1]
+    if Kf is not None:
+        if DP is not None or DV is not None or DO is not None or width_ref is not None:
+            raise InputError("give either Kf (regenerative cut) or DP/DV/DO with width_ref, not both")
+        P, V, O = regenerative_matrices(m, Kf, force_angle, normal_angle, Kv)
+    else:
+        if DO is None or width_ref is None:
+            raise InputError("give Kf (regenerative cut) or DO (and DP, DV) with width_ref")
+        bref = check_width(width_ref, "width_ref")
+        P, V, O = (x / bref for x in _matrices(m, DP, DV, DO))
+    lo, hi = sub.band
+    band = Band(
+        lo,
+        hi,
+        False,
+        f"measured FRF ({sub.source}) covers {lo / 2 / np.pi:.6g} .. {hi / 2 / np.pi:.6g} Hz:"
+        " chatter outside it is unknown",
+    )
+
+    def H(omega: np.ndarray) -> np.ndarray:
+        return sub.interpolate(np.atleast_1d(np.asarray(omega, dtype=float)), outside="nan")
+
+    return Plant(H, np.zeros(0, complex), P, V, O, None, measured_band=band, grid=sub.frequency)
+
+
+def _driving_point(frf: MeasuredFRF, coordinates: Sequence[str] | None) -> MeasuredFRF:
+    if coordinates is None:
+        if frf.H.shape[1:] == (1, 1):
+            return frf
+        if set(frf.outputs) != set(frf.inputs):
+            raise InputError(
+                f"{frf.source}: the lobes need a driving-point FRF matrix (the same coordinates as outputs and"
+                f" inputs); outputs {list(frf.outputs)}, inputs {list(frf.inputs)}: name the coordinates"
+            )
+        coordinates = frf.outputs
+    coords = [coordinates] if isinstance(coordinates, str) else list(coordinates)
+    if len(coords) == 1 and frf.H.shape[1:] == (1, 1) and coords[0] in frf.outputs + frf.inputs:
+        return frf
+    return frf.select(coords, coords)
+
+
+def lobes_measured(
+    frf: MeasuredFRF,
+    speeds: np.ndarray,
+    *,
+    process: Process,
+    width_max: float = 0.02,
+    fmin: float | None = None,
+    fmax: float | None = None,
+    n_frequencies: int | None = None,
+    name: str | None = None,
+    **cut: Any,
+) -> LobeDiagram:
+    """Stability lobes of a measured FRF: :func:`measured_plant` (``cut``:
+    ``Kf``, ``force_angle``, ``normal_angle``, ``Kv``, ``coordinates`` or
+    ``DP``/``DV``/``DO``/``width_ref``) handed to :func:`lobes`.  The
+    argument-principle checks need matrices and are not run; the band is the
+    measured one (``fmin``/``fmax`` in Hz may narrow it)."""
+    plant = measured_plant(frf, **cut)
+    return lobes(
+        None,
+        speeds,
+        width_max=width_max,
+        process=process,
+        fmin=fmin,
+        fmax=fmax,
+        n_frequencies=n_frequencies,
+        verify=0,
+        plant=plant,
+        name=name or f"measured FRF {frf.source}",
+    )
