@@ -4,23 +4,34 @@ a multi-panel plot; each docstring says which).  matplotlib is imported
 inside the functions, so importing this package is light.
 
 One module per subject: ``_lobes`` (with ``_lobe_panel`` and the geometry in
-``_envelope``), ``_atlas``, ``_frf`` (FRF, Nyquist), ``_time`` (histories,
-spectra), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
+``_envelope``), ``_atlas``, ``_frf`` (FRF, Nyquist of the determinant and
+of the loop), ``_time`` (histories, spectra, one run's response), ``_modes``
+(mode shapes on the structure, frequencies), ``_sweep`` (any output, the
+stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 
 from __future__ import annotations
 
 from ._atlas import plot_atlas
-from ._frf import plot_frf, plot_nyquist
+from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width
 from ._lobes import plot_lobes
+from ._modes import plot_frequencies, plot_mode_shapes
 from ._style import savefig
-from ._time import plot_histories, plot_spectra
+from ._sweep import plot_stability_map, plot_sweep
+from ._time import plot_histories, plot_spectra, plot_time_response
 
 __all__ = [
     "plot_frf",
     "plot_nyquist",
+    "plot_loop_nyquist",
+    "touching_width",
     "plot_lobes",
     "plot_atlas",
     "plot_histories",
     "plot_spectra",
+    "plot_time_response",
+    "plot_mode_shapes",
+    "plot_frequencies",
+    "plot_sweep",
+    "plot_stability_map",
     "savefig",
 ]

@@ -95,18 +95,7 @@ def plot_lobes(
         _finish_zoom(ax, axz, d, zlo, zhi)
         _lobe_legend(axz, zoom, curves, d, "outside", count)
     if axz is not None or main["dense"]:
-        leg = ax.legend(
-            handles=main["handles"],
-            loc="upper left",
-            bbox_to_anchor=(1.01, 1.0),
-            fontsize=6.5,
-            framealpha=0.92,
-            title=note,
-            title_fontsize=6.5,
-            alignment="left",
-        )
-        if note:
-            leg.get_title().set_gid("dense-note")
+        _dense_legend(ax, main, note)
     else:
         _lobe_legend(ax, main, curves, d, "outside", count)
     ax.set_ylabel("width of cut b [mm]")
@@ -176,6 +165,22 @@ def _dense_note(main: dict[str, Any], has_zoom: bool) -> str | None:
         + ("individual lobes in the zoom below." if has_zoom else "pass three axes for a zoom panel."),
         46,
     )
+
+
+def _dense_legend(ax: Any, main: dict[str, Any], note: str | None) -> None:
+    """The main panel's legend beside a zoom panel or over dense lobes, with the note as its title."""
+    leg = ax.legend(
+        handles=main["handles"],
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        fontsize=6.5,
+        framealpha=0.92,
+        title=note,
+        title_fontsize=6.5,
+        alignment="left",
+    )
+    if note:
+        leg.get_title().set_gid("dense-note")
 
 
 def _finish_zoom(ax: Any, axz: Any, d: Any, zlo: float, zhi: float) -> None:

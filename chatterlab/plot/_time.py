@@ -1,4 +1,13 @@
-"""Time histories and their spectra."""
+"""Time histories and their spectra.
+
+* :func:`plot_histories` -- outputs of one or more runs against time or the
+  distance cut, one panel per output, each run in the same colour on every
+  panel, the in-cut intervals shaded with a legend entry;
+* :func:`plot_spectra` -- amplitude spectra of one output for several runs;
+* :func:`plot_time_response` -- one run as an engineer reads it: tool-point
+  displacement, cutting force, and the spectrum with the chatter frequency
+  and the tooth-passing (regeneration) frequency and its harmonics marked.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +17,21 @@ from typing import Any
 import numpy as np
 
 from ._style import axes_arg
+
+#: one colour per run, the same on every panel and in the spectra
+RUN_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange")
+
+
+def run_title(sim: Any) -> str:
+    """Model, width, delay (and speed when recorded) and feedback of a run."""
+    parts = [f"b = {sim.width * 1e3:.4g} mm"]
+    if getattr(sim, "delay", None):
+        parts.append(f"T = {sim.delay:.4g} s")
+    speed = (getattr(sim, "meta", None) or {}).get("speed")
+    if speed is not None:
+        parts.append(f"speed {speed:g}")
+    parts.append(f"feedback {sim.terms}")
+    return f"{getattr(sim, 'model', '') or 'model not named'}: " + ", ".join(parts)
 
 
 def plot_histories(
@@ -19,14 +43,19 @@ def plot_histories(
     ax: Any = None,
     scale: float = 1e6,
     unit: str = "um",
+    title: str | None = None,
     axes: Any = None,
 ) -> Any:
     """Time histories of outputs (one panel per output, the runs overlaid),
     against time (s) or against the distance travelled in the cut (mm), as
     in the paper's Figs. 4-9.  Displacements shown in micrometres by default.
+    Each run keeps its colour on every panel; the first run's in-cut
+    intervals are shaded (legend entry "in the cut").  The title (default:
+    the first run's model, width, delay and feedback) is on the top panel.
     ``ax`` is one Axes per output (``axes=`` a deprecated alias).  Returns
     the Axes (one per output)."""
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
     axes = axes_arg(ax, axes, "plot_histories")
     if axes is None:
@@ -42,21 +71,29 @@ def plot_histories(
         else:
             m = np.ones(sim.t.size, bool)
             x = sim.t
-        for ax, n in zip(axes, names, strict=False):
-            ax.plot(x, sim.data[n][m] * scale, lw=0.8, label=lab)
-    for ax, n in zip(axes, names, strict=False):
-        ax.set_ylabel(f"{n} [{unit}]")
-        ax.grid(alpha=0.3)
+        for a, n in zip(axes, names, strict=False):
+            a.plot(x, sim.data[n][m] * scale, lw=0.8, label=lab, color=RUN_COLORS[k % len(RUN_COLORS)])
+    for a, n in zip(axes, names, strict=False):
+        a.set_ylabel(f"{n} [{unit}]")
+        a.grid(alpha=0.3)
     axes[-1].set_xlabel("distance of cutting s [mm]" if against == "distance" else "time [s]")
-    axes[0].legend(fontsize=8, loc="upper right")
+    handles, _ = axes[0].get_legend_handles_labels()
     if against == "time" and sims:
         s0 = sims[0]
-        for ax in axes:
-            cut = s0.in_cut.astype(float)
-            lo, hi = ax.get_ylim()
-            ax.fill_between(s0.t, lo, hi, where=cut > 0, color="0.85", alpha=0.5, lw=0, zorder=0)
-            ax.set_ylim(lo, hi)
+        for a in axes:
+            _shade_cut(a, s0.t, s0.in_cut)
+        if np.any(s0.in_cut):
+            handles.append(Patch(color="0.85", alpha=0.5, label="in the cut"))
+    axes[0].legend(handles=handles, fontsize=8, loc="upper right")
+    if sims and (title is None or title):
+        axes[0].set_title(title or run_title(sims[0]), fontsize=9)
     return axes
+
+
+def _shade_cut(ax: Any, t: np.ndarray, in_cut: np.ndarray) -> None:
+    lo, hi = ax.get_ylim()
+    ax.fill_between(t, lo, hi, where=np.asarray(in_cut) > 0, color="0.85", alpha=0.5, lw=0, zorder=0, gid="in-cut")
+    ax.set_ylim(lo, hi)
 
 
 def plot_spectra(
@@ -71,17 +108,17 @@ def plot_spectra(
     unit: str = "um",
 ) -> Any:
     """Amplitude spectra of one output for several runs overlaid (the
-    paper's Figs. 10-11), with the main peak of each run marked."""
+    paper's Figs. 10-11), with the main peak of each run marked.  Returns
+    the Axes."""
     import matplotlib.pyplot as plt
 
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 3.8))
-    colors = ["tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange"]
     for k, sim in enumerate(sims):
         f, a = sim.spectrum(name, window=window)
         m = f <= fmax
         lab = labels[k] if labels is not None else f"feedback {sim.terms}"
-        col = colors[k % len(colors)]
+        col = RUN_COLORS[k % len(RUN_COLORS)]
         ax.plot(f[m], a[m] * scale, color=col, lw=1, label=lab)
         if np.any(m):
             j = int(np.argmax(a[m]))
@@ -99,3 +136,100 @@ def plot_spectra(
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return ax
+
+
+def plot_time_response(
+    sim: Any,
+    output: str,
+    *,
+    force: str | np.ndarray | None = None,
+    chatter_hz: float | None = None,
+    tooth_hz: float | None = None,
+    fmax: float | None = None,
+    window: Any = "last-cut",
+    ax: Any = None,
+    title: str | None = None,
+) -> Any:
+    """One run: the tool-point displacement ``output`` (um) against time,
+    the cutting force (N; ``force`` a recorded output name or an array on the
+    run's time grid; panel omitted when None), and the amplitude spectrum of
+    the displacement over ``window`` with the chatter frequency (``chatter_hz``,
+    default the spectrum's highest peak) and the tooth-passing frequency
+    (``tooth_hz``, default 1/T of the run's delay: the regeneration period)
+    with its harmonics marked.  In-cut intervals are shaded.
+
+    ``ax``: Axes (displacement, [force,] spectrum).  Returns the Axes, a
+    tuple of 3 (or 2 without force)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    nrow = 3 if force is not None else 2
+    if ax is None:
+        fig, ax = plt.subplots(nrow, 1, figsize=(8.5, 2.5 * nrow + 0.6))
+    ax = tuple(ax)
+    axd, axs = ax[0], ax[-1]
+    t = np.asarray(sim.t, float)
+    col = RUN_COLORS[0]
+    axd.plot(t, np.asarray(sim.data[output]) * 1e6, lw=0.8, color=col, gid="displacement", label=output)
+    axd.set_ylabel(f"{output} [um]")
+    axd.set_xlabel("time [s]")
+    cut = Patch(color="0.85", alpha=0.5, label="in the cut")
+    if force is not None:
+        axf = ax[1]
+        fv = np.asarray(sim.data[force] if isinstance(force, str) else force, float)
+        flab = force if isinstance(force, str) else "cutting force"
+        axf.plot(t, fv, lw=0.8, color="tab:blue", gid="force", label=flab)
+        axf.set_ylabel(f"{flab} [N]")
+        axf.set_xlabel("time [s]")
+        axf.sharex(axd)
+    for a in ax[:-1]:
+        a.grid(alpha=0.3)
+        _shade_cut(a, t, sim.in_cut)
+        handles, _ = a.get_legend_handles_labels()
+        a.legend(handles=handles + ([cut] if np.any(sim.in_cut) else []), fontsize=7, loc="upper right")
+    _spectrum_panel(axs, sim, output, chatter_hz, tooth_hz, fmax, window, col)
+    axd.set_title(title or run_title(sim), fontsize=9)
+    return ax
+
+
+def _spectrum_panel(
+    ax: Any,
+    sim: Any,
+    output: str,
+    chatter_hz: float | None,
+    tooth_hz: float | None,
+    fmax: float | None,
+    window: Any,
+    col: str,
+) -> None:
+    """The amplitude spectrum (um) with the chatter and tooth-passing lines."""
+    f, a = sim.spectrum(output, window=window)
+    a = np.asarray(a) * 1e6
+    if tooth_hz is None and getattr(sim, "delay", None):
+        tooth_hz = 1.0 / float(sim.delay)
+    if chatter_hz is None and a.size > 1:
+        chatter_hz = float(f[1:][np.argmax(a[1:])])
+    top = fmax if fmax is not None else float(f[-1])
+    if fmax is None and chatter_hz:
+        top = min(float(f[-1]), 3.0 * chatter_hz)
+    m = f <= top
+    ax.plot(f[m], a[m], color=col, lw=1, gid="spectrum", label=f"{output}, window {window}")
+    if chatter_hz:
+        ax.axvline(chatter_hz, color="tab:red", ls="--", lw=1, gid="chatter", label=f"chatter {chatter_hz:.2f} Hz")
+    if tooth_hz:
+        n = int(top // tooth_hz)
+        if 1 <= n <= 40:
+            for k in range(1, n + 1):
+                ax.axvline(k * tooth_hz, color="0.4", ls=":", lw=0.8, gid="tooth",
+                           label=f"tooth passing 1/T = {tooth_hz:.3g} Hz and harmonics" if k == 1 else None)  # fmt: skip
+        elif n > 40:
+            ax.text(0.99, 0.97, f"tooth passing 1/T = {tooth_hz:.3g} Hz (harmonics {n} in view, not drawn)",
+                    transform=ax.transAxes, ha="right", va="top", fontsize=7, gid="tooth")  # fmt: skip
+        else:
+            ax.text(0.99, 0.97, f"tooth passing 1/T = {tooth_hz:.3g} Hz (above the view)",
+                    transform=ax.transAxes, ha="right", va="top", fontsize=7, gid="tooth")  # fmt: skip
+    ax.set_xlim(0, top)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(f"amplitude of {output} [um]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="center right")

@@ -136,25 +136,75 @@ class Modes:
                 f = self.frequency_hz[k]
                 w.writerow([k + 1, f"{f:.6g}", f"{1 / f:.6g}", f"{self.damping_ratio[k]:.6g}"])
 
-    def plot(self, reference: np.ndarray | None = None, ax: Any = None, label: str = "chatterlab") -> Any:
-        """Bar chart of the natural frequencies, optionally against reference
-        values (Hz).  Imports matplotlib; returns the Axes."""
-        import matplotlib.pyplot as plt
+    def drawing(self, samples: int = 17) -> dict[str, Any]:
+        """The structure in the x-y plane and each mode's displacement of it,
+        as plain data for :func:`chatterlab.plot.plot_mode_shapes`.
 
-        if ax is None:
-            _, ax = plt.subplots(figsize=(7, 3.8))
-        k = np.arange(1, len(self) + 1)
-        w = 0.38 if reference is not None else 0.7
-        ax.bar(k - (w / 2 if reference is not None else 0), self.frequency_hz, w, label=label)
-        if reference is not None:
-            ref = np.asarray(reference)[: len(self)]
-            ax.bar(np.arange(1, ref.size + 1) + w / 2, ref, w, label="reference")
-        ax.set_xlabel("mode")
-        ax.set_ylabel("natural frequency [Hz]")
-        ax.set_xticks(k)
-        ax.legend()
-        ax.grid(axis="y", alpha=0.3)
-        return ax
+        ``members``: one dict per beam (sampled at ``samples`` points, at
+        least two per element, through the beam's own shape functions),
+        body (its centre) and spring (its two ends; the ground does not
+        move), with ``kind``, ``id``, ``xy`` (n, 2) in m and ``shape``
+        (k, n, 2): the (u, v) of those points in each mode (mass-normalised).
+        A matrix-level model has no geometry: InputError."""
+        from ..model._geometry import beam_axes, point_xy
+        from ..model._items import PointRef
+
+        fz, s = self.frozen, self.position
+        mdl, sy = fz.model, fz.system
+        if mdl.is_matrix_model:
+            raise InputError(
+                f"{mdl.source}: a matrix-level model has no geometry to draw mode shapes on;"
+                " plot the frequencies (Modes.plot(reference=...)) instead"
+            )
+
+        def member(kind: str, ident: str, refs: list[PointRef]) -> dict[str, Any]:
+            xy = np.array([point_xy(mdl, r, s) for r in refs])
+            uv = np.stack([(fz.expand(sy.point_map(r, s))[:2] @ self.shapes).T for r in refs], axis=1)
+            return {"kind": kind, "id": ident, "xy": xy, "shape": uv}
+
+        members = []
+        for b in mdl.beams:
+            L = beam_axes(mdl, b)[2]
+            n = max(samples, 2 * b.elements + 1)
+            members.append(member("beam", b.id, [PointRef("beam", b.id, distance=d) for d in np.linspace(0, L, n)]))
+        for bd in mdl.bodies:
+            members.append(member("body", bd.id, [PointRef("body", bd.id, label=bd.id)]))
+        for sp in mdl.springs:
+            m = member("spring", sp.id, [sp.a, sp.b])
+            for i, r in enumerate((sp.a, sp.b)):  # a spring to the ground is drawn at its other end
+                if r.kind == "ground":
+                    m["xy"][i] = m["xy"][1 - i]
+            members.append(m)
+        return {
+            "members": members,
+            "frequency_hz": self.frequency_hz,
+            "model": mdl.name or str(mdl.source),
+            "position": s,
+        }
+
+    def plot(
+        self,
+        reference: np.ndarray | None = None,
+        ax: Any = None,
+        label: str = "chatterlab",
+        *,
+        shapes: bool | None = None,
+    ) -> Any:
+        """The mode shapes drawn on the structure (one panel per mode, the
+        deformed over the undeformed shape, frequencies in the legend) when
+        the model has geometry; the natural frequencies as bars (optionally
+        against ``reference`` values in Hz) for a matrix-level model, with a
+        reference, or with ``shapes=False``.  Imports matplotlib; returns the
+        Axes (the array of panels for the mode shapes)."""
+        if shapes is None:
+            shapes = reference is None and not self.frozen.model.is_matrix_model
+        if shapes:
+            from ..plot import plot_mode_shapes
+
+            return plot_mode_shapes(self.drawing(), ax=ax)
+        from ..plot import plot_frequencies
+
+        return plot_frequencies(self.frequency_hz, reference=reference, ax=ax, label=label)
 
 
 def _items_of(sy: System, q_all: np.ndarray) -> list[str]:
