@@ -315,6 +315,7 @@ class _Column:
     pair: tuple[str, str]
     part: str
     unit: str | None
+    raw: str = ""
 
 
 def _parse_header(cells: list[str], point: str | None, where: str, line: int) -> list[_Column]:
@@ -338,7 +339,14 @@ def _parse_header(cells: list[str], point: str | None, where: str, line: int) ->
                 " (or mag, phase [deg], coh), e.g. 'tool.x/tool.x re' or 'xx_re'"
             )
         cols.append(
-            _Column(k, c, _pair_names(pm["pair"], point, where, c), _PARTS[pm["part"].lower()], pm["unit"])
+            _Column(
+                k,
+                c,
+                _pair_names(pm["pair"], point, where, c),
+                _PARTS[pm["part"].lower()],
+                pm["unit"],
+                pm["pair"].strip(),
+            )
         )
     return cols
 
@@ -431,7 +439,9 @@ def _assemble(
     """Complex matrix (n, n_out, n_in) from the columns of each pair."""
     parts: dict[tuple[str, str], dict[str, int]] = {}
     phase_rad: dict[tuple[str, str], bool] = {}
+    raw: dict[tuple[str, str], str] = {}
     for c in cols:
+        raw.setdefault(c.pair, c.raw)
         if c.part == "phase" and c.unit:
             u = c.unit.strip().lower()
             if u not in ("deg", "degree", "degrees", "°", "rad"):
@@ -452,7 +462,7 @@ def _assemble(
     coh = np.ones((n, len(outs), len(ins)))
     any_coh = False
     for (o, i), d in parts.items():
-        pair = f"{o}/{i}"
+        pair = raw[(o, i)] or f"{o}/{i}"
         if "re" in d or "im" in d:
             for need in ("re", "im"):
                 if need not in d:
