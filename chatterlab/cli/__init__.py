@@ -1,4 +1,11 @@
-"""The ``chatterlab`` command (``chatterlab --help``)."""
+"""The ``chatterlab`` command (``chatterlab --help``).
+
+``_main`` assembles the parser and dispatches; each command is one module
+(``_check``, ``_modes``, ``_frf``, ``_roots``, ``_lobes``, ``_simulate``,
+``_sweep``) with ``add_parser(sub)`` and ``run(args) -> int``; ``_common``
+holds the shared options, the mm/Hz/speed-unit conversions of this edge,
+warnings and output files; ``_parallel`` the sweep engine's options.
+"""
 
 from __future__ import annotations
 

@@ -1,0 +1,315 @@
+"""What every command shares: the model and cut options, the one place where
+the edge's units (width in mm, frequencies in Hz, speeds in the process's
+unit) turn into SI, the unit-slip warnings, and writing results.
+
+Units at this edge: frequencies in Hz, width of cut in mm, the cutting speed
+in the process's unit (shaping: m/s, turning: rpm), delay and positions in SI
+(s, m).  Inside chatterlab everything is SI; ``mm_to_m`` / ``m_to_mm`` are
+the conversions of widths, and a frequency in Hz is handed on as the core's
+Hz arguments say (``frequencies(fmin, fmax)``, ``lobes(fmin=, fmax=)``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+from ..errors import (
+    InputError,
+    check_count,
+    check_delay,
+    check_nonneg,
+    check_position,
+    check_positive,
+    check_speed,
+    check_width,
+)
+from ..io._files import CSV_SUFFIXES, JSON_SUFFIXES, TEXT_SUFFIXES, Outputs
+
+#: metres per millimetre: widths are typed and printed in mm
+MM = 1e-3
+
+
+def mm_to_m(value_mm: Any) -> Any:
+    """A width typed in mm (number or array), in m."""
+    return value_mm * MM
+
+
+def m_to_mm(value_m: Any) -> Any:
+    """A width in m (number or array), in mm for printing."""
+    return value_m * 1e3
+
+
+# ----------------------------------------------------------------------------- model and cut
+
+
+def parse_set(items: Sequence[str] | None) -> dict[str, Any]:
+    """``--set PATH=VALUE`` options as a dict of overrides (values as JSON where they parse)."""
+    out: dict[str, Any] = {}
+    for it in items or []:
+        if "=" not in it:
+            raise InputError(f"--set {it!r}: write PATH=VALUE, e.g. --set spring.leg3-foundation.c2=7e8")
+        k, v = it.split("=", 1)
+        if not k.strip():
+            raise InputError(
+                f"--set {it!r}: the PATH before '=' is empty, e.g. --set spring.leg3-foundation.c2=7e8"
+            )
+        try:
+            out[k.strip()] = json.loads(v)
+        except json.JSONDecodeError:
+            out[k.strip()] = v
+        except (ValueError, RecursionError):  # a 5000-digit integer, arrays nested 10^5 deep
+            raise InputError(
+                f"--set {k.strip()}: the value is not a usable number or list (too large or nested too deeply)"
+            ) from None
+    return out
+
+
+def load(args: argparse.Namespace) -> Any:
+    """The model of the command line (file, --variant, --set), with its unit-slip warnings."""
+    from ..model._reader import load_model
+
+    model = load_model(
+        args.model,
+        variant=getattr(args, "variant", None),
+        overrides=parse_set(getattr(args, "set", None)),
+        files_outside=getattr(args, "allow_outside_files", False),
+    )
+    warn(args, model_slips(model, args))
+    return model
+
+
+def frozen(args: argparse.Namespace) -> Any:
+    """The assembled model held at ``--position``, with its frequency warnings."""
+    from ..structure._assembly import assemble
+
+    fz = assemble(load(args)).at(getattr(args, "position", None))
+    warn(args, frequency_slips(fz))
+    return fz
+
+
+def width_m(args: argparse.Namespace) -> float:
+    """``--width`` (mm, required here) in m."""
+    if args.width is None:
+        raise InputError("--width is required here: the width of cut b in mm")
+    b = mm_to_m(check_width(args.width, "--width", "mm"))
+    warn(args, width_slips(b, "--width"))
+    return b
+
+
+def width_max_m(args: argparse.Namespace) -> float:
+    """``--width-max`` (mm) in m, checked."""
+    return mm_to_m(check_width(args.width_max, "--width-max", "mm"))
+
+
+def model_args(p: argparse.ArgumentParser) -> None:
+    """The model file and the options that change it (every command)."""
+    p.add_argument("model", help="model file (TOML, see docs/model-format.md)")
+    p.add_argument("--variant", help="use the [variant.NAME] parameter set of the file")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="PATH=VALUE",
+        help="change one model parameter, e.g. --set spring.leg3-foundation.c2=7e8 (repeatable)",
+    )
+    p.add_argument(
+        "--allow-outside-files",
+        action="store_true",
+        help="let [matrices] name files outside the model file's folder (../K.npy, absolute paths)",
+    )
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress bar and no warnings about implausible magnitudes"
+    )
+
+
+def cut_args(p: argparse.ArgumentParser, required_width: bool = False) -> None:
+    """Width, speed or delay, and the feedback terms of one cut."""
+    p.add_argument("--width", type=float, required=required_width, metavar="B", help="width of cut b, mm")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--speed",
+        type=float,
+        metavar="V",
+        help="cutting speed in the model's process unit (shaping: work speed m/s; turning: rpm)",
+    )
+    g.add_argument("--delay", type=float, metavar="T", help="delay between passes T, s")
+    p.add_argument(
+        "--terms",
+        choices=["pdo", "pd", "o"],
+        default="pdo",
+        help="feedback terms: pdo = proportional+derivative+delayed (paper case c, default), "
+        "pd = without delay (case b), o = delayed only",
+    )
+
+
+def check_numbers(args: argparse.Namespace, unit: str = "") -> None:
+    """Every numeric option through the one validator set (chatterlab.errors),
+    before the model is assembled: a width, speed or delay must be > 0, a
+    position finite, a count a whole number; ``unit`` is the process's speed unit."""
+    if getattr(args, "width", None) is not None:
+        check_width(args.width, "--width", "mm")
+    if getattr(args, "width_max", None) is not None:
+        check_width(args.width_max, "--width-max", "mm")
+    speed = getattr(args, "speed", None)
+    if isinstance(speed, list):
+        for v in speed:
+            check_speed(v, "--speed", unit)
+    elif speed is not None:
+        check_speed(speed, "--speed", unit)
+    if getattr(args, "delay", None) is not None:
+        check_delay(args.delay, "--delay")
+    if getattr(args, "position", None) is not None:
+        check_position(args.position, "--position")
+    for name in ("fmin", "fmax"):
+        if getattr(args, name, None) is not None:
+            check_nonneg(getattr(args, name), f"--{name}", "Hz")
+    for name, unit_ in (("duration", "s"), ("step", "s")):
+        if getattr(args, name, None) is not None:
+            check_positive(getattr(args, name), f"--{name}", unit_)
+    for name, least in (("points", 1), ("passes", 1), ("verify", 0), ("confirm", 0)):
+        if getattr(args, name, None) is not None:
+            check_count(getattr(args, name), f"--{name}", least)
+    if getattr(args, "count", None) is not None:
+        check_count(args.count, "--count", 1)
+
+
+# ----------------------------------------------------------------------------- unit slips
+# A number off by a factor 1000 (mm typed for m, N/mm^2 for N/m^2) gives a
+# confident answer; these ranges cover real machines with a wide margin, and
+# a value outside them is named on one line of standard error (--quiet: none).
+
+
+#: warnings of the running command: printed when it has run (an input error
+#: is one line on its own, so they are dropped then)
+WARNINGS: list[str] = []
+
+
+def warn(args: argparse.Namespace, lines: list[str]) -> None:
+    """Queue warning lines (printed once, after the command; none with --quiet)."""
+    if not getattr(args, "quiet", False):
+        WARNINGS.extend(f"chatterlab: warning: {line}" for line in lines if line not in WARNINGS)
+
+
+def flush_warnings() -> None:
+    """Print the queued warnings to standard error, each once."""
+    for line in dict.fromkeys(WARNINGS):
+        print(line, file=sys.stderr)
+    WARNINGS.clear()
+
+
+def width_slips(b: float, option: str) -> list[str]:
+    """A width ``b`` (m) below 1 um or above 1 m: a unit slip."""
+    if b < 1e-6:
+        return [f"{option} is {m_to_mm(b):g} mm, below 1 um: was the width typed in m? (the CLI takes mm)"]
+    if b > 1.0:
+        return [f"{option} is {m_to_mm(b):g} mm, above 1 m: was the width typed in um?"]
+    return []
+
+
+def model_slips(model: Any, args: argparse.Namespace) -> list[str]:
+    """Cutting stiffness, structure size and speeds outside what machines have."""
+    import numpy as np
+
+    out = []
+    for c in model.couplings:
+        kf = float(np.max(np.abs(np.asarray(c.DO, float)))) / c.width_ref
+        if kf and not 1e7 <= kf <= 1e11:
+            out.append(
+                f"coupling '{c.id}': delayed cutting stiffness {kf:.3g} N/m^2 per unit width is outside"
+                " 1e7..1e11 N/m^2: were the coefficients given in N/mm^2 or width_ref in mm?"
+            )
+    xy = [b.centre for b in model.bodies] + [n.xy for n in model.nodes]
+    if len(xy) > 1:
+        span = float(np.ptp(np.asarray(xy, float), axis=0).max())
+        if 0 < span < 1e-3 or span > 100.0:
+            out.append(
+                f"the structure spans {span:g} m: outside 1 mm..100 m; were the coordinates given in mm?"
+            )
+    proc = model.process
+    speed = getattr(args, "speed", None)
+    limits = {"shaping": (1e-3, 10.0), "turning": (1.0, 1e5)}
+    if proc is not None and proc.kind in limits:
+        lo, hi = limits[proc.kind]
+        given = speed if isinstance(speed, list | tuple) else [speed]
+        for what, v in [("the model's speed", proc.speed)] + [("--speed", x) for x in given]:
+            if v is not None and v > 0 and not lo <= v <= hi:
+                out.append(
+                    f"{what} {v:g} {proc.speed_unit} is outside {lo:g}..{hi:g} {proc.speed_unit}"
+                    f" ({proc.kind}): is it in the right unit?"
+                )
+    return out
+
+
+def frequency_slips(fz: Any) -> list[str]:
+    """Natural frequencies below 0.1 Hz or above 100 kHz: a mass or stiffness unit slip."""
+    import numpy as np
+
+    f = np.abs(fz.complex_modes.lam) / (2 * np.pi)
+    f = f[f > 0]
+    out = []
+    if f.size and f.min() < 0.1:
+        out.append(
+            f"the lowest natural frequency is {f.min():.3g} Hz, below 0.1 Hz: a mass or stiffness unit slip?"
+        )
+    if f.size and f.max() > 1e5:
+        out.append(
+            f"the highest natural frequency is {f.max():.3g} Hz, above 100 kHz: a mass or stiffness unit slip?"
+        )
+    return out
+
+
+# ----------------------------------------------------------------------------- output
+
+
+#: the suffixes ``--out`` may have for each ``--format``
+FORMAT_SUFFIXES = {"table": TEXT_SUFFIXES, "json": JSON_SUFFIXES, "csv": CSV_SUFFIXES}
+
+
+def emit(text: str, out: str | None) -> None:
+    """``text`` to the (staged) file ``out``, or to standard output."""
+    if out:
+        with open(out, "w") as fh:
+            fh.write(text if text.endswith("\n") else text + "\n")
+    else:
+        sys.stdout.write(text if text.endswith("\n") else text + "\n")
+
+
+@contextlib.contextmanager
+def outputs(args: argparse.Namespace, *specs: tuple[str | None, str, tuple[str, ...]]) -> Iterator[Outputs]:
+    """Check every output of the command before it computes (suffix,
+    directory, writability, not an input, not named twice); the command
+    writes to ``outs.path(FILE)``; the files are moved into place together
+    when it returns, and removed if it raises (docs/cli.md, "Output files")."""
+    inputs = [args.model] if getattr(args, "model", None) else []
+    outs = Outputs(inputs=inputs)
+    for path, option, suffixes in specs:
+        outs.add(path, option, suffixes)
+    try:
+        yield outs
+    except BaseException:
+        outs.discard()
+        raise
+    outs.commit(note=lambda msg: print(msg, file=sys.stderr))
+
+
+def progress_bar(label: str) -> Callable[[float], None] | None:
+    """A one-line progress bar on a terminal's standard error (None elsewhere)."""
+    if not sys.stderr.isatty():
+        return None
+    state = {"last": -1}
+
+    def show(frac: float) -> None:
+        pct = int(100 * frac)
+        if pct != state["last"]:
+            state["last"] = pct
+            bar = "#" * (pct // 4)
+            sys.stderr.write(f"\r{label} [{bar:<25}] {pct:3d}%")
+            if pct >= 100:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+    return show

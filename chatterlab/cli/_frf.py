@@ -1,0 +1,98 @@
+"""``chatterlab frf``: open- or closed-loop frequency response between named
+points, with its magnitude/phase plot and the Nyquist plot of the loop
+determinant.  Frequencies are typed in Hz (``--fmin``, ``--fmax``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from ..errors import InputError
+from ..io._files import PLOT_SUFFIXES, Outputs
+from ._common import FORMAT_SUFFIXES, cut_args, emit, frozen, model_args, outputs, width_m
+
+
+def add_parser(sub: Any) -> None:
+    f = sub.add_parser("frf", help="open- or closed-loop frequency response between named points")
+    model_args(f)
+    f.add_argument(
+        "--input", action="append", required=True, metavar="P.DIR", help="force input, e.g. rfe5.x"
+    )
+    f.add_argument("--output", action="append", required=True, metavar="P.DIR", help="response, e.g. rfe5.x")
+    f.add_argument("--fmin", type=float, default=1.0, help="lowest frequency, Hz (default 1)")
+    f.add_argument("--fmax", type=float, default=300.0, help="highest frequency, Hz (default 300)")
+    f.add_argument("--points", type=int, default=2000, help="number of frequencies (default 2000)")
+    f.add_argument("--position", type=float, metavar="S", help="slide position s, m")
+    f.add_argument("--closed-loop", action="store_true", help="include the cutting process (needs --width)")
+    cut_args(f)
+    f.add_argument("--kind", choices=["receptance", "mobility", "accelerance"], default="receptance")
+    f.add_argument("--method", choices=["direct", "modal"], default="direct")
+    f.add_argument("--format", choices=["csv", "json"], default="csv")
+    f.add_argument("--out", metavar="FILE")
+    f.add_argument("--plot", metavar="FILE.png", help="magnitude/phase plot (open vs closed loop)")
+    f.add_argument("--nyquist", metavar="FILE.png", help="Nyquist plot of the loop determinant det(I - G D)")
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.closed_loop and (args.width is not None or args.speed is not None or args.delay is not None):
+        raise InputError("--width/--speed/--delay describe the cut: add --closed-loop to use them")
+    if args.nyquist and not args.closed_loop:
+        raise InputError("--nyquist draws det(I - G D) of the cutting loop: add --closed-loop --width ...")
+    with outputs(
+        args,
+        (args.out, "--out", FORMAT_SUFFIXES[args.format]),
+        (args.plot, "--plot", PLOT_SUFFIXES),
+        (args.nyquist, "--nyquist", PLOT_SUFFIXES),
+    ) as outs:
+        return _run(args, outs)
+
+
+def _run(args: argparse.Namespace, outs: Outputs) -> int:
+    from ..frequency._frf import frequencies, frf
+    from ..process._cutting import feedback
+
+    fz = frozen(args)
+    w = frequencies(args.fmin, args.fmax, args.points)
+    fb = None
+    if args.closed_loop:
+        fb = feedback(fz, width=width_m(args), speed=args.speed, delay=args.delay, terms=args.terms)
+    if args.nyquist and (fb is None or fb.is_zero):
+        raise InputError(
+            "--nyquist draws det(I - G D) of the cutting loop, which is zero here: check --terms"
+        )
+    res = frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, feedback=fb, method=args.method)
+    if args.format == "json":
+        emit(res.to_json(), outs.path(args.out) if args.out else None)
+    else:
+        res.to_csv(outs.path(args.out) if args.out else sys.stdout)
+    if args.nyquist and fb is not None:
+        _nyquist(args, outs, fz, w, fb)
+    if args.plot:
+        from ..plot._plot import plot_frf, savefig
+
+        curves = [res]
+        if fb is not None:
+            curves = [
+                frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, method=args.method),
+                res,
+            ]
+        savefig(
+            plot_frf(curves, title=f"{fz.model.name}: {args.output[0]} / {args.input[0]}", peaks=2),
+            outs.path(args.plot),
+        )
+    return 0
+
+
+def _nyquist(args: argparse.Namespace, outs: Outputs, fz: Any, w: Any, fb: Any) -> None:
+    import numpy as np
+
+    from ..frequency._frf import loop_determinant, resonance_grid
+    from ..plot._plot import plot_nyquist, savefig
+
+    # resolve every resonance and the turning of e^{-jwT} (32 points per turn)
+    n_turn = int(16 * (fb.delay or 0.0) * float(w[-1] - w[0]) / np.pi) + 1
+    wn = resonance_grid(fz.complex_modes.lam, float(w[0]), float(w[-1]), min(max(w.size, n_turn), 400_000))
+    det = loop_determinant(fz, wn, fb)
+    title = f"{fz.model.name}: det(I - G D), b = {args.width:g} mm"
+    savefig(plot_nyquist(wn, det, title=title), outs.path(args.nyquist))

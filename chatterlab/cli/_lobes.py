@@ -1,0 +1,221 @@
+"""``chatterlab lobes``: the stability lobe diagram b_lim(speed) at one
+position, or an atlas of diagrams along the stroke (``--positions A B N``,
+on the sweep engine).  Widths are typed and printed in mm, speeds in the
+process's unit, ``--fmin``/``--fmax`` in Hz.
+
+Where a new kind of input plugs in: ``_diagram`` turns what the command
+line names (today: a model file with a cutting process, at one position)
+into a ``LobeDiagram``; a milling process (its averaged directional matrix
+as a ``lobes.Plant``) or a measured FRF (``--frf FILE``: a ``Plant`` whose
+band is the measured one) is a branch there returning a ``LobeDiagram``.
+Everything after it -- summary, files, plot, the verification status and
+exit status -- is ``_report``, shared by every kind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from typing import Any
+
+from ..errors import InputError, check_count, check_position, check_speed
+from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ._common import load, m_to_mm, model_args, outputs, warn, width_max_m, width_slips
+from ._parallel import check_checkpoint, checkpoint, parallel_args, sweep_opts
+
+
+def add_parser(sub: Any) -> None:
+    lo = sub.add_parser(
+        "lobes", help="stability lobe diagram (b_lim against speed), or an atlas along the stroke"
+    )
+    model_args(lo)
+    lo.add_argument(
+        "--speed",
+        type=float,
+        nargs=2,
+        required=True,
+        metavar=("MIN", "MAX"),
+        help="speed range in the process unit",
+    )
+    lo.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
+    lo.add_argument(
+        "--width-max", type=float, default=20.0, metavar="B", help="largest width considered, mm (default 20)"
+    )
+    g = lo.add_mutually_exclusive_group()
+    g.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
+    g.add_argument(
+        "--positions",
+        type=float,
+        nargs=3,
+        metavar=("A", "B", "N"),
+        help="atlas over N positions from A to B, m",
+    )
+    lo.add_argument(
+        "--terms",
+        choices=["pdo", "o"],
+        default="pdo",
+        help="pdo: all feedback terms (default); o: delayed only",
+    )
+    lo.add_argument("--fmin", type=float, help="lowest chatter frequency searched, Hz")
+    lo.add_argument("--fmax", type=float, help="highest chatter frequency searched, Hz")
+    lo.add_argument(
+        "--verify",
+        type=int,
+        default=16,
+        metavar="N",
+        help="claims checked by the argument principle: the minimum, the N-1 highest cusps, N/2 lobe"
+        " bottoms and every run of inf (default 16; 0 skips)",
+    )
+    lo.add_argument(
+        "--confirm", type=int, default=0, metavar="N", help="confirm N boundary points by Newmark simulation"
+    )
+    lo.add_argument("--out", metavar="FILE.nc|FILE.csv")
+    lo.add_argument("--plot", metavar="FILE.png")
+    parallel_args(lo)
+
+
+def run(args: argparse.Namespace) -> int:
+    with outputs(args, (args.out, "--out", DATA_SUFFIXES), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
+        check_checkpoint(args, outs)
+        return _run(args, outs)
+
+
+def _run(args: argparse.Namespace, outs: Outputs) -> int:
+    from ..structure._assembly import assemble
+
+    model = load(args)
+    if model.process is None:
+        raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
+    v = speeds(args, model.process)
+    wmax = width_max_m(args)
+    warn(args, width_slips(wmax, "--width-max"))
+    sy = assemble(model)
+    if args.positions is not None:
+        return _atlas(args, model, v, wmax, outs)
+    return _report(args, model, _diagram(args, sy, v, wmax), outs)
+
+
+def speeds(args: argparse.Namespace, proc: Any) -> Any:
+    """``--speed MIN MAX`` and ``--points`` as the array of speeds (process unit)."""
+    import numpy as np
+
+    lo, hi = (check_speed(v, "--speed MIN MAX", proc.speed_unit) for v in args.speed)
+    if not hi > lo:
+        raise InputError(f"--speed range is empty or reversed: MAX ({hi:g}) must exceed MIN ({lo:g})")
+    if args.points < 2:
+        raise InputError(f"--points must be >= 2 (got {args.points})")
+    return np.linspace(lo, hi, args.points)
+
+
+def _diagram(args: argparse.Namespace, sy: Any, v: Any, wmax: float) -> Any:
+    """The lobe diagram of the model's structure at --position (and its
+    --confirm table on standard error): the branch point for other inputs."""
+    from ..lobes._diagram import lobes
+
+    d = lobes(
+        sy.at(args.position),
+        v,
+        width_max=wmax,
+        terms=args.terms,
+        fmin=args.fmin,
+        fmax=args.fmax,
+        verify=args.verify,
+    )
+    if args.confirm:
+        from ..lobes._confirm import confirm
+
+        conf = confirm(sy, d, count=args.confirm)
+        d = dataclasses.replace(d, meta={**d.meta, "confirm": conf.summary_line()})
+        print(conf.table(), file=sys.stderr)
+    return d
+
+
+def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
+    """Summary, --out, --plot and the exit status of a lobe diagram."""
+    print(d.summary())
+    if args.out:
+        if args.out.lower().endswith(".csv"):
+            d.to_csv(outs.path(args.out))
+        else:
+            d.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)})
+    if args.plot:
+        from ..plot._plot import savefig
+
+        savefig(d.plot(), outs.path(args.plot))
+    if d.verified is False:
+        print(
+            "chatterlab: the argument principle contradicts the diagram at the checks marked CHECK FAILED:"
+            " treat the diagram as undetermined there",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _positions(args: argparse.Namespace, model: Any) -> Any:
+    """``--positions A B N`` as an array of positions, m."""
+    import numpy as np
+
+    a = check_position(args.positions[0], "--positions A")
+    b = check_position(args.positions[1], "--positions B")
+    n = check_count(args.positions[2], "--positions N")
+    if model.movable is not None:
+        for x, nm in ((a, "--positions A"), (b, "--positions B")):
+            check_position(x, nm, within=model.movable.range)
+    if n > 1 and not b > a:
+        raise InputError(f"--positions A B N: need B > A and N >= 1 (got {a:g} {b:g} {n})")
+    return np.linspace(a, b, n)
+
+
+def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outputs) -> int:
+    import numpy as np
+
+    from ..quantities._tasks import AtlasTask, model_fingerprint
+    from ..sweep._engine import sweep
+
+    pos = _positions(args, model)
+    n = pos.size
+    task = AtlasTask(
+        model, wmax, tuple(float(x) for x in v), terms=args.terms, fmin=args.fmin, fmax=args.fmax
+    )
+    res = sweep(
+        task,
+        {"position": (pos, "m"), "speed": (v, model.process.speed_unit)},
+        outputs={
+            "b_lim": ("m", "largest chatter-free width of cut"),
+            "chatter_frequency": ("Hz", "chatter frequency"),
+        },
+        chunk_size=v.size,
+        checkpoint=checkpoint(args),
+        resume=args.resume,
+        fingerprint=model_fingerprint(model) + f"|{wmax}|{args.terms}|{args.fmin}|{args.fmax}",
+        attrs={"title": "chatterlab stability atlas", "model_text": model.text, "terms": args.terms},
+        **sweep_opts(args),
+    )
+    bl = res.data["b_lim"]
+    worst = np.nanmin(np.where(np.isfinite(bl), bl, np.inf), axis=0)
+    j = int(np.argmin(worst))
+    i = int(np.argmin(bl[:, j]))
+    print(
+        f"stability atlas of {model.source}: {n} positions x {v.size} speeds ({res.status})\n"
+        f"  worst case along the stroke: b_lim {m_to_mm(worst[j]):.4g} mm at {v[j]:.5g} {model.process.speed_unit},"
+        f" position {pos[i]:.4g} m, chatter {res.data['chatter_frequency'][i, j]:.2f} Hz"
+    )
+    for k, p in enumerate(pos):
+        print(f"  position {p:8.4f} m: min b_lim {m_to_mm(np.nanmin(bl[k])):.4g} mm")
+    if res.failures:
+        print(f"  {len(res.failures)} task(s) failed: {res.message}", file=sys.stderr)
+    if args.out:
+        if args.out.lower().endswith(".csv"):
+            res.to_csv(outs.path(args.out))
+        else:
+            res.to_netcdf(outs.path(args.out))
+    if args.plot:
+        from ..plot._plot import plot_atlas, savefig
+
+        savefig(
+            plot_atlas(res, model.process, model=model.source, width_max=wmax, terms=args.terms),
+            outs.path(args.plot),
+        )
+    return 0 if res.status == "ok" else 1

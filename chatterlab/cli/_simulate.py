@@ -1,0 +1,176 @@
+"""``chatterlab simulate``: the Newmark transient of the moving, delayed
+closed loop (Eq. 2.28), one run per feedback case (``--feedback all``: the
+paper's three cases), with a summary line per recorded output.
+
+Where a new kind of input plugs in: ``_runner`` turns what the command
+line names (today: a model file with a cutting process) into a function
+``feedback case -> Simulation``; a milling process (periodic coupling) or
+another input is a branch there.  The summary, files, plot and exit status
+(``run``, ``_report``) are shared by every kind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Literal
+
+from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ._common import load, model_args, outputs, progress_bar, width_m
+
+
+def add_parser(sub: Any) -> None:
+    si = sub.add_parser("simulate", help="Newmark transient of the moving, delayed closed loop (Eq. 2.28)")
+    model_args(si)
+    si.add_argument(
+        "--feedback",
+        choices=["none", "pd", "pdo", "all"],
+        default="pdo",
+        help="paper's cases: none (a), pd = proportional + derivative (b), pdo = + delayed (c), all = the three",
+    )
+    si.add_argument(
+        "--passes", type=int, default=2, help="stroke cycles (or delay periods) simulated (default 2)"
+    )
+    si.add_argument("--duration", type=float, metavar="S", help="simulated time, s (overrides --passes)")
+    si.add_argument(
+        "--step",
+        type=float,
+        metavar="H",
+        help="time step, s (default: 1/20 of the highest period below 300 Hz)",
+    )
+    si.add_argument(
+        "--width",
+        type=float,
+        metavar="B",
+        help="width of cut b, mm (default: the coupling's reference width)",
+    )
+    g2 = si.add_mutually_exclusive_group()
+    g2.add_argument(
+        "--speed", type=float, metavar="V", help="work speed (shaping, m/s) or spindle speed (turning, rpm)"
+    )
+    g2.add_argument(
+        "--delay", type=float, metavar="T", help="hold the slide still and cut continuously with delay T, s"
+    )
+    si.add_argument("--position", type=float, metavar="S", help="hold the slide at s, m (continuous cut)")
+    si.add_argument(
+        "--output",
+        action="append",
+        metavar="P.DIR",
+        help="time history to record (default: the contact point x, y)",
+    )
+    si.add_argument("--out", metavar="FILE.nc|FILE.csv")
+    si.add_argument("--plot", metavar="FILE.png")
+
+
+def run(args: argparse.Namespace) -> int:
+    cases: list[Literal["none", "pd", "pdo"]] = (
+        ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
+    )
+    files = [args.out if len(cases) == 1 else _suffixed(args.out, fb) for fb in cases] if args.out else []
+    with outputs(
+        args, *((f, "--out", DATA_SUFFIXES) for f in files), (args.plot, "--plot", PLOT_SUFFIXES)
+    ) as outs:
+        simulate_case = _runner(args)
+        sims = []
+        for fb in cases:
+            sim = simulate_case(fb)
+            sims.append(sim)
+            _summary(sim, fb)
+        return _report(args, outs, sims, files)
+
+
+def _runner(args: argparse.Namespace) -> Callable[[str], Any]:
+    """The model of the command line as ``feedback case -> Simulation``."""
+    from ..structure._assembly import assemble
+    from ..time._simulate import simulate
+
+    sy = assemble(load(args))
+    width = width_m(args) if args.width is not None else None
+
+    def simulate_case(fb: Any) -> Any:
+        return simulate(
+            sy,
+            feedback=fb,
+            width=width,
+            speed=args.speed,
+            delay=args.delay,
+            position=args.position,
+            passes=args.passes,
+            duration=args.duration,
+            step=args.step,
+            outputs=args.output,
+            progress=None if args.quiet else progress_bar(f"simulate ({fb})"),
+        )
+
+    return simulate_case
+
+
+def _summary(sim: Any, fb: str) -> None:
+    """The printed summary of one run: its message and a line per output."""
+    print(f"feedback {fb}: {sim.message}")
+    for name in sim.data:
+        print(history_line(sim, name))
+    if sim.status != "ok":
+        print(f"  status: {sim.status}", file=sys.stderr)
+
+
+def _report(args: argparse.Namespace, outs: Outputs, sims: list[Any], files: list[str]) -> int:
+    """--out files, --plot and the exit status of the runs."""
+    for sim, out in zip(sims, files, strict=True):
+        if out.lower().endswith(".csv"):
+            sim.to_csv(outs.path(out))
+        else:
+            sim.to_netcdf(outs.path(out))
+    if args.plot:
+        _plot(sims, outs.path(args.plot))
+    if any(s.status == "interrupted" for s in sims):
+        print("chatterlab: interrupted: the partial time histories above were kept", file=sys.stderr)
+        return 130
+    return 0 if all(s.status == "ok" for s in sims) else 1
+
+
+def _plot(sims: list[Any], path: str) -> None:
+    import matplotlib.pyplot as plt
+
+    from ..plot._plot import plot_histories, plot_spectra
+
+    names = list(sims[0].data)[:2]
+    fig, axs = plt.subplots(len(names) + 1, 1, figsize=(8.5, 2.6 * (len(names) + 1) + 0.5))
+    plot_histories(sims, names, axes=axs[: len(names)], against="time")
+    plot_spectra(sims, names[0], ax=axs[-1])
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def history_line(sim: Any, name: str) -> str:
+    """One printed line per recorded output: mean, peak-to-peak and spectral
+    peak of the last cut -- or, for a run that diverged, how large the
+    response grew and when (a mean of a blown-up history means nothing)."""
+    import numpy as np
+
+    x = sim.data[name]
+    unit, scale = ("rad", 1.0) if sim.units.get(name) == "rad" else ("um", 1e6)
+    if sim.status == "diverged" or not np.all(np.isfinite(x)):
+        fin = np.abs(x[np.isfinite(x)])
+        peak = f"largest |value| {fin.max() * scale:.3g} {unit}" if fin.size else "no finite value"
+        return f"  {name:10s} {peak} up to t = {sim.t[-1]:.6g} s (no mean or spectrum: the run diverged)"
+    m = sim.window("last-cut")
+    f, a = sim.spectrum(name)
+    sel = f > 1.0
+    fp = f[sel][int(a[sel].argmax())] if sel.any() else float("nan")
+    line = (
+        f"  {name:10s} mean {x[m].mean() * scale:9.3f} {unit}   peak-to-peak {(x[m].max() - x[m].min()) * scale:8.3f} {unit}"
+        f"   main spectral peak {fp:7.2f} Hz"
+    )
+    if sim.in_cut.all():  # a continuous cut: the envelope's growth rate is meaningful
+        g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
+        line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
+    return line
+
+
+def _suffixed(path: str, tag: str) -> str:
+    p = Path(path)
+    return str(p.with_name(f"{p.stem}_{tag}{p.suffix}"))

@@ -1,0 +1,133 @@
+"""``chatterlab sweep``: a chatter quantity over a grid of widths (mm),
+speeds (process unit), delays (s), positions (m) or model parameters, on the
+sweep engine (workers, dask, checkpoints)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from ..errors import InputError, check_axis_values
+from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ._common import cut_args, load, mm_to_m, model_args, outputs, width_m, width_max_m
+from ._parallel import check_checkpoint, checkpoint, parallel_args, sweep_opts
+
+QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-frequencies")
+
+
+def add_parser(sub: Any) -> None:
+    sw = sub.add_parser(
+        "sweep", help="a chatter quantity over a grid of widths, speeds, positions or model parameters"
+    )
+    model_args(sw)
+    sw.add_argument(
+        "--grid",
+        action="append",
+        metavar="PARAM=MIN:MAX:N",
+        help="a grid axis: width (mm), speed, delay (s), position (m) or a model parameter path (repeatable)",
+    )
+    sw.add_argument("--quantity", required=True, choices=sorted(QUANTITY_NAMES))
+    cut_args(sw)
+    sw.add_argument("--position", type=float, metavar="S", help="slide position s, m (when not on the grid)")
+    sw.add_argument(
+        "--width-max", type=float, default=20.0, metavar="B", help="largest width for b-lim quantities, mm"
+    )
+    sw.add_argument("--out", metavar="FILE.nc|FILE.csv")
+    sw.add_argument("--plot", metavar="FILE.png")
+    parallel_args(sw)
+
+
+def run(args: argparse.Namespace) -> int:
+    with outputs(args, (args.out, "--out", DATA_SUFFIXES), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
+        check_checkpoint(args, outs)
+        return _run(args, outs)
+
+
+def _grid(args: argparse.Namespace, model: Any) -> tuple[Any, dict[str, str]]:
+    """The --grid options as a Grid (widths in m) and the axis aliases of
+    model-parameter paths."""
+    import numpy as np
+
+    from ..quantities._tasks import axis_name
+    from ..sweep._engine import Axis, Grid
+
+    if not args.grid:
+        raise InputError("give at least one --grid PARAM=MIN:MAX:N")
+    axes = []
+    aliases: dict[str, str] = {}
+    units = {
+        "width": "m",
+        "speed": model.process.speed_unit if model.process else "",
+        "delay": "s",
+        "position": "m",
+    }
+    for spec in args.grid:
+        if "=" not in spec:
+            raise InputError(f"--grid {spec!r}: write PARAM=MIN:MAX:N, e.g. width=0.5:3:11 (mm)")
+        name, rng = (x.strip() for x in spec.split("=", 1))
+        g = Grid.from_spec(f"{axis_name(name)}={rng}")
+        vals = np.asarray(g.axes[0].values, float)
+        check_axis_values(name, vals, "mm" if name == "width" else units.get(name, ""))
+        if name == "width":
+            vals = mm_to_m(vals)  # the CLI takes mm
+        ax_name = axis_name(name) if "." in name else name
+        if "." in name:
+            aliases[ax_name] = name
+        axes.append(Axis(ax_name, vals, units.get(name, "")))
+    return Grid(axes), aliases
+
+
+def _run(args: argparse.Namespace, outs: Outputs) -> int:
+    from ..quantities._tasks import QUANTITIES, QuantityTask, model_fingerprint
+    from ..sweep._engine import sweep
+
+    model = load(args)
+    grid, aliases = _grid(args, model)
+    fixed: dict[str, float] = {}
+    if args.width is not None:
+        fixed["width"] = width_m(args)
+    for nm in ("speed", "delay", "position"):
+        if getattr(args, nm) is not None:
+            fixed[nm] = getattr(args, nm)
+    task = QuantityTask(
+        model, args.quantity, fixed, terms=args.terms, width_max=width_max_m(args), aliases=aliases
+    )
+    task.check_grid(grid)
+    res = sweep(
+        task,
+        grid,
+        outputs=QUANTITIES[args.quantity],
+        checkpoint=checkpoint(args),
+        resume=args.resume,
+        fingerprint=model_fingerprint(model)
+        + f"|{sorted(fixed.items())!r}|{args.quantity}|{args.terms}|{args.width_max}",
+        out=outs.path(args.out) if args.out and not args.out.lower().endswith(".csv") else None,
+        attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
+        **sweep_opts(args),
+    )
+    _summary(args, grid, res, QUANTITIES[args.quantity])
+    if args.out and args.out.lower().endswith(".csv"):
+        res.to_csv(outs.path(args.out))  # (a .nc file was streamed by the sweep)
+    if args.plot:
+        from ..plot._plot import savefig
+
+        first = next(iter(QUANTITIES[args.quantity]))
+        savefig(res.plot(first), outs.path(args.plot))
+    return 0 if res.status == "ok" else 1
+
+
+def _summary(args: argparse.Namespace, grid: Any, res: Any, outputs: dict[str, Any]) -> None:
+    import numpy as np
+
+    print(
+        f"sweep of {args.quantity} over {' x '.join(f'{a.name}[{a.values.size}]' for a in grid.axes)}: {res.status}"
+    )
+    for k, arr in res.data.items():
+        a = np.asarray(arr)
+        fin = a[np.isfinite(a)]
+        rng = f"min {fin.min():.6g}, max {fin.max():.6g}" if fin.size else "no finite values"
+        print(f"  {k} [{outputs[k]}]: {rng}")
+    if res.failures:
+        print(f"  {len(res.failures)} task(s) failed; first: {res.message}", file=sys.stderr)
