@@ -15,8 +15,19 @@ from ._elements import (
     rigid_point_matrix,
     rotation3,
 )
+from ._fit import FitQuality, ModalFit, Stabilisation, fit_modes
 from ._measured import MeasuredFRF
 from ._modal import Modes, modes, rigid_body_description
+from ._rcsa import (
+    Joint,
+    JointFit,
+    couple,
+    couple_tool,
+    identify_joint,
+    receptance,
+    rotations_from_translations,
+    tool_model,
+)
 
 __all__ = [
     "beam_local_stiffness",
@@ -38,5 +49,17 @@ __all__ = [
     "Modes",
     "modes",
     "rigid_body_description",
+    "fit_modes",
+    "ModalFit",
+    "FitQuality",
+    "Stabilisation",
+    "Joint",
+    "JointFit",
+    "couple",
+    "couple_tool",
+    "identify_joint",
+    "receptance",
+    "rotations_from_translations",
+    "tool_model",
     "MeasuredFRF",
 ]
