@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ._style import axes_arg, index_of
+from ._style import LAID_OUT, axes_arg, index_of
 
 
 def _frf_label(f: Any) -> str:
@@ -143,15 +143,20 @@ def plot_nyquist(
     mirrored for negative w; the critical point is the origin.
 
     The point of closest approach to the origin is marked with its frequency
-    (Hz), and with ``zoom`` an inset shows the region around the origin (a
-    square of half-side 3 times the closest distance) where the encirclement
-    is decided.  ``verdict`` (e.g. the stability result's summary) is written
+    (Hz), and with ``zoom`` a second frame beside the plot (an inset Axes
+    outside its frame) shows the region around the origin, a square of
+    half-side 3 times the closest distance, where the encirclement is
+    decided.  ``verdict`` (e.g. the stability result's summary) is written
     in the corner.  Returns the Axes (the main one; the inset has gid
     ``nyquist-zoom``)."""
     import matplotlib.pyplot as plt
 
     if ax is None:
-        _, ax = plt.subplots(figsize=(5.5, 5.5))
+        fig = plt.figure(figsize=(10, 5.2) if zoom else (5.5, 5.5))
+        # with the zoom: the main plot on the left half, the zoom beside it (outside its frame)
+        ax = fig.add_axes((0.08, 0.1, 0.4, 0.8)) if zoom else fig.add_subplot()
+        if zoom:
+            fig.set_gid(LAID_OUT)
     omega, det = np.asarray(omega, float), np.asarray(det, complex)
     j = int(np.argmin(np.abs(det)))
     near = float(np.abs(det[j]))
@@ -179,15 +184,18 @@ def plot_nyquist(
     ax.legend(loc="lower left", fontsize=7)
     if zoom and near > 0:
         r = 3.0 * near
-        axi = ax.inset_axes((0.6, 0.6, 0.38, 0.38))
+        axi = ax.inset_axes((1.18, 0.0, 1.0, 1.0))
         axi.set_gid("nyquist-zoom")
         draw(axi, False)
+        from matplotlib.patches import Rectangle
+
+        ax.add_patch(Rectangle((-r, -r), 2 * r, 2 * r, fill=False, ec="k", lw=0.8, zorder=5))
         axi.set_xlim(-r, r)
         axi.set_ylim(-r, r)
         axi.set_aspect("equal")
-        axi.tick_params(labelsize=6)
+        axi.tick_params(labelsize=7)
         axi.grid(alpha=0.3)
-        axi.set_title(f"around the origin (+-{r:.2g})", fontsize=7)
+        axi.set_title(f"zoom: the critical point, +-{r:.2g} (3 x the closest distance)", fontsize=8)
     if verdict:
         ax.text(
             0.02,

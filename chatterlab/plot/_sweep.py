@@ -69,7 +69,7 @@ def plot_stability_map(
     from matplotlib.patches import Patch
 
     if ax is None:
-        _, ax = plt.subplots(figsize=(7.5, 5))
+        _, ax = plt.subplots(figsize=(9.5, 5))
     x, y = np.asarray(x, float), np.asarray(y, float)
     code = status_codes(status)
     if code.shape != (y.size, x.size):
@@ -164,7 +164,7 @@ def plot_sweep(
             "but one or two fixed with at={name: value}"
         )
     if ax is None:
-        _, ax = plt.subplots(figsize=(7.5, 5) if len(free) == 2 else (7, 4))
+        _, ax = plt.subplots(figsize=(9.5, 5) if len(free) == 2 else (7, 4))
     unit = (getattr(result, "units", {}) or {}).get(output, "")
     long = (getattr(result, "long_names", {}) or {}).get(output, output)
     ys, yu = _display(output, unit)

@@ -207,15 +207,16 @@ def _spectrum_panel(
     a = np.asarray(a) * 1e6
     if tooth_hz is None and getattr(sim, "delay", None):
         tooth_hz = 1.0 / float(sim.delay)
-    if chatter_hz is None and a.size > 1:
-        chatter_hz = float(f[1:][np.argmax(a[1:])])
+    how = ""
+    if chatter_hz is None and a.size > 1 and np.max(a[1:]) > 0:
+        chatter_hz, how = float(f[1:][np.argmax(a[1:])]), " (highest peak)"
     top = fmax if fmax is not None else float(f[-1])
     if fmax is None and chatter_hz:
         top = min(float(f[-1]), 3.0 * chatter_hz)
     m = f <= top
     ax.plot(f[m], a[m], color=col, lw=1, gid="spectrum", label=f"{output}, window {window}")
     if chatter_hz:
-        ax.axvline(chatter_hz, color="tab:red", ls="--", lw=1, gid="chatter", label=f"chatter {chatter_hz:.2f} Hz")
+        ax.axvline(chatter_hz, color="tab:red", ls="--", lw=1, gid="chatter", label=f"chatter {chatter_hz:.2f} Hz{how}")
     if tooth_hz:
         n = int(top // tooth_hz)
         if 1 <= n <= 40:
