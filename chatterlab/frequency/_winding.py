@@ -68,19 +68,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
 
 from chatterlab.errors import InputError
 
 from ._delay_system import DelaySystem, make_system, single_threaded_blas
+from ._phase_sampling import MAX_SAMPLES, Sampler, band_end, initial_grid, phase_change, refine
 
 __all__ = ["WindingResult", "rhp_count", "rhp_count_system"]
-
-_PHASE_STEP = math.pi / 4  # largest wrapped phase increment accepted between samples
-_TAIL = 1e-3  # |f - 1| bound beyond omega_max
-_PASSIVE = 0.5  # spectral radius of H below which g cannot wind
-_MAX_SAMPLES = 400_000
 
 
 @dataclass(frozen=True)
@@ -131,75 +126,97 @@ class WindingResult:
         return self.count == 0
 
 
-def _open_loop_poles(sys: DelaySystem) -> NDArray[np.inexact[Any]]:
-    # real (float64) when every eigenvalue is real: that is what np.linalg.eigvals returns
-    Km, Cm, Mm = (
-        sys.open_coeffs if len(sys.open_coeffs) == 3 else (sys.open_coeffs[0], sys.open_coeffs[1], None)
-    )
-    if Mm is None:  # first-order form: P0 = lambda I - A0
-        return np.linalg.eigvals(-Km)
-    n = Mm.shape[0]
-    cho = sla.cho_factor(Mm)
-    A = np.zeros((2 * n, 2 * n))
-    A[:n, n:] = np.eye(n)
-    A[n:, :n] = -sla.cho_solve(cho, Km)
-    A[n:, n:] = -sla.cho_solve(cho, Cm)
-    return np.linalg.eigvals(A)
+@dataclass(frozen=True)
+class _Reference:
+    """What the sampled factor is and what its winding is counted against.
 
-
-class _Sampler:
-    """Evaluate the sampled factor F(j omega): complex values, finite or not."""
-
-    def __init__(
-        self, sys: DelaySystem, mode: str, ref_poles: NDArray[np.inexact[Any]], logdetM: float
-    ) -> None:
-        self.sys = sys
-        self.mode = mode
-        self.ref = ref_poles
-        self.logdetM = logdetM
-
-    def __call__(self, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
-        sys = self.sys
-        lam = 1j * omega
-        if self.mode == "factored":
-            H = sys.transfer_fast(lam)
-            with np.errstate(all="ignore"):
-                e = np.exp(-lam * sys.tau)[:, None, None]
-                G = np.eye(sys.r)[None] - H * e
-                return np.linalg.det(G)
-        out = np.empty(omega.shape, dtype=complex)
-        chunk = max(1, 2_000_000 // max(1, sys.n * sys.n))
-        for s in range(0, omega.size, chunk):
-            sl = slice(s, s + chunk)
-            with np.errstate(all="ignore"):
-                sg, ld = np.linalg.slogdet(sys.delta(lam[sl]))
-                den = np.log(lam[sl][:, None] - self.ref[None, :]).sum(axis=1) + self.logdetM
-                out[sl] = sg * np.exp(ld - den)
-        return out
-
-
-def _tail_bound(sys: DelaySystem, mode: str, omega: float, ref_shift: float | None) -> float:
-    """Norm of the perturbation of F from 1 at ``j omega`` (rad/s).
-
-    Factored mode: ``||H(j omega)||_2``.  Direct mode: ``||P_ref^{-1}
-    (Delta - P_ref)||_2`` with ``P_ref = P_0`` or ``M (lam + a)^2`` when
-    ``ref_shift = a`` is given.
+    ``mode``: ``"factored"`` (sample ``g = det(I - H e^{-lam tau})``, count
+    against the delay-free closed loop's RHP roots) or ``"direct"`` (sample
+    ``det Delta`` divided by ``det P_ref``, whose roots are ``ref``);
+    ``ref_shift = a`` when ``P_ref = M (lam + a)^2`` replaces ``P_0`` (open-loop
+    roots on the axis); ``z_base``: RHP roots of the reference.
     """
-    lam = 1j * omega
-    if mode == "factored":
-        H = sys.transfer(np.array([lam]))[0]
-        return float(np.linalg.norm(H, 2))
-    D = sys.delta(np.array([lam]))[0]
-    lead = sys.coeffs[-1]
-    if ref_shift is None:
-        Pr = sum(lam**k * c for k, c in enumerate(sys.open_coeffs))
-    else:
-        Pr = lead * (lam + ref_shift) ** (len(sys.coeffs) - 1)
-    try:
-        X = np.linalg.solve(Pr, D - Pr)
-    except np.linalg.LinAlgError:
-        return float("inf")
-    return float(np.linalg.norm(X, 2))
+
+    mode: str
+    ref: NDArray[np.inexact[Any]]
+    ref_shift: float | None
+    z_base: int
+    notes: tuple[str, ...]
+
+
+def _reference(
+    sys: DelaySystem,
+    direct: bool,
+    p0: NDArray[np.inexact[Any]],
+    p: NDArray[np.complex128],
+    z_open: int,
+    z_p: int,
+    scale: float,
+) -> _Reference:
+    """The factored form unless asked for ``direct``, or the delay-free
+    eigenvectors are ill-conditioned, or the delay-free loop has roots on the
+    axis (its linear factors' phase is then not continuous)."""
+    axis_tol = 1e-10 * scale
+    on_axis = bool(np.any(np.abs(p.real) <= axis_tol))
+    pf = sys.partial_fractions()
+    if not (direct or pf is None or on_axis):
+        return _Reference("factored", p0, None, z_p, ())
+    notes = []
+    if pf is None and not direct:
+        notes.append("delay-free eigenvectors ill-conditioned: sampled det(Delta) directly")
+    if on_axis and not direct:
+        notes.append("delay-free closed loop has roots on the axis: sampled det(Delta)")
+    if np.any(np.abs(p0.real) <= axis_tol):
+        a = max(scale, 1.0 / sys.tau)
+        notes.append(f"open loop has roots on the axis: reference det M (s+{a:.3g})^2n")
+        return _Reference("direct", np.full(p0.shape, -a + 0j), a, 0, tuple(notes))
+    return _Reference("direct", p0, None, z_open, tuple(notes))
+
+
+def _failed(z_open: int, z_p: int, W: float, message: str) -> WindingResult:
+    return WindingResult(
+        count=-1,
+        open_loop_count=z_open,
+        n_samples=0,
+        min_abs_det=float("nan"),
+        status="not_converged",
+        message=message,
+        omega_max=W,
+        delay_free_count=z_p,
+    )
+
+
+def _status(
+    w: NDArray[np.float64],
+    val: NDArray[np.complex128],
+    unresolved: int,
+    winding: float,
+    count_f: float,
+    count: int,
+    tail: float,
+) -> tuple[str, list[str]]:
+    """``converged``, ``marginal`` (a root on the axis: a jump bisection cannot
+    resolve, a dip of |F| to ~0, or F(0) ~ 0) or ``not_converged`` (a
+    non-integer winding, a large tail phase, too many or non-finite samples)."""
+    absf = np.abs(val)
+    finite = np.isfinite(val)
+    nb = np.maximum(np.r_[absf[1:], 0.0], np.r_[0.0, absf[:-1]])
+    dip = bool(np.any(finite & (absf <= 1e-9 * nb))) or bool(np.any(absf[finite] == 0.0))
+    status = "converged"
+    msg = []
+    if unresolved or dip or (val.size and abs(val[0]) <= 1e-12 * max(1.0, float(np.median(absf)))):
+        status = "marginal"
+        msg.append("a root lies on (or within ~1e-10 relative of) the imaginary axis")
+    if abs(count_f - count) > 0.05 or abs(tail) > math.pi / 4 or w.size > MAX_SAMPLES:
+        status = "not_converged"
+        msg.append(
+            f"winding {winding:.4g} is not an integer (tail phase {tail:.3g} rad); "
+            "raise omega_max or n_points"
+        )
+    if not np.all(finite):
+        status = "not_converged" if status == "converged" else status
+        msg.append(f"{int(np.sum(~finite))} non-finite samples")
+    return status, msg
 
 
 def rhp_count_system(
@@ -209,27 +226,22 @@ def rhp_count_system(
     n_points: int | None = None,
     direct: bool = False,
 ) -> WindingResult:
-    """Right-half-plane root count for a prepared :class:`~chatterlab.frequency._roots.DelaySystem`.
+    """Right-half-plane root count for a prepared :class:`~chatterlab.frequency.DelaySystem`.
 
-    See :func:`rhp_count` for the parameters and the method.
+    See :func:`rhp_count` for the parameters and the method; the steps
+    (reference, band, grid, bisection, phase) are in
+    :mod:`chatterlab.frequency._phase_sampling`.
     """
-    tau = sys.tau if sys.has_delay else 0.0
-    p0 = _open_loop_poles(sys)
+    p0 = sys.open_loop_poles()
     p = sys.delay_free_poles()
     scale = max(
         float(np.max(np.abs(p0))) if p0.size else 1.0, float(np.max(np.abs(p))) if p.size else 1.0, 1e-300
     )
     z_open = int(np.sum(p0.real > 0))
     z_p = int(np.sum(p.real > 0))
-    axis_tol = 1e-10 * scale
-    mode = "factored"
-    ref = p0
-    ref_shift: float | None = None
-    z_base = z_p
-    notes = []
     if not sys.has_delay:
         # nothing to sample: f = det P / det P0 has the closed-form phase
-        marginal = bool(np.any(np.abs(p.real) <= axis_tol))
+        marginal = bool(np.any(np.abs(p.real) <= 1e-10 * scale))
         return WindingResult(
             count=z_p,
             open_loop_count=z_open,
@@ -242,189 +254,37 @@ def rhp_count_system(
             delay_free_count=z_p,
             winding=float(z_open - z_p),
         )
-    pf = sys.partial_fractions()
-    if direct or pf is None or np.any(np.abs(p.real) <= axis_tol):
-        mode = "direct"
-        if pf is None and not direct:
-            notes.append("delay-free eigenvectors ill-conditioned: sampled det(Delta) directly")
-        if np.any(np.abs(p.real) <= axis_tol) and not direct:
-            notes.append("delay-free closed loop has roots on the axis: sampled det(Delta)")
-        if np.any(np.abs(p0.real) <= axis_tol):
-            a = max(scale, 1.0 / tau)
-            ref_shift = a
-            ref = np.full(p0.shape, -a + 0j)
-            z_base = 0
-            notes.append(f"open loop has roots on the axis: reference det M (s+{a:.3g})^2n")
-        else:
-            ref = p0
-            z_base = z_open
-    logdetM = 0.0
-    if len(sys.coeffs) == 3:
-        logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1])
-    F = _Sampler(sys, mode, ref, logdetM)
-
-    # --- band -----------------------------------------------------------
-    poles_for_grid = np.concatenate([p, p0])
+    ref = _reference(sys, direct, p0, p, z_open, z_p, scale)
+    logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1]) if len(sys.coeffs) == 3 else 0.0
+    F = Sampler(sys, ref.mode, ref.ref, logdetM)
+    poles = np.concatenate([p, p0])
     if omega_max is None:
-        W = max(3.0 * float(np.max(np.abs(poles_for_grid.imag))), 3.0 * scale, 10.0 / tau)
-        for _ in range(60):
-            if (
-                _tail_bound(sys, mode, W, ref_shift) < _TAIL
-                and _tail_bound(sys, mode, 2 * W, ref_shift) < _TAIL
-            ):
-                break
-            W *= 2.0
-        else:
-            return WindingResult(
-                count=-1,
-                open_loop_count=z_open,
-                n_samples=0,
-                min_abs_det=float("nan"),
-                status="not_converged",
-                message="|f - 1| does not decay; is M singular?",
-                omega_max=W,
-                delay_free_count=z_p,
-            )
+        W, found = band_end(sys, ref.mode, ref.ref_shift, poles, scale)
+        if not found:
+            return _failed(z_open, z_p, W, "|f - 1| does not decay; is M singular?")
     else:
         W = float(omega_max)
-    # --- initial grid ---------------------------------------------------
-    step = math.pi / (8.0 * tau)
-    offs = np.array([-16, -8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8, 16])
-    pole_pts = []
-    for z in poles_for_grid:
-        if z.imag < 0:
-            continue
-        d = max(abs(z.real), 1e-9 * scale)
-        loc = z.imag + d * offs
-        pole_pts.append(loc[(loc > 0) & (loc < W)])
-    passive_iv: NDArray[np.bool_] | None = None
-    mu_of: Any = None
-    if mode == "factored":
-        # g = prod_k (1 - mu_k e^{-jwT}) can only wind where the spectral radius of
-        # H(jw) reaches 1.  Where it stays below 1/2 each factor keeps Re > 1/2, so
-        # the phase increment between two samples is exact from the eigenvalues at
-        # the ends: the dense pi/(8 tau) grid is needed only in the active bands.
-        wsm = np.unique(np.concatenate([np.linspace(0.0, W, 4001)] + pole_pts))
-
-        def mu_of(om: NDArray[np.float64]) -> NDArray[np.complex128]:
-            with np.errstate(all="ignore"):
-                return np.linalg.eigvals(sys.transfer_fast(1j * om))  # type: ignore[return-value]  # numpy stubs: complex128 in, complexfloating[Any, Any] out
-
-        rho = np.abs(mu_of(wsm)).max(axis=1)
-        act_pt = ~(rho < _PASSIVE)  # NaN counts as active
-        act_iv = act_pt[:-1] | act_pt[1:]
-        act_iv = act_iv | np.r_[act_iv[1:], False] | np.r_[False, act_iv[:-1]]
-        dense = [
-            np.linspace(a, b, int(math.ceil((b - a) / step)) + 1)
-            for a, b in zip(wsm[:-1][act_iv], wsm[1:][act_iv], strict=True)
-        ]
-        n0 = int(sum(x.size for x in dense)) + wsm.size
-        pts = [wsm] + dense
-        passive_pairs = (wsm[:-1][~act_iv], wsm[1:][~act_iv])
-    else:
-        n0 = int(math.ceil(W / step)) + 1
-        pts = [np.linspace(0.0, W, n0)] + pole_pts
-    if n_points is not None:
-        n0 = max(n0, int(n_points))
-        if mode != "factored":
-            pts[0] = np.linspace(0.0, W, n0)
-    if n0 > _MAX_SAMPLES:
-        return WindingResult(
-            count=-1,
-            open_loop_count=z_open,
-            n_samples=0,
-            min_abs_det=float("nan"),
-            status="not_converged",
-            message=f"{n0} samples needed up to {W:.4g} rad/s; pass a smaller omega_max",
-            omega_max=W,
-            delay_free_count=z_p,
-        )
-    w = np.unique(np.concatenate(pts))
-
-    def passive_flags(grid: NDArray[np.float64]) -> NDArray[np.bool_] | None:
-        """Intervals of ``grid`` lying inside a passive interval of ``wsm``."""
-        if mode != "factored":
-            return None
-        a0, b0 = passive_pairs
-        if a0.size == 0:
-            return np.zeros(grid.size - 1, bool)
-        k = np.searchsorted(a0, grid[:-1], side="right") - 1
-        kc = np.clip(k, 0, a0.size - 1)
-        return (k >= 0) & (grid[1:] <= b0[kc] + 1e-12 * W) & (grid[:-1] >= a0[kc])
-
-    passive_iv = passive_flags(w)
-    val = F(w)
-    unresolved = 0
-    for _ in range(200):
-        ph = np.angle(val)
-        d = np.angle(np.exp(1j * (ph[1:] - ph[:-1])))
-        bad = ~np.isfinite(d) | (np.abs(d) > _PHASE_STEP)
-        if passive_iv is not None:
-            bad &= ~passive_iv
-        width = w[1:] - w[:-1]
-        tiny = width <= 1e-12 * np.maximum(w[1:], 1.0 / tau)
-        unresolved = int(np.sum(bad & tiny))
-        bad &= ~tiny
-        if not np.any(bad) or w.size > _MAX_SAMPLES:
-            break
-        mid = 0.5 * (w[:-1][bad] + w[1:][bad])
-        vm = F(mid)
-        w = np.concatenate([w, mid])
-        val = np.concatenate([val, vm])
-        o = np.argsort(w, kind="stable")
-        w, val = w[o], val[o]
-        passive_iv = passive_flags(w)
-    absf = np.abs(val)
-    finite = np.isfinite(val)
-    min_abs = float(np.min(absf[finite])) if np.any(finite) else float("nan")
-    ph = np.angle(val)
-    inc = np.angle(np.exp(1j * (ph[1:] - ph[:-1])))
-    if passive_iv is not None and np.any(passive_iv):
-        # exact increments on the passive intervals: sum_k Arg(1 - mu_k z) at both ends
-        ends = np.nonzero(passive_iv)[0]
-        idx = np.unique(np.concatenate([ends, ends + 1]))
-        mu = mu_of(w[idx])
-        zz = np.exp(-1j * w[idx] * tau)[:, None]
-        arg = np.angle(1.0 - mu * zz).sum(axis=1)
-        pos = {int(k): j for j, k in enumerate(idx)}
-        inc[ends] = np.array([arg[pos[int(k) + 1]] - arg[pos[int(k)]] for k in ends])
-    inc[~np.isfinite(inc)] = 0.0
-    total = float(np.sum(inc))
-    # remaining phase to infinity: F -> 1
-    end = ph[-1] if np.isfinite(ph[-1]) else 0.0
-    tail = -float(np.angle(np.exp(1j * end)))
-    total += tail
-    # start: F(0) is real; its phase is 0 or pi
+    pieces, n0, passive = initial_grid(sys, ref.mode, W, poles, scale, n_points)
+    if n0 > MAX_SAMPLES:
+        return _failed(z_open, z_p, W, f"{n0} samples needed up to {W:.4g} rad/s; pass a smaller omega_max")
+    w, val, passive_iv, unresolved = refine(F, np.unique(np.concatenate(pieces)), passive)
+    total, tail = phase_change(w, val, passive_iv, passive, sys.tau)
+    # F(0) is real: its phase is 0 or pi, and the sum starts there
     winding = total / math.pi
-    count_f = z_base - winding
+    count_f = ref.z_base - winding
     count = int(round(count_f))
-    # marginal checks
-    nb = np.maximum(np.r_[absf[1:], 0.0], np.r_[0.0, absf[:-1]])
-    dip = bool(np.any(finite & (absf <= 1e-9 * nb))) or bool(np.any(absf[finite] == 0.0))
-    status = "converged"
-    msg = []
-    if unresolved or dip or (val.size and abs(val[0]) <= 1e-12 * max(1.0, float(np.median(absf)))):
-        status = "marginal"
-        msg.append("a root lies on (or within ~1e-10 relative of) the imaginary axis")
-    if abs(count_f - count) > 0.05 or abs(tail) > math.pi / 4 or w.size > _MAX_SAMPLES:
-        status = "not_converged"
-        msg.append(
-            f"winding {winding:.4g} is not an integer (tail phase {tail:.3g} rad); "
-            "raise omega_max or n_points"
-        )
-    if not np.all(finite):
-        status = "not_converged" if status == "converged" else status
-        msg.append(f"{int(np.sum(~finite))} non-finite samples")
+    status, msg = _status(w, val, unresolved, winding, count_f, count, tail)
     msg.append(
-        f"{count} RHP root(s): Z = {z_base} - ({winding:.4g}) with "
-        f"{w.size} samples on [0, {W:.4g}] rad/s ({mode})"
+        f"{count} RHP root(s): Z = {ref.z_base} - ({winding:.4g}) with "
+        f"{w.size} samples on [0, {W:.4g}] rad/s ({ref.mode})"
     )
-    msg.extend(notes)
+    msg.extend(ref.notes)
+    finite = np.isfinite(val)
     return WindingResult(
         count=count,
         open_loop_count=z_open,
         n_samples=int(w.size),
-        min_abs_det=min_abs,
+        min_abs_det=float(np.min(np.abs(val)[finite])) if np.any(finite) else float("nan"),
         status=status,
         message="; ".join(msg),
         omega_max=W,

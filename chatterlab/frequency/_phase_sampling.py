@@ -1,0 +1,263 @@
+"""Sampling the phase of :math:`f(j\\omega)` along the imaginary axis, for the argument principle.
+
+The steps of :func:`chatterlab.frequency._winding.rhp_count_system`, in the
+order it takes them:
+
+* :class:`Sampler` evaluates the sampled factor: :math:`g = \\det(I_r - H
+  e^{-j\\omega\\tau})` (factored) or :math:`\\det\\Delta / \\det P_{ref}`
+  (direct);
+* :func:`band_end` finds :math:`\\omega_{max}`, beyond which
+  :math:`|f - 1| < 10^{-3}` (so the remaining phase is below a milliradian);
+* :func:`initial_grid` places the first samples: step :math:`\\pi/(8\\tau)`,
+  refined near every pole; in factored form only where the spectral radius
+  of :math:`H(j\\omega)` reaches 1/2 (:class:`PassiveBands` elsewhere);
+* :func:`refine` bisects every interval whose wrapped phase increment
+  exceeds :math:`\\pi/4`;
+* :func:`phase_change` sums the increments, exactly from the eigenvalues of
+  :math:`H` at the ends of a passive interval, and adds the tail to infinity.
+
+See :mod:`chatterlab.frequency._winding` for the mathematics and references.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._delay_system import DelaySystem
+
+__all__ = ["Sampler", "band_end", "initial_grid", "refine", "phase_change", "PassiveBands", "MAX_SAMPLES"]
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+_PHASE_STEP = math.pi / 4  # largest wrapped phase increment accepted between samples
+_TAIL = 1e-3  # |f - 1| bound beyond omega_max
+_PASSIVE = 0.5  # spectral radius of H below which g cannot wind
+MAX_SAMPLES = 400_000
+
+
+class Sampler:
+    """Evaluate the sampled factor F(j omega): complex values, finite or not."""
+
+    def __init__(
+        self, sys: DelaySystem, mode: str, ref_poles: NDArray[np.inexact[Any]], logdetM: float
+    ) -> None:
+        self.sys = sys
+        self.mode = mode
+        self.ref = ref_poles
+        self.logdetM = logdetM
+
+    def __call__(self, omega: FloatArray) -> ComplexArray:
+        sys = self.sys
+        lam = 1j * omega
+        if self.mode == "factored":
+            H = sys.transfer_fast(lam)
+            with np.errstate(all="ignore"):
+                e = np.exp(-lam * sys.tau)[:, None, None]
+                G = np.eye(sys.r)[None] - H * e
+                return np.linalg.det(G)
+        out = np.empty(omega.shape, dtype=complex)
+        chunk = max(1, 2_000_000 // max(1, sys.n * sys.n))
+        for s in range(0, omega.size, chunk):
+            sl = slice(s, s + chunk)
+            with np.errstate(all="ignore"):
+                sg, ld = np.linalg.slogdet(sys.delta(lam[sl]))
+                den = np.log(lam[sl][:, None] - self.ref[None, :]).sum(axis=1) + self.logdetM
+                out[sl] = sg * np.exp(ld - den)
+        return out
+
+
+def _tail_bound(sys: DelaySystem, mode: str, omega: float, ref_shift: float | None) -> float:
+    """Norm of the perturbation of F from 1 at ``j omega`` (rad/s).
+
+    Factored mode: ``||H(j omega)||_2``.  Direct mode: ``||P_ref^{-1}
+    (Delta - P_ref)||_2`` with ``P_ref = P_0`` or ``M (lam + a)^2`` when
+    ``ref_shift = a`` is given.
+    """
+    lam = 1j * omega
+    if mode == "factored":
+        H = sys.transfer(np.array([lam]))[0]
+        return float(np.linalg.norm(H, 2))
+    D = sys.delta(np.array([lam]))[0]
+    lead = sys.coeffs[-1]
+    Pr: NDArray[Any]
+    if ref_shift is None:
+        Pr = sys.P0(lam)
+    else:
+        Pr = lead * (lam + ref_shift) ** (len(sys.coeffs) - 1)
+    try:
+        X = np.linalg.solve(Pr, D - Pr)
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return float(np.linalg.norm(X, 2))
+
+
+def band_end(
+    sys: DelaySystem, mode: str, ref_shift: float | None, poles: ComplexArray, scale: float
+) -> tuple[float, bool]:
+    """``(omega_max, found)``: the frequency (rad/s) beyond which ``|F - 1| <
+    1e-3`` at it and at twice it, starting from 3x the largest pole (or
+    ``scale``, or 10/tau) and doubling; ``found`` is False when 60 doublings
+    do not get there (``M`` singular)."""
+    W = max(3.0 * float(np.max(np.abs(poles.imag))), 3.0 * scale, 10.0 / sys.tau)
+    for _ in range(60):
+        if _tail_bound(sys, mode, W, ref_shift) < _TAIL and _tail_bound(sys, mode, 2 * W, ref_shift) < _TAIL:
+            return W, True
+        W *= 2.0
+    return W, False
+
+
+def _loop_eigenvalues(sys: DelaySystem, om: FloatArray) -> ComplexArray:
+    """Eigenvalues of the loop transfer ``H(j om)``, shape ``(om.size, r)``."""
+    with np.errstate(all="ignore"):
+        return np.linalg.eigvals(sys.transfer_fast(1j * om))  # type: ignore[return-value]  # numpy stubs: complex128 in, complexfloating[Any, Any] out
+
+
+@dataclass(frozen=True)
+class PassiveBands:
+    """Intervals ``[a_i, b_i]`` of the axis where the spectral radius of
+    ``H(j omega)`` stays below 1/2.
+
+    There ``g = prod_k (1 - mu_k e^{-j omega tau})`` cannot wind (each factor
+    keeps Re > 1/2), so the phase increment between two samples is exact from
+    the eigenvalues ``mu_k`` at the ends: the dense grid is needed only
+    outside them.
+    """
+
+    sys: DelaySystem
+    a: FloatArray
+    b: FloatArray
+    W: float
+
+    def mu(self, om: FloatArray) -> ComplexArray:
+        """Eigenvalues of ``H(j om)``, shape ``(om.size, r)``."""
+        return _loop_eigenvalues(self.sys, om)
+
+    def flags(self, grid: FloatArray) -> NDArray[np.bool_]:
+        """Which intervals of ``grid`` lie inside a passive interval."""
+        a0, b0 = self.a, self.b
+        if a0.size == 0:
+            return np.zeros(grid.size - 1, bool)
+        k = np.searchsorted(a0, grid[:-1], side="right") - 1
+        kc = np.clip(k, 0, a0.size - 1)
+        return (k >= 0) & (grid[1:] <= b0[kc] + 1e-12 * self.W) & (grid[:-1] >= a0[kc])
+
+
+def initial_grid(
+    sys: DelaySystem, mode: str, W: float, poles: ComplexArray, scale: float, n_points: int | None
+) -> tuple[list[FloatArray], int, PassiveBands | None]:
+    """The first samples on ``[0, W]`` (rad/s): ``(pieces, n0, passive)``.
+
+    ``pieces`` are to be merged (``np.unique(np.concatenate(pieces))``);
+    ``n0`` is the number of samples they need (checked against the limit
+    before they are merged); ``passive`` the passive intervals (factored
+    mode only, else None).
+    """
+    tau = sys.tau
+    step = math.pi / (8.0 * tau)
+    offs = np.array([-16, -8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8, 16])
+    pole_pts = []
+    for z in poles:
+        if z.imag < 0:
+            continue
+        d = max(abs(z.real), 1e-9 * scale)
+        loc = z.imag + d * offs
+        pole_pts.append(loc[(loc > 0) & (loc < W)])
+    passive: PassiveBands | None = None
+    if mode == "factored":
+        # a coarse grid finds where the spectral radius of H reaches 1/2;
+        # the dense pi/(8 tau) grid is laid only over those active bands
+        wsm = np.unique(np.concatenate([np.linspace(0.0, W, 4001)] + pole_pts))
+        rho = np.abs(_loop_eigenvalues(sys, wsm)).max(axis=1)
+        act_pt = ~(rho < _PASSIVE)  # NaN counts as active
+        act_iv = act_pt[:-1] | act_pt[1:]
+        act_iv = act_iv | np.r_[act_iv[1:], False] | np.r_[False, act_iv[:-1]]
+        dense = [
+            np.linspace(a, b, int(math.ceil((b - a) / step)) + 1)
+            for a, b in zip(wsm[:-1][act_iv], wsm[1:][act_iv], strict=True)
+        ]
+        n0 = int(sum(x.size for x in dense)) + wsm.size
+        pts = [wsm] + dense
+        passive = PassiveBands(sys, wsm[:-1][~act_iv], wsm[1:][~act_iv], W)
+    else:
+        n0 = int(math.ceil(W / step)) + 1
+        pts = [np.linspace(0.0, W, n0)] + pole_pts
+    if n_points is not None:
+        n0 = max(n0, int(n_points))
+        if mode != "factored":
+            pts[0] = np.linspace(0.0, W, n0)
+    return pts, n0, passive
+
+
+def refine(
+    F: Sampler, w: FloatArray, passive: PassiveBands | None
+) -> tuple[FloatArray, ComplexArray, NDArray[np.bool_] | None, int]:
+    """Bisect every interval whose wrapped phase increment exceeds pi/4 (or
+    is not finite), outside the passive intervals, until none is left or the
+    intervals are at round-off width.
+
+    Returns ``(w, values, passive flags of the intervals, unresolved)``:
+    ``unresolved`` counts intervals at round-off width that still jump (a
+    root on the axis).
+    """
+    tau = F.sys.tau
+    passive_iv = passive.flags(w) if passive is not None else None
+    val = F(w)
+    unresolved = 0
+    for _ in range(200):
+        ph = np.angle(val)
+        d = np.angle(np.exp(1j * (ph[1:] - ph[:-1])))
+        bad = ~np.isfinite(d) | (np.abs(d) > _PHASE_STEP)
+        if passive_iv is not None:
+            bad &= ~passive_iv
+        width = w[1:] - w[:-1]
+        tiny = width <= 1e-12 * np.maximum(w[1:], 1.0 / tau)
+        unresolved = int(np.sum(bad & tiny))
+        bad &= ~tiny
+        if not np.any(bad) or w.size > MAX_SAMPLES:
+            break
+        mid = 0.5 * (w[:-1][bad] + w[1:][bad])
+        vm = F(mid)
+        w = np.concatenate([w, mid])
+        val = np.concatenate([val, vm])
+        o = np.argsort(w, kind="stable")
+        w, val = w[o], val[o]
+        passive_iv = passive.flags(w) if passive is not None else None
+    return w, val, passive_iv, unresolved
+
+
+def phase_change(
+    w: FloatArray,
+    val: ComplexArray,
+    passive_iv: NDArray[np.bool_] | None,
+    passive: PassiveBands | None,
+    tau: float,
+) -> tuple[float, float]:
+    """``(total, tail)``: the phase change (rad) of F from 0 to infinity, and
+    the part of it from the last sample to infinity (where F -> 1).
+
+    Increments between samples are the wrapped differences, except on the
+    passive intervals, where they are exact: ``sum_k Arg(1 - mu_k z)`` at
+    both ends.  Non-finite increments count 0 (the caller reports them).
+    """
+    ph = np.angle(val)
+    inc = np.angle(np.exp(1j * (ph[1:] - ph[:-1])))
+    if passive is not None and passive_iv is not None and np.any(passive_iv):
+        ends = np.nonzero(passive_iv)[0]
+        idx = np.unique(np.concatenate([ends, ends + 1]))
+        mu = passive.mu(w[idx])
+        zz = np.exp(-1j * w[idx] * tau)[:, None]
+        arg = np.angle(1.0 - mu * zz).sum(axis=1)
+        pos = {int(k): j for j, k in enumerate(idx)}
+        inc[ends] = np.array([arg[pos[int(k) + 1]] - arg[pos[int(k)]] for k in ends])
+    inc[~np.isfinite(inc)] = 0.0
+    total = float(np.sum(inc))
+    # remaining phase to infinity: F -> 1
+    end = ph[-1] if np.isfinite(ph[-1]) else 0.0
+    tail = -float(np.angle(np.exp(1j * end)))
+    return total + tail, tail
