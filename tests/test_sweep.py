@@ -1,11 +1,14 @@
-"""Tests of the generic sweep engine (chatterlab.sweep._engine) and labelled files (chatterlab.io._netcdf)."""
+"""Tests of the generic sweep engine (chatterlab.sweep._engine) and labelled files (chatterlab.io._netcdf;
+the netCDF container itself, xarray and old files: tests/test_netcdf.py)."""
 
 from __future__ import annotations
 
 import csv
 import dataclasses
 import functools
+import io
 import itertools
+import json
 import os
 import signal
 import subprocess
@@ -385,6 +388,12 @@ def test_checkpoint_refusals(tmp_path: Path) -> None:
             resume=True,
             progress=False,
         )
+    # ... and resumes the same function with the same arguments (positive control)
+    again = sweep(
+        functools.partial(model, k=1e6), g, outputs=OUTS, backend="serial", checkpoint=ck2, resume=True,
+        progress=False,
+    )  # fmt: skip
+    assert again.n_resumed == g.size and again.n_computed == 0
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "x.txt").write_text("x")
     with pytest.raises(InputError, match="not a chatterlab sweep checkpoint"):
@@ -397,6 +406,73 @@ def test_checkpoint_refusals(tmp_path: Path) -> None:
             resume=True,
             progress=False,
         )
+
+
+def test_refused_resume_names_what_changed(tmp_path: Path) -> None:
+    g = small_grid()
+    run = functools.partial(sweep, flaky_fixed, g, outputs=OUTS, backend="serial", progress=False)
+    run(checkpoint=tmp_path / "a", fingerprint={"model": "3f2a", "--terms": "pdo", "--width-max": "5"})
+    with pytest.raises(InputError, match=r"fingerprint differs \(--terms is 'pdo' there, 'o' now\)"):
+        run(
+            checkpoint=tmp_path / "a",
+            resume=True,
+            fingerprint={"model": "3f2a", "--terms": "o", "--width-max": "5"},
+        )
+    run(checkpoint=tmp_path / "b", fingerprint="3f2a|b-lim|pdo")
+    with pytest.raises(InputError, match=r"part 3 of 3: 'pdo' there, 'o' now"):
+        run(checkpoint=tmp_path / "b", resume=True, fingerprint="3f2a|b-lim|o")
+    with pytest.raises(InputError, match="fingerprint must be a string or a mapping"):
+        run(fingerprint=3)
+
+
+def test_checkpoint_of_an_earlier_automatic_fingerprint_is_refused(tmp_path: Path) -> None:
+    """chatterlab 0.1 hashed pickled bytecode; its automatic fingerprint cannot be
+    recomputed, so such a checkpoint is refused in one line that says how to start afresh."""
+    g = small_grid()
+    ck = tmp_path / "ck"
+    f = functools.partial(model, k=1e6)
+    sweep(f, g, outputs=OUTS, backend="serial", checkpoint=ck, progress=False)
+    manifest = json.loads((ck / "manifest.json").read_text())
+    assert manifest["fingerprint_source"] == "auto" and manifest.pop("fingerprint_method")
+    (ck / "manifest.json").write_text(json.dumps(manifest))  # as 0.1 wrote it
+    with pytest.raises(InputError) as exc:
+        sweep(f, g, outputs=OUTS, backend="serial", checkpoint=ck, resume=True, progress=False)
+    msg = str(exc.value)
+    assert "\n" not in msg and "earlier chatterlab" in msg
+    assert (
+        "start afresh" in msg and "--checkpoint DIR" in msg and "without resume=True (CLI: --resume)" in msg
+    )
+    # a caller's fingerprint (the CLI's) is compared as before: such checkpoints still resume
+    sweep(f, g, outputs=OUTS, backend="serial", checkpoint=tmp_path / "c", fingerprint="m", progress=False)
+    r = sweep(
+        f,
+        g,
+        outputs=OUTS,
+        backend="serial",
+        checkpoint=tmp_path / "c",
+        resume=True,
+        fingerprint="m",
+        progress=False,
+    )
+    assert r.n_resumed == g.size
+
+
+def test_automatic_fingerprint_is_the_same_in_another_process() -> None:
+    """joblib.hash is deterministic: a fresh interpreter (other string-hash seed) agrees."""
+    code = (
+        "import functools, numpy as np; from chatterlab.errors import check_width; "
+        "from chatterlab.sweep._engine import _auto_fingerprint; "
+        "print(_auto_fingerprint(functools.partial(check_width, name='w', unit={'a': np.arange(3.0), 'b': 1})))"
+    )
+    outs = []
+    for seed in ("1", "2"):
+        env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONHASHSEED": seed}
+        outs.append(
+            subprocess.run(
+                [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+            ).stdout
+        )
+    assert outs[0] == outs[1] and len(outs[0].strip()) == 40
 
 
 def test_keyboard_interrupt_then_resume(tmp_path: Path) -> None:
@@ -572,7 +648,7 @@ def test_netcdf_round_trip(tmp_path: Path) -> None:
     data = {
         "freq": (freq, "Hz", "chatter frequency"),
         "stable": (freq > 0.3, ""),
-        "lobe": (np.arange(8.0).reshape(4, 2), "m", "lobe depth", ("lobe", "speed")),
+        "depth": (np.arange(8.0).reshape(4, 2), "m", "lobe depth", ("lobe", "speed")),
     }
     attrs = {
         "model": "beam µm °C\nline 2",
@@ -588,19 +664,22 @@ def test_netcdf_round_trip(tmp_path: Path) -> None:
     assert f.coords["speed"][1] == "m/s" and np.array_equal(f.coords["width"][0], coords["width"][0])
     arr, unit, long_name = f.data["freq"]
     assert arr.tobytes() == freq.tobytes() and unit == "Hz" and long_name == "chatter frequency"
-    assert f.dims["lobe"] == ("lobe", "speed") and f.data["stable"][0].dtype == np.int8
+    assert f.dims["depth"] == ("lobe", "speed") and f.data["stable"][0].dtype == np.int8
     assert f.attrs["model"] == attrs["model"] and f.attrs["n"] == 3 and f.attrs["tol"] == 1e-9
     assert f.attrs["big"] == 2**40 and f.attrs["weights"].tolist() == [0.5, 1.5]
     assert {"chatterlab_version", "created", "command_line"} <= set(f.attrs)
     m = read_netcdf(p, mmap=True)
     assert isinstance(m.data["freq"][0], np.memmap) and np.array_equal(m.data["freq"][0], freq)
-    with pytest.raises(InputError, match="'filename' is reserved"):
-        write_netcdf(tmp_path / "c.nc", coords, data, {"filename": "x.toml"})
+    with pytest.raises(InputError, match="'_NCProperties' is reserved"):
+        write_netcdf(tmp_path / "c.nc", coords, data, {"_NCProperties": "x"})
+    with pytest.raises(InputError, match="'lobe' has the name of one of its dimensions"):
+        write_netcdf(tmp_path / "c.nc", coords, {"lobe": (np.zeros((4, 2)), "m", "", ("lobe", "speed"))})
     with pytest.raises(InputError, match="complex"):
         write_netcdf(tmp_path / "c.nc", coords, {"h": (freq + 1j, "")})
     with pytest.raises(InputError, match="shape"):
         write_netcdf(tmp_path / "c.nc", coords, {"h": (freq.T, "")})
-    xr = pytest.importorskip("xarray")
+    import xarray as xr  # a dependency of chatterlab: an import error fails, never skips
+
     with xr.open_dataset(p) as ds:
         assert ds["freq"].attrs["units"] == "Hz" and ds["width"].attrs["units"] == "m"
         assert ds.attrs["model"] == attrs["model"]
@@ -645,9 +724,28 @@ def test_progress_lines_on_non_tty(capsys: pytest.CaptureFixture[str]) -> None:
     err = capsys.readouterr().err
     assert "20 points in 10 chunks of 2, 1 process" in err
     lines = [ln for ln in err.splitlines() if "%" in ln]
-    assert 5 <= len(lines) <= 11 and "100% (20/20 points" in lines[-1]
+    assert len(lines) == 1 and lines[0].startswith("sweep: 100% (20/20 points")  # one line at the end
+    assert "\r" not in err  # no bar in a log file
     sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="serial", progress=False)
     assert capsys.readouterr().err == ""
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_bar_on_a_terminal(monkeypatch: pytest.MonkeyPatch) -> None:
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    g = small_grid()
+    sweep(flaky_fixed, g, outputs=OUTS, backend="serial", chunk_size=2, progress=True)
+    out = term.getvalue()
+    assert "20 points in 10 chunks of 2, 1 process" in out
+    assert "\r" in out and f"{g.size}/{g.size}" in out.rsplit("\r", 1)[-1]  # tqdm's last state: all done
+    term.truncate(0)
+    sweep(flaky_fixed, g, outputs=OUTS, backend="serial", progress=False)
+    assert term.getvalue() == ""
 
 
 def test_plot_and_dataset(tmp_path: Path) -> None:
@@ -659,9 +757,11 @@ def test_plot_and_dataset(tmp_path: Path) -> None:
     assert ax.figure.axes[-1].get_ylabel() == "freq [Hz]"  # the colour bar
     ax = r.plot("freq", at={"width": 2e-3})
     assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "freq [Hz]"
-    xr = pytest.importorskip("xarray")
+    import xarray as xr
+
     ds = r.to_dataset()
     assert isinstance(ds, xr.Dataset) and ds["freq"].attrs["units"] == "Hz" and ds.attrs["status"] == "ok"
+    assert ds.identical(r.to_xarray())
 
 
 def test_import_is_light() -> None:

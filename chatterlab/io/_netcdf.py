@@ -1,25 +1,34 @@
-"""Labelled result files: netCDF classic (via :mod:`scipy.io`) and long-format CSV.
+"""Labelled result files: netCDF through xarray, and long-format CSV.
 
 Every array result chatterlab writes (a parameter sweep, a lobe diagram, a
 time history) is a set of *data variables* laid on a set of named
-*coordinates*, each with a unit.  This module writes and reads them in two
-formats:
+*coordinates*, each with a unit: an :class:`xarray.Dataset`.  This module
+builds that dataset from plain specifications and writes and reads it:
 
-* **netCDF classic** (``CDF-2``, 64-bit offsets) through
-  :class:`scipy.io.netcdf_file`: each coordinate is a 1-D coordinate variable
-  whose dimension has the same name; each data variable carries ``units`` and
-  ``long_name`` attributes; global attributes record provenance (chatterlab
-  version, creation time, command line) and whatever the caller adds (the
-  model text, the status of the run...).  Strings are stored only as
-  attributes (UTF-8 bytes).  The files open with xarray
-  (``xarray.open_dataset(path)``), ncdump, Panoply, MATLAB's ``ncread``...
-* **CSV**, long format: one row per grid point, coordinates first, header
+* :func:`make_dataset` -- ``coords``/``data``/``attrs`` specifications (see
+  :mod:`._netcdf_specs`) to an :class:`xarray.Dataset`: each coordinate a 1-D
+  index variable of the same name, each variable with ``units`` and
+  ``long_name`` attributes, the attributes checked to be storable.
+  A result object's ``to_xarray()`` is this call.
+* :func:`write_dataset` / :func:`write_netcdf` -- netCDF-4 (HDF5) through
+  xarray's ``h5netcdf`` engine, written atomically, with provenance
+  attributes (chatterlab version, creation time, command line).  No
+  ``_FillValue`` is added: the variables carry ``units`` and ``long_name``
+  only, and a NaN is stored as NaN.  With the same data and a fixed
+  ``created`` attribute the bytes are identical.
+* :func:`read_dataset` / :func:`read_netcdf` -- any netCDF-4 file, or a
+  classic netCDF-3 file (as chatterlab 0.1 wrote; through xarray's ``scipy``
+  engine), with the values exactly as stored (no CF decoding).
+* :func:`write_csv` -- one row per grid point, coordinates first, header
   ``name [unit]``.
 
-Writes are atomic: the file is written under a temporary name in the target
-directory, flushed to disk and then renamed over the target with
-:func:`os.replace`, so a reader never sees a half-written file and a crash
+Writes are atomic (:func:`atomic_write`): the file is written under a
+temporary name in the target directory, flushed to disk and then renamed
+over the target, so a reader never sees a half-written file and a crash
 never leaves one behind.
+
+xarray, h5netcdf and h5py are imported inside the functions that use them:
+importing this module costs numpy only.
 """
 
 from __future__ import annotations
@@ -27,7 +36,6 @@ from __future__ import annotations
 import csv
 import datetime as _dt
 import os
-import re
 import secrets
 import shlex
 import sys
@@ -38,22 +46,33 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from chatterlab.errors import InputError
+
+from ._netcdf_specs import (
+    attr_value,
+    check_attrs,
+    check_name,
+    decode_attr,
+    normalise_coords,
+    normalise_data,
+)
 
 __all__ = [
     "LabelledData",
     "atomic_write",
     "check_attrs",
+    "make_dataset",
     "provenance_attrs",
+    "read_dataset",
     "read_netcdf",
     "write_csv",
+    "write_dataset",
     "write_netcdf",
 ]
 
-_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_.@+\-]*$")
-_INT32 = np.iinfo(np.int32)
+_HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
+_CDF_MAGIC = {b"CDF\x01": "classic", b"CDF\x02": "64-bit offset", b"CDF\x05": "64-bit data (CDF-5)"}
 
 
 @dataclass(frozen=True)
@@ -63,23 +82,51 @@ class LabelledData:
     Attributes
     ----------
     coords : dict
-        ``name -> (values, unit)``: the coordinate variables, in file order.
+        ``name -> (values, unit)``: the coordinate variables, in dimension order.
     data : dict
         ``name -> (array, unit, long_name)``: the data variables.
     attrs : dict
-        Global attributes (strings decoded from UTF-8, numeric scalars as
-        Python ``int``/``float``, numeric lists as arrays).
+        Global attributes (text as ``str``, numeric scalars as Python
+        ``int``/``float``, numeric lists as arrays).
     dims : dict
         ``name -> tuple of dimension names`` for every data variable.
 
     The fields are shaped so that ``write_netcdf(path, d.coords, d.data,
-    d.attrs)`` writes the same file again.
+    d.attrs)`` writes the same contents again.
     """
 
     coords: dict[str, tuple[np.ndarray, str]]
     data: dict[str, tuple[np.ndarray, str, str]]
     attrs: dict[str, Any] = field(default_factory=dict)
     dims: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    @classmethod
+    def from_dataset(cls, ds: Any) -> LabelledData:
+        """Split an :class:`xarray.Dataset`: a 1-D variable named like its
+        dimension is a coordinate, every other variable is data (the values
+        are read from the file only when this is called on a lazy dataset)."""
+        order: dict[str, None] = {}
+        for var in ds.variables.values():
+            order.update(dict.fromkeys(var.dims))
+        coords: dict[str, tuple[np.ndarray, str]] = {}
+        data: dict[str, tuple[np.ndarray, str, str]] = {}
+        dims: dict[str, tuple[str, ...]] = {}
+        for name, var in ds.variables.items():
+            unit = str(decode_attr(var.attrs.get("units", "")))
+            if tuple(var.dims) == (name,):
+                coords[str(name)] = (_native(var.values), unit)
+                continue
+            long_name = str(decode_attr(var.attrs.get("long_name", name)))
+            data[str(name)] = (_native(var.values), unit, long_name)
+            dims[str(name)] = tuple(str(d) for d in var.dims)
+        coords = {k: coords[k] for k in order if k in coords} | coords
+        attrs = {str(k): decode_attr(v) for k, v in ds.attrs.items()}
+        return cls(coords=coords, data=data, attrs=attrs, dims=dims)
+
+
+def _native(arr: np.ndarray) -> np.ndarray:
+    arr = np.asarray(arr)
+    return arr if arr.dtype.isnative else arr.astype(arr.dtype.newbyteorder("="))
 
 
 # --------------------------------------------------------------------------- atomic writes
@@ -147,190 +194,110 @@ def provenance_attrs() -> dict[str, str]:
 
 
 def _chatterlab_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
     try:
-        from importlib.metadata import PackageNotFoundError, version
+        return version("chatterlab")
+    except PackageNotFoundError:
+        from .._version import __version__
 
-        try:
-            return version("chatterlab")
-        except PackageNotFoundError:
-            pass
-    except ImportError:  # pragma: no cover
-        pass
-    from .._version import __version__
-
-    return __version__
+        return __version__
 
 
-# --------------------------------------------------------------------------- normalisation
+# --------------------------------------------------------------------------- datasets
 
 
-def _check_name(name: object, what: str) -> str:
-    if not isinstance(name, str) or not _NAME_RE.match(name):
-        raise InputError(
-            f"{what} name {name!r} is not a valid netCDF name: use letters, digits and "
-            "underscores, starting with a letter or underscore"
-        )
-    return name
-
-
-def _normalise_coords(
-    coords: Mapping[str, tuple[ArrayLike, str] | tuple[ArrayLike, str, str] | ArrayLike],
-) -> dict[str, tuple[np.ndarray, str, str]]:
-    out: dict[str, tuple[np.ndarray, str, str]] = {}
-    for name, spec in coords.items():
-        _check_name(name, "coordinate")
-        values, unit, long_name = _unpack(spec, name, "coordinate")[:3]
-        arr = np.asarray(values)
-        if arr.ndim != 1:
-            raise InputError(f"coordinate {name!r} must be 1-D (got an array of shape {arr.shape})")
-        out[name] = (_storable(arr, name), unit, long_name)
-    return out
-
-
-def _unpack(spec: Any, name: str, what: str) -> tuple[Any, str, str, tuple[str, ...] | None]:
-    """Split ``array | (array, unit) | (array, unit, long_name[, dims])``."""
-    if isinstance(spec, tuple):
-        if not 1 <= len(spec) <= 4:
-            raise InputError(
-                f"{what} {name!r}: expected (values, unit[, long_name[, dims]]), "
-                f"got a tuple of {len(spec)} items"
-            )
-        values = spec[0]
-        unit = spec[1] if len(spec) > 1 else ""
-        long_name = spec[2] if len(spec) > 2 else ""
-        dims = tuple(spec[3]) if len(spec) > 3 and spec[3] is not None else None
-    else:
-        values, unit, long_name, dims = spec, "", "", None
-    if not isinstance(unit, str) or not isinstance(long_name, str):
-        raise InputError(f"{what} {name!r}: unit and long_name must be strings")
-    return values, unit, long_name or name, dims
-
-
-def _storable(arr: np.ndarray, name: str) -> np.ndarray:
-    """Convert to a dtype netCDF classic can hold (float64, float32, int32, int8)."""
-    kind = arr.dtype.kind
-    if kind == "b":
-        return arr.astype(np.int8)
-    if kind in "iu":
-        if arr.size and (arr.min() < _INT32.min or arr.max() > _INT32.max):
-            raise InputError(
-                f"variable {name!r}: integers beyond the 32-bit range cannot be stored in "
-                "netCDF classic; convert them to float"
-            )
-        return arr.astype(np.int32) if arr.dtype.itemsize != 1 else arr.astype(np.int8)
-    if kind == "f":
-        return arr if arr.dtype in (np.float32, np.float64) else arr.astype(np.float64)
-    if kind == "c":
-        raise InputError(
-            f"variable {name!r} is complex: netCDF classic has no complex type; "
-            "store the real and imaginary parts (or magnitude and phase) as two variables"
-        )
-    raise InputError(f"variable {name!r}: cannot store an array of dtype {arr.dtype} in netCDF")
-
-
-def _normalise_data(
-    coords: dict[str, tuple[np.ndarray, str, str]],
+def make_dataset(
+    coords: Mapping[str, Any],
     data: Mapping[str, Any],
-) -> tuple[dict[str, tuple[np.ndarray, str, str, tuple[str, ...]]], dict[str, int]]:
-    """Return data ``name -> (array, unit, long_name, dims)`` and all dimension sizes."""
-    dim_sizes = {name: len(values) for name, (values, _, _) in coords.items()}
-    all_dims = tuple(coords)
-    out: dict[str, tuple[np.ndarray, str, str, tuple[str, ...]]] = {}
-    for name, spec in data.items():
-        _check_name(name, "data variable")
-        if name in coords:
-            raise InputError(f"data variable {name!r} has the same name as a coordinate")
-        values, unit, long_name, dims = _unpack(spec, name, "data variable")
-        arr = values if isinstance(values, np.ndarray) else np.asarray(values)
-        if dims is None:
-            dims = all_dims
-            if arr.shape != tuple(dim_sizes[d] for d in dims):
-                raise InputError(
-                    f"data variable {name!r} has shape {arr.shape} but the coordinates "
-                    f"{list(dims)} give {tuple(dim_sizes[d] for d in dims)}; pass "
-                    "(array, unit, long_name, dims) to lay it on other dimensions"
-                )
-        else:
-            if len(dims) != arr.ndim:
-                raise InputError(
-                    f"data variable {name!r}: {len(dims)} dimension names {list(dims)} for "
-                    f"an array of {arr.ndim} dimensions"
-                )
-            for d, n in zip(dims, arr.shape, strict=True):
-                _check_name(d, "dimension")
-                if dim_sizes.setdefault(d, n) != n:
-                    raise InputError(
-                        f"data variable {name!r}: dimension {d!r} has length {n} here but "
-                        f"{dim_sizes[d]} elsewhere"
-                    )
-        out[name] = (_storable(arr, name), unit, long_name, tuple(dims))
-    return out, dim_sizes
+    attrs: Mapping[str, Any] | None = None,
+) -> Any:
+    """Labelled arrays as an :class:`xarray.Dataset` (checked to be storable).
 
+    Parameters
+    ----------
+    coords : mapping
+        ``name -> (values, unit)`` or ``(values, unit, long_name)``: the
+        coordinate axes, 1-D, in dimension order.  Each becomes a dimension
+        and an index coordinate of the same name with ``units`` and
+        ``long_name`` attributes.
+    data : mapping
+        ``name -> (array, unit, long_name)`` (``unit`` and ``long_name`` may
+        be omitted).  By default an array spans all coordinates in order,
+        ``shape == tuple(len(v) for v in coords)`` (any N >= 1).  A fourth
+        item ``dims`` (tuple of dimension names) lays it on a subset, or on
+        extra dimensions without a coordinate.  Floating arrays keep their
+        dtype (float32/float64), integers become int32 (int64 beyond its
+        range), booleans int8; an ``np.memmap`` stays a memory map (it is
+        not copied until written).
+    attrs : mapping, optional
+        Global attributes: strings, numbers or 1-D lists of numbers.
 
-# Instance attributes of scipy's netcdf_file: a global attribute of the same name
-# would overwrite them when the file is read back (scipy sets them with setattr).
-_RESERVED_ATTRS = frozenset(
-    {"dimensions", "filename", "fp", "maskandscale", "mode", "use_mmap", "variables", "version_byte"}
-)
+    Returns
+    -------
+    xarray.Dataset
 
-
-def _attr_value(name: str, value: Any) -> Any:
-    """Convert one attribute to something scipy writes losslessly."""
-    _check_name(name, "attribute")
-    if name in _RESERVED_ATTRS or name.startswith("_"):
-        raise InputError(
-            f"attribute name {name!r} is reserved (scipy's netCDF reader uses it); rename it, "
-            f"e.g. 'chatterlab_{name.lstrip('_')}'"
-        )
-    if isinstance(value, str):
-        return value.encode("utf-8")
-    if isinstance(value, bytes):
-        return value
-    if isinstance(value, bool | np.bool_):
-        return np.int32(int(value))
-    if isinstance(value, int | np.integer):
-        if _INT32.min <= int(value) <= _INT32.max:
-            return np.int32(value)
-        if abs(int(value)) <= 2**53:
-            return np.float64(value)
-        raise InputError(f"attribute {name!r}: integer {value} is too large for netCDF classic")
-    if isinstance(value, float | np.floating):
-        return np.float64(value)  # scipy would write a bare Python float as float32
-    if isinstance(value, Sequence | np.ndarray) and not isinstance(value, str | bytes):
-        arr = np.asarray(value)
-        if arr.ndim == 1 and arr.size and arr.dtype.kind in "biuf":
-            if arr.dtype.kind == "f":
-                return arr.astype(np.float64)
-            return _storable(arr, name)
-    raise InputError(
-        f"attribute {name!r}: cannot store {type(value).__name__} {value!r:.60} as a netCDF "
-        "attribute (use a string, a number or a 1-D list of numbers; e.g. json.dumps a dict)"
-    )
-
-
-def check_attrs(attrs: Mapping[str, Any]) -> None:
-    """Raise :class:`~chatterlab.errors.InputError` if an attribute cannot be stored.
-
-    Use it before a long computation whose result will be written with
-    :func:`write_netcdf`, so that a bad attribute fails early.
+    Raises
+    ------
+    chatterlab.errors.InputError
+        On an invalid name, mismatched shapes, a complex array or an
+        attribute of an unsupported type.
     """
-    for k, v in attrs.items():
-        _attr_value(k, v)
+    import xarray as xr
+
+    cnorm = normalise_coords(coords)
+    dnorm = normalise_data(cnorm, data)
+    variables: dict[str, Any] = {}
+    for name, (values, unit, long_name) in cnorm.items():
+        variables[name] = xr.Variable((name,), values, {"units": unit, "long_name": long_name})
+    for name, (arr, unit, long_name, dims) in dnorm.items():
+        variables[name] = xr.Variable(dims, arr, {"units": unit, "long_name": long_name})
+    encoded = {k: attr_value(k, v) for k, v in (attrs or {}).items()}
+    ds = xr.Dataset(variables, attrs=encoded)
+    for var in ds.variables.values():
+        var.encoding["_FillValue"] = None
+    return ds
 
 
-def _decode_attr(value: Any) -> Any:
-    if isinstance(value, bytes):
-        return value.decode("utf-8", errors="replace")
-    if isinstance(value, np.ndarray):
-        return value.astype(value.dtype.newbyteorder("="))
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.floating):
-        return float(value)
-    return value
+def write_dataset(path: str | os.PathLike[str], ds: Any, *, provenance: bool = True) -> Path:
+    """Write an :class:`xarray.Dataset` to a netCDF-4 file, atomically.
 
+    The global attributes are checked first (see :func:`make_dataset`);
+    provenance attributes are added unless ``provenance=False`` or the
+    dataset sets them already.  No ``_FillValue`` is added to a variable
+    whose encoding does not ask for one.
 
-# --------------------------------------------------------------------------- netCDF
+    Parameters
+    ----------
+    path : path-like
+        Output file (conventionally ``.nc``).
+    ds : xarray.Dataset
+        The dataset, e.g. from :func:`make_dataset` or a result's
+        ``to_xarray()``.
+    provenance : bool, default True
+        Add ``chatterlab_version``, ``created`` and ``command_line`` (see
+        :func:`provenance_attrs`) unless ``ds.attrs`` already sets them.
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+    """
+    path = Path(path)
+    out = ds.copy(deep=False)
+    attrs: dict[str, Any] = dict(provenance_attrs()) if provenance else {}
+    attrs.update(ds.attrs)
+    out.attrs = {k: attr_value(str(k), v) for k, v in attrs.items()}
+    for name, var in out.variables.items():
+        for k, v in var.attrs.items():
+            try:
+                var.attrs[k] = attr_value(str(k), v)
+            except InputError as exc:
+                raise InputError(f"variable {name!r}: {exc}") from None
+        var.encoding.setdefault("_FillValue", None)
+    with atomic_write(path) as tmp:
+        out.to_netcdf(tmp, engine="h5netcdf", format="NETCDF4")
+    return path
 
 
 def write_netcdf(
@@ -341,33 +308,18 @@ def write_netcdf(
     *,
     provenance: bool = True,
 ) -> Path:
-    """Write labelled arrays to a netCDF classic file (atomically).
+    """Write labelled arrays to a netCDF-4 file (atomically):
+    ``write_dataset(path, make_dataset(coords, data, attrs))``.
 
     Parameters
     ----------
     path : path-like
-        Output file (conventionally ``.nc``).  Written to a temporary file in
-        the same directory and renamed on success.
-    coords : mapping
-        ``name -> (values, unit)`` or ``(values, unit, long_name)``: the
-        coordinate axes, 1-D, in dimension order.  Each becomes a dimension
-        and a coordinate variable of the same name with a ``units``
-        attribute.
-    data : mapping
-        ``name -> (array, unit, long_name)`` (``unit`` and ``long_name`` may
-        be omitted).  By default an array spans all coordinates in order,
-        ``shape == tuple(len(v) for v in coords)`` (any N >= 1).  A fourth
-        item ``dims`` (tuple of dimension names) lays it on a subset, or on
-        extra dimensions without a coordinate variable.  float64, float32,
-        integer (stored as int32) and boolean (int8) arrays are accepted;
-        ``np.memmap`` inputs are copied one variable at a time.
-    attrs : mapping, optional
-        Global attributes: strings (stored as UTF-8), numbers (float64 /
-        int32) or 1-D lists of numbers.
+        Output file (conventionally ``.nc``).
+    coords, data, attrs : mapping
+        As for :func:`make_dataset`.
     provenance : bool, default True
-        Add ``chatterlab_version``, ``created`` and ``command_line`` (see
-        :func:`provenance_attrs`) unless ``attrs`` already sets them.  Pass a
-        fixed ``created`` to get byte-identical files for identical data.
+        As for :func:`write_dataset`.  Pass a fixed ``created`` attribute to
+        get byte-identical files for identical data.
 
     Returns
     -------
@@ -380,60 +332,66 @@ def write_netcdf(
         On an invalid name, mismatched shapes, a complex array or an
         attribute of an unsupported type.
     """
-    from scipy.io import netcdf_file
-
-    path = Path(path)
-    cnorm = _normalise_coords(coords)
-    dnorm, dim_sizes = _normalise_data(cnorm, data)
-    all_attrs: dict[str, Any] = dict(provenance_attrs()) if provenance else {}
-    all_attrs.update(attrs or {})
-    encoded = {k: _attr_value(k, v) for k, v in all_attrs.items()}
-
-    with atomic_write(path) as tmp:
-        f = netcdf_file(tmp, "w", version=2, mmap=False)
-        try:
-            for k, v in encoded.items():
-                setattr(f, k, v)
-            for d, n in dim_sizes.items():
-                f.createDimension(d, n)
-            for name, (values, unit, long_name) in cnorm.items():
-                var = f.createVariable(name, values.dtype, (name,))
-                var[:] = values
-                var.units = unit.encode("utf-8")
-                var.long_name = long_name.encode("utf-8")
-            for name, (arr, unit, long_name, dims) in dnorm.items():
-                var = f.createVariable(name, arr.dtype, dims)
-                _copy_into(var.data, arr)
-                var.units = unit.encode("utf-8")
-                var.long_name = long_name.encode("utf-8")
-        finally:
-            f.close()
-    return path
+    return write_dataset(path, make_dataset(coords, data, attrs), provenance=provenance)
 
 
-def _copy_into(dest: np.ndarray, src: np.ndarray, block: int = 1 << 20) -> None:
-    """Copy ``src`` into ``dest`` in blocks so a memmap source is never read whole."""
-    if dest.ndim == 0 or src.size <= block:
-        dest[...] = src
-        return
-    d = dest.reshape(-1)
-    s = src.reshape(-1)
-    for i in range(0, s.size, block):
-        d[i : i + block] = s[i : i + block]
+def _engine(path: Path) -> str:
+    """The xarray engine for a netCDF file, from its first bytes."""
+    if not path.exists():
+        raise InputError(f"netCDF file {str(path)!r} does not exist")
+    if path.is_dir():
+        raise InputError(f"{str(path)!r} is a directory, not a netCDF file")
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    if head[:4] in _CDF_MAGIC:
+        if head[:4] == b"CDF\x05":
+            raise InputError(
+                f"{str(path)!r} is a netCDF-3 {_CDF_MAGIC[head[:4]]} file, which chatterlab does not "
+                "read; convert it with `nccopy -k nc4 IN OUT`"
+            )
+        return "scipy"
+    return "h5netcdf"  # HDF5 (its signature may also follow a user block)
+
+
+def _open(path: Path) -> Any:
+    import xarray as xr
+
+    engine = _engine(path)
+    kind = "netCDF-3" if engine == "scipy" else "netCDF-4 (HDF5)"
+    try:
+        return xr.open_dataset(path, engine=engine, decode_cf=False)
+    except (OSError, ValueError, TypeError, KeyError) as exc:
+        raise InputError(
+            f"{str(path)!r} is not a readable {kind} file ({type(exc).__name__}: {exc})"
+        ) from None
+
+
+def read_dataset(path: str | os.PathLike[str]) -> Any:
+    """Read a netCDF file into memory as an :class:`xarray.Dataset`.
+
+    netCDF-4 (HDF5) files and classic netCDF-3 files (64-bit offsets, as
+    chatterlab 0.1 wrote them) are read; the values and attributes are as
+    stored (no CF decoding: no masking, no time conversion).  The file is
+    closed on return.
+    """
+    with _open(Path(path)) as ds:
+        return ds.load()
 
 
 def read_netcdf(path: str | os.PathLike[str], *, mmap: bool = False) -> LabelledData:
-    """Read a netCDF classic file written by :func:`write_netcdf` (or any other).
+    """Read a netCDF file written by :func:`write_netcdf` (or any other).
 
     Parameters
     ----------
     path : path-like
-        The file.
+        The file: netCDF-4 (HDF5) or classic netCDF-3.
     mmap : bool, default False
-        If True, data variables are returned as read-only :class:`numpy.memmap`
-        arrays on the file (big-endian dtype, as stored) instead of being read
-        into memory; useful for very large sweeps.  Coordinates are always
-        copied.
+        If True, the data variables of a netCDF-4 file that are stored
+        contiguously (as :func:`write_netcdf` stores them) are returned as
+        read-only :class:`numpy.memmap` arrays on the file instead of being
+        read into memory; useful for very large sweeps.  Coordinates,
+        netCDF-3 files and chunked or compressed variables are read into
+        memory.
 
     Returns
     -------
@@ -442,69 +400,44 @@ def read_netcdf(path: str | os.PathLike[str], *, mmap: bool = False) -> Labelled
         name equals its dimension is a coordinate; every other variable is a
         data variable.
     """
-    from scipy.io import netcdf_file
-
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"netCDF file {str(path)!r} does not exist")
+    ds = _open(path)
     try:
-        f = netcdf_file(path, "r", mmap=True)
-    except (TypeError, ValueError, OSError) as exc:
-        raise InputError(f"{str(path)!r} is not a readable netCDF classic file: {exc}") from exc
-    try:
-        attrs, coords, data, dims, offsets = _read_contents(f, mmap)
+        maps = (
+            _contiguous(path, [str(n) for n in ds.data_vars]) if mmap and _engine(path) == "h5netcdf" else {}
+        )
+        lazy = ds.drop_vars(list(maps))
+        parts = LabelledData.from_dataset(lazy)
+        data = dict(parts.data)
+        for name, (offset, dtype, shape) in maps.items():
+            var = ds.variables[name]
+            unit = str(decode_attr(var.attrs.get("units", "")))
+            long_name = str(decode_attr(var.attrs.get("long_name", name)))
+            data[name] = (np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape), unit, long_name)
+            parts.dims[name] = tuple(str(d) for d in var.dims)
+        order = [str(n) for n in ds.data_vars]
+        data = {k: data[k] for k in order if k in data} | data
     finally:
-        f.close()  # no array on the mmap survives _read_contents
-    for name, (off, dtype, shape) in offsets.items():
-        _, unit, long_name = data[name]
-        arr = np.memmap(path, dtype=dtype, mode="r", offset=off, shape=shape)
-        data[name] = (arr, unit, long_name)
-    return LabelledData(coords=coords, data=data, attrs=attrs, dims=dims)
+        ds.close()
+    return LabelledData(coords=parts.coords, data=data, attrs=parts.attrs, dims=parts.dims)
 
 
-def _read_contents(f: Any, mmap: bool) -> tuple[dict, dict, dict, dict, dict]:
-    # scipy exposes attributes only as ``_attributes`` (xarray reads them the same way).
-    attrs = {k: _decode_attr(v) for k, v in f._attributes.items()}
-    coords: dict[str, tuple[np.ndarray, str]] = {}
-    data: dict[str, tuple[np.ndarray, str, str]] = {}
-    dims: dict[str, tuple[str, ...]] = {}
-    offsets: dict[str, tuple[int, np.dtype, tuple[int, ...]]] = {}
-    for name, var in f.variables.items():
-        vattrs = {k: _decode_attr(v) for k, v in var._attributes.items()}
-        unit = str(vattrs.get("units", ""))
-        long_name = str(vattrs.get("long_name", name))
-        arr = var.data
-        native = arr.dtype.newbyteorder("=")
-        if tuple(var.dimensions) == (name,):
-            coords[name] = (np.array(arr, dtype=native), unit)
-            continue
-        dims[name] = tuple(var.dimensions)
-        off = _offset_in_file(arr) if mmap else None
-        if off is not None:
-            offsets[name] = (off, arr.dtype, arr.shape)
-            data[name] = (np.empty(0), unit, long_name)  # replaced by a memmap after close
-        else:
-            data[name] = (np.array(arr, dtype=native), unit, long_name)
-    order = list(f.dimensions)
-    coords = {k: coords[k] for k in order if k in coords} | coords
-    return attrs, coords, data, dims, offsets
+def _contiguous(path: Path, names: list[str]) -> dict[str, tuple[int, np.dtype, tuple[int, ...]]]:
+    """``name -> (byte offset, dtype, shape)`` of the HDF5 datasets stored in
+    one contiguous, unfiltered block (h5py's public ``DatasetID.get_offset``)."""
+    import h5py
 
-
-def _offset_in_file(arr: np.ndarray) -> int | None:
-    """Byte offset of a scipy mmap-backed variable in its file, or None if unknown."""
-    base = arr.base
-    if (
-        arr.size == 0
-        or not isinstance(base, np.ndarray)
-        or base.ndim != 1
-        or base.dtype != np.int8
-        or not arr.flags.c_contiguous
-    ):
-        return None
-    off = arr.__array_interface__["data"][0] - base.__array_interface__["data"][0]
-    if off < 0 or off + arr.nbytes > base.nbytes:
-        return None
-    return int(off)
+    out: dict[str, tuple[int, np.dtype, tuple[int, ...]]] = {}
+    with h5py.File(path, "r") as f:
+        for name in names:
+            d = f.get(name)
+            if not isinstance(d, h5py.Dataset) or d.chunks is not None or d.compression is not None:
+                continue
+            offset = d.id.get_offset()
+            if offset is None or d.size == 0 or d.dtype.kind not in "biuf":
+                continue
+            out[name] = (int(offset), d.dtype, tuple(d.shape))
+    return out
 
 
 # --------------------------------------------------------------------------- CSV
@@ -546,10 +479,10 @@ def write_csv(
         The written path.
     """
     path = Path(path)
-    cnorm = _normalise_coords(coords)
+    cnorm = normalise_coords(coords)
     if not cnorm:
         raise InputError("write_csv needs at least one coordinate")
-    dnorm, _ = _normalise_data(cnorm, data)
+    dnorm = normalise_data(cnorm, data)
     full = tuple(cnorm)
     for name, (_, _, _, dims) in dnorm.items():
         if dims != full:
@@ -564,7 +497,7 @@ def write_csv(
     flat = [a.reshape(-1) for a, _, _, _ in dnorm.values()]
     texts = []
     for name, (codes, labels) in (coded or {}).items():
-        _check_name(name, "column")
+        check_name(name, "column")
         c = np.asarray(codes)
         if c.shape != shape:
             raise InputError(f"write_csv: coded column {name!r} has shape {c.shape}, the grid {shape}")

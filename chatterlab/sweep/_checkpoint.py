@@ -73,11 +73,20 @@ def _open_checkpoint(
         )
     if old["outputs"] != manifest["outputs"]:
         raise InputError(f"{refuse}: outputs {old['outputs']} there, {manifest['outputs']} now{fix}")
+    if (old.get("fingerprint_source"), old.get("fingerprint_method")) == ("auto", None) and manifest.get(
+        "fingerprint_source"
+    ) == "auto":
+        raise InputError(
+            f"{where} was written by an earlier chatterlab (0.1), whose automatic fingerprint of the function is "
+            "computed differently, so nothing shows that its results come from this function; start "
+            "afresh: delete the directory, or give another checkpoint=DIR (CLI: --checkpoint DIR) "
+            "without resume=True (CLI: --resume)"
+        )
     if old["fingerprint"] != manifest["fingerprint"]:
         raise InputError(
-            f"{refuse}: the function/model fingerprint differs ({str(old['fingerprint'])[:16]} "
-            f"there, {str(manifest['fingerprint'])[:16]} now), so the saved results may come "
-            f"from another model{fix}"
+            f"{refuse}: the function/model fingerprint differs "
+            f"({_fingerprint_diff(old['fingerprint'], manifest['fingerprint'])}), so the saved "
+            f"results may come from another model{fix}"
         )
     if chunk_size is not None and chunk_size != old["chunk_size"]:
         raise InputError(
@@ -130,6 +139,33 @@ def _lock_checkpoint(directory: Path) -> Any:
         elif p.name.startswith(".") and ".tmp-" in p.name:
             p.unlink(missing_ok=True)
     return fh
+
+
+def _fingerprint_diff(old: Any, new: Any) -> str:
+    """Where two fingerprints differ, in words: the first differing entry of
+    a mapping (its name: a caller names each option), or of a ``|``-joined
+    string, or the two strings from their first difference."""
+
+    def short(x: Any) -> str:
+        t = str(x)
+        return repr(t if len(t) <= 40 else t[:37] + "...")
+
+    if isinstance(old, dict) and isinstance(new, dict):
+        for k in [*old, *(k for k in new if k not in old)]:
+            if old.get(k) != new.get(k):
+                a = short(old[k]) if k in old else "unset"
+                b = short(new[k]) if k in new else "unset"
+                return f"{k} is {a} there, {b} now"
+    if isinstance(old, str) and isinstance(new, str):
+        pa, pb = old.split("|"), new.split("|")
+        if len(pa) == len(pb) > 1:
+            i = next(i for i, (x, y) in enumerate(zip(pa, pb, strict=True)) if x != y)
+            return f"part {i + 1} of {len(pa)}: {short(pa[i])} there, {short(pb[i])} now"
+        i = next(
+            (i for i, (x, y) in enumerate(zip(old, new, strict=False)) if x != y), min(len(old), len(new))
+        )
+        return f"{short(old[max(0, i - 4) :])} there, {short(new[max(0, i - 4) :])} now"
+    return f"{short(old)} there, {short(new)} now"
 
 
 def _grid_diff(a: Grid, b: Grid) -> str:

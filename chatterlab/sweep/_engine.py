@@ -58,10 +58,8 @@ streams the result to a netCDF file (``SweepResult.from_netcdf`` reads it).
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 import os
-import pickle
 import re
 import shutil
 import sys
@@ -103,6 +101,7 @@ __all__ = [
 Backend = Literal["loky", "serial", "dask"]
 
 _MAX_CHUNK = 4096
+_FINGERPRINT_METHOD = "joblib.hash-sha1 v1"  # of the automatic fingerprint (manifest)
 _CHUNKS_PER_JOB = 32
 
 
@@ -110,49 +109,71 @@ _CHUNKS_PER_JOB = 32
 
 
 def _auto_fingerprint(func: Callable[..., Any]) -> str:
-    """A hash of the function's identity and of the data bound to it (best effort).
+    """A :func:`joblib.hash` of the function's identity, code and bound data (best effort).
 
-    Covers the module and qualified name, the bytecode and simple constants,
-    ``functools.partial`` arguments, the instance of a bound method, closure
-    cells and defaults, or the object itself for a callable instance.  Bound
-    data are hashed through pickle (their ``repr``, with memory addresses
-    removed, when they do not pickle).
+    Covers the module and qualified name, the source code (the bytecode
+    where the source cannot be found), ``functools.partial`` arguments, the
+    instance of a bound method, closure cells and defaults, or the object
+    itself for a callable instance.  joblib hashes NumPy arrays by content
+    and dictionaries whatever their order; data that joblib cannot hash
+    count by their ``repr`` with memory addresses removed.
     """
+    import inspect
 
-    def blob(obj: Any) -> bytes:
-        try:
-            return pickle.dumps(obj, protocol=4)
-        except Exception:  # noqa: BLE001 - unpicklable: fall back to the repr
-            return re.sub(r"0x[0-9a-fA-F]+", "0x?", repr(obj)).encode()
-
-    h = hashlib.sha256()
+    parts: list[Any] = []
     f: Any = func
     while isinstance(f, functools.partial):
-        h.update(b"partial:" + blob((f.args, sorted(f.keywords.items()))))
+        parts.append(("partial", f.args, sorted(f.keywords.items())))
         f = f.func
-    ident = f"{getattr(f, '__module__', '')}.{getattr(f, '__qualname__', type(f).__qualname__)}"
-    h.update(ident.encode())
+    parts.append(
+        ("name", f"{getattr(f, '__module__', '')}.{getattr(f, '__qualname__', type(f).__qualname__)}")
+    )
     owner = getattr(f, "__self__", None)
     if owner is not None and not isinstance(owner, type(sys)):
-        h.update(b"self:" + blob(owner))  # a bound method: the model instance matters
+        parts.append(("self", owner))  # a bound method: the model instance matters
     code = getattr(f, "__code__", None)
     if code is not None:
-        h.update(code.co_code)
-        simple = [c for c in code.co_consts if isinstance(c, int | float | str | bytes | None)]
-        h.update(repr(simple).encode())
-        cells = getattr(f, "__closure__", None) or ()
-        bound = []
-        for cell in cells:
+        try:
+            parts.append(("source", inspect.getsource(f)))
+        except (OSError, TypeError):
+            simple = [c for c in code.co_consts if isinstance(c, int | float | str | bytes | None)]
+            parts.append(("code", code.co_code, simple))
+        cells = []
+        for cell in getattr(f, "__closure__", None) or ():
             try:
-                bound.append(cell.cell_contents)
+                cells.append(cell.cell_contents)
             except ValueError:  # an empty cell
-                bound.append(None)
-        h.update(
-            b"bound:" + blob((bound, getattr(f, "__defaults__", None), getattr(f, "__kwdefaults__", None)))
-        )
+                cells.append(None)
+        parts.append(("bound", cells, getattr(f, "__defaults__", None), getattr(f, "__kwdefaults__", None)))
     elif owner is None and not isinstance(f, type):
-        h.update(blob(f))  # a callable object, e.g. a frozen model with __call__
-    return h.hexdigest()
+        parts.append(("object", f))  # a callable object, e.g. a frozen task with __call__
+    return _hash([_hashable(p) for p in parts])
+
+
+def _caller_fingerprint(fingerprint: str | Mapping[str, Any]) -> str | dict[str, str]:
+    """The caller's fingerprint as stored in the manifest (a mapping as text values)."""
+    if isinstance(fingerprint, str):
+        return fingerprint
+    if isinstance(fingerprint, Mapping):
+        return {str(k): str(v) for k, v in fingerprint.items()}
+    raise InputError(
+        f"fingerprint must be a string or a mapping name -> value (got {type(fingerprint).__name__})"
+    )
+
+
+def _hash(obj: Any) -> str:
+    import joblib
+
+    return str(joblib.hash(obj, hash_name="sha1"))
+
+
+def _hashable(part: Any) -> Any:
+    """``part``, or its address-free ``repr`` when joblib cannot hash it."""
+    try:
+        _hash(part)
+    except Exception:  # noqa: BLE001 - unpicklable: fall back to the repr
+        return re.sub(r"0x[0-9a-fA-F]+", "0x?", repr(part))
+    return part
 
 
 def _normalise_outputs(
@@ -200,7 +221,7 @@ def sweep(
     chunk_size: int | None = None,
     checkpoint: str | os.PathLike[str] | None = None,
     resume: bool = False,
-    fingerprint: str | None = None,
+    fingerprint: str | Mapping[str, Any] | None = None,
     on_error: Literal["nan", "raise"] = "nan",
     retry_failed: bool = False,
     out: str | os.PathLike[str] | None = None,
@@ -243,11 +264,14 @@ def sweep(
         Continue the sweep saved in ``checkpoint``: load its finished chunks
         and compute only the missing ones.  Refused (InputError) if the
         checkpoint was written for another grid, outputs or fingerprint.
-    fingerprint : str, optional
+    fingerprint : str or mapping, optional
         Identity of the function and its model (e.g. a hash of the model
-        file), stored in the manifest and compared on resume.  Default: a hash
-        of the function's module, name, bytecode and ``partial`` arguments,
-        which is best effort -- pass your own to be safe.
+        file), stored in the manifest and compared on resume.  A mapping
+        ``{name: value}`` (e.g. ``{"model": hash, "--terms": "pdo"}``) lets a
+        refused resume name the entry that changed.  Default: a
+        :func:`joblib.hash` of the function's module, name, source code and
+        bound data (``partial`` arguments, closure, instance), which is best
+        effort -- pass your own to be safe.
     on_error : {"nan", "raise"}, default "nan"
         ``"nan"``: a task that raises gets NaN outputs, is recorded in
         ``failures`` and makes the status ``"partial"``.  ``"raise"``: raise
@@ -261,8 +285,8 @@ def sweep(
         ``SweepResult.data`` are memory maps of it.  Not written when the
         sweep is interrupted or raises.
     progress : bool, default True
-        Progress on stderr: a bar on a terminal (tqdm if installed), a line
-        per 10 % otherwise.
+        Progress on stderr: a tqdm bar on a terminal; elsewhere (a log file,
+        a pipe) a line naming the work and one line at the end.
     attrs : mapping, optional
         Attributes for the result and its files (e.g. the model text).
     connect_timeout : float, default 10
@@ -316,6 +340,8 @@ def sweep(
         raise InputError(f"scheduler= is only used with backend='dask' (backend is {backend!r})")
     if not (isinstance(connect_timeout, int | float) and connect_timeout > 0):
         raise InputError(f"connect_timeout must be > 0 seconds (got {connect_timeout!r})")
+    if fingerprint is not None:
+        _caller_fingerprint(fingerprint)  # a string or a mapping
     user_attrs = dict(attrs or {})
     if out is not None:
         check_attrs(user_attrs)  # fail now, not after the computation
@@ -352,7 +378,7 @@ def _sweep_locked(
     chunk_size: int | None,
     ckpt_dir: Path | None,
     resume: bool,
-    fingerprint: str | None,
+    fingerprint: str | Mapping[str, Any] | None,
     on_error: str,
     retry_failed: bool,
     out: str | os.PathLike[str] | None,
@@ -449,7 +475,7 @@ def _chunk_size(
     chunk_size: int | None,
     ckpt_dir: Path | None,
     resume: bool,
-    fingerprint: str | None,
+    fingerprint: str | Mapping[str, Any] | None,
 ) -> int:
     """Tasks per chunk: the caller's, the default, or the checkpoint's when
     resuming (the checkpoint is created or checked here)."""
@@ -463,9 +489,13 @@ def _chunk_size(
         "outputs": units,
         "chunk_size": chunk_size or _default_chunk_size(size, jobs),
         "n_tasks": size,
-        "fingerprint": fingerprint if fingerprint is not None else _auto_fingerprint(func),
+        "fingerprint": _caller_fingerprint(fingerprint)
+        if fingerprint is not None
+        else _auto_fingerprint(func),
         "fingerprint_source": "caller" if fingerprint is not None else "auto",
     }
+    if fingerprint is None:
+        manifest["fingerprint_method"] = _FINGERPRINT_METHOD
     manifest = _open_checkpoint(ckpt_dir, manifest, resume, chunk_size)
     return int(manifest["chunk_size"])
 

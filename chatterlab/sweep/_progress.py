@@ -1,4 +1,5 @@
-"""Progress of a sweep on stderr."""
+"""Progress of a sweep on stderr: a tqdm bar on a terminal, one line at the
+end elsewhere (a log file gets no carriage returns), nothing when disabled."""
 
 from __future__ import annotations
 
@@ -6,80 +7,51 @@ import sys
 import time
 from typing import Any
 
-# =========================================================================== progress
-
 
 class _Progress:
-    """tqdm on a terminal (a plain bar without tqdm), a line per ~10 % otherwise."""
+    """The progress of ``total`` points of which ``initial`` are already done
+    (resumed).  ``note`` prints a line above the bar; ``close`` (idempotent:
+    called on success and on an interrupt) ends the bar, or prints the one
+    line ``DESC: PCT% (N/TOTAL points, T s)`` when stderr is not a terminal."""
 
     def __init__(self, total: int, initial: int, enabled: bool, desc: str) -> None:
         self.total, self.n, self.desc = total, initial, desc
-        self.mode = "off"
+        self.enabled = enabled and total > 0
         self._bar: Any = None
         self._t0 = time.monotonic()
-        self._last = 0.0
-        self._next_decile = 1 + (10 * initial) // max(total, 1)
-        if not enabled or total <= 0:
-            return
-        stream = sys.stderr
-        tty = bool(getattr(stream, "isatty", lambda: False)())
-        if tty:
-            try:
-                from tqdm import tqdm
+        if self.enabled and bool(getattr(sys.stderr, "isatty", lambda: False)()):
+            from tqdm import tqdm
 
-                self._bar = tqdm(
-                    total=total,
-                    initial=initial,
-                    unit="pt",
-                    desc=desc,
-                    file=stream,
-                    dynamic_ncols=True,
-                    mininterval=0.2,
-                )
-                self.mode = "tqdm"
-            except ImportError:
-                self.mode = "bar"
-        else:
-            self.mode = "lines"
+            self._bar = tqdm(
+                total=total,
+                initial=initial,
+                unit="pt",
+                desc=desc,
+                file=sys.stderr,
+                dynamic_ncols=True,
+                mininterval=0.2,
+            )
 
     def note(self, text: str) -> None:
-        if self.mode == "lines":
-            print(f"{self.desc}: {text}", file=sys.stderr, flush=True)
-        elif self.mode == "tqdm":
+        if self._bar is not None:
             self._bar.write(f"{self.desc}: {text}", file=sys.stderr)
-        elif self.mode == "bar":
-            print(f"\r{self.desc}: {text}", file=sys.stderr, flush=True)
+        elif self.enabled:
+            print(f"{self.desc}: {text}", file=sys.stderr, flush=True)
 
     def update(self, k: int) -> None:
         self.n += k
-        if self.mode == "tqdm":
+        if self._bar is not None:
             self._bar.update(k)
-        elif self.mode == "bar":
-            now = time.monotonic()
-            if now - self._last >= 0.2 or self.n >= self.total:
-                self._last = now
-                frac = self.n / self.total
-                bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
-                print(
-                    f"\r{self.desc}: [{bar}] {100 * frac:5.1f}% {self.n}/{self.total} {now - self._t0:.1f} s",
-                    end="",
-                    file=sys.stderr,
-                    flush=True,
-                )
-        elif self.mode == "lines":
-            decile = (10 * self.n) // self.total
-            if decile >= self._next_decile:
-                self._next_decile = decile + 1
-                el = time.monotonic() - self._t0
-                print(
-                    f"{self.desc}: {10 * decile:3d}% ({self.n}/{self.total} points, {el:.1f} s)",
-                    file=sys.stderr,
-                    flush=True,
-                )
 
     def close(self) -> None:
-        if self.mode == "tqdm":
+        if not self.enabled:
+            return
+        self.enabled = False
+        if self._bar is not None:
             self._bar.close()
-        elif self.mode == "bar":
-            print(file=sys.stderr, flush=True)
-        self.mode = "off"
+            return
+        pct = 100 * self.n // self.total
+        el = time.monotonic() - self._t0
+        print(
+            f"{self.desc}: {pct:3d}% ({self.n}/{self.total} points, {el:.1f} s)", file=sys.stderr, flush=True
+        )

@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from chatterlab.errors import InputError
-from chatterlab.io._netcdf import read_netcdf, write_csv, write_netcdf
+from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_csv, write_dataset
 
 from ._grid import Axis, Grid
 
@@ -161,8 +161,25 @@ class SweepResult:
             )
         }
 
+    def to_xarray(self) -> Any:
+        """The result as an :class:`xarray.Dataset`, losslessly.
+
+        Grid axes are index coordinates (``units``), outputs data variables
+        (``units``, ``long_name``), the per-point ``task_status`` a data
+        variable, and ``attrs`` plus the run status (``status``,
+        ``message``, ``n_failed``, ``reasons`` and the first failures as
+        JSON) global attributes: :meth:`from_xarray` gives the result back.
+        Memory-mapped outputs stay memory maps until the dataset is written.
+        """
+        return make_dataset(self.grid.coords, self._data_specs() | self._status_spec(), self.file_attrs())
+
+    def to_dataset(self) -> Any:
+        """The same as :meth:`to_xarray` (the name of chatterlab 0.1)."""
+        return self.to_xarray()
+
     def to_netcdf(self, path: str | os.PathLike[str], *, provenance: bool = True) -> Path:
-        """Write a netCDF classic file (see :func:`chatterlab.io._netcdf.write_netcdf`).
+        """Write :meth:`to_xarray` to a netCDF-4 file, atomically (see
+        :func:`chatterlab.io.write_dataset`).
 
         Grid axes become coordinate variables, outputs data variables with
         ``units`` and ``long_name``; ``attrs``, ``status``, ``message``,
@@ -170,13 +187,7 @@ class SweepResult:
         attributes, plus provenance unless ``provenance=False`` or ``attrs``
         fixes it (e.g. ``attrs={"created": "..."}`` for reproducible bytes).
         """
-        return write_netcdf(
-            path,
-            self.grid.coords,
-            self._data_specs() | self._status_spec(),
-            self.file_attrs(),
-            provenance=provenance,
-        )
+        return write_dataset(path, self.to_xarray(), provenance=provenance)
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write a long-format CSV file: one row per grid point, header ``name [unit]``,
@@ -192,8 +203,19 @@ class SweepResult:
 
     @classmethod
     def from_netcdf(cls, path: str | os.PathLike[str], *, mmap: bool = False) -> SweepResult:
-        """Read a file written by :meth:`to_netcdf` (or by ``sweep(..., out=path)``)."""
-        f = read_netcdf(path, mmap=mmap)
+        """Read a file written by :meth:`to_netcdf` (or by ``sweep(..., out=path)``;
+        also the netCDF-3 files of chatterlab 0.1).  ``mmap=True``: the outputs
+        are memory maps of the file (see :func:`chatterlab.io.read_netcdf`)."""
+        return cls._from_labelled(read_netcdf(path, mmap=mmap))
+
+    @classmethod
+    def from_xarray(cls, ds: Any) -> SweepResult:
+        """The result from a dataset made by :meth:`to_xarray` (or read from
+        its file with :func:`chatterlab.io.read_dataset`)."""
+        return cls._from_labelled(LabelledData.from_dataset(ds))
+
+    @classmethod
+    def _from_labelled(cls, f: LabelledData) -> SweepResult:
         grid = Grid({n: (v, u) for n, (v, u) in f.coords.items()})
         attrs = dict(f.attrs)
         status = str(attrs.pop("status", "ok"))
@@ -236,22 +258,6 @@ class SweepResult:
             task_status=task_status,
             reasons=reasons,
         )
-
-    def to_dataset(self) -> Any:
-        """An :class:`xarray.Dataset` (needs xarray: ``pip install xarray``)."""
-        try:
-            import xarray as xr
-        except ImportError:
-            raise ImportError(
-                "SweepResult.to_dataset needs xarray, which chatterlab does not depend on: pip install xarray"
-            ) from None
-        names = self.grid.names
-        coords = {a.name: (a.name, np.asarray(a.values), {"units": a.unit}) for a in self.grid.axes}
-        data_vars = {
-            n: (names, np.asarray(a), {"units": u, "long_name": ln})
-            for n, (a, u, ln) in self._data_specs().items()
-        }
-        return xr.Dataset(data_vars, coords=coords, attrs=self.file_attrs())
 
     # ------------------------------------------------------------------ plotting
 
