@@ -1,5 +1,5 @@
-"""Files: netCDF (labelled, with provenance), CSV and JSON writers, atomic
-output handling.  Imports nothing of the analyses."""
+"""Files: netCDF through xarray (labelled, with provenance), CSV and JSON
+writers, atomic output handling.  Imports nothing of the analyses."""
 
 from __future__ import annotations
 
@@ -29,9 +29,12 @@ from ._netcdf import (
     LabelledData,
     atomic_write,
     check_attrs,
+    make_dataset,
     provenance_attrs,
+    read_dataset,
     read_netcdf,
     write_csv,
+    write_dataset,
     write_netcdf,
 )
 
@@ -48,9 +51,12 @@ __all__ = [
     "LabelledData",
     "atomic_write",
     "check_attrs",
+    "make_dataset",
     "provenance_attrs",
+    "read_dataset",
     "read_netcdf",
     "write_csv",
+    "write_dataset",
     "write_netcdf",
     "FRF_SUFFIXES",
     "FRFTable",
