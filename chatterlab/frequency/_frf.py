@@ -234,12 +234,13 @@ class FRF:
 
         return control.FrequencyResponseData(self.data, self.omega)
 
-    def plot(self, output: int | str = 0, input: int | str = 0, axes: Any = None, **kw: Any) -> Any:
-        """Magnitude (log) and phase against frequency (Hz); returns the two
-        Axes.  Imports matplotlib."""
-        from ..plot._plot import plot_frf
+    def plot(self, output: int | str = 0, input: int | str = 0, ax: Any = None, **kw: Any) -> Any:
+        """Magnitude (log) and phase against frequency (Hz), or ``part="reim"``;
+        keywords of :func:`chatterlab.plot.plot_frf`.  Returns the two Axes.
+        Imports matplotlib."""
+        from ..plot import plot_frf
 
-        return plot_frf([self], output=output, input=input, axes=axes, **kw)
+        return plot_frf([self], output=output, input=input, ax=ax, **kw)
 
 
 # --------------------------------------------------------------------------- FRF

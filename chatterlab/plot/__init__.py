@@ -17,7 +17,7 @@ from ._lobes import plot_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
-from ._time import plot_histories, plot_spectra, plot_time_response
+from ._time import plot_histories, plot_outputs, plot_spectra, plot_time_response
 
 __all__ = [
     "plot_frf",
@@ -29,6 +29,7 @@ __all__ = [
     "plot_histories",
     "plot_spectra",
     "plot_time_response",
+    "plot_outputs",
     "plot_mode_shapes",
     "plot_frequencies",
     "plot_sweep",

@@ -6,7 +6,8 @@
 * :func:`plot_spectra` -- amplitude spectra of one output for several runs;
 * :func:`plot_time_response` -- one run as an engineer reads it: tool-point
   displacement, cutting force, and the spectrum with the chatter frequency
-  and the tooth-passing (regeneration) frequency and its harmonics marked.
+  and the tooth-passing (regeneration) frequency and its harmonics marked;
+* :func:`plot_outputs` -- rows of a generic response against time.
 """
 
 from __future__ import annotations
@@ -234,3 +235,26 @@ def _spectrum_panel(
     ax.set_ylabel(f"amplitude of {output} [um]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="center right")
+
+
+def plot_outputs(
+    t: np.ndarray,
+    rows: np.ndarray,
+    labels: Sequence[str],
+    *,
+    ylabel: str = "",
+    ax: Any = None,
+    **kwargs: Any,
+) -> Any:
+    """Rows of a response (n_rows, n_t) against time t (s), one line each
+    with its label (``kwargs`` go to ``Axes.plot``).  Returns the Axes."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots()
+    for row, lab in zip(np.atleast_2d(rows), labels, strict=True):
+        ax.plot(t, row, label=lab, **kwargs)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(ylabel)
+    ax.legend()
+    return ax

@@ -256,10 +256,8 @@ class TimeResponse:
         **kwargs: Any,
     ) -> Any:
         """Plot outputs against time with matplotlib; returns the Axes."""
-        import matplotlib.pyplot as plt
+        from ..plot import plot_outputs
 
-        if ax is None:
-            _, ax = plt.subplots()
         rows = (
             range(self.q.shape[0])
             if coords is None
@@ -267,10 +265,5 @@ class TimeResponse:
         )
         arr = self._field(field)
         labels = self._labels()
-        for c in rows:
-            i = self._row(c)
-            ax.plot(self.t, arr[i], label=labels[i], **kwargs)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel(field)
-        ax.legend()
-        return ax
+        idx = [self._row(c) for c in rows]
+        return plot_outputs(self.t, arr[idx], [labels[i] for i in idx], ylabel=field, ax=ax, **kwargs)

@@ -191,13 +191,15 @@ class Simulation:
         names: list[str] | None = None,
         *,
         against: Literal["time", "distance"] = "time",
+        ax: Any = None,
         axes: Any = None,
     ) -> Any:
         """Time histories (or against the cut distance) of outputs, one panel
-        each; returns the Axes."""
-        from ..plot._plot import plot_histories
+        each (``axes=`` is a deprecated alias of ``ax=``); returns the Axes.
+        One run with its force and spectrum: :func:`chatterlab.plot.plot_time_response`."""
+        from ..plot import plot_histories
 
-        return plot_histories([self], names or list(self.data)[:2], against=against, axes=axes)
+        return plot_histories([self], names or list(self.data)[:2], against=against, ax=ax, axes=axes)
 
 
 def _var(name: str) -> str:
