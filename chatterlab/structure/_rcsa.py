@@ -30,16 +30,20 @@ to displacement) only.  Two ways to the rest, both here:
 
 * **finite differences** (:func:`rotations_from_translations`): measure
   the translational receptances at the holder end (0) and at one or two
-  points a distance ``s`` apart back along the axis; then, first order,
-  n_ff ~ (h_00 - h_10)/s, h_fm = n_ff (reciprocity) and
+  points a distance ``s`` apart back along the axis; then, with two
+  points, n_ff ~ (h_00 - h_10)/s, h_fm = n_ff (reciprocity) and
   n_fm ~ (h_00 - h_01 - h_10 + h_11)/s^2 (Duarte & Ewins [4]), or the
-  second-order three-point differences.  Cost: a truncation error O(s)
-  (O(s^2)) -- for a cantilever of length L the first-order n_fm is off by
-  about s/L statically (8 % for s = 10 mm on 80 mm) -- and the noise
-  amplified by ~1/s for n_ff and ~2/s^2 for n_fm relative to the
-  displacement noise, since n_fm is a small second difference of large
-  receptances (cancellation ~ (L/s)^2).  The reason RCSA is done with
-  rotations from a model where one exists;
+  three-point differences.  Cost, measured in tests/test_rcsa.py on a
+  cantilever: the rotation per force errs by O(s^2), the rotation per
+  moment by O(s) (a force couple is not a pure moment over the stencil:
+  ~ s / L, 3 % at s = 4 mm on an 80 mm holder with two points, half that
+  with three); differences of the deflection give its slope, which on a
+  stubby Timoshenko holder includes the shear angle (9 % on the cross
+  term of a 40 mm x 80 mm steel holder), and a couple on a short segment
+  shears it (a spurious 1 / (kappa G A s)); the noise is amplified by ~1/s
+  for n_ff and ~2/s^2 for n_fm relative to the displacement noise, since
+  n_fm is a small second difference of large receptances.  The reason RCSA
+  is done with rotations from a model where one exists;
 * **a model of the holder** (a chatterlab model, or a modal fit's model),
   whose rotation receptances are computed (:func:`receptance`).
 
@@ -171,8 +175,10 @@ def rotations_from_translations(H: Any, spacing: float) -> np.ndarray:
     by finite differences (Duarte & Ewins [4]).
 
     ``H`` is (n_freq, n_p, n_p): h_ij = displacement at i per force at j,
-    n_p = 2 (first order: theta_0 ~ (y_0 - y_1)/s, error O(s)) or n_p = 3
-    (second order: theta_0 ~ (3 y_0 - 4 y_1 + y_2)/(2 s), error O(s^2)).
+    n_p = 2 (theta_0 ~ (y_0 - y_1)/s) or n_p = 3 (theta_0 ~ (3 y_0 - 4 y_1 +
+    y_2)/(2 s)); the errors (module docstring): O(s^2) on the rotation per
+    force, O(s) on the rotation per moment (half as large with three
+    points), plus the shear of a Timoshenko holder.
     With the difference row d (d = (1, -1)/s or (3, -4, 1)/(2 s)) and
     e_0 = (1, 0[, 0]): [[e H e^T, e H d^T], [d H e^T, d H d^T]] -- a
     moment is applied as the force couple d, a rotation read as d y.
