@@ -86,6 +86,7 @@ from chatterlab.errors import InputError
 
 from ._band import SIGMA_TAU, band_top, certified_top
 from ._branches import AXIS_GRID_MAX, branch_roots
+from ._checks import check_count, check_integer, check_omega_max
 from ._collocation import WINDOW_MAX, chebyshev_nodes
 from ._delay_system import (
     DelaySystem,
@@ -142,14 +143,6 @@ def _no_delay(sys: DelaySystem, count: int, t0: float) -> RootsResult:
     return make_result(ev, method="eig", n_nodes=(0, 0), rejected=0, status="converged", message=msg, t0=t0)
 
 
-def _check_count(count: Any) -> int:
-    if isinstance(count, bool) or not isinstance(count, int | np.integer):
-        raise InputError(f"count must be an integer >= 1 (got {count!r})")
-    if count < 1:
-        raise InputError(f"count must be >= 1 (got {count})")
-    return int(count)
-
-
 def _dispatch(
     sys: DelaySystem,
     count: Any,
@@ -159,56 +152,22 @@ def _dispatch(
     match_tol: float,
     max_windows: int,
 ) -> RootsResult:
+    """Check the options, then search: the eigenvalues without a delay, the
+    caller's band or nodes when given, else the certified band."""
     t0 = time.perf_counter()
-    count = _check_count(count)
+    count = check_count(count)
     if method not in ("auto", "spectral", "branch"):
         raise InputError(f"method must be 'auto', 'spectral' or 'branch' (got {method!r})")
-    if omega_max is not None:
-        om = float(omega_max)
-        if not math.isfinite(om) or om <= 0:
-            raise InputError(f"omega_max must be finite and > 0 rad/s (got {omega_max!r})")
-        omega_max = om
-    if n_nodes is not None:
-        if isinstance(n_nodes, bool) or not isinstance(n_nodes, int | np.integer) or n_nodes < 2:
-            raise InputError(f"n_nodes must be an integer >= 2 (got {n_nodes!r})")
+    omega_max = check_omega_max(omega_max)
+    check_integer(n_nodes, "n_nodes", 2)
     with single_threaded_blas():
         if not sys.has_delay:
             # every root is an eigenvalue of the linearisation: complete
             return dataclasses.replace(_no_delay(sys, count, t0), complete_above=-math.inf)
         try:
             if omega_max is not None or n_nodes is not None:
-                if method == "branch":
-                    return branch_roots(sys, count, omega_max, t0)
-                return spectral_roots(sys, count, omega_max, n_nodes, match_tol, max_windows, t0)
-            # the band follows from the loop: certified for Re >= sigma, and
-            # widened until it holds the count rightmost roots found
-            sigma = -SIGMA_TAU / sys.tau
-            top = band_top(sys, count, None, sigma)
-            for attempt in range(4):
-                if method == "branch":
-                    res = branch_roots(sys, count, top, t0)
-                else:
-                    res = spectral_roots(sys, count, top, None, match_tol, max_windows, t0)
-                low = float(res.roots.real.min()) if res.roots.size else sigma
-                if not res.converged or low >= sigma:
-                    break
-                sigma2 = low - 1.0 / sys.tau
-                top2 = band_top(sys, count, None, sigma2)
-                if top2 <= top * (1 + 1e-9):
-                    sigma = sigma2  # the band searched already holds every root right of sigma2
-                    break
-                if attempt == 3:
-                    break  # the claim stays the one proven for the band searched
-                top, sigma = top2, sigma2
-            cert = certified_top(sys, sigma) is not None
-            note = (
-                f"; band 0..{top / 2 / math.pi:.5g} Hz holds every root with Re >= {sigma:.4g} 1/s"
-                if cert
-                else f"; band 0..{top / 2 / math.pi:.5g} Hz (not certified by the gain bound)"
-            )
-            return dataclasses.replace(
-                res, message=res.message + note, band_top=top, complete_above=sigma if cert else math.nan
-            )
+                return _search(sys, count, method, omega_max, n_nodes, match_tol, max_windows, t0)
+            return _search_certified(sys, count, method, match_tol, max_windows, t0)
         except TooLarge as exc:
             return make_result(
                 np.zeros(0, complex),
@@ -219,6 +178,55 @@ def _dispatch(
                 message=str(exc),
                 t0=t0,
             )
+
+
+def _search(
+    sys: DelaySystem,
+    count: int,
+    method: str,
+    omega_max: float | None,
+    n_nodes: int | None,
+    match_tol: float,
+    max_windows: int,
+    t0: float,
+) -> RootsResult:
+    """One search by the method asked for, in the band up to ``omega_max``."""
+    if method == "branch":
+        return branch_roots(sys, count, omega_max, t0)
+    return spectral_roots(sys, count, omega_max, n_nodes, match_tol, max_windows, t0)
+
+
+def _search_certified(
+    sys: DelaySystem, count: int, method: str, match_tol: float, max_windows: int, t0: float
+) -> RootsResult:
+    """Search the band that the loop's gain bound certifies for Re >= sigma
+    (sigma = -SIGMA_TAU / tau first), widened (lowering sigma, at most three
+    times) until it holds the ``count`` rightmost roots found; the result says
+    which line the band is proven for (``complete_above``)."""
+    sigma = -SIGMA_TAU / sys.tau
+    top = band_top(sys, count, None, sigma)
+    for attempt in range(4):
+        res = _search(sys, count, method, top, None, match_tol, max_windows, t0)
+        low = float(res.roots.real.min()) if res.roots.size else sigma
+        if not res.converged or low >= sigma:
+            break
+        sigma2 = low - 1.0 / sys.tau
+        top2 = band_top(sys, count, None, sigma2)
+        if top2 <= top * (1 + 1e-9):
+            sigma = sigma2  # the band searched already holds every root right of sigma2
+            break
+        if attempt == 3:
+            break  # the claim stays the one proven for the band searched
+        top, sigma = top2, sigma2
+    cert = certified_top(sys, sigma) is not None
+    note = (
+        f"; band 0..{top / 2 / math.pi:.5g} Hz holds every root with Re >= {sigma:.4g} 1/s"
+        if cert
+        else f"; band 0..{top / 2 / math.pi:.5g} Hz (not certified by the gain bound)"
+    )
+    return dataclasses.replace(
+        res, message=res.message + note, band_top=top, complete_above=sigma if cert else math.nan
+    )
 
 
 def characteristic_roots(
@@ -244,16 +252,11 @@ def characteristic_roots(
 
     Parameters
     ----------
-    M, C, K : array_like, shape (n, n)
-        Inertia (kg, symmetric positive definite), damping (N s/m) and
-        stiffness (N/m).
-    DP, DV : array_like, shape (n, n), optional
-        Proportional (N/m) and velocity (N s/m) feedback matrices.
-    DO : array_like, shape (n, n), or tuple ``(U, V)`` of arrays of shape (n, r), optional
-        Delayed feedback (N/m), dense or factored ``DO = U @ V.T``.  ``None``
-        or zero: no delay, the quadratic eigenvalue problem is solved.
-    tau : float, optional
-        Delay in s, required (> 0) with ``DO``.
+    M, C, K, DP, DV, DO, tau
+        The closed loop, as in :func:`make_system`, which builds the
+        :class:`DelaySystem` searched (:func:`characteristic_roots_system`
+        takes one directly).  ``DO`` None or zero: no delay, the quadratic
+        eigenvalue problem is solved.
     count : int
         Number of rightmost roots wanted (upper half plane and real axis;
         conjugates omitted).

@@ -70,8 +70,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from chatterlab.errors import InputError
-
+from ._checks import check_integer, check_omega_max
 from ._delay_system import DelaySystem, make_system, single_threaded_blas
 from ._phase_sampling import MAX_SAMPLES, Sampler, band_end, initial_grid, phase_change, refine
 
@@ -314,14 +313,10 @@ def rhp_count(
 
     Parameters
     ----------
-    M, C, K : array_like, shape (n, n)
-        Inertia (kg, SPD), damping (N s/m), stiffness (N/m).
-    DP, DV : array_like, shape (n, n), optional
-        Proportional (N/m) and velocity (N s/m) feedback.
-    DO : array_like, shape (n, n), or tuple ``(U, V)`` of shape (n, r), optional
-        Delayed feedback (N/m), ``DO = U @ V.T`` when factored.
-    tau : float, optional
-        Delay in s (> 0 with ``DO``).
+    M, C, K, DP, DV, DO, tau
+        The closed loop, as in :func:`chatterlab.frequency.make_system`
+        (the :class:`~chatterlab.frequency.DelaySystem` they build is what
+        :func:`rhp_count_system` counts on).
     omega_max : float, optional
         Upper end of the sampled band in rad/s; default: 3x the largest
         delay-free eigenfrequency, doubled until :math:`|f - 1| < 10^{-3}`.
@@ -352,20 +347,7 @@ def rhp_count(
        187-196, 1980.
     """
     sys = make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
-    _check_options(omega_max, n_points)
+    check_omega_max(omega_max)
+    check_integer(n_points, "n_points", 2)
     with single_threaded_blas():
         return rhp_count_system(sys, omega_max=omega_max, n_points=n_points, direct=direct)
-
-
-def _check_options(omega_max: Any, n_points: Any) -> None:
-    if omega_max is not None:
-        try:
-            om = float(omega_max)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"omega_max must be a positive number in rad/s (got {omega_max!r})") from exc
-        if not math.isfinite(om) or om <= 0:
-            raise InputError(f"omega_max must be finite and > 0 rad/s (got {omega_max!r})")
-    if n_points is not None and (
-        isinstance(n_points, bool) or not isinstance(n_points, int | np.integer) or n_points < 2
-    ):
-        raise InputError(f"n_points must be an integer >= 2 (got {n_points!r})")
