@@ -14,6 +14,11 @@ into the lobe engine's :class:`~chatterlab.lobes._diagram.Plant`:
   matrices D_P, D_V, D_O at a reference width.  For the classical
   regenerative cut the boundary is Tlusty's b_lim = -1 / (2 K_f Re[n^T H f])
   with the oriented FRF n^T H f [1].
+* **Milling** (zeroth-order approximation, Altintas & Budak [3]): with the
+  2 x 2 FRF on the cutter's (x, y) and the averaged directional matrix H0
+  of :meth:`chatterlab.process.Milling.zoa`, the force F = -a_p H0
+  [r(t) - r(t - tau)] gives D_P = H0, D_O = -H0 per unit axial depth, and
+  the delay is the tooth period tau = 60 / (N n) (uniform pitch only).
 * **The band** is the measured one, never certified: a measured FRF says
   nothing about frequencies it does not cover, so where the diagram finds
   no boundary it says "undetermined", and a finite b_lim is the boundary
@@ -34,11 +39,14 @@ References
    excited vibrations in machining", Int. Res. Prod. Eng., ASME, 465-474, 1963.
 .. [2] Y. Altintas, *Manufacturing Automation*, 2nd ed., Cambridge
    University Press, 2012, ch. 3.3 (lobes from a measured, oriented FRF).
+.. [3] Y. Altintas, E. Budak, "Analytical prediction of stability lobes in
+   milling", CIRP Annals 44(1), 357-362, 1995.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -46,11 +54,12 @@ import numpy as np
 from ..errors import InputError, check_finite, check_nonneg, check_positive, check_width
 from ..frequency._bounds import Band
 from ..model._items import Process
+from ..process._milling import Milling
 from ..structure._measured import MeasuredFRF
 from ._control import _matrices
 from ._diagram import LobeDiagram, Plant, lobes
 
-__all__ = ["measured_plant", "lobes_measured", "regenerative_matrices"]
+__all__ = ["measured_plant", "lobes_measured", "regenerative_matrices", "zoa_matrices"]
 
 
 def regenerative_matrices(
@@ -80,10 +89,26 @@ def regenerative_matrices(
     return Kf * fn, Kv * fn, -Kf * fn
 
 
+def zoa_matrices(milling: Milling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(D_P, D_V, D_O) per unit axial depth (2 x 2, on the cutter's x, y)
+    of the zeroth-order approximation: H0, 0, -H0 with H0 =
+    :meth:`Milling.zoa` (N/m^2), from F = -a_p H0 [r(t) - r(t - tau)]."""
+    if not isinstance(milling, Milling):
+        raise InputError(f"milling must be a chatterlab.process.Milling (got {type(milling).__name__})")
+    if not milling.uniform:
+        raise InputError(
+            "the zeroth-order approximation with one delay needs a uniform pitch; a variable-pitch cutter"
+            " has one delay per tooth: use the Floquet methods"
+        )
+    H0 = np.asarray(milling.zoa(), dtype=float)
+    return H0, np.zeros((2, 2)), -H0
+
+
 def measured_plant(
     frf: MeasuredFRF,
     *,
     coordinates: Sequence[str] | None = None,
+    milling: Milling | None = None,
     Kf: float | None = None,
     force_angle: float = 0.0,
     normal_angle: float = 0.0,
@@ -116,6 +141,10 @@ def measured_plant(
         Instead of ``Kf``: the process matrices at ``width_ref`` (m), the
         CE convention of a model's ``[[coupling]]`` (a 3 x 3 matrix is cut
         to the m measured coordinates).
+    milling : Milling, optional
+        Instead of ``Kf``: milling by the zeroth-order approximation
+        (:func:`zoa_matrices`); ``coordinates`` are then the cutter's x and
+        y (in that order) and the width is the axial depth a_p.
 
     Returns
     -------
@@ -127,7 +156,16 @@ def measured_plant(
         raise InputError(f"expected a MeasuredFRF, got {type(frf).__name__}")
     sub = _driving_point(frf, coordinates)
     m = sub.H.shape[1]
-    if Kf is not None:
+    if milling is not None:
+        if Kf is not None or DP is not None or DV is not None or DO is not None or width_ref is not None:
+            raise InputError("give one process: milling=, Kf= (regenerative cut) or DP/DV/DO with width_ref")
+        if m != 2:
+            raise InputError(
+                f"milling needs the 2 x 2 FRF on the cutter's x and y (got {m} coordinate(s)); name them"
+                " with coordinates=(X, Y)"
+            )
+        P, V, O = zoa_matrices(milling)
+    elif Kf is not None:
         if DP is not None or DV is not None or DO is not None or width_ref is not None:
             raise InputError("give either Kf (regenerative cut) or DP/DV/DO with width_ref, not both")
         P, V, O = regenerative_matrices(m, Kf, force_angle, normal_angle, Kv)
@@ -171,7 +209,8 @@ def lobes_measured(
     frf: MeasuredFRF,
     speeds: np.ndarray,
     *,
-    process: Process,
+    process: Process | None = None,
+    milling: Milling | None = None,
     width_max: float = 0.02,
     fmin: float | None = None,
     fmax: float | None = None,
@@ -183,17 +222,56 @@ def lobes_measured(
     ``Kf``, ``force_angle``, ``normal_angle``, ``Kv``, ``coordinates`` or
     ``DP``/``DV``/``DO``/``width_ref``) handed to :func:`lobes`.  The
     argument-principle checks need matrices and are not run; the band is the
-    measured one (``fmin``/``fmax`` in Hz may narrow it)."""
-    plant = measured_plant(frf, **cut)
-    return lobes(
+    measured one (``fmin``/``fmax`` in Hz may narrow it).
+
+    Milling (``milling=``, no ``process``): ``speeds`` are spindle speeds in
+    rpm, the delay the tooth period 60 / (N n), the width the axial depth;
+    the ZOA plant of :func:`measured_plant`."""
+    label = name or f"measured FRF {frf.source}"
+    if milling is None:
+        if process is None:
+            raise InputError("give the process (process=, the speed -> delay kinematics) or milling=")
+        plant = measured_plant(frf, **cut)
+        return lobes(
+            None,
+            speeds,
+            width_max=width_max,
+            process=process,
+            fmin=fmin,
+            fmax=fmax,
+            n_frequencies=n_frequencies,
+            verify=0,
+            plant=plant,
+            name=label,
+        )
+    if process is not None:
+        raise InputError("milling sets the delay (the tooth period): give milling= or process=, not both")
+    plant = measured_plant(frf, milling=milling, **cut)
+    rpm = np.asarray(speeds, dtype=float)
+    if rpm.ndim != 1 or rpm.size == 0:
+        raise InputError("speeds must be a non-empty 1-D array of spindle speeds (rpm)")
+    tau = np.array([milling.tooth_period(float(n)) for n in rpm])
+    d = lobes(
         None,
-        speeds,
+        tau,
         width_max=width_max,
-        process=process,
+        process=Process(kind="delay"),
         fmin=fmin,
         fmax=fmax,
         n_frequencies=n_frequencies,
         verify=0,
         plant=plant,
-        name=name or f"measured FRF {frf.source}",
+        name=label + f" (milling, ZOA, {milling.teeth} teeth)",
+    )
+    to_rpm = 60.0 / milling.teeth
+    mn = dict(d.minimum)
+    if np.isfinite(mn.get("speed", np.nan)):
+        mn["speed"] = to_rpm / mn["speed"]
+    return replace(
+        d,
+        speed=rpm,
+        speed_unit="rpm",
+        speed_name="spindle speed",
+        minimum=mn,
+        lobes=tuple(replace(lb, speed=to_rpm / lb.delay) for lb in d.lobes),
     )
