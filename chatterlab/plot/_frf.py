@@ -91,10 +91,15 @@ def plot_frf(
     ax_p.set_xlabel("frequency [Hz]")
     for a in axes:
         a.grid(True, which="both", alpha=0.3)
+    if marks and part == "bode":
+        lo, hi = ax_m.get_ylim()
+        ax_m.set_ylim(lo, hi * (hi / lo) ** 0.15)  # headroom for the peak labels
     _label_peaks(ax_m, marks)
-    ax_m.legend()
+    # the legend above the frame, where no curve or peak label can be under it
+    rows = int(np.ceil(len(frfs) / 2))
+    ax_m.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     if title:
-        ax_m.set_title(title)
+        ax_m.set_title(title, pad=6 + 14 * rows)
     return axes
 
 
@@ -169,8 +174,10 @@ def plot_nyquist(
         a.plot(
             [det[j].real],
             [det[j].imag],
-            "ko",
-            ms=4,
+            "o",
+            mfc="none",
+            mec="tab:red",
+            ms=7,
             label=f"closest: |det| = {near:.3g} at {fj:.2f} Hz" if legend else None,
             gid="closest",
         )
