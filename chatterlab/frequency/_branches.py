@@ -29,29 +29,9 @@ ComplexArray = NDArray[np.complex128]
 FloatArray = NDArray[np.float64]
 
 
-def _branch_mu(sys: DelaySystem, lam: ComplexArray) -> ComplexArray:
-    """Eigenvalues of H(lam), shape (len(lam), r); non-finite where H is singular.
-
-    Evaluated in chunks, so memory stays bounded for long grids."""
-    chunk = max(1024, _CHUNK_BYTES // (16 * max(sys.A.shape[0], 1)))
-    if lam.size > chunk:
-        return np.concatenate([_branch_mu(sys, lam[i : i + chunk]) for i in range(0, lam.size, chunk)])
-    H = sys.transfer_fast(lam)
-    with np.errstate(all="ignore"):
-        if sys.r == 1:
-            return H[:, :, 0]
-        ok = np.all(np.isfinite(H), axis=(1, 2))
-        mu = np.full(H.shape[:2], np.nan + 0j)
-        if np.any(ok):
-            mu[ok] = np.linalg.eigvals(H[ok])
-        return mu
-
-
 #: most frequencies the root prediction samples on the axis (bounds memory to
 #: about 100 MB: the grid, the tracked eigenvalues and one chunk of the transfer)
 AXIS_GRID_MAX = 2_000_000
-#: bytes of the transfer's intermediate arrays per chunk of frequencies
-_CHUNK_BYTES = 32_000_000
 
 
 def _axis_grid(sys: DelaySystem, top: float) -> FloatArray:
@@ -121,7 +101,7 @@ def predict(sys: DelaySystem, top: float) -> tuple[ComplexArray, FloatArray]:
     """
     tau = sys.tau
     w = _axis_grid(sys, top)
-    mu = _track_branches(_branch_mu(sys, 1j * w))  # type: ignore[arg-type]  # numpy stubs: 1j * float64 is complexfloating[Any, Any]
+    mu = _track_branches(sys.loop_eigenvalues(1j * w))
     ests = []
     uncs = []
     with np.errstate(all="ignore"):

@@ -26,7 +26,6 @@ References
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,6 +35,8 @@ import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
 
 from chatterlab.errors import InputError
+
+from ._checks import as_real_matrix, check_tau, factor_delayed
 
 __all__ = [
     "DelaySystem",
@@ -47,6 +48,9 @@ __all__ = [
 
 ComplexArray = NDArray[np.complex128]
 FloatArray = NDArray[np.float64]
+
+#: bytes of the transfer's intermediate arrays per chunk of frequencies
+_CHUNK_BYTES = 32_000_000
 
 
 @dataclass(frozen=True)
@@ -167,6 +171,27 @@ class DelaySystem:
             g = 1.0 / (lam[..., None] - p)
         return np.einsum("ik,...k,kj->...ij", L, g, R)
 
+    def loop_eigenvalues(self, lam: ArrayLike) -> ComplexArray:
+        """Eigenvalues :math:`\\mu_j(\\lambda)` of the loop transfer :math:`H(\\lambda)`
+        (:meth:`transfer_fast`), shape ``(len(lam), r)``; NaN where ``H`` is
+        not finite.  Evaluated in chunks, so memory stays bounded for long
+        grids."""
+        lam = np.asarray(lam, dtype=complex)
+        chunk = max(1024, _CHUNK_BYTES // (16 * max(self.A.shape[0], 1)))
+        if lam.size > chunk:
+            return np.concatenate(
+                [self.loop_eigenvalues(lam[i : i + chunk]) for i in range(0, lam.size, chunk)]
+            )
+        H = self.transfer_fast(lam)
+        with np.errstate(all="ignore"):
+            if self.r == 1:
+                return H[:, :, 0]
+            ok = np.all(np.isfinite(H), axis=(1, 2))
+            mu = np.full(H.shape[:2], np.nan + 0j)
+            if np.any(ok):
+                mu[ok] = np.linalg.eigvals(H[ok])
+            return mu
+
     def partial_fractions(self) -> tuple[ComplexArray, ComplexArray, ComplexArray] | None:
         """``(p, L, R)`` with :math:`H(\\lambda) = L \\operatorname{diag}(1/(\\lambda - p)) R`
         (from ``A = S diag(p) S^{-1}``: ``L = Cz S``, ``R = S^{-1} B``), or
@@ -265,74 +290,6 @@ def batched_solve(A: ComplexArray, B: ComplexArray, singular: Any = np.nan) -> C
         return out
 
 
-def _as_real_matrix(x: Any, name: str, n: int | None = None) -> NDArray[np.float64]:
-    try:
-        a = np.asarray(x)
-    except Exception as exc:  # pragma: no cover - exotic inputs
-        raise InputError(f"{name} must be a real matrix ({exc})") from exc
-    if a.dtype.kind == "c":
-        raise InputError(f"{name} must be real (got complex entries)")
-    if a.dtype.kind not in "biuf":
-        raise InputError(f"{name} must be a real numeric matrix (got dtype {a.dtype})")
-    a = np.atleast_2d(a.astype(float))
-    if a.ndim != 2 or a.shape[0] != a.shape[1]:
-        raise InputError(f"{name} must be a square matrix (got shape {np.shape(x)})")
-    if n is not None and a.shape[0] != n:
-        raise InputError(f"{name} must have shape ({n}, {n}) like M (got {a.shape})")
-    if not np.all(np.isfinite(a)):
-        raise InputError(f"{name} has non-finite entries (NaN or inf)")
-    return a
-
-
-def _factor_DO(DO: Any, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return ``(U, V)`` with ``DO = U V^T`` (r may be 0)."""
-    if DO is None:
-        return np.zeros((n, 0)), np.zeros((n, 0))
-    if isinstance(DO, tuple | list) and len(DO) == 2:
-        U = np.asarray(DO[0])
-        V = np.asarray(DO[1])
-        for nm, a in (("DO[0] (U)", U), ("DO[1] (V)", V)):
-            if a.dtype.kind == "c":
-                raise InputError(f"{nm} must be real (got complex entries)")
-            if a.dtype.kind not in "biuf":
-                raise InputError(f"{nm} must be numeric (got dtype {a.dtype})")
-        U = U.astype(float)
-        V = V.astype(float)
-        if U.ndim == 1:
-            U = U[:, None]
-        if V.ndim == 1:
-            V = V[:, None]
-        if U.ndim != 2 or V.ndim != 2 or U.shape != V.shape or U.shape[0] != n:
-            raise InputError(
-                f"DO=(U, V) factors must both have shape (n, r) with n={n} (got U {U.shape}, V {V.shape})"
-            )
-        if not (np.all(np.isfinite(U)) and np.all(np.isfinite(V))):
-            raise InputError("DO=(U, V) factors have non-finite entries")
-        if U.shape[1] > 0 and (np.abs(U).max() == 0.0 or np.abs(V).max() == 0.0):
-            return np.zeros((n, 0)), np.zeros((n, 0))
-        return U, V
-    D = _as_real_matrix(DO, "DO", n)
-    if not np.any(D):
-        return np.zeros((n, 0)), np.zeros((n, 0))
-    W, s, Zt = np.linalg.svd(D)
-    keep = s > 1e-12 * s[0]
-    return W[:, keep] * s[keep], Zt[keep].T.copy()
-
-
-def _check_tau(tau: Any, needed: bool) -> float:
-    if not needed:
-        return 0.0
-    if tau is None:
-        raise InputError("tau must be given (> 0, in s) when a delayed term DO is present")
-    try:
-        t = float(tau)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"tau must be a positive number in s (got {tau!r})") from exc
-    if not math.isfinite(t) or t <= 0.0:
-        raise InputError(f"tau must be finite and > 0 s when DO is given (got {tau!r})")
-    return t
-
-
 def make_system(
     M: ArrayLike,
     C: ArrayLike,
@@ -372,20 +329,20 @@ def make_system(
     ----------
     .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
-    Mm = _as_real_matrix(M, "M")
+    Mm = as_real_matrix(M, "M")
     n = Mm.shape[0]
-    Cm = _as_real_matrix(C, "C", n)
-    Km = _as_real_matrix(K, "K", n)
-    DPm = np.zeros((n, n)) if DP is None else _as_real_matrix(DP, "DP", n)
-    DVm = np.zeros((n, n)) if DV is None else _as_real_matrix(DV, "DV", n)
+    Cm = as_real_matrix(C, "C", n)
+    Km = as_real_matrix(K, "K", n)
+    DPm = np.zeros((n, n)) if DP is None else as_real_matrix(DP, "DP", n)
+    DVm = np.zeros((n, n)) if DV is None else as_real_matrix(DV, "DV", n)
     if not np.allclose(Mm, Mm.T, rtol=1e-10, atol=1e-14 * np.abs(Mm).max()):
         raise InputError("M must be symmetric positive definite (it is not symmetric)")
     try:
         cho = sla.cho_factor(Mm)
     except np.linalg.LinAlgError as exc:
         raise InputError("M must be symmetric positive definite (Cholesky failed)") from exc
-    U, V = _factor_DO(DO, n)
-    t = _check_tau(tau, U.shape[1] > 0)
+    U, V = factor_delayed(DO, n)
+    t = check_tau(tau, U.shape[1] > 0)
     Ct = Cm - DVm
     Kt = Km - DPm
     r = U.shape[1]
@@ -422,13 +379,13 @@ def make_first_order_system(
     ----------
     .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
-    A = _as_real_matrix(A0, "A0")
+    A = as_real_matrix(A0, "A0")
     n = A.shape[0]
     try:
-        U, V = _factor_DO(A1, n)
+        U, V = factor_delayed(A1, n)
     except InputError as exc:
         raise InputError(str(exc).replace("DO", "A1")) from exc
-    t = _check_tau(tau, U.shape[1] > 0)
+    t = check_tau(tau, U.shape[1] > 0)
     return DelaySystem(
         coeffs=(-A, np.eye(n)),
         U=U,

@@ -112,12 +112,6 @@ def band_end(
     return W, False
 
 
-def _loop_eigenvalues(sys: DelaySystem, om: FloatArray) -> ComplexArray:
-    """Eigenvalues of the loop transfer ``H(j om)``, shape ``(om.size, r)``."""
-    with np.errstate(all="ignore"):
-        return np.linalg.eigvals(sys.transfer_fast(1j * om))  # type: ignore[return-value]  # numpy stubs: complex128 in, complexfloating[Any, Any] out
-
-
 @dataclass(frozen=True)
 class PassiveBands:
     """Intervals ``[a_i, b_i]`` of the axis where the spectral radius of
@@ -136,7 +130,7 @@ class PassiveBands:
 
     def mu(self, om: FloatArray) -> ComplexArray:
         """Eigenvalues of ``H(j om)``, shape ``(om.size, r)``."""
-        return _loop_eigenvalues(self.sys, om)
+        return self.sys.loop_eigenvalues(1j * om)
 
     def flags(self, grid: FloatArray) -> NDArray[np.bool_]:
         """Which intervals of ``grid`` lie inside a passive interval."""
@@ -173,7 +167,7 @@ def initial_grid(
         # a coarse grid finds where the spectral radius of H reaches 1/2;
         # the dense pi/(8 tau) grid is laid only over those active bands
         wsm = np.unique(np.concatenate([np.linspace(0.0, W, 4001)] + pole_pts))
-        rho = np.abs(_loop_eigenvalues(sys, wsm)).max(axis=1)
+        rho = np.abs(sys.loop_eigenvalues(1j * wsm)).max(axis=1)
         act_pt = ~(rho < _PASSIVE)  # NaN counts as active
         act_iv = act_pt[:-1] | act_pt[1:]
         act_iv = act_iv | np.r_[act_iv[1:], False] | np.r_[False, act_iv[:-1]]

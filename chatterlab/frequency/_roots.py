@@ -120,7 +120,7 @@ __all__ = [
 
 def _no_delay(sys: DelaySystem, count: int, t0: float) -> RootsResult:
     try:
-        ev = np.linalg.eigvals(sys.A)
+        ev = sys.delay_free_poles()
     except np.linalg.LinAlgError as exc:
         return make_result(
             [],
