@@ -54,6 +54,12 @@ Methods
 ``"eig"``
     No delay: the quadratic eigenvalue problem, solved by linearisation.
 
+This module holds the entry points and the search of the certified band;
+the pieces live beside it: the system in ``_delay_system.py``, the spectral
+search in ``_spectral.py`` (frequency windows) and ``_collocation.py`` (the
+discretised generator), the predictions and the ``"branch"`` method in
+``_branches.py``, Newton in ``_newton.py``, the band in ``_band.py``.
+
 Numerical failure is reported as ``status="not_converged"`` with a
 ``message``, never raised; bad *input* raises
 :class:`chatterlab.errors.InputError`.
