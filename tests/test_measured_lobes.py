@@ -23,7 +23,7 @@ from conftest import turning_text
 import chatterlab as cl
 from chatterlab.errors import InputError
 from chatterlab.lobes import lobes, lobes_measured, measured_plant
-from chatterlab.model._items import Process
+from chatterlab.model import Process
 from chatterlab.process import Milling
 from chatterlab.structure import MeasuredFRF
 
