@@ -51,7 +51,8 @@ def plot_frf(
     +-180 deg); ``part="reim"``: real above imaginary part.  ``peaks`` > 0
     labels that many resonances of each curve (refined peak frequencies, in
     the curve's colour, stacked where they would overlap).  A closed-loop
-    curve's legend entry says its width and delay.  ``ax`` is a pair of Axes
+    curve's legend entry says its width and delay, a ``title`` gets the slide
+    position when the FRF has one.  ``ax`` is a pair of Axes
     (``axes=`` a deprecated alias).  Returns the Axes (ax_top, ax_bottom)."""
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MultipleLocator
@@ -98,8 +99,10 @@ def plot_frf(
     # the legend above the frame, where no curve or peak label can be under it
     rows = int(np.ceil(len(frfs) / 2))
     ax_m.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
+    pos = getattr(f0, "position", None)
     if title:
-        ax_m.set_title(title, pad=6 + 14 * rows)
+        where = f"\nslide at s = {pos:g} m" if pos is not None else ""
+        ax_m.set_title(title + where, pad=6 + 14 * rows, fontsize=10 if where else None)
     return axes
 
 
