@@ -457,6 +457,58 @@ def test_checkpoint_of_an_earlier_automatic_fingerprint_is_refused(tmp_path: Pat
     assert r.n_resumed == g.size
 
 
+def test_caller_fingerprint_changed_with_the_version_says_so(tmp_path: Path) -> None:
+    """The CLI's model fingerprint is a joblib.hash now (0.1: sha256 of the text):
+    its old checkpoints are refused in one line naming the cause and how to start afresh."""
+    g = small_grid()
+    ck = tmp_path / "ck"
+    sweep(
+        flaky_fixed,
+        g,
+        outputs=OUTS,
+        backend="serial",
+        checkpoint=ck,
+        fingerprint="9c1e|b-lim",
+        progress=False,
+    )
+    manifest = json.loads((ck / "manifest.json").read_text())
+    assert manifest.pop("chatterlab") == chatterlab.__version__
+    (ck / "manifest.json").write_text(json.dumps(manifest))  # as 0.1 wrote it
+    with pytest.raises(InputError) as exc:
+        sweep(
+            flaky_fixed, g, outputs=OUTS, backend="serial", checkpoint=ck, resume=True,
+            fingerprint="41d7|b-lim", progress=False,
+        )  # fmt: skip
+    msg = str(exc.value)
+    assert "\n" not in msg and "part 1 of 2: '9c1e' there, '41d7' now" in msg
+    assert "written by an earlier chatterlab, whose fingerprints may be computed differently" in msg
+    assert (
+        "to start afresh" in msg
+        and "--checkpoint DIR" in msg
+        and "without resume=True (CLI: --resume)" in msg
+    )
+
+
+def test_model_fingerprint_sees_the_matrix_files(tmp_path: Path) -> None:
+    """A [matrices] model reads M from M.npy: the model file alone does not define
+    the model, so the checkpoint fingerprint hashes the matrices by content."""
+    from chatterlab.quantities import model_fingerprint
+
+    np.save(tmp_path / "M.npy", np.diag([1.0, 1.0]))
+    text = (
+        '[matrices]\ncoordinates = ["q1", "q2"]\nM = "M.npy"\nK = [[2.0e6, -1.0e6], [-1.0e6, 1.0e6]]\n'
+        '[process]\nkind = "turning"\nrpm = 1500\n'
+    )
+    (tmp_path / "m.toml").write_text(text)
+    a = model_fingerprint(chatterlab.load_model(tmp_path / "m.toml"))
+    assert model_fingerprint(chatterlab.load_model(tmp_path / "m.toml")) == a  # deterministic
+    np.save(tmp_path / "M.npy", np.diag([1.0, 1.0 + 2**-52]))  # one ulp in one entry
+    b = model_fingerprint(chatterlab.load_model(tmp_path / "m.toml"))
+    assert b != a and len(a) == len(b) == 16
+    np.save(tmp_path / "M.npy", np.diag([1.0, 1.0]))
+    assert model_fingerprint(chatterlab.load_model(tmp_path / "m.toml")) == a
+
+
 def test_automatic_fingerprint_is_the_same_in_another_process() -> None:
     """joblib.hash is deterministic: a fresh interpreter (other string-hash seed) agrees."""
     code = (

@@ -17,7 +17,6 @@ model's process unit.
 
 from __future__ import annotations
 
-import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any, Literal, cast
@@ -70,11 +69,15 @@ def _cached(key: tuple[Any, ...], make: Any) -> Any:
 
 
 def model_fingerprint(model: Model) -> str:
-    """A short hash of everything that defines the model (for checkpoints)."""
-    h = hashlib.sha256()
-    h.update(model.raw.encode())
-    h.update(repr((model.variant, model.overrides)).encode())
-    return h.hexdigest()[:16]
+    """A short :func:`joblib.hash` of everything that defines the model (for
+    checkpoints): the parsed file, the variant and overrides, and the
+    matrices a ``[matrices]`` table reads from other files -- by content, so
+    an edited ``K.npy`` is another model although the model file is the same."""
+    import joblib
+
+    m = model.matrices
+    matrices = None if m is None else (m.coordinates, m.M, m.L, m.K, m.given)
+    return str(joblib.hash((model.raw, model.variant, model.overrides, matrices), hash_name="sha1"))[:16]
 
 
 @dataclass(frozen=True, eq=False)

@@ -65,7 +65,10 @@ def _open_checkpoint(
     if old.get("version") != _CHECKPOINT_VERSION:
         raise InputError(f"{where} was written by an incompatible version of chatterlab")
     refuse = f"{where} was written for a different sweep"
-    fix = "; use another checkpoint directory or delete this one (resume only continues the same sweep)"
+    fix = (
+        "; resume only continues the same sweep: to start afresh, delete this directory or give another "
+        "checkpoint=DIR (CLI: --checkpoint DIR) without resume=True (CLI: --resume)"
+    )
     new_grid = Grid.from_json(manifest["grid"])
     if old_grid != new_grid:
         raise InputError(
@@ -83,10 +86,14 @@ def _open_checkpoint(
             "without resume=True (CLI: --resume)"
         )
     if old["fingerprint"] != manifest["fingerprint"]:
+        era = ""
+        if old.get("chatterlab") != manifest.get("chatterlab"):
+            by = f"chatterlab {old['chatterlab']}" if "chatterlab" in old else "an earlier chatterlab"
+            era = f" (it was written by {by}, whose fingerprints may be computed differently)"
         raise InputError(
             f"{refuse}: the function/model fingerprint differs "
             f"({_fingerprint_diff(old['fingerprint'], manifest['fingerprint'])}), so the saved "
-            f"results may come from another model{fix}"
+            f"results may come from another model{era}{fix}"
         )
     if chunk_size is not None and chunk_size != old["chunk_size"]:
         raise InputError(

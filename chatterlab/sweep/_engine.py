@@ -70,6 +70,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from chatterlab._version import __version__
 from chatterlab.errors import InputError, SweepError
 from chatterlab.io._netcdf import check_attrs
 
@@ -489,6 +490,7 @@ def _chunk_size(
         "outputs": units,
         "chunk_size": chunk_size or _default_chunk_size(size, jobs),
         "n_tasks": size,
+        "chatterlab": __version__,
         "fingerprint": _caller_fingerprint(fingerprint)
         if fingerprint is not None
         else _auto_fingerprint(func),
