@@ -312,3 +312,14 @@ def test_mode_shapes_of_a_cantilever(beam_model_text):
     assert abs(v).max() == pytest.approx(P._modes.DRAWN_AMPLITUDE * L, rel=1e-12)
     legend = axes[0].get_legend().get_texts()[0].get_text()
     assert legend.startswith(f"mode 1: {md.frequency_hz[0]:.2f} Hz")
+
+
+def test_a_matrix_model_has_its_frequencies_drawn_as_bars():
+    md = cl.modes(cl.assemble(cl.load_model(ROOT / "studies" / "milling" / "benchmark_2dof.toml")))
+    with pytest.raises(cl.InputError, match="matrix-level model has no geometry"):
+        md.drawing()
+    ax = md.plot()
+    heights = [p.get_height() for p in ax.patches]
+    np.testing.assert_array_equal(heights, md.frequency_hz)
+    ax = md.plot(reference=md.frequency_hz * 1.01)
+    np.testing.assert_allclose([p.get_height() for p in ax.patches][len(md) :], md.frequency_hz * 1.01)

@@ -32,7 +32,12 @@ def run_title(sim: Any) -> str:
     if speed is not None:
         parts.append(f"speed {speed:g}")
     parts.append(f"feedback {sim.terms}")
-    return f"{getattr(sim, 'model', '') or 'model not named'}: " + ", ".join(parts)
+    model = str(getattr(sim, "model", "") or "model not named")
+    if "/" in model:  # a model file: its folder and name are enough
+        from pathlib import PurePath
+
+        model = str(PurePath(*PurePath(model).parts[-2:]))
+    return f"{model}: " + ", ".join(parts)
 
 
 def plot_histories(
