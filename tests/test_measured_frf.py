@@ -348,3 +348,18 @@ def test_from_arrays_checks():
     with pytest.raises(InputError, match="did you mean 'a.x'"):
         m.select(["a.xx"], ["a.x"])
     assert m.select("a.y", ["a.x", "a.y"]).H.shape == (3, 1, 2)
+
+
+def test_plot_draws_every_entry(two_by_two):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a0, a1 = two_by_two.plot()
+    assert len(a0.get_lines()) == 4 and len(a1.get_lines()) == 4
+    ys = a0.get_lines()[1].get_ydata()
+    assert np.allclose(ys, np.abs(two_by_two.H[:, 0, 1]))  # tool.x / tool.y magnitude
+    b0, b1 = two_by_two.plot(form="reim")
+    assert np.allclose(b1.get_lines()[3].get_ydata(), two_by_two.H[:, 1, 1].imag)
+    plt.close("all")

@@ -110,6 +110,32 @@ def test_turning_lobes_from_measured_frf_within_the_derived_bound(turning, df):
     assert set(np.unique(got.claim)) == {4}  # boundaries, from the measured band only
 
 
+def test_noisy_measured_frf_within_the_same_bound(turning):
+    """Measurement noise (complex Gaussian, 1e-3 of |H| at each sample): the
+    spline passes through the noisy samples, so eps near the chatter
+    frequency is the noise times the spline's Lebesgue constant (< 2 for a
+    cubic spline on a uniform grid, de Boor, A Practical Guide to Splines,
+    ch. XII) plus the smooth error; the first-order bound holds with that
+    eps (measured against the exact G), and eps is below that sum."""
+    m, fz, ref = turning
+    clean = measured(fz, 1.0)
+    rng = np.random.default_rng(2026)
+    H = clean.H[:, 0, 0]
+    noise = 1e-3 * np.abs(H) * (rng.normal(size=H.size) + 1j * rng.normal(size=H.size)) / np.sqrt(2)
+    noisy = MeasuredFRF.from_arrays(clean.frequency, H + noise, ["tip.x"], ["tip.x"])
+    got = lobes_measured(noisy, RPM, process=m.process, Kf=KF, width_max=0.05)
+    sel = np.nonzero(inside_one_lobe(ref, got))[0]
+    err = np.abs(got.b_lim - ref.b_lim)[sel]
+    bound = np.array([first_order_bound(noisy, ref, j) for j in sel])
+    assert np.all(err <= 1.1 * bound), np.max(err / bound)
+    assert np.max(np.abs(got.b_lim[sel] / ref.b_lim[sel] - 1)) > 1e-5  # the noise shows (clean: 1.2e-6)
+    w = noisy.frequency
+    wq = np.linspace(w[300], w[600], 3001)
+    eps = np.abs(noisy.interpolate(wq)[:, 0, 0] - sdof(wq))
+    smooth = np.abs(clean.interpolate(wq)[:, 0, 0] - sdof(wq))
+    assert np.max(eps) <= 2.0 * np.max(np.abs(noise[299:602])) + np.max(smooth)
+
+
 def test_turning_lobes_converge_like_the_spline(turning):
     """Envelope error against grid spacing h: fitted order 4 (the cubic
     spline's, Hall & Meyer); +-0.5 for the pre-asymptotic terms, O(h / sigma)
