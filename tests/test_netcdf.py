@@ -220,6 +220,33 @@ def test_sweep_result_converts_losslessly(tmp_path: Path) -> None:
     xr.testing.assert_identical(SweepResult.from_xarray(ds).to_xarray(), ds)
 
 
+def test_memory_mapped_results_are_written_without_a_copy(tmp_path: Path) -> None:
+    """sweep(out=...) fills np.memmap files and writes them through to_xarray: no
+    variable may be copied into memory on the way (the bound is half the smallest
+    variable, so any copy of any one fails; imports are warmed up first)."""
+    import tracemalloc
+
+    n = 600
+    a = np.lib.format.open_memmap(tmp_path / "a.npy", mode="w+", dtype=np.float64, shape=(n, n))
+    a[:] = 0.5
+    st = np.lib.format.open_memmap(tmp_path / "s.npy", mode="w+", dtype=np.int32, shape=(n, n))
+    g = Grid({"x": (np.arange(float(n)), "m"), "y": (np.arange(float(n)), "s")})
+    small = SweepResult(
+        Grid({"x": ([0.0, 1.0], "m")}), {"a": np.zeros(2)}, {"a": ""}, task_status=np.zeros(2, np.int32)
+    )
+    small.to_netcdf(tmp_path / "warm.nc")
+    r = SweepResult(g, {"a": a}, {"a": "m"}, task_status=st)
+    tracemalloc.start()
+    try:
+        r.to_netcdf(tmp_path / "big.nc")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < st.nbytes / 2, peak
+    back = read_netcdf(tmp_path / "big.nc", mmap=True)
+    assert np.array_equal(back.data["a"][0], a) and back.data["task_status"][0].dtype == np.int32
+
+
 def test_unreadable_and_unstorable_are_one_line_errors(tmp_path: Path) -> None:
     def one_line(exc: pytest.ExceptionInfo[InputError], *parts: str) -> None:
         msg = str(exc.value)

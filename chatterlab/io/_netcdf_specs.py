@@ -74,8 +74,8 @@ def storable(arr: np.ndarray, name: str) -> np.ndarray:
                 raise InputError(
                     f"variable {name!r}: integers beyond the 64-bit range; convert them to float"
                 )
-            return arr.astype(np.int64)
-        return arr.astype(np.int32)
+            return arr.astype(np.int64, copy=False)
+        return arr.astype(np.int32, copy=False)  # a memory map of int32 stays one
     if kind == "f":
         return arr if arr.dtype in (np.float32, np.float64) else arr.astype(np.float64)
     if kind == "c":
