@@ -2,10 +2,12 @@
 ``_problems``: what it integrates; ``_options``: its options and
 :class:`TimeResponse`; ``_plan``: the checks and setup before the first
 step), the parametric problem of Eq. 2.28 (``_parametric``) and the
-simulation of a cut (``_simulate``), spectra and growth rates (``_signals``)."""
+simulation of a cut (``_simulate``), spectra and growth rates (``_signals``),
+milling with the tool leaving the cut (``_milling``)."""
 
 from __future__ import annotations
 
+from ._milling import MillingSimulation, default_steps_per_period, simulate_milling
 from ._newmark import (
     CallbackProblem,
     ConstantProblem,
@@ -36,4 +38,7 @@ __all__ = [
     "Simulation",
     "simulate",
     "FEEDBACK_CASES",
+    "MillingSimulation",
+    "simulate_milling",
+    "default_steps_per_period",
 ]
