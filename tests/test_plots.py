@@ -166,6 +166,17 @@ def test_nyquist_draws_the_determinant_and_zooms_on_the_origin(turning):
     (inset,) = [c for c in ax.child_axes if c.get_gid() == "nyquist-zoom"]
     np.testing.assert_allclose(inset.get_xlim(), [-3 * abs(det[j]), 3 * abs(det[j])])
     assert any(t.get_text() == "stable" for t in ax.texts)
+    # on a caller's Axes the zoom stays inside its frame
+    _, mine = plt.subplots()
+    P.plot_nyquist(w, det, ax=mine)
+    (inset,) = mine.child_axes
+    mine.figure.canvas.draw()
+    outer, inner = mine.get_position(), inset.get_position()
+    assert outer.x0 <= inner.x0 and inner.x1 <= outer.x1 and outer.y0 <= inner.y0 and inner.y1 <= outer.y1
+    # ... and on a figure of its own it stands beside the plot
+    own = P.plot_nyquist(w, det)
+    own.figure.canvas.draw()
+    assert own.child_axes[0].get_position().x0 > own.get_position().x1
 
 
 def test_touching_width_is_the_closed_form_lobe_envelope(turning, tb):
@@ -232,6 +243,9 @@ def test_time_response_draws_the_run(run):
     np.testing.assert_allclose(teeth, np.arange(1, len(teeth) + 1) / run.delay, rtol=1e-12)
     assert "b = 2 mm" in axd.get_title() and "feedback pdo" in axd.get_title()
     assert "in the cut" in [t.get_text() for t in axd.get_legend().get_texts()]
+    # the caller's Axes are used as given (here already sharing their x axis)
+    _, mine = plt.subplots(3, 1, sharex=True)
+    assert P.plot_time_response(run, "tool.x", force=force, ax=mine) == tuple(mine)
 
 
 def test_histories_keep_each_run_in_one_colour(run):

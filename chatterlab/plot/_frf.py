@@ -152,13 +152,15 @@ def plot_nyquist(
 
     The point of closest approach to the origin is marked with its frequency
     (Hz), and with ``zoom`` a second frame beside the plot (an inset Axes
-    outside its frame) shows the region around the origin, a square of
+    outside its frame; inside its upper right corner when ``ax`` is given)
+    shows the region around the origin, a square of
     half-side 3 times the closest distance, where the encirclement is
     decided.  ``verdict`` (e.g. the stability result's summary) is written
     in the corner.  Returns the Axes (the main one; the inset has gid
     ``nyquist-zoom``)."""
     import matplotlib.pyplot as plt
 
+    beside = ax is None  # a figure of our own has room for the zoom beside the plot
     if ax is None:
         fig = plt.figure(figsize=(10, 5.2) if zoom else (5.5, 5.5))
         # with the zoom: the main plot on the left half, the zoom beside it (outside its frame)
@@ -194,7 +196,7 @@ def plot_nyquist(
     ax.legend(loc="lower left", fontsize=7)
     if zoom and near > 0:
         r = 3.0 * near
-        axi = ax.inset_axes((1.18, 0.0, 1.0, 1.0))
+        axi = ax.inset_axes((1.18, 0.0, 1.0, 1.0) if beside else (0.6, 0.6, 0.38, 0.38))
         axi.set_gid("nyquist-zoom")
         draw(axi, False)
         from matplotlib.patches import Rectangle

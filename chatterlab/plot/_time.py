@@ -170,9 +170,12 @@ def plot_time_response(
     from matplotlib.patches import Patch
 
     nrow = 3 if force is not None else 2
+    created = ax is None
     if ax is None:
         fig, ax = plt.subplots(nrow, 1, figsize=(8.5, 2.5 * nrow + 0.6))
     ax = tuple(ax)
+    if created and force is not None:
+        ax[1].sharex(ax[0])  # displacement and force on one time axis
     axd, axs = ax[0], ax[-1]
     t = np.asarray(sim.t, float)
     col = RUN_COLORS[0]
@@ -187,7 +190,6 @@ def plot_time_response(
         axf.plot(t, fv, lw=0.8, color="tab:blue", gid="force", label=flab)
         axf.set_ylabel(f"{flab} [N]")
         axf.set_xlabel("time [s]")
-        axf.sharex(axd)
     for a in ax[:-1]:
         a.grid(alpha=0.3)
         _shade_cut(a, t, sim.in_cut)
