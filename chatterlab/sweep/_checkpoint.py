@@ -65,10 +65,8 @@ def _open_checkpoint(
     if old.get("version") != _CHECKPOINT_VERSION:
         raise InputError(f"{where} was written by an incompatible version of chatterlab")
     refuse = f"{where} was written for a different sweep"
-    fix = (
-        "; resume only continues the same sweep: to start afresh, delete this directory or give another "
-        "checkpoint=DIR (CLI: --checkpoint DIR) without resume=True (CLI: --resume)"
-    )
+    # (the CLI replaces this text by its own options: keep the two in step, cli/_parallel.py)
+    fix = "; use another checkpoint directory or delete this one (resume only continues the same sweep)"
     new_grid = Grid.from_json(manifest["grid"])
     if old_grid != new_grid:
         raise InputError(
