@@ -21,8 +21,9 @@ from typing import Any
 
 from ..errors import InputError, check_count, check_position, check_speed
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ._claims import ceiling_claim, inf_note, ok_infs
 from ._common import load, m_to_mm, model_args, outputs, warn, width_max_m, width_slips
-from ._parallel import check_checkpoint, checkpoint, parallel_args, sweep_opts
+from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
 
 
 def add_parser(sub: Any) -> None:
@@ -169,41 +170,32 @@ def _positions(args: argparse.Namespace, model: Any) -> Any:
 
 
 def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outputs) -> int:
-    import numpy as np
 
     from ..quantities._tasks import AtlasTask, model_fingerprint
     from ..sweep._engine import sweep
 
     pos = _positions(args, model)
-    n = pos.size
     task = AtlasTask(
         model, wmax, tuple(float(x) for x in v), terms=args.terms, fmin=args.fmin, fmax=args.fmax
     )
-    res = sweep(
-        task,
-        {"position": (pos, "m"), "speed": (v, model.process.speed_unit)},
-        outputs={
-            "b_lim": ("m", "largest chatter-free width of cut"),
-            "chatter_frequency": ("Hz", "chatter frequency"),
-        },
-        chunk_size=v.size,
-        checkpoint=checkpoint(args),
-        resume=args.resume,
-        fingerprint=model_fingerprint(model) + f"|{wmax}|{args.terms}|{args.fmin}|{args.fmax}",
-        attrs={"title": "chatterlab stability atlas", "model_text": model.text, "terms": args.terms},
-        **sweep_opts(args),
-    )
-    bl = res.data["b_lim"]
-    worst = np.nanmin(np.where(np.isfinite(bl), bl, np.inf), axis=0)
-    j = int(np.argmin(worst))
-    i = int(np.argmin(bl[:, j]))
-    print(
-        f"stability atlas of {model.source}: {n} positions x {v.size} speeds ({res.status})\n"
-        f"  worst case along the stroke: b_lim {m_to_mm(worst[j]):.4g} mm at {v[j]:.5g} {model.process.speed_unit},"
-        f" position {pos[i]:.4g} m, chatter {res.data['chatter_frequency'][i, j]:.2f} Hz"
-    )
-    for k, p in enumerate(pos):
-        print(f"  position {p:8.4f} m: min b_lim {m_to_mm(np.nanmin(bl[k])):.4g} mm")
+    with resume_refusal(args):
+        res = sweep(
+            task,
+            {"position": (pos, "m"), "speed": (v, model.process.speed_unit)},
+            outputs={
+                "b_lim": ("m", "largest chatter-free width of cut"),
+                "chatter_frequency": ("Hz", "chatter frequency"),
+            },
+            chunk_size=v.size,
+            checkpoint=checkpoint(args),
+            resume=args.resume,
+            fingerprint=fingerprint(
+                model_fingerprint(model), args, ("--width-max", "--terms", "--fmin", "--fmax")
+            ),
+            attrs={"title": "chatterlab stability atlas", "model_text": model.text, "terms": args.terms},
+            **sweep_opts(args),
+        )
+    _atlas_summary(model, task, res, pos, v, wmax)
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed: {res.message}", file=sys.stderr)
     if args.out:
@@ -219,3 +211,37 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outp
             outs.path(args.plot),
         )
     return 0 if res.status == "ok" else 1
+
+
+def _atlas_summary(model: Any, task: Any, res: Any, pos: Any, v: Any, wmax: float) -> None:
+    """The worst case along the stroke and the smallest b_lim per position;
+    a position with ``inf`` says what it means there (its band checked)."""
+    import numpy as np
+
+    bl = res.data["b_lim"]
+    infs = ok_infs(bl, res.task_status)
+    claims = {
+        k: ceiling_claim(task.boundary(float(p)).band, wmax) for k, p in enumerate(pos) if infs[k].any()
+    }
+    worst = np.nanmin(np.where(np.isfinite(bl), bl, np.inf), axis=0)
+    j = int(np.argmin(worst))
+    i = int(np.argmin(bl[:, j]))
+    head = f"stability atlas of {model.source}: {pos.size} positions x {v.size} speeds ({res.status})"
+    if np.isfinite(worst[j]):
+        print(
+            f"{head}\n  worst case along the stroke: b_lim {m_to_mm(worst[j]):.4g} mm at {v[j]:.5g}"
+            f" {model.process.speed_unit}, position {pos[i]:.4g} m, chatter {res.data['chatter_frequency'][i, j]:.2f} Hz"
+        )
+    else:
+        print(f"{head}\n  worst case along the stroke: no finite b_lim")
+    for k, p in enumerate(pos):
+        row = bl[k]
+        fin = row[np.isfinite(row)]
+        line = f"  position {p:8.4f} m: " + (
+            f"min b_lim {m_to_mm(fin.min()):.4g} mm" if fin.size else "no finite b_lim"
+        )
+        if k in claims:
+            line += ("; " if fin.size else ", ") + inf_note(
+                [claims[k]] * int(infs[k].sum()), row.size, "speeds"
+            )
+        print(line)

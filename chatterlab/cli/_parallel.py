@@ -5,6 +5,8 @@ and resume."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +67,46 @@ def check_checkpoint(args: argparse.Namespace, outs: Outputs) -> None:
             raise InputError(f"--checkpoint {ck!r} is {what}; give the checkpoint its own directory")
     if Path(ck).exists() and not Path(ck).is_dir():
         raise InputError(f"--checkpoint {ck!r} exists and is not a directory")
+
+
+#: the fingerprint entry of the model: its file text, --variant and --set
+MODEL_KEY = "model (file, --variant, --set)"
+
+#: the sweep engine's own way to continue, replaced by the command line's
+_ENGINE_FIX = "; use another checkpoint directory or delete this one (resume only continues the same sweep)"
+
+
+def fingerprint(model_hash: str, args: argparse.Namespace, options: tuple[str, ...]) -> dict[str, str]:
+    """The checkpoint fingerprint of a command as a mapping ``option ->
+    value``, so that a refused ``--resume`` names the option that changed.
+    ``options`` are option strings (``"--terms"``); an option not given is
+    left out (the refusal then says "unset")."""
+    out = {MODEL_KEY: model_hash}
+    for opt in options:
+        value = getattr(args, opt.lstrip("-").replace("-", "_"))
+        if value is not None:
+            out[opt] = str(value)
+    return out
+
+
+@contextlib.contextmanager
+def resume_refusal(args: argparse.Namespace) -> Iterator[None]:
+    """A checkpoint that ``--resume`` refuses because it was written for
+    another model, grid or options: its one line ends with how to start
+    afresh in this command's options."""
+    try:
+        yield
+    except InputError as exc:
+        ck = checkpoint(args)
+        text = str(exc)
+        where = f"checkpoint directory {str(Path(ck))!r}" if ck else None
+        if not (args.resume and where and text.startswith(where) and " written " in text):
+            raise
+        fix = (
+            f"; to start afresh, run without --resume and give another --checkpoint DIR, or delete {ck!r}"
+            " (and the partial results saved there)"
+        )
+        raise InputError(text.replace(_ENGINE_FIX, "") + fix) from None
 
 
 def security(args: argparse.Namespace) -> Any:

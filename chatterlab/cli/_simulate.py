@@ -108,17 +108,33 @@ def _runner(args: argparse.Namespace) -> Callable[[str], Any]:
 
 
 def _summary(sim: Any, fb: str) -> None:
-    """The printed summary of one run: its message and a line per output."""
+    """The printed summary of one run: its message, a line per output and,
+    when the run is too short for a spectrum or a growth rate, what could
+    not be estimated, the initial condition and how to ask for more."""
+    import numpy as np
+
     print(f"feedback {fb}: {sim.message}")
+    short: dict[str, str] = {}
     for name in sim.data:
-        print(history_line(sim, name))
+        line, missing = _history(sim, name)
+        print(line)
+        for what, why in missing.items():
+            short.setdefault(what, why)
+    if short or not any(np.any(x) for x in sim.data.values()):
+        print(f"  initial condition: {_initial_condition(sim)}")
+    if short:
+        print("  too short to estimate " + "; ".join(f"the {w} ({why})" for w, why in short.items()))
+        print(
+            f"  ask for a longer run with --duration S (this run: {sim.t[-1]:.3g} s) or, without --duration,"
+            f" --passes N (the delay T is {sim.delay:.3g} s)"
+        )
     if sim.status != "ok":
         print(f"  status: {sim.status}", file=sys.stderr)
 
 
 def _report(args: argparse.Namespace, outs: Outputs, sims: list[Any], files: list[str]) -> int:
     """--out files, --plot and the exit status of the runs."""
-    for sim, out in zip(sims, files, strict=True):
+    for sim, out in zip(sims, files, strict=bool(files)):  # no --out: no files
         if out.lower().endswith(".csv"):
             sim.to_csv(outs.path(out))
         else:
@@ -145,10 +161,22 @@ def _plot(sims: list[Any], path: str) -> None:
     plt.close(fig)
 
 
+#: periods of a component the last cut must hold for its spectral peak: the
+#: Hann window's main lobe spans 2 bins either side, so a peak at bin >= 4
+#: (f >= 4 / L for a cut of length L) lies clear of the lobe of the removed mean
+SPECTRUM_PERIODS = 4
+
+
 def history_line(sim: Any, name: str) -> str:
+    """One printed line per recorded output (see :func:`_history`)."""
+    return _history(sim, name)[0]
+
+
+def _history(sim: Any, name: str) -> tuple[str, dict[str, str]]:
     """One printed line per recorded output: mean, peak-to-peak and spectral
     peak of the last cut -- or, for a run that diverged, how large the
-    response grew and when (a mean of a blown-up history means nothing)."""
+    response grew and when (a mean of a blown-up history means nothing) --
+    and what a run too short could not estimate (estimate -> why)."""
     import numpy as np
 
     x = sim.data[name]
@@ -156,19 +184,54 @@ def history_line(sim: Any, name: str) -> str:
     if sim.status == "diverged" or not np.all(np.isfinite(x)):
         fin = np.abs(x[np.isfinite(x)])
         peak = f"largest |value| {fin.max() * scale:.3g} {unit}" if fin.size else "no finite value"
-        return f"  {name:10s} {peak} up to t = {sim.t[-1]:.6g} s (no mean or spectrum: the run diverged)"
+        return f"  {name:10s} {peak} up to t = {sim.t[-1]:.6g} s (no mean or spectrum: the run diverged)", {}
+    if not np.any(x):
+        return f"  {name:10s} identically 0 (nothing excited it: no mean, spectrum or growth to show)", {}
     m = sim.window("last-cut")
+    missing: dict[str, str] = {}
+    fp, why = _spectral_peak(sim, name, m)
+    if why:
+        missing["spectrum"] = why
+    line = (
+        f"  {name:10s} mean {x[m].mean() * scale:9.3f} {unit}   peak-to-peak {(x[m].max() - x[m].min()) * scale:8.3f} {unit}"
+        + (f"   main spectral peak {fp:7.2f} Hz" if not why else "   main spectral peak     n/a")
+    )
+    if sim.in_cut.all():  # a continuous cut: the envelope's growth rate is meaningful
+        from ..errors import InputError
+
+        try:
+            g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
+        except InputError as exc:  # fewer samples than the estimator needs
+            missing["envelope growth"] = str(exc)
+            return line + "   envelope: not estimated", missing
+        line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
+        if g.classification == "undetermined":
+            missing["envelope growth"] = g.message
+    return line, missing
+
+
+def _spectral_peak(sim: Any, name: str, m: Any) -> tuple[float, str]:
+    """The main spectral peak above 1 Hz of the last cut, Hz, or why there is
+    none: a cut shorter than SPECTRUM_PERIODS periods of it."""
+    t = sim.t[m]
+    length = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    why = f"the last cut lasts {length:.3g} s, fewer than {SPECTRUM_PERIODS} periods of any component" + (
+        f" below {SPECTRUM_PERIODS / length:.4g} Hz" if length > 0 else ""
+    )
+    if t.size < 4:
+        return float("nan"), why
     f, a = sim.spectrum(name)
     sel = f > 1.0
     fp = f[sel][int(a[sel].argmax())] if sel.any() else float("nan")
-    line = (
-        f"  {name:10s} mean {x[m].mean() * scale:9.3f} {unit}   peak-to-peak {(x[m].max() - x[m].min()) * scale:8.3f} {unit}"
-        f"   main spectral peak {fp:7.2f} Hz"
-    )
-    if sim.in_cut.all():  # a continuous cut: the envelope's growth rate is meaningful
-        g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
-        line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
-    return line
+    if not fp * length >= SPECTRUM_PERIODS:
+        return fp, why
+    return fp, ""
+
+
+def _initial_condition(sim: Any) -> str:
+    """The initial state the run started from (the command line gives none:
+    at rest, with a zero history before t = 0)."""
+    return str(sim.meta.get("initial_condition", "at rest (q = 0, v = 0, zero delay history before t = 0)"))
 
 
 def _suffixed(path: str, tag: str) -> str:

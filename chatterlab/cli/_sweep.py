@@ -11,10 +11,15 @@ from typing import Any
 
 from ..errors import InputError, check_axis_values
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ._claims import inf_note, ok_infs, sweep_inf_claims
 from ._common import cut_args, load, mm_to_m, model_args, outputs, width_m, width_max_m
-from ._parallel import check_checkpoint, checkpoint, parallel_args, sweep_opts
+from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
 
 QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-frequencies")
+
+#: the options a checkpoint belongs to (besides the model and the grid): a
+#: --resume with another value of one of them is refused, naming it
+_FINGERPRINT_OPTIONS = ("--quantity", "--terms", "--width-max", "--width", "--speed", "--delay", "--position")
 
 
 def add_parser(sub: Any) -> None:
@@ -95,19 +100,19 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
         model, args.quantity, fixed, terms=args.terms, width_max=width_max_m(args), aliases=aliases
     )
     task.check_grid(grid)
-    res = sweep(
-        task,
-        grid,
-        outputs=QUANTITIES[args.quantity],
-        checkpoint=checkpoint(args),
-        resume=args.resume,
-        fingerprint=model_fingerprint(model)
-        + f"|{sorted(fixed.items())!r}|{args.quantity}|{args.terms}|{args.width_max}",
-        out=outs.path(args.out) if args.out and not args.out.lower().endswith(".csv") else None,
-        attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
-        **sweep_opts(args),
-    )
-    _summary(args, grid, res, QUANTITIES[args.quantity])
+    with resume_refusal(args):
+        res = sweep(
+            task,
+            grid,
+            outputs=QUANTITIES[args.quantity],
+            checkpoint=checkpoint(args),
+            resume=args.resume,
+            fingerprint=fingerprint(model_fingerprint(model), args, _FINGERPRINT_OPTIONS),
+            out=outs.path(args.out) if args.out and not args.out.lower().endswith(".csv") else None,
+            attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
+            **sweep_opts(args),
+        )
+    _summary(args, grid, res, QUANTITIES[args.quantity], task, model)
     if args.out and args.out.lower().endswith(".csv"):
         res.to_csv(outs.path(args.out))  # (a .nc file was streamed by the sweep)
     if args.plot:
@@ -118,7 +123,10 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     return 0 if res.status == "ok" else 1
 
 
-def _summary(args: argparse.Namespace, grid: Any, res: Any, outputs: dict[str, Any]) -> None:
+def _summary(
+    args: argparse.Namespace, grid: Any, res: Any, outputs: dict[str, Any], task: Any, model: Any
+) -> None:
+    """The range of every output; an ``inf`` b_lim says what it means there."""
     import numpy as np
 
     print(
@@ -128,6 +136,8 @@ def _summary(args: argparse.Namespace, grid: Any, res: Any, outputs: dict[str, A
         a = np.asarray(arr)
         fin = a[np.isfinite(a)]
         rng = f"min {fin.min():.6g}, max {fin.max():.6g}" if fin.size else "no finite values"
+        if k in ("b_lim", "b_lim_min") and ok_infs(a, res.task_status).any():
+            rng += "; " + inf_note(*sweep_inf_claims(res, k, task, model))
         print(f"  {k} [{outputs[k]}]: {rng}")
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed; first: {res.message}", file=sys.stderr)
