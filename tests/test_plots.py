@@ -291,6 +291,9 @@ def test_sweep_stable_is_a_status_map_in_mm(stable_sweep):
     assert np.array_equal(~np.ma.getmaskarray(pc.get_array()).reshape(s.shape), s == 1)
     assert ax.get_ylabel() == "width [mm]" and ax.get_xlabel() == "speed [rpm]"
     assert ax.get_ylim()[1] == pytest.approx(3e-3 * 1e3 + 0.2, rel=1e-9)  # the last cell's edge, mm
+    ax = P.plot_sweep(stable_sweep, "stable", at={"speed": 7000.0})  # one free axis: one row of cells
+    (pc,) = [p for p in ax.collections if p.get_gid() == "status-1"]
+    assert np.array_equal(~np.ma.getmaskarray(pc.get_array()).ravel(), s[:, 4] == 0)
     ax = P.plot_sweep(stable_sweep, "b", at={"speed": 7000.0})
     (ln,) = _by_gid(ax, "sweep-line")
     np.testing.assert_allclose(ln.get_xdata(), stable_sweep.grid["width"].values * 1e3)

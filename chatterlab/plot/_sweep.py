@@ -187,6 +187,11 @@ def plot_sweep(
             _sweep_map(ax, xv, yv, c * ys, f"{long}" + (f" [{yu}]" if yu else ""))
             ax.set_xlabel(xl)
             ax.set_ylabel(yl)
+    elif output == "stable":  # one row of cells: still a verdict per cell, not a 0-1 line
+        xv, xl = axis(free[0])
+        plot_stability_map(xv, np.zeros(1), sub[None, :], xlabel=xl, ax=ax,
+                           names={1: "not stable (chatter or undetermined)"})  # fmt: skip
+        ax.set_yticks([])
     else:
         xv, xl = axis(free[0])
         _sweep_line(ax, xv, sub * ys, long + (f" [{yu}]" if yu else ""))
