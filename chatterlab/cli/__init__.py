@@ -4,7 +4,9 @@
 (``_check``, ``_modes``, ``_frf``, ``_roots``, ``_lobes``, ``_simulate``,
 ``_sweep``) with ``add_parser(sub)`` and ``run(args) -> int``; ``_common``
 holds the shared options, the mm/Hz/speed-unit conversions of this edge,
-warnings and output files; ``_parallel`` the sweep engine's options.
+warnings and output files; ``_parallel`` the sweep engine's options
+(workers, checkpoint, resume); ``_claims`` what an ``inf`` b_lim means in a
+sweep's summary.
 """
 
 from __future__ import annotations

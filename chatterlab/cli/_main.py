@@ -5,7 +5,8 @@ Each command lives in its own module (``_check``, ``_modes``, ``_frf``,
 ``_roots``, ``_lobes``, ``_simulate``, ``_sweep``) with ``add_parser(sub)``
 and ``run(args) -> int``; what they share (model and cut options, the mm/Hz
 and speed units of this edge, warnings, output files) is ``_common``, the
-sweep engine's options ``_parallel``.
+sweep engine's options ``_parallel``, the meaning of an ``inf`` b_lim in a
+sweep's summary ``_claims``.
 
 Units at this edge: frequencies in Hz, width of cut in mm, the cutting speed
 in the process's unit (shaping: m/s, turning: rpm), delay and positions in SI
