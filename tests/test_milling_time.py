@@ -55,26 +55,59 @@ def cutter(immersion: float, **kw) -> Milling:
 # ----------------------------------------------------------------------------- independent reference
 
 
-def _mean_h(t0: float, t1: float, mill: Milling, omega: float) -> float:
-    """Exact mean over [t0, t1] of h(t) = sum_j g_j sin(phi_j) (K_t cos + K_n sin) (phi_j)
-    (Insperger & Stepan's 1-DOF coefficient), from its primitive."""
+def _mean_h(t0: float, t1: float, mill: Milling, omega: float) -> np.ndarray:
+    """Exact mean over [t0, t1] of each tooth's h_j(t) = g_j sin(phi_j) (K_t cos + K_n sin)(phi_j)
+    (Insperger & Stepan's 1-DOF coefficient), phi_j = omega t - lag_j, from its primitive."""
 
     def prim(p: float) -> float:
         return KT * math.sin(p) ** 2 / 2.0 + KN * (p / 2.0 - math.sin(2.0 * p) / 4.0)
 
-    total = 0.0
-    N = mill.teeth
-    for j in range(N):
-        a = omega * t0 - 2.0 * math.pi * j / N
-        b = omega * t1 - 2.0 * math.pi * j / N
-        for k in range(
-            math.floor((a - mill.exit) / (2 * math.pi)) + 1, math.floor((b - mill.entry) / (2 * math.pi)) + 1
-        ):
+    out = np.zeros(mill.teeth)
+    for j, lag in enumerate(mill.lags):
+        a = omega * t0 - lag
+        b = omega * t1 - lag
+        k0 = math.floor((a - mill.exit) / (2 * math.pi)) + 1
+        for k in range(k0, math.floor((b - mill.entry) / (2 * math.pi)) + 1):
             lo = max(a, mill.entry + 2 * math.pi * k)
             hi = min(b, mill.exit + 2 * math.pi * k)
             if hi > lo:
-                total += prim(hi - 2 * math.pi * k) - prim(lo - 2 * math.pi * k)
-    return total / (b - a)
+                out[j] += prim(hi - 2 * math.pi * k) - prim(lo - 2 * math.pi * k)
+    return out / (b - a)
+
+
+def sd_revolution_multiplier(mill: Milling, rpm: float, ap: float, k: int) -> complex:
+    """Critical multiplier over one revolution of the 1-DOF benchmark with any
+    pitch, by first-order semi-discretisation with k steps per revolution; the
+    delays pitch_j / Omega must be multiples of the step (k a multiple of the
+    pitch's denominator).  Same scheme as :func:`sd_multiplier` with one
+    delayed term per tooth."""
+    m_, c_, k_ = MASS, 2.0 * ZETA * MASS * WN, MASS * WN**2
+    omega = 2.0 * math.pi * rpm / 60.0
+    dt = 2.0 * math.pi / omega / k
+    lag_steps = mill.pitches / (2 * math.pi) * k
+    assert np.allclose(lag_steps, np.round(lag_steps), atol=1e-9), "delays off the SD grid"
+    kd = np.round(lag_steps).astype(int)
+    dim = int(kd.max()) + 2  # (x_i, v_i, x_{i-1}, ..., x_{i-kmax})
+    col = {d: (d + 1 if d >= 1 else 0) for d in range(int(kd.max()) + 1)}  # x_{i-d} in the state
+    Phi = np.eye(dim)
+    for i in range(k):
+        hb = _mean_h(i * dt, (i + 1) * dt, mill, omega)
+        aug = np.zeros((4, 4))
+        aug[:2, :2] = [[0.0, 1.0], [-(k_ + ap * hb.sum()) / m_, -c_ / m_]]
+        aug[1, 2] = 1.0
+        aug[2, 3] = 1.0
+        E = expm(aug * dt)
+        new = np.empty_like(Phi)
+        new[:2] = E[:2, :2] @ Phi[:2]
+        for j, d in enumerate(kd):  # x(t - d_j) linear between x_{i-d} and x_{i-d+1}
+            w = ap * hb[j] / m_
+            new[:2] += w * np.outer(E[:2, 2] - E[:2, 3] / dt, Phi[col[d]])
+            new[:2] += w * np.outer(E[:2, 3] / dt, Phi[col[d - 1]])
+        new[2] = Phi[0]
+        new[3:] = Phi[2 : dim - 1]
+        Phi = new
+    ev = np.linalg.eigvals(Phi)
+    return complex(ev[np.argmax(np.abs(ev))])
 
 
 def sd_multiplier(mill: Milling, rpm: float, ap: float, k: int) -> complex:
@@ -89,7 +122,7 @@ def sd_multiplier(mill: Milling, rpm: float, ap: float, k: int) -> complex:
     dim = k + 2  # (x_i, v_i, x_{i-1}, ..., x_{i-k})
     Phi = np.eye(dim)
     for i in range(k):
-        hb = _mean_h(i * dt, (i + 1) * dt, mill, omega)
+        hb = _mean_h(i * dt, (i + 1) * dt, mill, omega).sum()
         aug = np.zeros((4, 4))
         aug[:2, :2] = [[0.0, 1.0], [-(k_ + ap * hb) / m_, -c_ / m_]]
         aug[1, 2] = ap * hb / m_
@@ -151,6 +184,39 @@ def test_linear_growth_per_period_is_ln_of_the_floquet_multiplier(immersion, rpm
     expect = "stable" if abs(mu_sd) < 1 else ("flip chatter" if flip else "Hopf chatter")
     assert td[-1].verdict == expect, td[-1].reason
     assert td[-1].status == "ok"
+
+
+@pytest.mark.parametrize(
+    ("rpm", "ap"), [pytest.param(10000.0, 5e-3, id="hopf-unstable"), pytest.param(7500.0, 3e-3, id="stable")]
+)
+def test_variable_pitch_growth_per_revolution_is_ln_of_the_floquet_multiplier(rpm, ap):
+    """Pitch 144 deg / 216 deg: two delays.  The steps per tooth period
+    m = 101, 202, 404 put the delays 0.8 m and 1.2 m steps off the grid (Hermite
+    interpolation); the SD reference uses 80, 160, 320 steps per revolution,
+    where they fall on its grid.  The samples are once per revolution."""
+    vp = Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down", pitch=(0.8 * math.pi, 1.2 * math.pi))
+    td = [
+        simulate_milling(ONE_DOF, vp, rpm, ap, nonlinear=False, steps_per_period=m, revolutions=40)
+        for m in (101, 202, 404)
+    ]
+    assert math.isclose(td[-1].sample_period, 60.0 / rpm, rel_tol=1e-12)
+    sd = [sd_revolution_multiplier(vp, rpm, ap, k) for k in (80, 160, 320)]
+    g_td, err_td = richardson([r.growth_per_period for r in td])
+    g_sd, err_sd = richardson([math.log(abs(mu)) for mu in sd])
+    err_fit = abs(td[-1].growth_per_period - td[-1].growth_slope)
+    assert abs(g_td - g_sd) <= err_td + err_sd + err_fit, (g_td, g_sd, err_td, err_sd, err_fit)
+    mu_td, mu_sd = td[-1].multiplier, sd[-1]
+    assert abs(mu_td - mu_sd) <= (err_td + err_sd + err_fit) * abs(mu_sd) + abs(mu_td - td[-2].multiplier)
+    assert td[-1].verdict == ("stable" if abs(mu_sd) < 1 else "Hopf chatter")
+
+
+def test_sd_reference_over_a_revolution_is_the_tooth_period_one_to_the_power_n():
+    """The two references agree on a uniform pitch: mu_rev = mu_tau^N (the
+    coefficients are tau-periodic), same steps per tooth period."""
+    mill = cutter(0.05)
+    mu_tau = sd_multiplier(mill, 10000.0, 5e-3, 40)
+    mu_rev = sd_revolution_multiplier(mill, 10000.0, 5e-3, 80)
+    assert abs(mu_rev - mu_tau**2) <= 1e-9 * abs(mu_rev)
 
 
 def test_chatter_frequency_of_a_linear_run_matches_the_multiplier_angle():
@@ -334,6 +400,21 @@ def test_runout_on_a_rigid_tool_one_tooth_cuts_the_feed_per_revolution():
             assert np.all(r.chip[1][late] == 0.0)
         # the sample period is the revolution with runout
         assert math.isclose(r.sample_period, 60.0 / 10000.0, rel_tol=1e-12)
+
+
+def test_variable_pitch_on_a_rigid_tool_each_tooth_cuts_the_feed_of_its_pitch():
+    """Rigid tool, pitch 144 / 216 deg: chip_j = N f_z (pitch_j / 2 pi) sin phi_j
+    (the feed travelled since the preceding tooth); the delays are off the
+    grid (Hermite), the deflection bounds the error."""
+    vp = Milling.from_immersion(2, 0.02, KT, KN, 1.0, "down", pitch=(0.8 * math.pi, 1.2 * math.pi))
+    fz, rpm = 1e-4, 10000.0
+    r = simulate_milling(ONE_DOF, vp, rpm, 1e-12, feed=fz, steps_per_period=101, revolutions=3)
+    phi = vp.tooth_angles(r.t, rpm)
+    expect = 2 * fz * vp.pitches / (2 * math.pi) * np.sin(phi)
+    arc = vp.in_cut(phi)
+    tol = 1e-12 * fz + 4 * np.max(np.abs(r.x))
+    assert np.max(np.abs(r.chip.T[arc] - expect[arc])) <= tol
+    assert np.max(expect[:, 1][arc[:, 1]]) > 1.1 * fz  # the longer pitch (1.2 f_z per pass) cuts more
 
 
 # ----------------------------------------------------------------------------- nonlinear runs
