@@ -59,7 +59,14 @@ from ..structure._measured import MeasuredFRF
 from ._control import _matrices
 from ._diagram import LobeDiagram, Plant, lobes
 
-__all__ = ["measured_plant", "lobes_measured", "regenerative_matrices", "zoa_matrices"]
+__all__ = [
+    "measured_plant",
+    "lobes_measured",
+    "regenerative_matrices",
+    "zoa_matrices",
+    "model_frf",
+    "lobes_model_frf",
+]
 
 
 def regenerative_matrices(
@@ -274,4 +281,87 @@ def lobes_measured(
         speed_name="spindle speed",
         minimum=mn,
         lobes=tuple(replace(lb, speed=to_rpm / lb.delay) for lb in d.lobes),
+    )
+
+
+def model_frf(model: Any) -> MeasuredFRF:
+    """The measured FRF of a model's ``[frf]`` table as a :class:`MeasuredFRF`."""
+    src = getattr(model, "frf", None)
+    if src is None:
+        raise InputError(f"{model.source} has no [frf] table: its structure is not a measured FRF")
+    t = src.table
+    return MeasuredFRF.from_arrays(
+        t.frequency_hz,
+        t.H,
+        t.outputs,
+        t.inputs,
+        hz=True,
+        coherence=t.coherence,
+        source=src.file,
+        meta=dict(t.meta),
+    )
+
+
+def lobes_model_frf(
+    model: Any,
+    speeds: np.ndarray,
+    *,
+    frf: MeasuredFRF | None = None,
+    coupling: str | None = None,
+    width_max: float = 0.02,
+    fmin: float | None = None,
+    fmax: float | None = None,
+    n_frequencies: int | None = None,
+) -> LobeDiagram:
+    """Lobes of a model whose structure is a measured FRF (``[frf]``, or
+    ``frf=`` in place of the model's structure, e.g. ``--frf FILE``): the
+    model's ``[process]`` maps speeds to delays and its ``[[coupling]]``
+    (against ``"ground"``, the FRF being the tool relative to the
+    workpiece) gives the process matrices on the coordinates its point
+    names; a ``model = "milling"`` coupling is the zeroth-order
+    approximation (speeds in rpm, the width the axial depth)."""
+    frf = frf if frf is not None else model_frf(model)
+    if model.process is None:
+        raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
+    cs = [c for c in model.couplings if coupling is None or c.id == coupling]
+    if len(cs) != 1:
+        known = ", ".join(c.id for c in model.couplings) or "none"
+        raise InputError(
+            f"{model.source}: lobes from a measured FRF take one [[coupling]] (known: {known}); name it with coupling="
+        )
+    c = cs[0]
+    if c.b.kind != "ground" or c.a.kind != "coords" or c.a.weights:
+        raise InputError(
+            f'{model.source}: [[coupling]] "{c.id}" must join a point on the FRF\'s coordinates (a, coords ='
+            ' { x = "...", y = "..." }) to "ground": the measured FRF is the tool relative to the workpiece'
+        )
+    if c.angle != 0.0:
+        raise InputError(
+            f'{model.source}: [[coupling]] "{c.id}" has angle_deg = {np.degrees(c.angle):g}; with a measured FRF'
+            " the CE axes are the measured directions: rotate the FRF's coordinates instead (angle_deg = 0)"
+        )
+    axes = [k for k, name in enumerate(c.a.coords) if name]
+    coords = [c.a.coords[k] for k in axes]
+    missing = [n for n in coords if n not in frf.outputs or n not in frf.inputs]
+    if missing and not (len(coords) == 1 and frf.H.shape[1:] == (1, 1)):
+        raise InputError(
+            f"{frf.source}: the coupling's point names {', '.join(missing)}, which the FRF does not hold as both"
+            f" response and reference (outputs {list(frf.outputs)}, inputs {list(frf.inputs)})"
+        )
+    sel = np.ix_(axes, axes)
+    DP, DV, DO = (np.asarray(X, dtype=float)[sel] for X in (c.DP, c.DV, c.DO))
+    return lobes_measured(
+        frf,
+        speeds,
+        process=model.process,
+        width_max=width_max,
+        fmin=fmin,
+        fmax=fmax,
+        n_frequencies=n_frequencies,
+        name=f"{model.source} with the measured FRF {frf.source}",
+        coordinates=coords,
+        DP=DP,
+        DV=DV,
+        DO=DO,
+        width_ref=c.width_ref,
     )

@@ -154,7 +154,7 @@ def is_movable(model: Model, ref: PointRef) -> bool:
 def check_geometry(model: Model) -> None:
     """Every spring and coupling is a point element: its two ends must
     coincide, at every configuration.  Raises :class:`ModelError`."""
-    if model.is_matrix_model:
+    if model.is_matrix_model or model.frf is not None:
         return
     mv = model.movable
     configs = [None] if mv is None else sorted({mv.range[0], mv.position, mv.range[1]})

@@ -399,6 +399,25 @@ class Mode:
 
 
 @dataclass(frozen=True, eq=False)
+class FrfSource:
+    """A measured FRF as a model's structure (``[frf]``): the file as named
+    in the model, its resolved path, and what was read from it (a
+    :class:`chatterlab.io.FRFTable`: frequencies, receptance in m/N,
+    output/input coordinate names)."""
+
+    file: str
+    path: str
+    table: Any
+    units: str | None = None
+    quantity: str | None = None
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        t = self.table
+        return tuple(dict.fromkeys(tuple(t.outputs) + tuple(t.inputs)))
+
+
+@dataclass(frozen=True, eq=False)
 class Model:
     """An immutable machine description (the seed paper's Section 2 model).
 
@@ -422,6 +441,7 @@ class Model:
     movable: Movable | None = None
     matrices: MatrixBlock | None = None
     modes: tuple[Mode, ...] = ()  #: a modal model's [[mode]] tables (``matrices`` holds their matrices)
+    frf: FrfSource | None = None  #: a measured FRF as the structure ([frf])
     variant: str | None = None
     overrides: tuple[tuple[str, Any], ...] = ()
     text: str = ""  #: the model file's text (kept for result files)

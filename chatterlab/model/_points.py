@@ -187,7 +187,7 @@ def _read_couplings(src: str, raw: dict[str, Any], ids: _Ids, ctx: _RefContext) 
 
 def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
     label = f'[[coupling]] "{iid}"'
-    base = ("id", "a", "b", "angle_deg", "width_ref", "forces", "model", "description")
+    base: tuple[str, ...] = ("id", "a", "b", "angle_deg", "width_ref", "forces", "model", "description")
     model_kind = t.get("model", "matrices") if isinstance(t, dict) else "matrices"
     extra = {
         "matrices": ("DP", "DV", "DO"),

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ChatterlabError, ModelError
 from ._fields import _Ids, _Item
+from ._frf import read_frf_table
 from ._items import Mode, Model
 from ._matrices import _read_matrix_model
 from ._modes import read_modal_model, shape_coordinates
@@ -62,7 +63,7 @@ _LISTS = (
     "coupling",
     "mode",
 )
-_TABLES = ("model", "movable", "process", "matrices", "variant")
+_TABLES = ("model", "movable", "process", "matrices", "frf", "variant")
 
 #: Limits checked before anything is parsed or allocated (docs/model-format.md, "Limits").
 MAX_MODEL_BYTES = 8 * 2**20  #: a model file larger than this is refused unread
@@ -360,7 +361,10 @@ def _build_model(
     if modal is not None:
         modes, matrices = modal
         shapes = shape_coordinates(modes)
+    frf = read_frf_table(src, raw, base_dir, files_outside)
     coord_names = set(matrices.coordinates) if matrices and not modes else set(shapes)
+    if frf is not None:
+        coord_names = set(frf.coordinates)
     ctx = _RefContext(src, body_ids, node_xy, beam_len, {c.id for c in contacts}, coord_names, {}, shapes)
     points = _read_points(src, raw, ids, ctx)
     springs = _read_springs(src, raw, ids, ctx)
@@ -390,13 +394,14 @@ def _build_model(
         movable=movable,
         matrices=matrices,
         modes=modes,
+        frf=frf,
         variant=variant,
         overrides=tuple((overrides or {}).items()),
         text=text,
         raw=frozen_raw,
         rebuild=build_model,
     )
-    if not matrices and not bodies and not beams:
+    if not matrices and not bodies and not beams and frf is None:
         raise ModelError(
             "the model has no [[body]], no [[beam]], no [matrices] and no [[mode]]; nothing to analyse",
             source=src,

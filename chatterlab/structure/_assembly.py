@@ -21,7 +21,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import InputError, ModelError
 from ..model._geometry import beam_axes, body_centre
 from ..model._items import DIRECTIONS, GROUND, Model
 from ._elements import beam_matrices, rigid_point_matrix, rotation3
@@ -43,6 +43,12 @@ def assemble(model: Model) -> System:
         When the constraints do not determine the dependent coordinates
         (W_d^T W_d singular), or a coordinate is both dependent and given.
     """
+    if getattr(model, "frf", None) is not None:
+        raise InputError(
+            f"{model.source}: its structure is a measured FRF ([frf]), which has no matrices to assemble;"
+            " draw its lobes (chatterlab lobes, chatterlab.lobes.lobes_model_frf), or fit modes to it"
+            " (chatterlab.structure fit) for roots, Floquet and the time domain"
+        )
     if model.is_matrix_model:
         return _assemble_matrices(model)
     src = model.source
