@@ -167,11 +167,6 @@ def _plot(sims: list[Any], path: str) -> None:
 SPECTRUM_PERIODS = 4
 
 
-def history_line(sim: Any, name: str) -> str:
-    """One printed line per recorded output (see :func:`_history`)."""
-    return _history(sim, name)[0]
-
-
 def _history(sim: Any, name: str) -> tuple[str, dict[str, str]]:
     """One printed line per recorded output: mean, peak-to-peak and spectral
     peak of the last cut -- or, for a run that diverged, how large the
