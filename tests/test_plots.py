@@ -206,6 +206,29 @@ def test_touching_width_is_the_closed_form_lobe_envelope(turning, tb):
         plt.close("all")
 
 
+def test_loop_eigenvalues_are_the_loop_per_unit_width(turning, tb):
+    """chatterlab's loop eigenvalues of the turning model are the closed form
+    K_f G (1 - e^{-jwT}) (one CE direction cuts, so one locus; the others are
+    0); their product rebuilds the determinant at another width.  Round-off
+    of small dense solves: asserted 1e-9 relative."""
+    from chatterlab.frequency import loop_determinant
+    from chatterlab.frequency._frf import loop_eigenvalues
+
+    w = 2 * np.pi * np.linspace(300.0, 700.0, 401)
+    fb = cl.feedback(turning, width=1e-3, speed=4700.0, terms="pdo")
+    lam = loop_eigenvalues(turning, w, fb)
+    T = 60.0 / 4700.0
+    # the CE's directions without cutting stiffness give lambda = 0: one locus
+    one = lam[np.arange(w.size), np.argmax(np.abs(lam), axis=1)]
+    rest = np.sort(np.abs(lam), axis=1)[:, :-1]
+    assert rest.max() <= 1e-12 * np.abs(one).max()
+    np.testing.assert_allclose(one, tb.KF * tb.G(w) * (1 - np.exp(-1j * w * T)), rtol=1e-9, atol=1e-12 * np.abs(one).max())
+    fb2 = cl.feedback(turning, width=2.5e-3, speed=4700.0, terms="pdo")
+    np.testing.assert_allclose(np.prod(1 + 2.5e-3 * lam, axis=1), loop_determinant(turning, w, fb2), rtol=1e-9)
+    ax = P.plot_loop_nyquist(w, one, width=1e-3)
+    assert "b* =" in _by_gid(ax, "touching")[0].get_label()
+
+
 def test_touching_width_without_a_crossing_is_inf():
     w = np.linspace(1.0, 10.0, 50)
     assert P.touching_width(w, 1.0 / (1.0 + 1j * w)) == (float("inf"), pytest.approx(float("nan"), nan_ok=True))

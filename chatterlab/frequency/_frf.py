@@ -50,7 +50,16 @@ from ..process._cutting import Feedback
 from ..structure._assembly import FrozenSystem
 from ..structure._complex import ComplexModes, complex_modes, modal_response
 
-__all__ = ["FRF", "frf", "frequencies", "loop_determinant", "resonance_grid", "ComplexModes", "complex_modes"]
+__all__ = [
+    "FRF",
+    "frf",
+    "frequencies",
+    "loop_determinant",
+    "loop_eigenvalues",
+    "resonance_grid",
+    "ComplexModes",
+    "complex_modes",
+]
 
 _KINDS = {"receptance": (0, "m/N"), "mobility": (1, "m/(N s)"), "accelerance": (2, "m/(N s^2)")}
 
@@ -429,3 +438,23 @@ def loop_determinant(
         G = _direct(frozen, J, J.T, s, None)
     Gt = np.transpose(G, (2, 0, 1))
     return np.linalg.det(np.eye(J.shape[0]) + Gt @ fb.Dl(s))
+
+
+def loop_eigenvalues(
+    frozen: FrozenSystem, omega: np.ndarray, fb: Feedback, *, method: str = "direct"
+) -> np.ndarray:
+    """Eigenvalues lambda_i(jw) of the cutting loop per unit width, shape
+    (n_freq, n_ce), 1/m: the eigenvalues of J G J^T Dl / b, so that
+    det(I - G D) = prod_i (1 + b lambda_i) at the feedback's width b (and at
+    any width, since D is proportional to b).  A locus reaching -1/b is a
+    root on the imaginary axis at width b: the loci are the Nyquist plot of
+    :func:`chatterlab.plot.plot_loop_nyquist`.  Their order along omega is
+    that of ``numpy.linalg.eigvals`` (not tracked); a CE with several
+    coordinates gives several loci."""
+    if not fb.width > 0:
+        raise InputError(f"loop_eigenvalues needs a positive width (the feedback has {fb.width!r} m)")
+    omega = np.asarray(omega, float)
+    s = 1j * omega
+    J = fb.J
+    G = _pole_residue(frozen.complex_modes, J, J.T, s) if method == "modal" else _direct(frozen, J, J.T, s, None)
+    return np.linalg.eigvals(np.transpose(G, (2, 0, 1)) @ fb.Dl(s)) / fb.width
