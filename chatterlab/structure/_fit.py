@@ -75,6 +75,7 @@ References
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -89,6 +90,18 @@ NEW, STABLE_FREQUENCY, STABLE = 0, 1, 2
 
 
 # ============================================================================ input
+
+
+def one_blas_thread() -> Any:
+    """Single-threaded BLAS while the fit's many small dense solves run
+    (threaded OpenBLAS is ~10x slower on them when the cores are shared);
+    threadpoolctl when installed, else nothing.  (The frequency layer has
+    the same guard for its solves; the structure layer cannot import it.)"""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _as_arrays(
@@ -137,14 +150,18 @@ def _as_arrays(
 
 
 def _weights(H: np.ndarray, weighting: Any) -> np.ndarray:
-    """Weights (n_freq, n_out, n_in) of the complex errors."""
+    """Weights (n_freq, n_out, n_in) of the complex errors.  An entry that
+    is zero at every frequency is taken as not measured (a file that writes
+    0 for the cross FRFs it did not measure): weight 0, residue 0."""
+    measured = np.any(H != 0, axis=0)[None, :, :]
     if isinstance(weighting, str):
         if weighting == "inverse":
             mag = np.abs(H)
             floor = 1e-12 * float(mag.max()) if mag.size else 0.0
-            return 1.0 / np.maximum(mag, max(floor, np.finfo(float).tiny))
+            return measured / np.maximum(mag, max(floor, np.finfo(float).tiny))
         if weighting == "uniform":
-            return np.full(H.shape, 1.0 / max(float(np.sqrt(np.mean(np.abs(H) ** 2))), np.finfo(float).tiny))
+            rms = max(float(np.sqrt(np.mean(np.abs(H[:, measured[0]]) ** 2))), np.finfo(float).tiny)
+            return np.broadcast_to(measured / rms, H.shape).copy()
         raise InputError(
             f"fit_modes: weighting must be 'inverse' (relative noise), 'uniform' or an array (got {weighting!r})"
         )
@@ -294,18 +311,21 @@ def _stability(table: list[tuple[int, np.ndarray]], tol_f: float, tol_z: float) 
 def _track_length(
     table: list[tuple[int, np.ndarray]], j_top: int, lam: complex, tol_f: float, tol_z: float
 ) -> int:
-    """How many consecutive orders below j_top hold a pole stable with lam
-    (each compared with the one found at the order above)."""
+    """How many consecutive orders below j_top hold a pole within tol_f in
+    frequency of the one found at the order above (the pole's track in the
+    stabilisation diagram).  Damping is checked at the top only (by the
+    caller): under noise it wanders more than 5 % between orders while the
+    frequency stays, and the refinement settles it."""
     n = 0
     cur = lam
     for j in range(j_top - 1, -1, -1):
         cand = table[j][1]
         if cand.size == 0:
             break
-        wn, z = abs(cur), -cur.real / abs(cur)
-        wc, zc = np.abs(cand), -cand.real / np.abs(cand)
+        wn = abs(cur)
+        wc = np.abs(cand)
         k = int(np.argmin(np.abs(wc - wn)))
-        if abs(wc[k] - wn) <= tol_f * wn and abs(zc[k] - z) <= tol_z * z:
+        if abs(wc[k] - wn) <= tol_f * wn:
             n += 1
             cur = cand[k]
         else:
@@ -341,8 +361,9 @@ def _select(
         for n, lam in cands:
             if isinstance(modes, str) and n < min_stable:
                 continue
-            if any(abs(abs(lam) - abs(c)) <= tol_f * abs(c) for c in chosen):
-                continue
+            # no de-duplication: the top order's poles are distinct roots (a
+            # poly-reference fit separates two close modes seen at different
+            # references, a tool's x and y modes)
             chosen.append(lam)
             if not isinstance(modes, str) and len(chosen) == int(modes):
                 break
@@ -415,6 +436,18 @@ def lsfd(
     return R, LR, UR, res
 
 
+def _solve_r(Rq: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with Rq x = b (upper triangular); a zero pivot (a column that is
+    all zero, or two identical poles) gives the minimum-norm least-squares
+    answer instead."""
+    d = np.abs(np.diag(Rq))
+    if d.size and d.min() > 1e-13 * d.max():
+        from scipy.linalg import solve_triangular
+
+        return np.asarray(solve_triangular(Rq, b))
+    return np.linalg.lstsq(Rq, b, rcond=None)[0]
+
+
 def _lsfd(
     w: np.ndarray, H: np.ndarray, lam: np.ndarray, Wt: np.ndarray | None, lower: bool, upper: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
@@ -430,13 +463,17 @@ def _lsfd(
     for o in range(n_o):
         for i in range(n_i):
             wt = Wt[:, o, i]
+            if not np.any(wt > 0):
+                continue  # not measured: residue 0, residual 0
             A = wt[:, None] * P
             Ar = np.vstack([A.real, A.imag])
             y = wt * H[:, o, i]
-            # column scaling for the conditioning of the residual columns
+            # column scaling for the conditioning of the residual columns, then
+            # Householder QR (backward stable; cheaper than the SVD of lstsq)
             sc = np.linalg.norm(Ar, axis=0)
             sc[sc == 0] = 1.0
-            x = np.linalg.lstsq(Ar / sc, np.concatenate([y.real, y.imag]), rcond=None)[0] / sc
+            Q, Rq = np.linalg.qr(Ar / sc)
+            x = _solve_r(Rq, Q.T @ np.concatenate([y.real, y.imag])) / sc
             R[:, o, i] = x[:m] + 1j * x[m : 2 * m]
             k = 2 * m
             if lower:
@@ -620,44 +657,83 @@ class ModalFit:
 
     # ------------------------------------------------------------ model
     def real_modes(
-        self, *, residuals: bool = True, factor: float = 10.0
+        self,
+        *,
+        residuals: str = "upper",
+        factor: float = 10.0,
+        residual_damping: float = 0.05,
+        rank_tol: float = 1e-3,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(omega (n,), zeta (n,), Phi (n_c, n)) of the real-mode model on the
-        driving-point coordinates: the fitted modes plus, with
-        ``residuals``, pseudo-modes for the residual terms: the upper
-        residual UR = sum_j u_j u_j^T (its positive eigenparts) as undamped
-        modes at ``factor`` times the top of the band with shapes
-        u_j omega_hi, the lower residual LR likewise at the bottom of the band
-        divided by ``factor`` (exact as w -> inf / 0; relative error
-        (w / w_hi)^2 and (w_lo / w)^2 inside the band)."""
+        n_c driving-point coordinates.
+
+        Each fitted mode's real modal-constant matrix on those coordinates,
+        symmetrised, S_r = sym Re A_r = sum_j e_j v_j v_j^T, gives one real
+        mode (w_r, zeta_r, sqrt(e_j) v_j) per eigenpart with e_j > rank_tol
+        max |e|: one for a mode seen at several coordinates (rank one), two
+        for a pole that stands for two modes too close to separate (a tool's
+        x and y modes), none for a negative part (not realisable with a
+        positive mass; dropped).
+
+        ``residuals`` (``"upper"``, ``"both"`` or ``"none"``): pseudo-modes
+        for the residual terms.  The upper residual UR = sum_j u_j u_j^T
+        (positive eigenparts) becomes modes at w_hi = ``factor`` x the top
+        of the band with shapes u_j w_hi and damping ``residual_damping``:
+        exact as w -> 0, inside the band UR / (1 - x^2 + 2 j zeta x) with
+        x = w / w_hi, i.e. errors ~ x^2 and 2 zeta x (1 % each at the band's
+        top for the defaults).  The lower residual LR likewise at w_lo = the
+        bottom of the band / ``factor`` with shapes sqrt(LR's parts) -- off
+        by default: a lightly damped mode below the band adds a chatter
+        frequency the measurement never saw (a spurious low lobe), and an
+        undamped one a pole on the imaginary axis.  Undamped pseudo-modes
+        (``residual_damping=0``) reproduce the residual terms exactly as
+        w -> inf / 0 with relative errors x^2 and (w_lo / w)^2."""
+        if residuals not in ("upper", "both", "none"):
+            raise InputError(f"ModalFit: residuals must be 'upper', 'both' or 'none' (got {residuals!r})")
+        if not (0 <= residual_damping < 1) or not (factor > 1):
+            raise InputError("ModalFit: residual_damping must be in [0, 1) and factor > 1")
         drv = self._driving()
-        shapes = self.shapes  # raises the InputError naming the fix without a driving point
+        if not drv:
+            self.shapes  # noqa: B018 -- raises the InputError naming the fix
         rows = [o for o, _, _ in drv]
         cols = [i for _, i, _ in drv]
-        Phi = shapes[:, rows].T  # (n_c, m)
-        om = list(self.omega_n)
-        ze = list(self.damping)
-        shp = [Phi[:, r] for r in range(self.n_modes)]
-        if residuals:
-            lo, hi = self.band
-            for Rm, w_p in ((self.upper, hi * factor), (self.lower, lo / factor)):
-                Rc = Rm[np.ix_(rows, cols)]
-                Rc = 0.5 * (Rc + Rc.T)
-                ev, V = np.linalg.eigh(Rc)
-                for e, v in zip(ev, V.T, strict=True):
-                    if e > 1e-12 * max(float(np.abs(ev).max()), np.finfo(float).tiny):
-                        amp = np.sqrt(e) * (w_p if Rm is self.upper else 1.0)
-                        om.append(w_p)
-                        ze.append(0.0)
-                        shp.append(v * amp)
-        return np.array(om), np.array(ze), np.array(shp).T.reshape(len(rows), len(om))
+        A = self.modal_constants.real
+        om: list[float] = []
+        ze: list[float] = []
+        shp: list[np.ndarray] = []
+
+        def parts(S: np.ndarray) -> list[tuple[float, np.ndarray]]:
+            ev, V = np.linalg.eigh(0.5 * (S + S.T))
+            top = float(np.abs(ev).max()) if ev.size else 0.0
+            return [(float(e), v) for e, v in zip(ev, V.T, strict=True) if top > 0 and e > rank_tol * top]
+
+        for r in range(self.n_modes):
+            for e, v in parts(A[r][np.ix_(rows, cols)]):
+                om.append(float(self.omega_n[r]))
+                ze.append(float(self.damping[r]))
+                shp.append(np.sqrt(e) * v * (1.0 if v[np.argmax(np.abs(v))] > 0 else -1.0))
+        lo, hi = self.band
+        pseudo = []
+        if residuals in ("upper", "both"):
+            pseudo.append((self.upper, hi * factor, hi * factor))
+        if residuals == "both":
+            pseudo.append((self.lower, lo / factor, 1.0))
+        for Rm, w_p, gain in pseudo:
+            for e, v in parts(Rm[np.ix_(rows, cols)]):
+                om.append(w_p)
+                ze.append(float(residual_damping))
+                shp.append(np.sqrt(e) * gain * v)
+        Phi = np.array(shp).T.reshape(len(rows), len(om))
+        return np.array(om), np.array(ze), Phi
 
     def to_model(
         self,
         *,
         name: str = "modal fit",
-        residuals: bool = True,
+        residuals: str = "upper",
         factor: float = 10.0,
+        residual_damping: float = 0.05,
+        rank_tol: float = 1e-3,
         tables: dict[str, Any] | None = None,
     ) -> Any:
         """A matrix-level chatterlab :class:`~chatterlab.model.Model` whose
@@ -677,10 +753,15 @@ class ModalFit:
         exactly sum_r phi_r phi_r^T / (...) (proportional damping, real
         modes).  What is approximate: the complex residues are projected to
         real modal constants (their complexity is in
-        ``quality.complexity``), the shapes are the rank-one parts scaled
-        by one driving point, and the residual terms are pseudo-modes (see
-        :meth:`real_modes`).  Needs n >= n_c (else there is too little
-        modal information for a positive-definite M: ask for residuals).
+        ``quality.complexity``), each constant matrix keeps its positive
+        eigenparts only (above ``rank_tol``; a negative part cannot be
+        realised with a positive mass), and the residual terms are
+        pseudo-modes (see :meth:`real_modes`).  So the model equals
+        :meth:`frf` ``(real_modes=True)`` on the driving-point coordinates
+        exactly when every sym Re A_r there is positive semi-definite of the
+        rank kept (true for real modes).  Needs n >= n_c (else there is too
+        little modal information for a positive-definite M: ask for
+        residuals).
 
         Coordinates named ``POINT.DIR`` (DIR in x, y, rz) become points with
         ``coords``; any other name a point of that name moving in x.
@@ -689,12 +770,14 @@ class ModalFit:
         """
         from ..model._reader import build_model
 
-        om, ze, Phi = self.real_modes(residuals=residuals, factor=factor)
+        om, ze, Phi = self.real_modes(
+            residuals=residuals, factor=factor, residual_damping=residual_damping, rank_tol=rank_tol
+        )
         n_c, n = Phi.shape
         if n < n_c:
             raise InputError(
                 f"ModalFit.to_model: {n} modes for {n_c} coordinates cannot give a positive-definite mass matrix;"
-                " fit more modes or keep residuals=True"
+                " fit more modes or keep residuals='upper'"
             )
         if n > n_c:
             # complement of the row space of Phi: the last right singular vectors
@@ -813,11 +896,12 @@ def _refine(
         r = _lsfd(w, H, lam, Wt, lower, upper)[3]
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
-    sol = least_squares(resid, np.zeros(2 * m), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
+    sol = least_squares(resid, np.zeros(2 * m), method="lm", xtol=1e-13, ftol=1e-13, gtol=1e-13, x_scale=1.0)
     x = sol.x
     wn, ze = wn0 * (1 + x[:m]), z0 * np.exp(x[m:])
-    n_res = sol.fun.size
-    n_lin = H.shape[1] * H.shape[2] * (2 * m + int(lower) + int(upper))
+    used = np.any(Wt > 0, axis=0)  # the measured entries
+    n_res = 2 * int(np.sum(Wt > 0))
+    n_lin = int(used.sum()) * (2 * m + int(lower) + int(upper))
     dof = max(n_res - n_lin - 2 * m, 1)
     s2 = float(sol.fun @ sol.fun) / dof
     J = sol.jac
@@ -834,10 +918,10 @@ def _quality(
     fit_H: np.ndarray, H: np.ndarray, Wt: np.ndarray, w: np.ndarray, lam: np.ndarray, A: np.ndarray
 ) -> FitQuality:
     err = float(np.sqrt(np.sum(np.abs(H - fit_H) ** 2) / np.sum(np.abs(H) ** 2)))
-    werr = float(np.sqrt(np.mean(np.abs(Wt * (H - fit_H)) ** 2)))
+    werr = float(np.sqrt(np.mean(np.abs(Wt * (H - fit_H))[Wt > 0] ** 2)))
     num = np.abs(np.sum(H.conj() * fit_H, axis=0)) ** 2
     den = np.sum(np.abs(H) ** 2, axis=0) * np.sum(np.abs(fit_H) ** 2, axis=0)
-    frac = num / np.where(den > 0, den, 1.0)
+    frac = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)  # NaN: an entry not measured
     me, mf, cx = [], [], []
     for r, l_ in enumerate(lam):
         wn, z = abs(l_), -l_.real / abs(l_)
@@ -911,6 +995,41 @@ def fit_modes(
     for nm, v in (("tol_frequency", tol_frequency), ("tol_damping", tol_damping)):
         if not (isinstance(v, int | float) and 0 < v < 1):
             raise InputError(f"fit_modes: {nm} must be a fraction in (0, 1) (got {v!r})")
+    with one_blas_thread():
+        return _fit(
+            w,
+            H,
+            outs,
+            ins,
+            src,
+            modes,
+            max_order,
+            weighting,
+            lower,
+            upper,
+            refine,
+            tol_frequency,
+            tol_damping,
+            min_stable,
+        )
+
+
+def _fit(
+    w: np.ndarray,
+    H: np.ndarray,
+    outs: tuple,
+    ins: tuple,
+    src: str,
+    modes: Any,
+    max_order: int,
+    weighting: Any,
+    lower: bool,
+    upper: bool,
+    refine: bool,
+    tol_frequency: float,
+    tol_damping: float,
+    min_stable: int | None,
+) -> ModalFit:
     Wt = _weights(H, weighting)
     table = lscf_poles(w, H, max_order=max_order, weights=Wt)
     ms = max(4, max_order // 4) if min_stable is None else int(min_stable)

@@ -503,8 +503,11 @@ def identify_joint(
         r = np.log(G / Gms)
         return np.concatenate([r.real, r.imag])
 
+    from ._fit import one_blas_thread
+
     xs = np.log([x0[f] for f in free])
-    sol = least_squares(resid, xs, method="lm", x_scale=1.0)
+    with one_blas_thread():
+        sol = least_squares(resid, xs, method="lm", x_scale=1.0, xtol=1e-12, ftol=1e-12)
     dof = max(sol.fun.size - len(free), 1)
     s2 = float(sol.fun @ sol.fun) / dof
     try:
