@@ -303,6 +303,20 @@ class Milling:
             return _h(phi, self.Kt, self.Kn) * self.in_cut(phi)[..., None, None]
         return (self._windowed_integral(phi - psi, phi)) / psi
 
+    def directional_on(
+        self, t: np.ndarray, rpm: float, t_inside: float, depth: float | None = None
+    ) -> np.ndarray:
+        """H_j(t) continued from the piece between breakpoints that holds
+        ``t_inside``: which teeth cut is decided at ``t_inside``, so at a
+        breakpoint this is the one-sided limit from that piece (what a
+        collocation node at an element's end needs).  Shape (..., N, 2, 2).
+        With a helix the coefficients are continuous and this is
+        :meth:`directional`."""
+        if self.lag_angle(depth) > 0.0:
+            return self.directional(t, rpm, depth)
+        g = self.in_cut(self.tooth_angles(t_inside, rpm))
+        return _h(self.tooth_angles(t, rpm), self.Kt, self.Kn) * g[..., None, None]
+
     def lag_angle(self, depth: float | None) -> float:
         """psi_max = 2 a_p tan(beta) / D, rad (0 without helix)."""
         if self.helix == 0.0:

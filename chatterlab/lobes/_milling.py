@@ -1,0 +1,409 @@
+"""Milling stability lobes: the limit depth a_lim against spindle speed.
+
+Three methods return the same :class:`MillingLobes`:
+
+* ``"spectral"`` (the reference) and ``"sdm"`` (first-order
+  semi-discretisation): at each speed the spectral radius of the Floquet
+  multipliers rho(a_p) (:mod:`chatterlab.frequency._floquet`) is scanned on
+  ``scan`` depths up to ``depth_max``; the first scan interval where it
+  reaches 1 is refined by Brent's method to ``rtol``.  The multiplier at the
+  limit gives the type of the lobe: secondary Hopf (complex pair) or flip
+  (mu = -1, period doubling).  What is searched is stated in the result:
+  a band of instability narrower than the scan step lying entirely between
+  two stable scan depths (an "island") can be missed, and ``inf`` means
+  "stable at every scanned depth up to depth_max".
+* ``"zoa"`` (Altintas & Budak 1995): the time-averaged directional matrix H0
+  handed to the D-subdivision lobe engine (:func:`chatterlab.lobes.lobes`)
+  as a turning-like process with delay tau = 60/(N n).  Exact for the
+  averaged system; it cannot see flip lobes and is poor at low radial
+  immersion, where the coefficients are far from their mean.
+
+The spectral method also checks its own convergence at each limit: the
+spectral radius at a_lim recomputed with the degree raised by
+``CHECK_DEGREE`` gives, through the slope d rho / d a, the change of a_lim
+(``error``, m).
+
+References
+----------
+Y. Altintas, E. Budak, Analytical prediction of stability lobes in milling,
+CIRP Annals 44 (1995) 357-362.
+T. Insperger, G. Stepan, Updated semi-discretization method for periodic
+delay-differential equations with discrete delay, Int. J. Numer. Meth.
+Engng 61 (2004) 117-141.
+D. Lehotzky, T. Insperger, G. Stepan, Extension of the spectral element
+method ..., Commun. Nonlinear Sci. Numer. Simul. 35 (2016) 177-189.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import InputError, check_count, check_positive, check_speed
+from ..frequency import (
+    CHECK_DEGREE,
+    DEGREE,
+    PoleResidue,
+    SpectralMonodromy,
+    ToolStructure,
+    chatter_frequency,
+    classify,
+    sdm_monodromy,
+)
+from ..model import Process
+from ..process import Milling
+from ._diagram import Plant, lobes
+
+__all__ = ["MillingLobes", "milling_lobes", "zoa_plant"]
+
+METHODS = ("spectral", "sdm", "zoa")
+
+
+@dataclass(frozen=True, eq=False)
+class MillingLobes:
+    """Result of :func:`milling_lobes`.
+
+    Attributes
+    ----------
+    rpm : ndarray (n,)
+        Spindle speeds, rpm.
+    a_lim : ndarray (n,)
+        Limit axial depth of cut, m; ``inf`` where stable at every scanned
+        depth up to ``depth_max``.
+    kind : ndarray of str (n,)
+        ``"hopf"`` (secondary Hopf), ``"flip"`` (period doubling), ``"fold"``,
+        or ``""`` where a_lim is inf.
+    frequency_hz : ndarray (n,)
+        Chatter frequency at the limit, Hz: the dominant harmonic of the
+        critical Floquet solution (spectral), the member of the family
+        |arg mu + 2 pi k| / T nearest a structural pole (SDM), the
+        D-subdivision's (ZOA).
+    multiplier : ndarray of complex (n,)
+        The critical multiplier at the limit (|mu| = 1 to the solver's
+        tolerance; nan for ZOA).
+    error : ndarray (n,)
+        Estimated error of a_lim, m (spectral: from the convergence check;
+        nan where not estimated).
+    method, resolution : str
+        The method and its accuracy knob ("degree 16, omega L <= 5",
+        "40 steps per period", ...).
+    depth_max : float
+        Largest depth searched, m.
+    scan_step : float
+        Spacing of the depth scan, m: instability bands narrower than this
+        between two stable scan points can be missed.
+    """
+
+    rpm: np.ndarray
+    a_lim: np.ndarray
+    kind: np.ndarray
+    frequency_hz: np.ndarray
+    multiplier: np.ndarray
+    error: np.ndarray
+    method: str
+    resolution: str
+    depth_max: float
+    scan_step: float
+    name: str = ""
+    elapsed: float = 0.0
+    evaluations: int = 0
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        fin = np.isfinite(self.a_lim)
+        lines = [
+            f"milling lobes ({self.method}, {self.resolution}) of {self.name}: {self.rpm.size} speeds "
+            f"{self.rpm.min():g}-{self.rpm.max():g} rpm, depths to {self.depth_max * 1e3:g} mm "
+            f"(scan step {self.scan_step * 1e3:.3g} mm)"
+        ]
+        if np.any(fin):
+            j = int(np.argmin(np.where(fin, self.a_lim, np.inf)))
+            lines.append(
+                f"  smallest a_lim {self.a_lim[j] * 1e3:.6g} mm at {self.rpm[j]:g} rpm ({self.kind[j]},"
+                f" {self.frequency_hz[j]:.1f} Hz)"
+            )
+            lines.append(
+                f"  flip lobes at {int(np.sum(self.kind == 'flip'))} speeds, Hopf at {int(np.sum(self.kind == 'hopf'))}"
+            )
+        if np.any(~fin):
+            lines.append(
+                f"  no instability found up to {self.depth_max * 1e3:g} mm at {int(np.sum(~fin))} speeds"
+                " (searched on the scan above)"
+            )
+        lines.append(f"  {self.evaluations} evaluations, {self.elapsed:.2f} s")
+        return "\n".join(lines)
+
+    def to_csv(self, path: Any) -> None:
+        """rpm, a_lim_mm, kind, chatter_hz, |mu|, arg mu, error_mm."""
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(f"# milling lobes: method {self.method}, {self.resolution}; depths in mm\n")
+            f.write("rpm,a_lim_mm,kind,chatter_hz,mu_abs,mu_arg,error_mm\n")
+            for i in range(self.rpm.size):
+                mu = self.multiplier[i]
+                f.write(
+                    f"{self.rpm[i]!r},{self.a_lim[i] * 1e3!r},{self.kind[i]},{self.frequency_hz[i]!r},"
+                    f"{abs(mu)!r},{np.angle(mu)!r},{self.error[i] * 1e3!r}\n"
+                )
+
+    def plot(self, ax: Any = None, *, label: str | None = None, **kw: Any) -> Any:
+        """a_lim (mm) against rpm; flip parts dashed.  Returns the Axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(8, 4.5))
+        a = np.where(np.isfinite(self.a_lim), self.a_lim * 1e3, np.nan)
+        (line,) = ax.plot(self.rpm, a, label=label or self.method, **kw)
+        flip = np.where(self.kind == "flip", a, np.nan)
+        if np.any(np.isfinite(flip)):
+            ax.plot(self.rpm, flip, ls="none", marker=".", ms=3, color=line.get_color())
+        ax.set_xlabel("spindle speed (rpm)")
+        ax.set_ylabel("a_lim (mm)")
+        return ax
+
+
+# ============================================================================ ZOA
+def zoa_plant(structure: ToolStructure, milling: Milling) -> Plant:
+    """The averaged milling process on ``structure`` as a lobe-engine Plant.
+
+    With the CE convention of the engine (force on the tool
+    = -(Dl_P r + Dl_O r(t - T)) per unit width), the ZOA force
+    F = -a_p H0 [r(t) - r(t - tau)] is Dl_P = H0, Dl_O = -H0 per metre of a_p.
+    """
+    A = structure.A
+    n = structure.n
+    d = A.shape[0]
+    # the cut's coordinates r = Ub (Jr q): a rank-deficient J (a 1-DOF tool) stays regular
+    Ub, Jr, W = structure.cut_basis
+    rho = Jr.shape[0]
+    B = np.zeros((d, rho))
+    B[n:] = W
+    Cm = np.zeros((rho, d))
+    Cm[:, :n] = Jr
+    p, S = np.linalg.eig(A)
+    pr = PoleResidue(p, Cm @ S, np.linalg.solve(S, B.astype(complex)), np.zeros((rho, rho)))
+    H0 = Ub.T @ milling.zoa() @ Ub
+    Z = structure
+
+    def H(omega: np.ndarray) -> np.ndarray:
+        w = np.atleast_1d(np.asarray(omega, dtype=float))
+        D = Z.K[None] - w[:, None, None] ** 2 * Z.M[None] + 1j * w[:, None, None] * Z.C[None]
+        return Jr[None] @ np.linalg.solve(D, np.broadcast_to(Jr.T, (w.size,) + Jr.T.shape))
+
+    return Plant(H, p, H0, np.zeros((rho, rho)), -H0, pr)
+
+
+def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max: float) -> dict[str, Any]:
+    if not milling.uniform:
+        raise InputError(
+            "method 'zoa' handles a uniform pitch only (one delay); use method='spectral' for a variable pitch"
+        )
+    proc = Process(kind="turning", speed=float(rpm[0]))
+    d = lobes(
+        None,
+        milling.teeth * rpm,
+        width_max=depth_max,
+        plant=zoa_plant(structure, milling),
+        process=proc,
+        verify=0,
+        name=structure.name,
+    )
+    fin = np.isfinite(d.b_lim)
+    return {
+        "a_lim": np.asarray(d.b_lim, dtype=float),
+        "kind": np.where(fin, "hopf", ""),
+        "frequency_hz": np.asarray(d.chatter_hz, dtype=float),
+        "multiplier": np.full(rpm.size, np.nan + 0j),
+        "error": np.full(rpm.size, np.nan),
+        "resolution": f"D-subdivision on {d.n_frequencies} frequencies",
+        "evaluations": 0,
+    }
+
+
+# ============================================================================ Floquet
+def _first_crossing(
+    rho: Callable[[float], float], depth_max: float, scan: int, rtol: float
+) -> tuple[float, int]:
+    """Smallest a in (0, depth_max] with rho(a) = 1 found on the scan, refined
+    by Brent's method; inf if rho < 1 at every scan depth."""
+    grid = depth_max * np.arange(1, scan + 1) / scan
+    count = 0
+    prev_a, prev_f = 0.0, -1.0  # rho(0) < 1: the structure is stable (checked by the caller)
+    for a in grid:
+        f = rho(float(a)) - 1.0
+        count += 1
+        if f >= 0.0:
+            calls = [0]
+
+            def g(x: float, calls: list[int] = calls) -> float:
+                calls[0] += 1
+                return rho(x) - 1.0
+
+            if prev_a == 0.0:
+                prev_f = g(1e-12 * depth_max)
+                prev_a = 1e-12 * depth_max
+                if prev_f >= 0:
+                    return prev_a, count + calls[0]
+            root = brentq(g, prev_a, float(a), xtol=rtol * prev_a, rtol=4 * np.finfo(float).eps, maxiter=200)
+            return float(root), count + calls[0]
+        prev_a, prev_f = float(a), f
+    return float("inf"), count
+
+
+def _spectral_rho(sm: SpectralMonodromy) -> Callable[[float], float]:
+    return lambda a: float(abs(sm.at(a)[0]))
+
+
+def _sdm_top(
+    structure: ToolStructure, milling: Milling, rpm: float, steps: int
+) -> Callable[[float], complex]:
+    def mu_at(a: float) -> complex:
+        ev = np.linalg.eigvals(sdm_monodromy(structure, milling, rpm, a, steps))
+        return complex(ev[np.argmax(np.abs(ev))])
+
+    return mu_at
+
+
+def _abs_of(f: Callable[[float], complex]) -> Callable[[float], float]:
+    return lambda a: abs(f(a))
+
+
+def milling_lobes(
+    structure: ToolStructure,
+    milling: Milling,
+    rpm: np.ndarray,
+    *,
+    method: Literal["spectral", "sdm", "zoa"] = "spectral",
+    depth_max: float = 0.01,
+    scan: int = 40,
+    rtol: float = 1e-8,
+    degree: int = DEGREE,
+    elements: int | None = None,
+    steps: int = 40,
+    check: bool = True,
+) -> MillingLobes:
+    """Milling stability lobes a_lim(rpm).
+
+    Parameters
+    ----------
+    structure : ToolStructure
+        The structure at the tool (M, C, K and the map J to (x, y)).
+    milling : Milling
+        Cutter and cut (immersion, coefficients, pitch, helix).
+    rpm : array (n,)
+        Spindle speeds, rpm.
+    method : {"spectral", "sdm", "zoa"}
+        Spectral-element Floquet (reference), first-order semi-discretisation
+        or the zeroth-order approximation through the D-subdivision engine.
+    depth_max : float
+        Largest axial depth searched, m.
+    scan : int
+        Depths scanned in (0, depth_max] before refining the first crossing
+        (spectral, sdm).
+    rtol : float
+        Relative tolerance of Brent's method on a_lim.
+    degree, elements : int
+        Spectral: polynomial degree; sub-elements per cutting piece (default:
+        omega L <= 5, with omega the highest pole stiffened at depth_max).
+    steps : int
+        SDM: steps per period.
+    check : bool
+        Spectral: estimate the error of each a_lim from a degree
+        + CHECK_DEGREE recomputation.
+
+    Returns
+    -------
+    MillingLobes
+    """
+    t0 = time.perf_counter()
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)} (got {method!r})")
+    rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
+    if rpm.ndim != 1 or rpm.size == 0:
+        raise InputError("rpm must be a non-empty 1-D array of spindle speeds")
+    for v in (rpm.min(), rpm.max()) if np.all(np.isfinite(rpm)) else rpm[~np.isfinite(rpm)][:1]:
+        check_speed(v, "rpm", "rpm")
+    depth_max = check_positive(depth_max, "depth_max", "m")
+    scan = check_count(scan, "scan", 2)
+    if not structure.stable():
+        raise InputError(f"{structure.name}: the structure without cutting is unstable; check its damping")
+    if method == "zoa":
+        out = _zoa(structure, milling, rpm, depth_max)
+        return MillingLobes(
+            rpm=rpm,
+            depth_max=depth_max,
+            scan_step=float("nan"),
+            method="zoa",
+            name=structure.name,
+            elapsed=time.perf_counter() - t0,
+            **out,
+        )
+    n = rpm.size
+    a_lim = np.full(n, np.inf)
+    kind = np.full(n, "", dtype=object)
+    freq = np.full(n, np.nan)
+    mult = np.full(n, np.nan + 0j)
+    err = np.full(n, np.nan)
+    evals = 0
+    if milling.helix > 0 and method == "spectral":
+        raise InputError(
+            "milling_lobes: a helix angle needs the matrices per depth; not supported yet, use helix=0"
+        )
+    for i, r in enumerate(rpm):
+        T = milling.period(float(r))
+        rho: Callable[[float], float]
+        mu_at: Callable[[float], complex]
+        if method == "spectral":
+            sm = SpectralMonodromy(structure, milling, float(r), degree, elements, depth_hint=depth_max)
+            rho = _spectral_rho(sm)
+        else:
+            mu_at = _sdm_top(structure, milling, float(r), steps)
+            rho = _abs_of(mu_at)
+        a, cnt = _first_crossing(rho, depth_max, scan, rtol)
+        evals += cnt
+        if not np.isfinite(a):
+            continue
+        if method == "spectral":
+            mu, freq[i] = sm.critical(a)
+        else:
+            mu = mu_at(a)
+            freq[i] = chatter_frequency(mu, T, structure)
+        a_lim[i] = a
+        mult[i] = mu
+        kind[i] = classify(mu)
+        if method == "spectral" and check:
+            sm2 = SpectralMonodromy(
+                structure, milling, float(r), degree + CHECK_DEGREE, depth_hint=depth_max, mesh=sm.mesh
+            )
+            da = max(1e-6 * a, 10 * rtol * a)
+            slope = (rho(a + da) - rho(a - da)) / (2 * da)
+            err[i] = abs(abs(sm2.at(a)[0]) - 1.0) / abs(slope) if slope else np.inf
+            evals += 3
+    res = (
+        (
+            f"degree {degree}, omega L <= 5 per element"
+            if elements is None
+            else f"degree {degree} x {elements}"
+        )
+        if method == "spectral"
+        else f"{steps} steps per period"
+    )
+    return MillingLobes(
+        rpm=rpm,
+        a_lim=a_lim,
+        kind=kind.astype(str),
+        frequency_hz=freq,
+        multiplier=mult,
+        error=err,
+        method=method,
+        resolution=res,
+        depth_max=depth_max,
+        scan_step=depth_max / scan,
+        name=structure.name,
+        elapsed=time.perf_counter() - t0,
+        evaluations=evals,
+    )

@@ -1,0 +1,166 @@
+"""Floquet multipliers and lobes of milling (chatterlab.frequency._floquet,
+chatterlab.lobes._milling): convergence orders fitted, independent methods
+agreeing, and the reductions to a constant-coefficient (turning-like) problem.
+
+The benchmark is Insperger & Stepan's 1-DOF milling model (2004): N = 2,
+Kt = 6e8 N/m^2, Kn = 2e8 N/m^2, f_n = 922 Hz, zeta = 0.011, m = 0.03993 kg,
+down-milling.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from chatterlab.errors import InputError
+from chatterlab.frequency import SpectralMonodromy, ToolStructure, multipliers, sdm_monodromy
+from chatterlab.lobes import milling_lobes
+from chatterlab.process import Milling
+
+KT, KN = 6e8, 2e8
+WN = 2 * np.pi * 922.0
+MASS = 0.03993
+ZETA = 0.011
+
+
+def one_dof() -> ToolStructure:
+    return ToolStructure.single_dof(MASS, WN, ZETA)
+
+
+def two_dof(fy: float = 922.0) -> ToolStructure:
+    k = MASS * WN**2
+    ky = MASS * (2 * np.pi * fy) ** 2
+    return ToolStructure.modal([WN, 2 * np.pi * fy], [ZETA, ZETA], [k, ky], [[1, 0], [0, 1]], "2-DOF")
+
+
+def cutter(immersion: float, teeth: int = 2, **kw: object) -> Milling:
+    return Milling.from_immersion(teeth, 0.02, KT, KN, immersion, "down", **kw)  # type: ignore[arg-type]
+
+
+def top(mu: np.ndarray) -> complex:
+    return complex(mu[np.argmax(np.abs(mu))])
+
+
+@pytest.mark.parametrize(
+    "immersion,rpm,depth", [(1.0, 10000.0, 1e-3), (1.0, 5000.0, 5e-4), (0.05, 10000.0, 1e-3)]
+)
+def test_sdm_converges_at_order_two_toward_the_spectral_reference(immersion, rpm, depth):
+    st, m = one_dof(), cutter(immersion)
+    ref = SpectralMonodromy(st, m, rpm, 24).at(depth)[0]
+    steps = np.array([40, 80, 160, 320])
+    err = [abs(top(np.linalg.eigvals(sdm_monodromy(st, m, rpm, depth, s))) - ref) for s in steps]
+    slope = np.polyfit(np.log(steps), np.log(err), 1)[0]
+    # first-order SDM is second order in the step (Insperger, Stepan & Turi 2008); the next
+    # term of the error is O(h^3), i.e. a relative O(h) = O(1/40) change of the fitted slope
+    assert slope == pytest.approx(-2.0, abs=0.15), (slope, err)
+    # and the reference is converged far below the finest SDM error
+    ref2 = SpectralMonodromy(st, m, rpm, 30).at(depth)[0]
+    assert abs(ref2 - ref) < 1e-3 * min(err)
+
+
+def test_spectral_converges_geometrically():
+    st, m = one_dof(), cutter(1.0)
+    rpm, depth = 12000.0, 1e-3
+    ref = SpectralMonodromy(st, m, rpm, 30, elements=4).at(depth)[0]
+    degrees = np.array([6, 8, 10, 12])
+    err = np.array(
+        [abs(SpectralMonodromy(st, m, rpm, int(p), elements=4).at(depth)[0] - ref) for p in degrees]
+    )
+    # geometric: log(err) falls linearly in the degree, at least a decade per 2 degrees here
+    # (an algebraic order q would give a ratio (12/10)^q, i.e. q > 12 for the same fall)
+    assert np.all(err[1:] / err[:-1] < 0.1), err
+    assert err[-1] < 1e-7
+
+
+@pytest.mark.parametrize(
+    "structure", [one_dof(), two_dof(), two_dof(1100.0)], ids=["1dof", "2dof", "2dof-x-y"]
+)
+def test_constant_coefficients_are_the_turning_engine(structure):
+    # slotting with 4 teeth: sum_j H_j(t) = (N/4) [[Kn, Kt], [-Kt, Kn]] for all t (the periodic
+    # parts of sin 2phi, cos 2phi cancel over the two teeth in the cut), so milling is the
+    # autonomous DDE of the averaged matrix, which the D-subdivision engine solves
+    m = cutter(1.0, teeth=4)
+    t = (np.arange(997) + 0.5) * 0.02 / 997  # off the breakpoints, where the open windows drop a tooth
+    H = m.directional(t, 7000.0).sum(axis=-3)
+    np.testing.assert_allclose(H, np.broadcast_to(m.zoa(), H.shape), rtol=0, atol=1e-6 * KT)
+    np.testing.assert_allclose(m.zoa(), [[KN, KT], [-KT, KN]], rtol=1e-15)
+    rpm = np.array([3000.0, 4100.0, 5200.0, 7700.0, 12000.0])
+    dmax = 0.01 if structure.n == 1 else 1e-3  # the 2-DOF limits are 20-200 um
+    fl = milling_lobes(structure, m, rpm, method="spectral", depth_max=dmax)
+    zo = milling_lobes(structure, m, rpm, method="zoa", depth_max=dmax)
+    assert np.all(np.isfinite(fl.a_lim))
+    # the Floquet limits are refined to rtol 1e-8 and converged (their own check) to < 1e-8;
+    # the engine's boundary is refined to ~1e-9 relative: 1e-7 leaves a margin of 10 on both
+    assert np.all(fl.error < 1e-8 * fl.a_lim), fl.error / fl.a_lim
+    np.testing.assert_allclose(fl.a_lim, zo.a_lim, rtol=1e-7)
+    # and the multipliers are exp(j w_c tau) on the unit circle at the engine's chatter frequency:
+    # the Floquet frequency is the member of the family (arg mu + 2 pi k)/tau nearest a pole
+    np.testing.assert_allclose(fl.frequency_hz, zo.frequency_hz, rtol=1e-6)
+
+
+def test_zoa_misses_the_flip_lobes_at_low_immersion():
+    st, m = one_dof(), cutter(0.05)
+    rpm = np.linspace(13000.0, 17000.0, 9)
+    fl = milling_lobes(st, m, rpm, method="spectral", depth_max=0.01)
+    zo = milling_lobes(st, m, rpm, method="zoa", depth_max=0.01)
+    flip = fl.kind == "flip"
+    assert np.count_nonzero(flip) >= 3, fl.kind
+    # where the Floquet limit is a flip, ZOA (which has no period doubling) claims a depth at
+    # least 30 % deeper, or none below 10 mm
+    assert np.all(~np.isfinite(zo.a_lim[flip]) | (zo.a_lim[flip] > 1.3 * fl.a_lim[flip])), (
+        fl.a_lim,
+        zo.a_lim,
+    )
+    # the flip multiplier is real and negative
+    assert np.all(np.abs(np.angle(fl.multiplier[flip])) > np.pi - 1e-6)
+
+
+def test_lobes_sdm_and_spectral_agree_within_the_sdm_error():
+    st, m = one_dof(), cutter(1.0)
+    rpm = np.array([6000.0, 9000.0, 14000.0, 21000.0])
+    sp = milling_lobes(st, m, rpm, method="spectral", depth_max=0.01)
+    s80 = milling_lobes(st, m, rpm, method="sdm", steps=80, depth_max=0.01)
+    s160 = milling_lobes(st, m, rpm, method="sdm", steps=160, depth_max=0.01)
+    # SDM's error falls 4x per doubling: Richardson's extrapolation removes the h^2 term, the
+    # rest is O(h^3): bounded by the change from 80 to 160 steps divided by 4
+    rich = (4 * s160.a_lim - s80.a_lim) / 3
+    bound = np.abs(s160.a_lim - s80.a_lim) / 4
+    assert np.all(np.abs(rich - sp.a_lim) <= bound), (rich, sp.a_lim, bound)
+    assert np.all(np.abs(s160.a_lim - sp.a_lim) > np.abs(rich - sp.a_lim))
+
+
+def test_variable_pitch_spectral_matches_sdm():
+    # a variable pitch cutter: N = 4 at 70/110/70/110 deg; a_e/D = 0.2 sweeps 53 deg < 70 deg, so
+    # one tooth cuts at a time and a delayed node lands on a node of the preceding tooth's element
+    p = np.radians([70.0, 110.0, 70.0, 110.0])
+    m = Milling.from_immersion(4, 0.02, KT, KN, 0.2, "down", pitch=tuple(p))
+    st = two_dof(1100.0)
+    rpm, depth = 9000.0, 2e-4
+    assert not m.uniform and len(set(np.round(m.delays(rpm), 12))) == 2
+    ref = top(SpectralMonodromy(st, m, rpm, 20).at(depth))
+    ref2 = top(SpectralMonodromy(st, m, rpm, 26).at(depth))
+    mu = [top(np.linalg.eigvals(sdm_monodromy(st, m, rpm, depth, s))) for s in (200, 400)]
+    rich = (4 * mu[1] - mu[0]) / 3
+    assert abs(ref - ref2) < 1e-3 * abs(mu[1] - mu[0])
+    assert abs(rich - ref) < abs(mu[1] - mu[0]) / 4
+
+
+def test_multipliers_result_and_its_check():
+    r = multipliers(one_dof(), cutter(0.05), 15000.0, 8.3e-3)
+    assert r.method == "spectral" and r.kind in ("flip", "hopf", "fold")
+    assert r.error < 1e-9
+    assert r.spectral_radius == abs(r.critical) and r.stable == (r.spectral_radius < 1)
+    s = multipliers(one_dof(), cutter(0.05), 15000.0, 8.3e-3, method="sdm", steps=40)
+    assert abs(s.critical - r.critical) <= 2 * s.error  # SDM's check (40 vs 80 steps) bounds its error
+    with pytest.raises(InputError, match="method"):
+        multipliers(one_dof(), cutter(0.05), 15000.0, 1e-3, method="nope")  # type: ignore[arg-type]
+
+
+def test_zero_depth_is_the_free_structure():
+    st, m = one_dof(), cutter(0.3)
+    rpm = 8000.0
+    T = m.period(rpm)
+    mu = SpectralMonodromy(st, m, rpm).at(0.0)
+    lam = np.linalg.eigvals(st.A)
+    expect = np.sort(np.abs(np.exp(lam * T)))[::-1]
+    np.testing.assert_allclose(np.abs(mu[:2]), expect, rtol=1e-10)
