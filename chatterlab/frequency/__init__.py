@@ -5,6 +5,17 @@ gain bounds that prove a searched band complete."""
 from __future__ import annotations
 
 from ._bounds import Band, PoleResidue, certified_band
+from ._floquet import (
+    CHECK_DEGREE,
+    DEGREE,
+    Multipliers,
+    SpectralMonodromy,
+    ToolStructure,
+    chatter_frequency,
+    classify,
+    multipliers,
+    sdm_monodromy,
+)
 from ._frf import FRF, ComplexModes, complex_modes, frequencies, frf, loop_determinant, resonance_grid
 from ._roots import (
     AXIS_GRID_MAX,
@@ -57,4 +68,13 @@ __all__ = [
     "AXIS_GRID_MAX",
     "WINDOW_MAX",
     "MARGINAL_TOL",
+    "ToolStructure",
+    "Multipliers",
+    "multipliers",
+    "SpectralMonodromy",
+    "sdm_monodromy",
+    "classify",
+    "chatter_frequency",
+    "CHECK_DEGREE",
+    "DEGREE",
 ]
