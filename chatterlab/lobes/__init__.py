@@ -12,6 +12,7 @@ from ._confirm import Confirmation, confirm
 from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_lti, lti_plant
 from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary, lobes
 from ._measured import lobes_measured, measured_plant, regenerative_matrices
+from ._milling import MillingLobes, milling_lobes, zoa_plant
 
 __all__ = [
     "Lobe",
@@ -30,4 +31,7 @@ __all__ = [
     "measured_plant",
     "lobes_measured",
     "regenerative_matrices",
+    "MillingLobes",
+    "milling_lobes",
+    "zoa_plant",
 ]
