@@ -229,6 +229,43 @@ def test_loop_eigenvalues_are_the_loop_per_unit_width(turning, tb):
     assert "b* =" in _by_gid(ax, "touching")[0].get_label()
 
 
+def test_shaper_loop_touches_at_the_lobe_engines_width():
+    """On the shaper (three CE directions, three loci) at 0.5 m/s, the width at
+    which a locus of the loop reaches -1/b is the lobe engine's b_lim there
+    (0.3406 mm at 76.24 Hz), found by two independent routes (eigenvalue
+    loci crossing the axis vs the engine's D-subdivision with Newton
+    refinement).  The loci are crossed between samples 2e-4 Hz apart:
+    interpolation error O(h^2), measured 4.6e-6 relative; asserted 1e-4."""
+    from chatterlab.frequency._frf import loop_eigenvalues
+    from chatterlab.lobes import lobes
+
+    sh = cl.assemble(cl.load_model(ROOT / "studies" / "traverse_shaper" / "model.toml")).at()
+    d = lobes(sh, np.array([0.5]), width_max=1e-3, verify=0)
+    w = 2 * np.pi * np.linspace(74.0, 78.0, 20001)
+    lam = loop_eigenvalues(sh, w, cl.feedback(sh, width=1e-4, speed=0.5, terms="pdo"))
+    b, f = P.touching_width(w, lam)
+    assert b == pytest.approx(d.b_lim[0], rel=1e-4) and f == pytest.approx(d.chatter_hz[0], rel=1e-6)
+
+
+def test_loci_are_tracked_through_shuffled_eigenvalues():
+    """Two smooth loci whose columns are shuffled at random frequencies (as
+    eigvals may order them) are followed again, and the width at which one
+    touches -1/b does not depend on the order: b* = 1/2 where 2 e^{j theta}
+    crosses the negative real axis (theta = pi), f = omega/2pi at theta = pi."""
+    w = np.linspace(0.0, 2 * np.pi, 2001)[1:]
+    theta = w  # one turn
+    true = np.column_stack([2 * np.exp(1j * theta), 0.3 + 0.1 * np.exp(-1j * theta)])
+    rng = np.random.default_rng(0)
+    flip = rng.random(w.size) < 0.3
+    raw = np.where(flip[:, None], true[:, ::-1], true)
+    got = P.track_loci(raw)
+    assert np.array_equal(got, true) or np.array_equal(got, true[:, ::-1])
+    b, f = P.touching_width(w, raw)
+    assert b == pytest.approx(0.5, rel=1e-6) and f == pytest.approx(0.5, rel=1e-6)
+    # without tracking, the shuffled columns would cross the axis at false places
+    assert np.sum(np.diff(np.sign(raw.imag), axis=0) != 0) > 100
+
+
 def test_touching_width_without_a_crossing_is_inf():
     w = np.linspace(1.0, 10.0, 50)
     assert P.touching_width(w, 1.0 / (1.0 + 1j * w)) == (float("inf"), pytest.approx(float("nan"), nan_ok=True))

@@ -12,7 +12,7 @@ stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 from __future__ import annotations
 
 from ._atlas import plot_atlas
-from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width
+from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
 from ._style import savefig
@@ -24,6 +24,7 @@ __all__ = [
     "plot_nyquist",
     "plot_loop_nyquist",
     "touching_width",
+    "track_loci",
     "plot_lobes",
     "plot_atlas",
     "plot_histories",

@@ -7,7 +7,8 @@
   critical point, the origin, with the region around it zoomed;
 * :func:`plot_loop_nyquist` -- the eigenvalue loci of the loop per unit width,
   with the critical point -1/b and the width b* at which a locus touches it
-  (:func:`touching_width`).
+  (:func:`touching_width`), each locus followed through the frequencies
+  (:func:`track_loci`).
 """
 
 from __future__ import annotations
@@ -224,14 +225,50 @@ def plot_nyquist(
     return ax
 
 
+def track_loci(loop: np.ndarray) -> np.ndarray:
+    """Columns of ``loop`` (n_freq, m) reordered so that each column follows
+    one locus: eigenvalues come in no particular order at each frequency,
+    so where the nearest neighbours of one sample's values in the previous
+    sample are not in the same columns, the columns are matched by the
+    permutation of least total distance (all m! for m <= 6, greedily above),
+    and the matchings are composed along frequency."""
+    from itertools import permutations
+
+    L = np.asarray(loop, complex)
+    L = L.reshape(L.shape[0], -1)
+    n, m = L.shape
+    if m == 1 or n < 2:
+        return L
+    d = np.abs(L[1:, :, None] - L[:-1, None, :])  # d[j, a, b]: next a to previous b
+    steps = np.nonzero(np.any(np.argmin(d, axis=2) != np.arange(m), axis=1))[0]
+    perms = list(permutations(range(m))) if m <= 6 else None
+    order = np.arange(m)  # the raw column holding each tracked locus
+    out = np.empty_like(L)
+    start = 0
+    for j in steps.tolist():
+        out[start : j + 1] = L[start : j + 1][:, order]
+        if perms is not None:
+            cost = [sum(d[j, a, p[a]] for a in range(m)) for p in perms]
+            match = np.array(perms[int(np.argmin(cost))])  # next a <- previous match[a]
+        else:
+            match = np.argmin(d[j], axis=1)
+        nxt = np.empty(m, int)
+        nxt[match] = np.arange(m)  # previous b -> next nxt[b]
+        order = nxt[order]
+        start = j + 1
+    out[start:] = L[start:][:, order]
+    return out
+
+
 def touching_width(omega: np.ndarray, loop: np.ndarray) -> tuple[float, float]:
     """The smallest width b* > 0 at which a locus of the loop per unit width
     reaches the critical point -1/b, and its frequency (Hz): over the
     crossings of the negative real axis (a sign change of Im between two
-    samples, Re interpolated linearly there), b* = -1 / Re.  (inf, nan)
-    when no locus crosses it in the sampled band."""
+    samples of one tracked locus (:func:`track_loci`), Re interpolated
+    linearly there), b* = -1 / Re.  (inf, nan) when no locus crosses it in
+    the sampled band."""
     omega = np.asarray(omega, float)
-    L = np.asarray(loop, complex).reshape(omega.size, -1)
+    L = track_loci(np.asarray(loop, complex).reshape(omega.size, -1))
     im, re = L.imag, L.real
     s = np.nonzero((im[:-1] * im[1:] <= 0) & (im[:-1] != im[1:]))
     j, c = s
@@ -269,7 +306,7 @@ def plot_loop_nyquist(
     if ax is None:
         _, ax = plt.subplots(figsize=(5.5, 5.5))
     omega = np.asarray(omega, float)
-    L = np.asarray(loop, complex).reshape(omega.size, -1)
+    L = track_loci(np.asarray(loop, complex).reshape(omega.size, -1))
     for c in range(L.shape[1]):
         lab = "w > 0" + (f" (locus {c + 1})" if L.shape[1] > 1 else "")
         ax.plot(L[:, c].real, L[:, c].imag, lw=1, label=lab, gid="locus")
