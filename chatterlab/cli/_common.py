@@ -73,6 +73,8 @@ def load(args: argparse.Namespace) -> Any:
     """The model of the command line (file, --variant, --set), with its unit-slip warnings."""
     from ..model._reader import load_model
 
+    if args.model is None:
+        raise InputError("give the model file (or, for lobes, a measured FRF with --frf FILE)")
     model = load_model(
         args.model,
         variant=getattr(args, "variant", None),
@@ -106,9 +108,15 @@ def width_max_m(args: argparse.Namespace) -> float:
     return mm_to_m(check_width(args.width_max, "--width-max", "mm"))
 
 
-def model_args(p: argparse.ArgumentParser) -> None:
-    """The model file and the options that change it (every command)."""
-    p.add_argument("model", help="model file (TOML, see docs/model-format.md)")
+def model_args(p: argparse.ArgumentParser, optional: bool = False) -> None:
+    """The model file and the options that change it (every command;
+    ``optional`` where another input can stand in for it, ``lobes --frf``)."""
+    if optional:
+        p.add_argument(
+            "model", nargs="?", help="model file (TOML, see docs/model-format.md); optional with --frf"
+        )
+    else:
+        p.add_argument("model", help="model file (TOML, see docs/model-format.md)")
     p.add_argument("--variant", help="use the [variant.NAME] parameter set of the file")
     p.add_argument(
         "--set",

@@ -23,6 +23,7 @@ from ..errors import InputError, check_count, check_position, check_speed
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
 from ._claims import ceiling_claim, inf_note, ok_infs
 from ._common import load, m_to_mm, model_args, outputs, warn, width_max_m, width_slips
+from ._measured import frf_args, frf_model, uses_frf
 from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
 
 
@@ -30,7 +31,7 @@ def add_parser(sub: Any) -> None:
     lo = sub.add_parser(
         "lobes", help="stability lobe diagram (b_lim against speed), or an atlas along the stroke"
     )
-    model_args(lo)
+    model_args(lo, optional=True)
     lo.add_argument(
         "--speed",
         type=float,
@@ -74,6 +75,7 @@ def add_parser(sub: Any) -> None:
     lo.add_argument("--out", metavar="FILE.nc|FILE.csv")
     lo.add_argument("--plot", metavar="FILE.png")
     parallel_args(lo)
+    frf_args(lo)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -85,12 +87,14 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from ..structure._assembly import assemble
 
-    model = load(args)
+    model = frf_model(args) if uses_frf(args) else load(args)
     if model.process is None:
         raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
     v = speeds(args, model.process)
     wmax = width_max_m(args)
     warn(args, width_slips(wmax, "--width-max"))
+    if model.frf is not None:
+        return _report(args, model, _measured_diagram(args, model, v, wmax), outs)
     sy = assemble(model)
     if args.positions is not None:
         return _atlas(args, model, v, wmax, outs)
@@ -130,6 +134,22 @@ def _diagram(args: argparse.Namespace, sy: Any, v: Any, wmax: float) -> Any:
         d = dataclasses.replace(d, meta={**d.meta, "confirm": conf.summary_line()})
         print(conf.table(), file=sys.stderr)
     return d
+
+
+def _measured_diagram(args: argparse.Namespace, model: Any, v: Any, wmax: float) -> Any:
+    """The branch of a measured FRF as the structure ([frf] or --frf)."""
+    from ..lobes._measured import lobes_model_frf
+
+    for opt, val in (
+        ("--positions", args.positions),
+        ("--position", args.position),
+        ("--confirm", args.confirm or None),
+    ):
+        if val is not None:
+            raise InputError(
+                f"{opt} needs a model with matrices; a measured FRF has one configuration and no matrices"
+            )
+    return lobes_model_frf(model, v, width_max=wmax, fmin=args.fmin, fmax=args.fmax)
 
 
 def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:

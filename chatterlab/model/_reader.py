@@ -267,7 +267,7 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
                     f" (known: {', '.join(map(str, known)) or 'none'})",
                     source=src,
                 )
-        elif len(parts) == 2 and parts[0] in ("movable", "process", "model"):
+        elif len(parts) == 2 and parts[0] in ("movable", "process", "model", "frf"):
             tbl, fld = parts
             table = raw.setdefault(tbl, {})
             if not isinstance(table, dict):
@@ -276,7 +276,7 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
         else:
             raise ModelError(
                 f"{what} '{path}' does not address a field: write KIND.ID.FIELD for list items"
-                f" (KIND one of {', '.join(_LISTS)}) or movable.FIELD / process.FIELD",
+                f" (KIND one of {', '.join(_LISTS)}) or movable.FIELD / process.FIELD / frf.FIELD",
                 source=src,
             )
 
