@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 import chatterlab
 from chatterlab.errors import InputError, SweepError
-from chatterlab.io._netcdf import read_netcdf, write_csv, write_netcdf
+from chatterlab.io import read_netcdf, write_csv, write_netcdf
 from chatterlab.sweep._engine import Axis, Grid, SweepInterrupted, SweepResult, sweep
 
 ROOT = Path(chatterlab.__file__).resolve().parent.parent
@@ -512,7 +512,7 @@ def test_automatic_fingerprint_is_the_same_in_another_process() -> None:
     """joblib.hash is deterministic: a fresh interpreter (other string-hash seed) agrees."""
     code = (
         "import functools, numpy as np; from chatterlab.errors import check_width; "
-        "from chatterlab.sweep._engine import _auto_fingerprint; "
+        "from chatterlab.sweep._checkpoint import _auto_fingerprint; "
         "print(_auto_fingerprint(functools.partial(check_width, name='w', unit={'a': np.arange(3.0), 'b': 1})))"
     )
     outs = []

@@ -33,10 +33,10 @@ from ._netcdf import (
     provenance_attrs,
     read_dataset,
     read_netcdf,
-    write_csv,
     write_dataset,
     write_netcdf,
 )
+from ._netcdf_csv import write_csv
 
 __all__ = [
     "DATA_SUFFIXES",

@@ -57,12 +57,9 @@ streams the result to a netCDF file (``SweepResult.from_netcdf`` reads it).
 
 from __future__ import annotations
 
-import functools
 import math
 import os
-import re
 import shutil
-import sys
 import time
 from collections.abc import Callable, Generator, Iterable, Mapping
 from pathlib import Path
@@ -79,7 +76,10 @@ from ._checkpoint import (
     _CHECKPOINT_FORMAT,
     _CHECKPOINT_VERSION,
     _CHUNK_RE,
+    _FINGERPRINT_METHOD,
     _MANIFEST,
+    _auto_fingerprint,
+    _caller_fingerprint,
     _load_chunks,
     _lock_checkpoint,
     _open_checkpoint,
@@ -102,79 +102,10 @@ __all__ = [
 Backend = Literal["loky", "serial", "dask"]
 
 _MAX_CHUNK = 4096
-_FINGERPRINT_METHOD = "joblib.hash-sha1 v1"  # of the automatic fingerprint (manifest)
 _CHUNKS_PER_JOB = 32
 
 
 # =========================================================================== sweep
-
-
-def _auto_fingerprint(func: Callable[..., Any]) -> str:
-    """A :func:`joblib.hash` of the function's identity, code and bound data (best effort).
-
-    Covers the module and qualified name, the source code (the bytecode
-    where the source cannot be found), ``functools.partial`` arguments, the
-    instance of a bound method, closure cells and defaults, or the object
-    itself for a callable instance.  joblib hashes NumPy arrays by content
-    and dictionaries whatever their order; data that joblib cannot hash
-    count by their ``repr`` with memory addresses removed.
-    """
-    import inspect
-
-    parts: list[Any] = []
-    f: Any = func
-    while isinstance(f, functools.partial):
-        parts.append(("partial", f.args, sorted(f.keywords.items())))
-        f = f.func
-    parts.append(
-        ("name", f"{getattr(f, '__module__', '')}.{getattr(f, '__qualname__', type(f).__qualname__)}")
-    )
-    owner = getattr(f, "__self__", None)
-    if owner is not None and not isinstance(owner, type(sys)):
-        parts.append(("self", owner))  # a bound method: the model instance matters
-    code = getattr(f, "__code__", None)
-    if code is not None:
-        try:
-            parts.append(("source", inspect.getsource(f)))
-        except (OSError, TypeError):
-            simple = [c for c in code.co_consts if isinstance(c, int | float | str | bytes | None)]
-            parts.append(("code", code.co_code, simple))
-        cells = []
-        for cell in getattr(f, "__closure__", None) or ():
-            try:
-                cells.append(cell.cell_contents)
-            except ValueError:  # an empty cell
-                cells.append(None)
-        parts.append(("bound", cells, getattr(f, "__defaults__", None), getattr(f, "__kwdefaults__", None)))
-    elif owner is None and not isinstance(f, type):
-        parts.append(("object", f))  # a callable object, e.g. a frozen task with __call__
-    return _hash([_hashable(p) for p in parts])
-
-
-def _caller_fingerprint(fingerprint: str | Mapping[str, Any]) -> str | dict[str, str]:
-    """The caller's fingerprint as stored in the manifest (a mapping as text values)."""
-    if isinstance(fingerprint, str):
-        return fingerprint
-    if isinstance(fingerprint, Mapping):
-        return {str(k): str(v) for k, v in fingerprint.items()}
-    raise InputError(
-        f"fingerprint must be a string or a mapping name -> value (got {type(fingerprint).__name__})"
-    )
-
-
-def _hash(obj: Any) -> str:
-    import joblib
-
-    return str(joblib.hash(obj, hash_name="sha1"))
-
-
-def _hashable(part: Any) -> Any:
-    """``part``, or its address-free ``repr`` when joblib cannot hash it."""
-    try:
-        _hash(part)
-    except Exception:  # noqa: BLE001 - unpicklable: fall back to the repr
-        return re.sub(r"0x[0-9a-fA-F]+", "0x?", repr(part))
-    return part
 
 
 def _normalise_outputs(

@@ -13,7 +13,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from chatterlab.errors import InputError
-from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_csv, write_dataset
+from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_dataset
+from chatterlab.io._netcdf_csv import write_csv
 
 from ._grid import Axis, Grid
 
