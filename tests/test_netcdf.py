@@ -171,6 +171,18 @@ def test_dataset_round_trip_and_byte_identical_files(tmp_path: Path) -> None:
     assert c.attrs["created"] == FIXED["created"] and "chatterlab_version" in c.attrs
 
 
+def test_a_foreign_file_with_fill_values_is_written_again(tmp_path: Path) -> None:
+    """read_dataset keeps a _FillValue as stored (an attribute); write_dataset
+    turns it back into the variable's fill value instead of refusing it."""
+    ds = xr.Dataset({"y": ("x", np.array([1.0, -999.0]), {"units": "m"})}, coords={"x": [0.0, 1.0]})
+    ds.to_netcdf(tmp_path / "foreign.nc", engine="h5netcdf", encoding={"y": {"_FillValue": -999.0}})
+    raw = read_dataset(tmp_path / "foreign.nc")
+    assert raw["y"].attrs["_FillValue"] == -999.0 and raw["y"].values.tolist() == [1.0, -999.0]
+    again = read_dataset(write_dataset(tmp_path / "again.nc", raw, provenance=False))
+    xr.testing.assert_identical(again, raw)
+    assert raw["y"].attrs["_FillValue"] == -999.0  # the caller's dataset is left as it was
+
+
 def test_write_is_atomic(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     coords = {"x": (np.arange(4.0), "m")}
     p = write_netcdf(tmp_path / "r.nc", coords, {"y": (np.ones(4), "N")}, FIXED)

@@ -286,6 +286,8 @@ def write_dataset(path: str | os.PathLike[str], ds: Any, *, provenance: bool = T
     attrs.update(ds.attrs)
     out.attrs = {k: attr_value(str(k), v) for k, v in attrs.items()}
     for name, var in out.variables.items():
+        if "_FillValue" in var.attrs:  # as read with decode_cf=False: it is an encoding
+            var.encoding["_FillValue"] = var.attrs.pop("_FillValue")
         for k, v in var.attrs.items():
             try:
                 var.attrs[k] = attr_value(str(k), v)
