@@ -144,12 +144,12 @@ def test_a_failing_command_leaves_no_file(capsys, tmp_path, turning):
 
 
 def test_a_failure_after_the_first_file_removes_it(capsys, tmp_path, turning, monkeypatch):
-    import chatterlab.plot._plot
+    import chatterlab.plot
 
     def broken(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(chatterlab.plot._plot, "savefig", broken)
+    monkeypatch.setattr(chatterlab.plot, "savefig", broken)
     out, png = tmp_path / "l.nc", tmp_path / "l.png"
     code = main(COMMANDS["lobes"].format(m=turning).split() + ["--out", str(out), "--plot", str(png)])
     assert_clean_error(code, capsys.readouterr().err, "No space left on device")
@@ -157,12 +157,12 @@ def test_a_failure_after_the_first_file_removes_it(capsys, tmp_path, turning, mo
 
 
 def test_interrupted_command_leaves_no_file(capsys, tmp_path, turning, monkeypatch):
-    import chatterlab.plot._plot
+    import chatterlab.plot
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(chatterlab.plot._plot, "savefig", interrupted)
+    monkeypatch.setattr(chatterlab.plot, "savefig", interrupted)
     code = main(COMMANDS["lobes"].format(m=turning).split() + ["--out", str(tmp_path / "l.csv"), "--plot", str(tmp_path / "l.png")])  # fmt: skip
     assert code == 130
     assert files(tmp_path) == ["turning.toml"]

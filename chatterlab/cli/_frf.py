@@ -69,7 +69,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     if args.nyquist and fb is not None:
         _nyquist(args, outs, fz, w, fb)
     if args.plot:
-        from ..plot._plot import plot_frf, savefig
+        from ..plot import plot_frf, savefig
 
         curves = [res]
         if fb is not None:
@@ -88,7 +88,7 @@ def _nyquist(args: argparse.Namespace, outs: Outputs, fz: Any, w: Any, fb: Any) 
     import numpy as np
 
     from ..frequency._frf import loop_determinant, resonance_grid
-    from ..plot._plot import plot_nyquist, savefig
+    from ..plot import plot_nyquist, savefig
 
     # resolve every resonance and the turning of e^{-jwT} (32 points per turn)
     n_turn = int(16 * (fb.delay or 0.0) * float(w[-1] - w[0]) / np.pi) + 1

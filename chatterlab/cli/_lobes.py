@@ -161,7 +161,7 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
         else:
             d.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)})
     if args.plot:
-        from ..plot._plot import savefig
+        from ..plot import savefig
 
         savefig(d.plot(), outs.path(args.plot))
     if d.verified is False:
@@ -224,7 +224,7 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outp
         else:
             res.to_netcdf(outs.path(args.out))
     if args.plot:
-        from ..plot._plot import plot_atlas, savefig
+        from ..plot import plot_atlas, savefig
 
         savefig(
             plot_atlas(res, model.process, model=model.source, width_max=wmax, terms=args.terms),

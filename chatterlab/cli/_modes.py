@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
             pos = "" if md.position is None else f" at position s = {md.position:g} m"
             emit(f"{sy.model.name}: natural frequencies{pos}\n" + md.table(), out)
         if args.plot:
-            from ..plot._plot import savefig
+            from ..plot import savefig
 
             savefig(md.plot(), outs.path(args.plot))
     return 0

@@ -150,11 +150,11 @@ def _report(args: argparse.Namespace, outs: Outputs, sims: list[Any], files: lis
 def _plot(sims: list[Any], path: str) -> None:
     import matplotlib.pyplot as plt
 
-    from ..plot._plot import plot_histories, plot_spectra
+    from ..plot import plot_histories, plot_spectra
 
     names = list(sims[0].data)[:2]
     fig, axs = plt.subplots(len(names) + 1, 1, figsize=(8.5, 2.6 * (len(names) + 1) + 0.5))
-    plot_histories(sims, names, axes=axs[: len(names)], against="time")
+    plot_histories(sims, names, ax=axs[: len(names)], against="time")
     plot_spectra(sims, names[0], ax=axs[-1])
     fig.tight_layout()
     fig.savefig(path, dpi=130)

@@ -116,7 +116,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     if args.out and args.out.lower().endswith(".csv"):
         res.to_csv(outs.path(args.out))  # (a .nc file was streamed by the sweep)
     if args.plot:
-        from ..plot._plot import savefig
+        from ..plot import savefig
 
         first = next(iter(QUANTITIES[args.quantity]))
         savefig(res.plot(first), outs.path(args.plot))

@@ -317,12 +317,15 @@ class LobeDiagram:
             attrs=a,
         )
 
-    def plot(self, axes: Any = None, *, lobe_numbers: int = 8, title: str | None = None) -> Any:
+    def plot(
+        self, ax: Any = None, *, lobe_numbers: int = 8, title: str | None = None, axes: Any = None
+    ) -> Any:
         """Lobe diagram (b_lim in mm against speed, unstable region shaded,
-        lobe numbers) over the chatter frequency panel; returns the Axes."""
-        from ..plot._plot import plot_lobes
+        lobe numbers) over the chatter frequency panel; returns the Axes
+        (``axes=`` is a deprecated alias of ``ax=``)."""
+        from ..plot import plot_lobes
 
-        return plot_lobes(self, axes=axes, lobe_numbers=lobe_numbers, title=title)
+        return plot_lobes(self, ax=ax, axes=axes, lobe_numbers=lobe_numbers, title=title)
 
 
 # ============================================================================ inner solve
