@@ -9,7 +9,7 @@ The oracles:
   1-DOF benchmark of Insperger & Stepan (N = 2, K_t = 6e8 N/m^2,
   K_n = 2e8 N/m^2, f_n = 922 Hz, zeta = 0.011, m = 0.03993 kg, down-milling);
   the tolerance is the sum of both discretisation errors, each estimated from
-  three resolutions (Richardson, with the observed ratio);
+  three resolutions (the geometric tail of the differences);
 * the fitted convergence order of the scheme (2, with the entry of a tooth
   off the step grid);
 * the generic Newmark solver (:func:`chatterlab.time.newmark`) integrating the
@@ -139,15 +139,21 @@ def sd_multiplier(mill: Milling, rpm: float, ap: float, k: int) -> complex:
     return complex(ev[np.argmax(np.abs(ev))])
 
 
+def tail_bound(d1: float, d2: float) -> float:
+    """Bound on the error of the finest of three results whose successive
+    differences are d1, d2 (the step halved each time): if the differences keep
+    shrinking by at least rho = min(d1/d2, 2) -- order >= 1 -- the remaining
+    error is at most the geometric tail d2 / (rho - 1), i.e. d2 once the
+    observed ratio is 2 or more.  The observed ratio must exceed 1
+    (converging), else the comparison would be vacuous."""
+    assert d1 > d2 > 0 or d1 == d2 == 0, f"not converging: differences {d1:.3g}, {d2:.3g}"
+    return 0.0 if d2 == 0 else d2 / (min(d1 / d2, 2.0) - 1.0)
+
+
 def richardson(values: list[float]) -> tuple[float, float]:
-    """Finest value and its error estimated from three resolutions halving the
-    step: the geometric tail d_fine / (ratio - 1) with the observed ratio of
-    the differences (an upper bound while the ratio grows towards its
-    asymptotic 2^p, as in the pre-asymptotic range of these runs; at least 2
-    imposed: a first-order method at worst)."""
-    d1, d2 = abs(values[1] - values[0]), abs(values[2] - values[1])
-    ratio = max(d1 / d2, 2.0) if d2 > 0 else 4.0
-    return values[2], d2 / (ratio - 1.0)
+    """Finest of three values (the step halved each time) and its error bound
+    (:func:`tail_bound`)."""
+    return values[2], tail_bound(abs(values[1] - values[0]), abs(values[2] - values[1]))
 
 
 # ----------------------------------------------------------------------------- linear runs vs Floquet
@@ -171,8 +177,8 @@ def test_linear_growth_per_period_is_ln_of_the_floquet_multiplier(immersion, rpm
     sd = [sd_multiplier(mill, rpm, ap, k) for k in (40, 80, 160)]
     g_td, err_td = richardson([r.growth_per_period for r in td])
     g_sd, err_sd = richardson([math.log(abs(mu)) for mu in sd])
-    # the Poincare estimate itself: Prony fit against the log-slope of the deviations
-    err_fit = abs(td[-1].growth_per_period - td[-1].growth_slope)
+    # the Poincare estimate itself: the fit on the last half against the last quarter
+    err_fit = td[-1].growth_error
     assert abs(g_td - g_sd) <= err_td + err_sd + err_fit, (g_td, g_sd, err_td, err_sd, err_fit)
     # the same kind of multiplier, and the same multiplier in the complex plane
     mu_td, mu_sd = td[-1].multiplier, sd[-1]
@@ -184,6 +190,63 @@ def test_linear_growth_per_period_is_ln_of_the_floquet_multiplier(immersion, rpm
     expect = "stable" if abs(mu_sd) < 1 else ("flip chatter" if flip else "Hopf chatter")
     assert td[-1].verdict == expect, td[-1].reason
     assert td[-1].status == "ok"
+
+
+def modal_tool() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A modal model as a CutPro user types it: three modes (922, 1100, 3000 Hz;
+    zeta 1.1, 2, 3 %; modal stiffness 1.34, 2, 8 MN/m) along 0, 60 and 90 deg
+    in the x-y plane; P holds the mode shapes at the tool point."""
+    f = np.array([922.0, 1100.0, 3000.0])
+    zeta = np.array([0.011, 0.02, 0.03])
+    k = np.array([1.34e6, 2.0e6, 8.0e6])
+    w = 2 * np.pi * f
+    m = k / w**2
+    ang = np.radians([0.0, 60.0, 90.0])
+    return np.diag(m), np.diag(2 * zeta * w * m), np.diag(k), np.vstack([np.cos(ang), np.sin(ang)])
+
+
+def two_dof() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The benchmark's parameters in x and in y."""
+    M, C, K = (np.eye(2) * np.asarray(a)[0, 0] for a in ONE_DOF)
+    return M, C, K, np.eye(2)
+
+
+@pytest.mark.parametrize(
+    ("structure", "immersion", "rpm", "ap", "m"),
+    [
+        pytest.param("1dof", 0.05, 10000.0, 5e-3, 100, id="1dof-flip"),
+        pytest.param("2dof", 0.1, 10000.0, 0.5e-3, 100, id="2dof-stable"),
+        pytest.param("modal", 0.05, 10000.0, 1e-3, 200, id="modal-stable"),
+        pytest.param("modal", 0.3, 8000.0, 1e-3, 200, id="modal-hopf"),
+    ],
+)
+def test_linear_growth_equals_the_spectral_floquet_reference(structure, immersion, rpm, ap, m):
+    """Against chatterlab.frequency.multipliers (spectral-element collocation of
+    the monodromy operator, converged to ~1e-10: its own check is in the
+    tolerance): the 1-DOF, the 2-DOF x/y benchmark (two pairs of multipliers
+    near each other) and a three-mode modal model.  Tolerance: the time
+    domain's error from m, 2m, 4m (the tail of its differences) + the fit's + the reference's."""
+    from chatterlab.frequency import ToolStructure, multipliers
+
+    if structure == "1dof":
+        M, C, K = (np.asarray(a, dtype=float) for a in ONE_DOF)
+        P = np.array([[1.0], [0.0]])
+    else:
+        M, C, K, P = two_dof() if structure == "2dof" else modal_tool()
+    mill = cutter(immersion)
+    ref = multipliers(ToolStructure(M, C, K, P), mill, rpm, ap)
+    td = [
+        simulate_milling(
+            (M, C, K), mill, rpm, ap, tool_point=P, nonlinear=False, steps_per_period=k, revolutions=40
+        )
+        for k in (m, 2 * m, 4 * m)
+    ]
+    g_td, err_td = richardson([r.growth_per_period for r in td])
+    g_ref = math.log(abs(ref.critical))
+    tol = err_td + td[-1].growth_error + ref.error
+    assert abs(g_td - g_ref) <= tol, (g_td, g_ref, err_td, td[-1].growth_error, ref.error)
+    expect = "stable" if ref.stable else {"flip": "flip chatter", "hopf": "Hopf chatter"}[ref.kind]
+    assert td[-1].verdict == expect, td[-1].reason
 
 
 @pytest.mark.parametrize(
@@ -203,7 +266,7 @@ def test_variable_pitch_growth_per_revolution_is_ln_of_the_floquet_multiplier(rp
     sd = [sd_revolution_multiplier(vp, rpm, ap, k) for k in (80, 160, 320)]
     g_td, err_td = richardson([r.growth_per_period for r in td])
     g_sd, err_sd = richardson([math.log(abs(mu)) for mu in sd])
-    err_fit = abs(td[-1].growth_per_period - td[-1].growth_slope)
+    err_fit = td[-1].growth_error
     assert abs(g_td - g_sd) <= err_td + err_sd + err_fit, (g_td, g_sd, err_td, err_sd, err_fit)
     mu_td, mu_sd = td[-1].multiplier, sd[-1]
     assert abs(mu_td - mu_sd) <= (err_td + err_sd + err_fit) * abs(mu_sd) + abs(mu_td - td[-2].multiplier)
@@ -330,8 +393,8 @@ def test_zero_depth_limit_is_the_forced_response_to_the_static_force():
     """a_p -> 0: the regenerative coupling vanishes relative to the static force
     (both scale with a_p, the coupling once more), so x(t) is the steady
     response of the 1-DOF to the periodic static force, a Fourier series with
-    closed-form coefficients.  Tolerance: the Newmark error (Richardson from m,
-    2m) + the coupling, bounded by a_p N (K_t^2 + K_n^2)^(1/2) x 2 max|r| x max|G|
+    closed-form coefficients.  Tolerance: the Newmark error (tail of the
+    differences from m, 2m, 4m) + the coupling, bounded by a_p N (K_t^2 + K_n^2)^(1/2) x 2 max|r| x max|G|
     relative, + the transient exp(-zeta w_n t) left after 60 revolutions."""
     mill = cutter(0.05)
     rpm, ap, fz = 10000.0, 1e-10, 1e-4
@@ -353,10 +416,8 @@ def test_zero_depth_limit_is_the_forced_response_to_the_static_force():
     assert np.array_equal(runs[2].t[::4], coarse.t)
     x_ss = np.real(np.exp(1j * np.outer(t, l * omega)) @ (c_l * G))
     scale = np.max(np.abs(x_ss))
-    # Newmark error of the finest run: the differences shrink with a ratio that grows
-    # towards 4 (second order), so the geometric tail d2 / (ratio - 1) bounds it
-    d1, d2 = np.max(np.abs(on[1] - on[0])), np.max(np.abs(on[2] - on[1]))
-    err_newmark = d2 / (d1 / d2 - 1.0)
+    # Newmark error of the finest run, bounded by the tail of its differences
+    err_newmark = tail_bound(np.max(np.abs(on[1] - on[0])), np.max(np.abs(on[2] - on[1])))
     x_fine = on[2]
     Gmax = 1.0 / (2 * ZETA * k_ * math.sqrt(1 - ZETA**2))
     coupling = ap * N * math.hypot(KT, KN) * 2.0 * Gmax
@@ -473,6 +534,19 @@ def test_above_the_limit_the_tool_leaves_the_cut_and_the_orbit_saturates(rpm, ap
 
 
 # ----------------------------------------------------------------------------- paths, files, verdict rules
+
+
+def test_a_diverged_linear_run_keeps_its_verdict():
+    """Full immersion, 20000 rpm, 5 mm: |mu| = 2.6 (SD), the linear run passes
+    the divergence limit 1e12 m after ~45 tooth periods; the samples it has
+    still show the growth and the flip."""
+    mill = cutter(1.0)
+    mu = sd_multiplier(mill, 20000.0, 5e-3, 40)
+    assert abs(mu) > 2 and mu.real < 0 and abs(mu.imag) < 1e-9
+    r = simulate_milling(ONE_DOF, mill, 20000.0, 5e-3, nonlinear=False, steps_per_period=100, revolutions=60)
+    assert r.status == "diverged" and "diverged" in r.reason
+    assert r.verdict == "flip chatter"
+    assert r.growth_per_period > math.log(2.0)
 
 
 def test_frozen_system_with_named_tool_point_is_the_matrix_path():

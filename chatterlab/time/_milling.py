@@ -94,11 +94,14 @@ A forced periodic motion is a fixed point of this map; the differences
 d_p = s_{p+1} - s_p then decay like mu^p, mu the critical Floquet multiplier
 of the linearised motion.  On the last half of the samples:
 
-* ``growth_per_period``: ln|mu| from an order-2 Prony fit
-  d_{p+2} = a_1 d_{p+1} + a_2 d_p (least squares over all components, each
-  equation scaled by |d_{p+1}|), mu the larger root of mu^2 - a_1 mu - a_2
-  (exact for a complex pair or one real multiplier plus a smaller one);
-  ``growth_slope``: the least-squares slope of ln|d_p|.
+* ``growth_per_period``: ln|mu|, mu the dominant eigenvalue of the linear
+  map fitted to the delay-embedded deviations (d_p, d_{p+1}) ->
+  (d_{p+1}, d_{p+2}) by least squares (Hankel dynamic mode decomposition,
+  Schmid 2010; Arbabi & Mezic 2017), each snapshot scaled by its norm,
+  singular values below 1e-7 of the largest dropped: exact when the
+  deviations are a combination of up to four multipliers (two pairs: the
+  x and y modes of a tool); ``growth_error``: its change when fitted to the
+  last quarter only; ``growth_slope``: the least-squares slope of ln|d_p|.
 * verdict, with D = growth_slope x (number of periods in the window):
   D <= -ln 10 (deviations from the periodic orbit fell tenfold):
   **"stable"**; D >= ln 10 (grew tenfold): **"flip chatter"** when the
@@ -136,6 +139,11 @@ References
    with discrete delay", 61 (2004) 117-141.
 .. [5] Y. Altintas, *Manufacturing Automation*, Cambridge University Press
    2000, ch. 3-4 (the milling force model, runout).
+.. [6] P. J. Schmid, "Dynamic mode decomposition of numerical and
+   experimental data", J. Fluid Mech. 656 (2010) 5-28; H. Arbabi and
+   I. Mezic, "Ergodic theory, dynamic mode decomposition, and computation of
+   spectral properties of the Koopman operator", SIAM J. Appl. Dyn. Syst. 16
+   (2017) 2096-2126 (the Hankel, delay-embedded variant).
 """
 
 from __future__ import annotations
@@ -193,6 +201,9 @@ class MillingSimulation:
     growth_per_period : float
         ln|mu| of the dominant multiplier fitted to the Poincare samples
         (per ``sample_period``); NaN when it cannot be estimated.
+    growth_error : float
+        Its change when fitted to the last quarter of the run only: the
+        uncertainty of the fit (not of the time step).
     growth_slope : float
         Least-squares slope of ln|s_{p+1} - s_p| over the analysed window.
     multiplier : complex
@@ -222,6 +233,7 @@ class MillingSimulation:
     poincare: FloatArray
     sample_period: float
     growth_per_period: float
+    growth_error: float
     growth_slope: float
     multiplier: complex
     verdict: str
@@ -879,29 +891,38 @@ class _Run:
 # =========================================================================== post-processing
 
 
-def _prony(d: FloatArray) -> complex:
-    """Dominant root of the order-2 recurrence fitted to the rows of d (n_p, k)."""
+def _dmd(d: FloatArray, rtol: float = 1e-7) -> complex:
+    """Dominant multiplier of the linear map fitted to the delay-embedded
+    deviations z_p = (d_p, d_{p+1}) -> z_{p+1} (Hankel dynamic mode
+    decomposition): several pairs of multipliers, e.g. the x and y modes of a
+    2-DOF tool, are resolved (a scalar order-2 Prony fit assumes one pair).
+    Each snapshot pair is scaled by |z_p| (the samples span decades);
+    singular values below ``rtol`` x the largest are dropped (round-off,
+    modes decayed away)."""
     if d.shape[0] < 4:
         return complex("nan")
-    y = d[2:]
-    x1, x0 = d[1:-1], d[:-2]
-    scale = np.linalg.norm(x1, axis=1)
+    Z = np.hstack([d[:-1], d[1:]])  # (n_p - 1, 2k)
+    X, Y = Z[:-1].T, Z[1:].T
+    scale = np.linalg.norm(X, axis=0)
     ok = scale > 0
     if np.sum(ok) < 3:
         return complex("nan")
-    A = np.stack([(x1[ok] / scale[ok, None]).ravel(), (x0[ok] / scale[ok, None]).ravel()], axis=1)
-    b = (y[ok] / scale[ok, None]).ravel()
-    (a1, a2), *_ = np.linalg.lstsq(A, b, rcond=None)
-    roots = np.roots([1.0, -a1, -a2])
-    return complex(roots[np.argmax(np.abs(roots))])
+    X, Y = X[:, ok] / scale[ok], Y[:, ok] / scale[ok]
+    U, S, Vt = np.linalg.svd(X, full_matrices=False)
+    r = int(np.sum(S > rtol * S[0]))
+    A = U[:, :r].T @ Y @ Vt[:r].T / S[:r]
+    ev = np.linalg.eigvals(A)
+    return complex(ev[np.argmax(np.abs(ev))])
 
 
 def _analyse(
-    pt: FloatArray, w1: float, nonlinear: bool, fc: float, T: float, res: float
-) -> tuple[float, float, complex, str, str]:
-    """Growth per period, slope, multiplier, verdict and reason from the samples
+    pt: FloatArray, w1: float, nonlinear: bool, fc: float, T: float, res: float, diverged: bool = False
+) -> tuple[float, float, float, complex, str, str]:
+    """Growth per period, its fit error, slope, multiplier, verdict and reason from the samples
     pt (n_p, 4), the chatter frequency fc (Hz), the sampled period T (s) and the
-    spectral resolution res (Hz)."""
+    spectral resolution res (Hz).  A run that diverged is judged on the
+    samples it has (at least 8 periods in the window), and only growth is
+    concluded from it."""
     s = pt.copy()
     s[:, 2:] /= w1
     n_p = s.shape[0]
@@ -909,23 +930,31 @@ def _analyse(
     win = s[first:]
     d = np.diff(win, axis=0)
     P_w = d.shape[0]
-    if P_w < _MIN_WINDOW:
+    need = 8 if diverged else _MIN_WINDOW
+    if P_w < need:
         return (
-            math.nan, math.nan, complex("nan"), "undetermined",
-            f"run too short: {P_w} periods in the analysed last half (need >= {_MIN_WINDOW}: "
-            f"run >= {2 * _MIN_WINDOW + 2} periods)",
+            math.nan, math.nan, math.nan, complex("nan"), "undetermined",
+            f"run too short: {P_w} periods in the analysed last half (need >= {need}: "
+            f"run >= {2 * need + 2} periods)" + (" before it diverged" if diverged else ""),
         )  # fmt: skip
     e = np.linalg.norm(d, axis=1)
     scale = float(np.max(np.linalg.norm(win, axis=1)))
     tiny = 1e-300
     slope = float(np.polyfit(np.arange(P_w), np.log(np.maximum(e, tiny)), 1)[0])
-    mu = _prony(d)
+    mu = _dmd(d)
     growth = math.log(abs(mu)) if np.isfinite(abs(mu)) and abs(mu) > 0 else math.nan
+    mu_q = _dmd(d[P_w // 2 :])  # the last quarter of the run: the fit's own uncertainty
+    g_q = math.log(abs(mu_q)) if np.isfinite(abs(mu_q)) and abs(mu_q) > 0 else math.nan
+    g_err = abs(growth - g_q)
     D = slope * P_w
     base = f"over the last {P_w} periods the deviations changed by exp({D:.3g})"
     converged = float(np.max(e[-5:])) <= 1e-8 * max(scale, tiny)
     verdict, reason = _verdict(D, converged, mu, P_w, win, nonlinear, fc, T, res)
-    return growth, slope, mu, verdict, base + reason
+    if diverged:
+        reason += " (the run diverged)"
+        if D < math.log(10.0):
+            verdict = "undetermined"
+    return growth, g_err, slope, mu, verdict, base + reason
 
 
 def _verdict(
@@ -1009,7 +1038,7 @@ def _result(
     w1 = float(np.min(w_pos)) if w_pos.size else TWO_PI * rpm / 60.0
     T = per_sample * h
     fc, res = _chatter_frequency(t, r[:, 0], r[:, 1], 1.0 / T)
-    growth, slope, mu, verdict, reason = _analyse(pt, w1, nonlinear, fc, T, res)
+    growth, g_err, slope, mu, verdict, reason = _analyse(pt, w1, nonlinear, fc, T, res, status == "diverged")
     if verdict not in ("Hopf chatter", "flip chatter"):
         fc = math.nan
     half = k // 2
@@ -1041,6 +1070,7 @@ def _result(
         poincare=pt,
         sample_period=per_sample * h,
         growth_per_period=growth,
+        growth_error=g_err,
         growth_slope=slope,
         multiplier=mu,
         verdict=verdict,
