@@ -421,6 +421,10 @@ def test_refused_resume_names_what_changed(tmp_path: Path) -> None:
     run(checkpoint=tmp_path / "b", fingerprint="3f2a|b-lim|pdo")
     with pytest.raises(InputError, match=r"part 3 of 3: 'pdo' there, 'o' now"):
         run(checkpoint=tmp_path / "b", resume=True, fingerprint="3f2a|b-lim|o")
+    with pytest.raises(
+        InputError, match=r"fingerprint differs \(of another form: text there, named entries now\)"
+    ):
+        run(checkpoint=tmp_path / "b", resume=True, fingerprint={"model": "3f2a"})
     with pytest.raises(InputError, match="fingerprint must be a string or a mapping"):
         run(fingerprint=3)
 

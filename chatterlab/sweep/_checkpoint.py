@@ -229,6 +229,9 @@ def _fingerprint_diff(old: Any, new: Any) -> str:
         t = str(x)
         return repr(t if len(t) <= 40 else t[:37] + "...")
 
+    if isinstance(old, dict) != isinstance(new, dict):
+        forms = ("named entries", "text") if isinstance(old, dict) else ("text", "named entries")
+        return f"of another form: {forms[0]} there, {forms[1]} now"
     if isinstance(old, dict) and isinstance(new, dict):
         for k in [*old, *(k for k in new if k not in old)]:
             if old.get(k) != new.get(k):
