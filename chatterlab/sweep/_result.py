@@ -169,8 +169,10 @@ class SweepResult:
         (``units``, ``long_name``), the per-point ``task_status`` a data
         variable, and ``attrs`` plus the run status (``status``,
         ``message``, ``n_failed``, ``reasons`` and the first failures as
-        JSON) global attributes: :meth:`from_xarray` gives the result back.
-        Memory-mapped outputs stay memory maps until the dataset is written.
+        JSON) global attributes: :meth:`from_xarray` gives the result back
+        (all but the bookkeeping of this call: ``n_computed``, ``n_resumed``,
+        ``elapsed``; only the first 100 failures are attributes, as in the
+        file).  Memory-mapped outputs stay memory maps until written.
         """
         return make_dataset(self.grid.coords, self._data_specs() | self._status_spec(), self.file_attrs())
 
