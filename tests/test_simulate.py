@@ -627,11 +627,17 @@ def test_outputs_and_files(turning, tmp_path):
     sim.to_csv(tmp_path / "a.csv")
     rows = (tmp_path / "a.csv").read_text().splitlines()
     assert len(rows) == sim.t.size + 1 and rows[0].startswith("t [s],position [m],in_cut")
-    sim.to_netcdf(str(tmp_path / "a.nc"))
-    from scipy.io import netcdf_file
+    # round-trip exact: every number is the shortest decimal of its double
+    cols = np.loadtxt(tmp_path / "a.csv", delimiter=",", skiprows=1, usecols=range(8))
+    np.testing.assert_array_equal(cols[:, 0], sim.t)
+    np.testing.assert_array_equal(cols[:, 4], sim.data["tip.x"])
+    assert rows[0].endswith(",status") and rows[-1].endswith(",ok")
+    from chatterlab.io import read_dataset
 
-    with netcdf_file(tmp_path / "a.nc", "r", mmap=False) as f:
-        np.testing.assert_allclose(f.variables["tip_x"][:], sim.data["tip.x"])
+    ds = read_dataset(sim.to_netcdf(str(tmp_path / "a.nc")))
+    np.testing.assert_array_equal(ds["tip_x"].values, sim.data["tip.x"])
+    assert ds["tip_x"].attrs["long_name"] == "tip.x" and ds["tool_rz"].attrs["units"] == "rad"
+    assert ds.attrs["status"] == "ok" and ds.attrs["feedback"] == "pdo"
     f_hz, amp = sim.spectrum("tip.x", window="all")
     assert f_hz[0] == 0 and amp.shape == f_hz.shape
 

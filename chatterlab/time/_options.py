@@ -13,6 +13,7 @@ import numpy as np
 
 from chatterlab.errors import InputError
 
+from ._history import TimeHistory
 from ._problems import FloatArray
 
 
@@ -114,7 +115,7 @@ class NewmarkOptions:
 
 
 @dataclass(frozen=True, eq=False)
-class TimeResponse:
+class TimeResponse(TimeHistory):
     """Result of :func:`newmark`.
 
     Attributes
@@ -139,6 +140,12 @@ class TimeResponse:
         Wall-clock time of the integration [s].
     h : float
         Step [s].
+
+    Its histories (:class:`~chatterlab.time._history.TimeHistory`: spectrum,
+    growth, CSV, netCDF, plot) are named ``"q:NAME"``, ``"v:NAME"`` and
+    ``"a:NAME"`` for each output (``NAME``: its name, or ``out0``, ``out1``,
+    ... without names); an output's name or index alone means its
+    displacement ``q``.
     """
 
     t: FloatArray
@@ -159,95 +166,88 @@ class TimeResponse:
 
     def _row(self, coord: int | str) -> int:
         if isinstance(coord, str):
-            if self.names is None or coord not in self.names:
+            labels = self._labels()
+            if coord not in labels:
                 raise InputError(f"coord {coord!r} is not one of the output names {self.names}")
-            return self.names.index(coord)
+            return labels.index(coord)
         i = int(coord)
         if not -self.q.shape[0] <= i < self.q.shape[0]:
             raise InputError(f"coord {coord} out of range for {self.q.shape[0]} outputs")
         return i
-
-    def _field(self, name: str) -> FloatArray:
-        if name not in ("q", "v", "a"):
-            raise InputError(f"field must be 'q', 'v' or 'a' (got {name!r})")
-        return getattr(self, name)
-
-    def _series(self, coord: int | str, field_: str, t_min: float | None) -> tuple[FloatArray, FloatArray]:
-        x = self._field(field_)[self._row(coord)]
-        if t_min is None:
-            return self.t, x
-        sel = self.t >= t_min
-        return self.t[sel], x[sel]
-
-    def spectrum(
-        self, coord: int | str = 0, *, field: str = "q", t_min: float | None = None, **kwargs: Any
-    ) -> tuple[FloatArray, FloatArray]:
-        """Amplitude spectrum of one output (see :func:`chatterlab.time._signals.amplitude_spectrum`).
-
-        Returns ``(freq [Hz], amplitude [units of the field])``; ``t_min``
-        [s] drops the start (e.g. the transient).
-        """
-        from chatterlab.time._signals import amplitude_spectrum
-
-        t, x = self._series(coord, field, t_min)
-        return amplitude_spectrum(t, x, **kwargs)
-
-    def growth_rate(self, coord: int | str = 0, *, field: str = "q", **kwargs: Any) -> Any:
-        """Envelope growth rate of one output (see :func:`chatterlab.time._signals.growth_rate`)."""
-        from chatterlab.time._signals import growth_rate
-
-        t, x = self._series(coord, field, None)
-        return growth_rate(t, x, **kwargs)
 
     def _labels(self) -> list[str]:
         if self.names is not None:
             return list(self.names)
         return [f"out{i}" for i in range(self.q.shape[0])]
 
-    def to_csv(self, path: str | Path, *, fields: Sequence[str] = ("q",)) -> Path:
-        """Write ``t`` and the chosen fields as a wide CSV file (one row per time).
+    def _name(self, coord: int | str, field: str = "q") -> str:
+        if field not in _FIELDS:
+            raise InputError(f"field must be 'q', 'v' or 'a' (got {field!r})")
+        return f"{field}:{self._labels()[self._row(coord)]}"
 
-        Columns: ``t [s]`` then ``<field>:<name>`` for each output; SI units.
-        """
-        path = Path(path)
-        cols = [self.t]
-        header = ["t [s]"]
-        for f in fields:
-            arr = self._field(f)
-            cols.extend(arr)
-            header.extend(f"{f}:{name}" for name in self._labels())
-        np.savetxt(
-            path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.17g"
-        )
-        return path
+    def histories(self) -> dict[str, tuple[np.ndarray, str, str]]:
+        """``"q:NAME"``, then ``"v:NAME"``, ``"a:NAME"``, of every output
+        (unit left empty: m or rad, m/s or rad/s, ... by coordinate)."""
+        return {
+            f"{f}:{lab}": (row, "", f"{long_name} of {lab}")
+            for f, long_name in _FIELDS.items()
+            for lab, row in zip(self._labels(), getattr(self, f), strict=True)
+        }
 
-    def to_netcdf(self, path: str | Path) -> Path:
-        """Write the response with :func:`chatterlab.io._netcdf.write_netcdf` (dims output, time)."""
-        try:
-            from chatterlab.io._netcdf import write_netcdf
-        except ImportError as exc:  # pragma: no cover - depends on the install
-            raise ImportError(
-                "TimeResponse.to_netcdf needs chatterlab.io._netcdf; use to_csv instead"
-            ) from exc
-        coords = {
-            "output": (np.arange(self.q.shape[0]), "", "recorded output index"),
-            "time": (self.t, "s", "time"),
-        }
-        data = {
-            "q": (self.q, "SI", "displacement"),
-            "v": (self.v, "SI", "velocity"),
-            "a": (self.a, "SI", "acceleration"),
-        }
-        attrs = {
+    def history(self, name: int | str) -> np.ndarray:
+        """One history: ``"q:NAME"`` (``v``, ``a``), or an output's name or
+        index for its displacement."""
+        if isinstance(name, str) and name[:2] in ("q:", "v:", "a:") and name not in self._labels():
+            return getattr(self, name[0])[self._row(name[2:])]
+        return self.q[self._row(name)]
+
+    def file_attrs(self) -> dict[str, Any]:
+        return {
             "output_names": ",".join(self._labels()),
             "status": self.status,
             "message": self.message,
             "step_s": float(self.h),
             "n_steps": int(self.n_steps),
         }
-        return write_netcdf(path, coords, data, attrs)
 
-    def plot(
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """Dimensions ``(output, time)``: ``q``, ``v``, ``a`` (units ``SI``:
+        m or rad by coordinate), the output names in the ``output_names``
+        attribute."""
+        coords = {
+            "output": (np.arange(self.q.shape[0]), "", "recorded output index"),
+            "time": (self.t, "s", "time"),
+        }
+        data = {f: (getattr(self, f), "SI", long_name) for f, long_name in _FIELDS.items()}
+        return coords, data, self.file_attrs()
+
+    def growth_rate(self, coord: int | str = 0, *, field: str = "q", **kwargs: Any) -> Any:
+        """Deprecated: :meth:`growth` (its ``skip`` is in seconds, as for
+        every time history).  This keeps the old meaning: ``kwargs`` go to
+        :func:`chatterlab.time.growth_rate` on the whole history (``skip`` a
+        fraction of it)."""
+        import warnings
+
+        from ._signals import growth_rate
+
+        warnings.warn(
+            "TimeResponse.growth_rate is deprecated; use growth(name, skip=seconds, ...), the method "
+            "of every time-history result",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return growth_rate(self.t, self.history(self._name(coord, field)), **kwargs)
+
+    def to_csv(  # type: ignore[override]
+        self, path: str | Path, *, fields: Sequence[str] = ("q",)
+    ) -> Path | None:
+        """Write ``t [s]``, the chosen fields of every output as columns
+        ``<field>:<name>`` (SI units) and the run's ``status``, one row per
+        time, round-trip exact (:meth:`TimeHistory.to_csv`)."""
+        names = [self._name(i, f) for f in fields for i in range(self.q.shape[0])]
+        return super().to_csv(path, names=names)
+
+    def plot(  # type: ignore[override]
         self,
         coords: Sequence[int | str] | int | str | None = None,
         *,
@@ -255,15 +255,16 @@ class TimeResponse:
         ax: Any = None,
         **kwargs: Any,
     ) -> Any:
-        """Plot outputs against time with matplotlib; returns the Axes."""
-        from ..plot import plot_outputs
-
+        """Plot outputs (names or indices; default all) against time; returns the Axes."""
         rows = (
             range(self.q.shape[0])
             if coords is None
             else ([coords] if isinstance(coords, (int, str)) else list(coords))
         )
-        arr = self._field(field)
-        labels = self._labels()
-        idx = [self._row(c) for c in rows]
-        return plot_outputs(self.t, arr[idx], [labels[i] for i in idx], ylabel=field, ax=ax, **kwargs)
+        names = [self._name(c, field) for c in rows]
+        labels = [n.split(":", 1)[1] for n in names]
+        return super().plot(names, labels=labels, ylabel=field, ax=ax, **kwargs)
+
+
+#: the recorded fields of a TimeResponse and their long names
+_FIELDS = {"q": "displacement", "v": "velocity", "a": "acceleration"}

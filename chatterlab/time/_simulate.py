@@ -29,13 +29,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from ..errors import InputError, check_positive, check_width
 from ..process._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ..structure._assembly import System
+from ._history import TimeHistory
 from ._newmark import ConstantProblem, NewmarkOptions, TimeResponse, newmark
 from ._parametric import FEEDBACK_CASES, ParametricProblem, _ExtraForce, _output_map, _WithExtraForce
 
@@ -43,7 +44,7 @@ __all__ = ["ParametricProblem", "Simulation", "simulate", "FEEDBACK_CASES"]
 
 
 @dataclass(frozen=True, eq=False)
-class Simulation:
+class Simulation(TimeHistory):
     """A transient run: named time histories and the process state.
 
     Attributes
@@ -59,6 +60,14 @@ class Simulation:
     in_cut : ndarray of bool (n_t,)
     cut_distance : ndarray (n_t,)
         Distance travelled in the cut, m (NaN outside).
+    response : TimeResponse
+        The integrator's result (``q``, ``v``, ``a`` of the independent
+        coordinates) the histories were computed from.
+
+    Its histories (:class:`~chatterlab.time._history.TimeHistory`: spectrum,
+    growth, CSV, netCDF, plot) are ``position``, ``in_cut``,
+    ``cut_distance`` and those of ``data``; :meth:`window` adds the windows
+    ``"cut"`` and ``"last-cut"`` (the default of :meth:`spectrum`).
     """
 
     t: np.ndarray
@@ -76,6 +85,8 @@ class Simulation:
     model: str
     meta: dict[str, Any] = field(default_factory=dict)
 
+    spectrum_window: ClassVar[Any] = "last-cut"
+
     @property
     def status(self) -> str:
         return self.response.status
@@ -84,17 +95,24 @@ class Simulation:
     def message(self) -> str:
         return self.response.message
 
+    def histories(self) -> dict[str, tuple[np.ndarray, str, str]]:
+        """The process state (``position`` m, ``in_cut`` flag, ``cut_distance``
+        m), then the outputs and CE displacements of ``data``."""
+        out: dict[str, tuple[np.ndarray, str, str]] = {
+            "position": (self.position, "m", "slide position s"),
+            "in_cut": (np.asarray(self.in_cut, dtype=bool), "1", "tool in the cut"),
+            "cut_distance": (self.cut_distance, "m", "distance travelled in the cut"),
+        }
+        out.update((n, (arr, self.units.get(n, "m"), n)) for n, arr in self.data.items())
+        return out
+
     def window(self, which: str | tuple[float, float] = "last-cut") -> np.ndarray:
         """Boolean mask of a time window: ``"last-cut"`` (the last pass in the
         cut), ``"cut"`` (every pass in the cut), ``"all"``, or (t0, t1)."""
-        if isinstance(which, tuple):
-            return (self.t >= which[0]) & (self.t <= which[1])
-        if which == "all":
-            return np.ones(self.t.size, bool)
         if which == "cut":
-            return self.in_cut.copy()
+            return np.asarray(self.in_cut, dtype=bool).copy()
         if which == "last-cut":
-            m = self.in_cut
+            m = np.asarray(self.in_cut, dtype=bool)
             if not m.any():
                 return np.ones(self.t.size, bool)
             starts = np.nonzero(m & ~np.concatenate([[False], m[:-1]]))[0]
@@ -105,73 +123,12 @@ class Simulation:
                 k += 1
             out[j:k] = True
             return out
+        if isinstance(which, tuple) or which == "all":
+            return super().window(which)
         raise InputError(f"window must be 'last-cut', 'cut', 'all' or (t0, t1), got {which!r}")
 
-    def spectrum(
-        self, name: str, *, window: str | tuple[float, float] = "last-cut", taper: str = "hann"
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Single-sided amplitude spectrum (Hz, unit of the signal) of one
-        output over a time window (mean and trend removed, Hann window with
-        coherent-gain correction)."""
-        from ._signals import amplitude_spectrum
-
-        m = self.window(window)
-        return amplitude_spectrum(self.t[m], self._get(name)[m], window=taper)
-
-    def growth(self, name: str, *, window: str | tuple[float, float] = "all", skip: float = 0.0) -> Any:
-        """Exponential growth rate of the envelope of one output (1/s) with a
-        decaying / steady / growing classification."""
-        from ._signals import growth_rate
-
-        m = self.window(window) & (self.t >= self.t[0] + skip)
-        return growth_rate(self.t[m], self._get(name)[m])
-
-    def _get(self, name: str) -> np.ndarray:
-        if name not in self.data:
-            raise InputError(f"no output '{name}' (recorded: {', '.join(self.data)})")
-        return self.data[name]
-
-    def to_csv(self, path: Any) -> None:
-        """Time histories: t [s], s [m], in_cut, cut distance [m], outputs,
-        and the run's status (``ok``, ``diverged``, ``interrupted``) in the
-        last column, so that the file alone says whether it can be trusted."""
-        import csv
-
-        from ..io._files import text_out
-
-        names = list(self.data)
-        status = self.status
-        with text_out(path) as fh:
-            w = csv.writer(fh)
-            w.writerow(
-                ["t [s]", "position [m]", "in_cut [-]", "cut_distance [m]"]
-                + [f"{n} [{self.units.get(n, 'm')}]" for n in names]
-                + ["status"]
-            )
-            for k in range(self.t.size):
-                w.writerow(
-                    [
-                        f"{self.t[k]:.9g}",
-                        f"{self.position[k]:.9g}",
-                        int(self.in_cut[k]),
-                        f"{self.cut_distance[k]:.9g}",
-                    ]
-                    + [f"{self.data[n][k]:.9g}" for n in names]
-                    + [status]
-                )
-
-    def to_netcdf(self, path: str, attrs: dict[str, Any] | None = None) -> None:
-        """netCDF with time as the coordinate (s) and every output as data."""
-        from ..io._netcdf import write_netcdf
-
-        data = {
-            "position": (self.position, "m", "slide position s"),
-            "in_cut": (self.in_cut.astype(float), "1", "tool in the cut"),
-            "cut_distance": (self.cut_distance, "m", "distance travelled in the cut"),
-        }
-        for n, arr in self.data.items():
-            data[_var(n)] = (arr, self.units.get(n, "m"), n)
-        a = {
+    def file_attrs(self) -> dict[str, Any]:
+        a: dict[str, Any] = {
             "title": "chatterlab transient simulation (Newmark, Eq. 2.28)",
             "model": self.model,
             "feedback": self.terms,
@@ -183,10 +140,9 @@ class Simulation:
             "message": self.message,
         }
         a.update(self.meta)
-        a.update(attrs or {})
-        write_netcdf(path, coords={"time": (self.t, "s")}, data=data, attrs=a)
+        return a
 
-    def plot(
+    def plot(  # type: ignore[override]
         self,
         names: list[str] | None = None,
         *,
@@ -195,18 +151,12 @@ class Simulation:
         axes: Any = None,
     ) -> Any:
         """Time histories (or against the cut distance) of outputs, one panel
-        each (``axes=`` is a deprecated alias of ``ax=``); returns the Axes.
-        One run with its force and spectrum: :func:`chatterlab.plot.plot_time_response`."""
+        each, the in-cut intervals shaded (``axes=`` is a deprecated alias of
+        ``ax=``); returns the Axes.  One run with its force and spectrum:
+        :func:`chatterlab.plot.plot_time_response`."""
         from ..plot import plot_histories
 
         return plot_histories([self], names or list(self.data)[:2], against=against, ax=ax, axes=axes)
-
-
-def _var(name: str) -> str:
-    import re
-
-    v = re.sub(r"[^0-9A-Za-z_]", "_", name)
-    return v if not v[:1].isdigit() else f"v_{v}"
 
 
 def simulate(
