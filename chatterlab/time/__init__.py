@@ -3,10 +3,12 @@
 :class:`TimeResponse`; ``_plan``: the checks and setup before the first
 step), the parametric problem of Eq. 2.28 (``_parametric``) and the
 simulation of a cut (``_simulate``), spectra and growth rates (``_signals``),
+what every time-history result shares (``_history``: :class:`TimeHistory`),
 milling with the tool leaving the cut (``_milling``)."""
 
 from __future__ import annotations
 
+from ._history import TimeHistory
 from ._milling import MillingSimulation, default_steps_per_period, simulate_milling
 from ._newmark import (
     CallbackProblem,
@@ -33,6 +35,7 @@ __all__ = [
     "NewmarkOptions",
     "NewmarkStabilityWarning",
     "TimeResponse",
+    "TimeHistory",
     "newmark",
     "ParametricProblem",
     "Simulation",
