@@ -198,6 +198,35 @@ def test_matrix_fit_recovers_shapes_and_to_model_is_exact():
     assert np.max(np.abs(G - H)) < 1e-9 * np.abs(H).max()
 
 
+def test_fitted_model_poles_are_the_fitted_poles():
+    # What to_model is for: every analysis of chatterlab runs on the model.
+    # Its complex modes (the eigenvalues the root solver and the lobes use)
+    # are the fitted poles and the pseudo-mode's, exactly: M, L, K are
+    # diagonalised by Psi with diag(w^2) and diag(2 zeta w), so the
+    # eigenvalues are -zeta w +- j w sqrt(1 - zeta^2) up to the
+    # eigen-solver's round-off (~eps cond(Psi)^2 relative).
+    w = 2 * np.pi * np.linspace(100.0, 5000.0, 700)
+    _, H = matrix_data(w)
+    fit = fit_modes((w, H), max_order=12)
+    fr = assemble(fit.to_model()).at()
+    lam = fr.complex_modes.lam
+    lam = lam[lam.imag > 0]
+    lam = lam[np.argsort(lam.imag)]
+    om, ze, _ = fit.real_modes()
+    assert om.size == 3  # noise-free modal sum: no residual worth a pseudo-mode
+    want = -ze * om + 1j * om * np.sqrt(1 - ze**2)
+    np.testing.assert_allclose(lam, want[np.argsort(want.imag)], rtol=1e-9)
+    np.testing.assert_allclose(lam, fit.poles, rtol=1e-9)
+    # with a residual: the tool-point case of the next test has one pseudo-mode
+    H2 = H + 4e-9  # an upper residual of 4e-9 m/N on every entry (rank one: one pseudo-mode)
+    fit2 = fit_modes((w, H2), max_order=12)
+    lam2 = assemble(fit2.to_model()).at().complex_modes.lam
+    lam2 = np.sort(lam2[lam2.imag > 0].imag)
+    assert lam2.size == 4
+    np.testing.assert_allclose(lam2[:3], fit2.poles.imag, rtol=1e-9)
+    np.testing.assert_allclose(lam2[3], 10 * w[-1] * np.sqrt(1 - 0.05**2), rtol=1e-9)
+
+
 def test_single_coordinate_two_modes_model_with_residual_pseudo_modes():
     # The tap-test case: one driving point, two modes in the band, and the
     # residual terms exactly as the fit models them (LR / s^2 + UR), so the

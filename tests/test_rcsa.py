@@ -272,6 +272,19 @@ def test_bad_input_is_one_line():
         (lambda: couple_tool("holder.csv", tool), "MeasuredFRF or a tuple"),
         (lambda: rotations_from_translations(HA, 0.0), "spacing must be > 0"),
         (lambda: couple(HA, HA, [0, 1], [0]), "same number"),
+        (
+            lambda: couple_tool(holder, tool, base="bse"),
+            "unknown point 'bse'",
+        ),  # a coupling point that does not exist
+        (lambda: couple_tool(holder, tool, outputs=("tp.y",)), "unknown point 'tp'"),
+        (
+            lambda: identify_joint(holder, tool, holder, initial=Joint.spring(1e7, 1e5), free=("k", "mass")),
+            "free parameter 'mass'",
+        ),
+        (
+            lambda: identify_joint(holder, tool, holder, initial=Joint.spring(1e7, 1e5), free=("c",)),
+            "initial c",
+        ),
     ]
     for call, msg in cases:
         with pytest.raises(InputError, match=msg) as ei:

@@ -31,8 +31,9 @@ Three steps:
    lies within ``tol_frequency`` (1 %) in natural frequency and
    ``tol_damping`` (5 %) in damping ratio.  The poles kept by the automatic
    choice are those of the highest order whose track stays stable down
-   through at least ``min_stable`` consecutive lower orders (or the stable
-   poles closest to frequencies the user names).
+   through at least ``min_stable`` consecutive lower orders in frequency
+   (or the stable poles closest to frequencies the user names); two poles
+   closer than their half-power half-width count as one.
 2. **Residues** (LSFD, [3] Ch. 4): for fixed poles the model is linear in
    Re R_r, Im R_r, LR, UR: one real weighted least-squares problem per
    entry (o, i).
@@ -361,9 +362,12 @@ def _select(
         for n, lam in cands:
             if isinstance(modes, str) and n < min_stable:
                 continue
-            # no de-duplication: the top order's poles are distinct roots (a
-            # poly-reference fit separates two close modes seen at different
-            # references, a tool's x and y modes)
+            # two poles closer than their half-power half-width (|Re lam|) are
+            # one pole to the LSFD (their columns are nearly collinear and the
+            # refinement ill-posed): keep the first; its residue matrix then
+            # has rank > 1 and real_modes splits it (a tool's x and y modes)
+            if any(abs(lam - c) < 0.5 * (abs(lam.real) + abs(c.real)) for c in chosen):
+                continue
             chosen.append(lam)
             if not isinstance(modes, str) and len(chosen) == int(modes):
                 break
@@ -673,7 +677,9 @@ class ModalFit:
         max |e|: one for a mode seen at several coordinates (rank one), two
         for a pole that stands for two modes too close to separate (a tool's
         x and y modes), none for a negative part (not realisable with a
-        positive mass; dropped).
+        positive mass; dropped).  A residual's part is kept when its
+        receptance in the band (UR, LR / w_lo^2) exceeds rank_tol of the
+        measured peak.
 
         ``residuals`` (``"upper"``, ``"both"`` or ``"none"``): pseudo-modes
         for the residual terms.  The upper residual UR = sum_j u_j u_j^T
@@ -702,9 +708,9 @@ class ModalFit:
         ze: list[float] = []
         shp: list[np.ndarray] = []
 
-        def parts(S: np.ndarray) -> list[tuple[float, np.ndarray]]:
+        def parts(S: np.ndarray, floor: float = 0.0) -> list[tuple[float, np.ndarray]]:
             ev, V = np.linalg.eigh(0.5 * (S + S.T))
-            top = float(np.abs(ev).max()) if ev.size else 0.0
+            top = max(float(np.abs(ev).max()) if ev.size else 0.0, floor)
             return [(float(e), v) for e, v in zip(ev, V.T, strict=True) if top > 0 and e > rank_tol * top]
 
         for r in range(self.n_modes):
@@ -713,13 +719,17 @@ class ModalFit:
                 ze.append(float(self.damping[r]))
                 shp.append(np.sqrt(e) * v * (1.0 if v[np.argmax(np.abs(v))] > 0 else -1.0))
         lo, hi = self.band
+        # a residual part counts when its receptance in the band (UR, LR / lo^2)
+        # exceeds rank_tol of the measured peak; below, it is round-off or noise
+        # and would only make Psi ill-conditioned
+        peak = float(np.abs(self.H).max())
         pseudo = []
         if residuals in ("upper", "both"):
-            pseudo.append((self.upper, hi * factor, hi * factor))
+            pseudo.append((self.upper, hi * factor, hi * factor, peak))
         if residuals == "both":
-            pseudo.append((self.lower, lo / factor, 1.0))
-        for Rm, w_p, gain in pseudo:
-            for e, v in parts(Rm[np.ix_(rows, cols)]):
+            pseudo.append((self.lower, lo / factor, 1.0, peak * lo**2))
+        for Rm, w_p, gain, floor in pseudo:
+            for e, v in parts(Rm[np.ix_(rows, cols)], floor):
                 om.append(w_p)
                 ze.append(float(residual_damping))
                 shp.append(np.sqrt(e) * gain * v)
