@@ -8,6 +8,7 @@ from ._bounds import Band, PoleResidue, certified_band
 from ._floquet import (
     CHECK_DEGREE,
     DEGREE,
+    ELEMENT_SPAN,
     Multipliers,
     SpectralMonodromy,
     ToolStructure,
@@ -77,4 +78,5 @@ __all__ = [
     "chatter_frequency",
     "CHECK_DEGREE",
     "DEGREE",
+    "ELEMENT_SPAN",
 ]

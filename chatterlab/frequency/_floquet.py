@@ -77,6 +77,7 @@ __all__ = [
     "classify",
     "CHECK_DEGREE",
     "DEGREE",
+    "ELEMENT_SPAN",
     "chatter_frequency",
 ]
 
@@ -84,6 +85,9 @@ __all__ = [
 #: pole frequency, stiffened by the cut); with the default degree 16 the critical multiplier
 #: of the Insperger-Stepan benchmark is then within ~1e-10 of its converged value
 ELEMENT_SPAN = 5.0
+#: above this many multipliers the spectral radius comes from Arnoldi iterations (measured:
+#: 3x faster than the dense QR at 113, slower at 65)
+ARNOLDI_MIN = 90
 #: default polynomial degree of the spectral elements
 DEGREE = 16
 #: the convergence check of the spectral method raises the degree by this much
@@ -318,7 +322,14 @@ class _Mesh:
     T: float
 
 
-def _mesh(milling: Milling, rpm: float, depth: float | None, elements: int | None, omega_max: float) -> _Mesh:
+def _mesh(
+    milling: Milling,
+    rpm: float,
+    depth: float | None,
+    elements: int | None,
+    omega_max: float,
+    span: float = ELEMENT_SPAN,
+) -> _Mesh:
     T = milling.period(rpm)
     tb = milling.breakpoints(rpm, depth)
     if tb.size == 0:
@@ -330,7 +341,7 @@ def _mesh(milling: Milling, rpm: float, depth: float | None, elements: int | Non
         if not np.any(milling.directional(mid, rpm, depth) != 0.0):
             continue
         L = hi - lo
-        n_sub = elements if elements is not None else max(1, math.ceil(omega_max * L / ELEMENT_SPAN))
+        n_sub = elements if elements is not None else max(1, math.ceil(omega_max * L / span))
         e = lo + L * np.arange(n_sub + 1) / n_sub
         starts.extend(e[:-1])
         stops.extend(e[1:])
@@ -355,6 +366,8 @@ class SpectralMonodromy:
         Sub-elements per cutting piece (default: enough that
         omega_max L <= ELEMENT_SPAN on each, omega_max the structure's highest pole
         frequency, raised with the cutting stiffness at the depth given).
+    span : float
+        omega L of the default sub-elements (smaller: finer).
     depth : float, optional
         Needed with a helix (the coefficients then depend on a_p
         non-linearly and the matrices are built for this depth only).
@@ -370,6 +383,7 @@ class SpectralMonodromy:
         depth: float | None = None,
         depth_hint: float | None = None,
         mesh: _Mesh | None = None,
+        span: float = ELEMENT_SPAN,
     ) -> None:
         p = check_count(degree, "degree", 2)
         self.structure, self.milling, self.rpm, self.degree = structure, milling, float(rpm), p
@@ -389,7 +403,7 @@ class SpectralMonodromy:
             # capped at twice the structure's: deeper, the convergence check says what is missed
             om = min(math.sqrt(om**2 + kc), 2.0 * om)
         if mesh is None:
-            mesh = _mesh(milling, rpm, self.helix_depth, elements, om)
+            mesh = _mesh(milling, rpm, self.helix_depth, elements, om, span)
         self.mesh = mesh
         S = mesh.a.size
         self.n_sub = S
@@ -441,17 +455,18 @@ class SpectralMonodromy:
             # the coefficients of this piece, continued to its ends (one-sided at a breakpoint)
             Hk = milling.directional_on(tk, rpm, 0.5 * (mesh.a[s] + mesh.b[s]), self.helix_depth)
             Hr = np.einsum("ai,kjab,bl->kjil", Ub, Hk, Ub)  # reduced (p, N, rho, rho)
+            Bq_all = np.einsum("ni,kjil,lm->kjnm", W, Hr, Jr)  # (p, N, n, n): on q, in the q' rows
+            e0 = s * nn * d
+            rows = slice(e0 + d, e0 + nn * d)
+            U0[rows, e0 : e0 + nn * d] += np.kron(Dm[1:, :] / L, I_d) - np.kron(np.eye(nn)[1:], A)
             for k in range(1, nn):
                 r = blk(s, k)
-                for l_ in range(nn):
-                    U0[r, blk(s, l_)] += (Dm[k, l_] / L) * I_d
-                U0[r, blk(s, k)] -= A
+                Bsum = Bq_all[k - 1].sum(axis=0)
+                U1[r, blk(s, k)][qrows, :n] += Bsum
                 for j in range(milling.teeth):
-                    Hj = Hr[k - 1, j]
-                    if not np.any(Hj):
+                    Bq = Bq_all[k - 1, j]
+                    if not np.any(Bq):
                         continue
-                    Bq = W @ Hj @ Jr  # (n, n): acts on q, enters the q' rows
-                    U1[r, blk(s, k)][qrows, :n] += Bq
                     # delayed value x(t_k - tau_j)
                     td = t_nodes[s, k] - taus[j]
                     old = td < mesh.t0 - 1e-12 * T
@@ -460,10 +475,19 @@ class SpectralMonodromy:
                     target = V1 if old else U1
                     sign = 1.0 if old else -1.0
                     for col, wgt in self._locate(td, mesh, s_nodes, bw, p, d, expA):
-                        target[r, col] += sign * np.block([[np.zeros((n, d))], [Bq @ wgt[:n, :]]])
+                        target[r, col][qrows, :] += sign * (Bq @ wgt[:n, :])
         self.U0, self.U1, self.V0, self.V1 = U0, U1, V0, V1
         used = np.nonzero(np.any(V0 != 0, axis=0) | np.any(V1 != 0, axis=0))[0]
         self.cols = used
+        # block lower-bidiagonal U (every delayed value in the previous period: a uniform pitch)
+        # is solved element by element, O(S (p d)^2 |cols|) instead of O((S p d)^3)
+        b = nn * d
+        allowed = np.zeros((N, N), dtype=bool)
+        for s in range(S):
+            allowed[s * b : (s + 1) * b, s * b : (s + 1) * b] = True
+            if s > 0:
+                allowed[s * b : s * b + d, (s - 1) * b + p * d : s * b] = True
+        self.block = b if not np.any(((U0 != 0) | (U1 != 0)) & ~allowed) else 0
 
     @staticmethod
     def _locate(td, mesh, s_nodes, bw, p, d, expA):
@@ -490,14 +514,45 @@ class SpectralMonodromy:
     def size(self) -> int:
         return self.U0.shape[0]
 
+    def _solve(self, a: float) -> np.ndarray:
+        """X = U(a)^-1 V(a)[:, cols]."""
+        Vc = (self.V0 + a * self.V1)[:, self.cols]
+        b = getattr(self, "block", 0)
+        if not b:
+            return sla.solve(self.U0 + a * self.U1, Vc, check_finite=False)
+        d = self.structure.A.shape[0]
+        X = np.empty_like(Vc)
+        for s in range(self.U0.shape[0] // b):
+            sl = slice(s * b, (s + 1) * b)
+            rhs = Vc[sl].copy()
+            if s > 0:
+                C = self.U0[s * b : s * b + d, s * b - d : s * b]
+                rhs[:d] -= C @ X[s * b - d : s * b]
+            X[sl] = sla.solve(self.U0[sl, sl] + a * self.U1[sl, sl], rhs, check_finite=False)
+        return X
+
     def at(self, depth: float) -> np.ndarray:
         """The nonzero Floquet multipliers at depth a_p, largest modulus first."""
         a = float(depth)
-        U = self.U0 + a * self.U1
-        Vc = (self.V0 + a * self.V1)[:, self.cols]
-        X = sla.solve(U, Vc, check_finite=False)
+        X = self._solve(a)
         mu = np.linalg.eigvals(X[self.cols])
         return mu[np.argsort(-np.abs(mu))]
+
+    def radius(self, depth: float) -> float:
+        """The spectral radius at depth a_p: the largest |mu|.  Above
+        ``ARNOLDI_MIN`` multipliers it comes from ARPACK's implicitly
+        restarted Arnoldi (6 largest, tolerance 1e-14, fixed start vector),
+        else (or if ARPACK does not converge) from the dense eigenvalues."""
+        X = self._solve(float(depth))[self.cols]
+        if X.shape[0] > ARNOLDI_MIN:
+            from scipy.sparse.linalg import ArpackNoConvergence, eigs
+
+            try:
+                w = eigs(X, k=6, which="LM", v0=np.ones(X.shape[0]), tol=1e-14, return_eigenvectors=False)
+                return float(np.max(np.abs(w)))
+            except ArpackNoConvergence:
+                pass
+        return float(np.max(np.abs(np.linalg.eigvals(X))))
 
     def critical(self, depth: float, samples: int = 256) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its
@@ -511,9 +566,7 @@ class SpectralMonodromy:
         Fourier coefficient of its displacement at the tool picks k.
         """
         a = float(depth)
-        U = self.U0 + a * self.U1
-        Vc = (self.V0 + a * self.V1)[:, self.cols]
-        X = sla.solve(U, Vc, check_finite=False)
+        X = self._solve(a)
         mu, vec = np.linalg.eig(X[self.cols])
         i = int(np.argmax(np.abs(mu)))
         m = complex(mu[i])

@@ -21,7 +21,10 @@ Three methods return the same :class:`MillingLobes`:
 The spectral method also checks its own convergence at each limit: the
 spectral radius at a_lim recomputed with the degree raised by
 ``CHECK_DEGREE`` gives, through the slope d rho / d a, the change of a_lim
-(``error``, m).
+(``error``, m).  Its mesh resolves the structure's frequencies; where the
+check finds a_lim less accurate than max(10 rtol, 1e-7) relative (a limit so
+deep that the cut stiffens the structure), the speed is redone on a mesh
+twice as fine, up to three times (``meta["refined"]`` counts them).
 
 References
 ----------
@@ -48,6 +51,7 @@ from ..errors import InputError, check_count, check_positive, check_speed
 from ..frequency import (
     CHECK_DEGREE,
     DEGREE,
+    ELEMENT_SPAN,
     PoleResidue,
     SpectralMonodromy,
     ToolStructure,
@@ -255,7 +259,7 @@ def _first_crossing(
 
 
 def _spectral_rho(sm: SpectralMonodromy) -> Callable[[float], float]:
-    return lambda a: float(abs(sm.at(a)[0]))
+    return sm.radius
 
 
 def _sdm_top(
@@ -353,18 +357,35 @@ def milling_lobes(
         raise InputError(
             "milling_lobes: a helix angle needs the matrices per depth; not supported yet, use helix=0"
         )
+    target = max(10.0 * rtol, 1e-7)  # relative error of a_lim the spectral check must confirm
+    refined = 0
     for i, r in enumerate(rpm):
         T = milling.period(float(r))
         rho: Callable[[float], float]
         mu_at: Callable[[float], complex]
-        if method == "spectral":
-            sm = SpectralMonodromy(structure, milling, float(r), degree, elements, depth_hint=depth_max)
-            rho = _spectral_rho(sm)
-        else:
-            mu_at = _sdm_top(structure, milling, float(r), steps)
-            rho = _abs_of(mu_at)
-        a, cnt = _first_crossing(rho, depth_max, scan, rtol)
-        evals += cnt
+        span = ELEMENT_SPAN
+        for attempt in range(4):
+            if method == "spectral":
+                # the mesh resolves the structure's own frequencies (span); where the limit lies
+                # deeper than the cut's stiffening allows, the check below asks for a finer one
+                sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
+                rho = _spectral_rho(sm)
+            else:
+                mu_at = _sdm_top(structure, milling, float(r), steps)
+                rho = _abs_of(mu_at)
+            a, cnt = _first_crossing(rho, depth_max, scan, rtol)
+            evals += cnt
+            if method != "spectral" or not check or not np.isfinite(a):
+                break
+            sm2 = SpectralMonodromy(structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
+            da = max(1e-6 * a, 10 * rtol * a)
+            slope = (rho(a + da) - rho(a - da)) / (2 * da)
+            err[i] = abs(sm2.radius(a) - 1.0) / abs(slope) if slope else np.inf
+            evals += 3
+            if err[i] <= target * a or elements is not None or attempt == 3:
+                break
+            span /= 2.0
+            refined += 1
         if not np.isfinite(a):
             continue
         if method == "spectral":
@@ -375,14 +396,6 @@ def milling_lobes(
         a_lim[i] = a
         mult[i] = mu
         kind[i] = classify(mu)
-        if method == "spectral" and check:
-            sm2 = SpectralMonodromy(
-                structure, milling, float(r), degree + CHECK_DEGREE, depth_hint=depth_max, mesh=sm.mesh
-            )
-            da = max(1e-6 * a, 10 * rtol * a)
-            slope = (rho(a + da) - rho(a - da)) / (2 * da)
-            err[i] = abs(abs(sm2.at(a)[0]) - 1.0) / abs(slope) if slope else np.inf
-            evals += 3
     res = (
         (
             f"degree {degree}, omega L <= 5 per element"
@@ -406,4 +419,5 @@ def milling_lobes(
         name=structure.name,
         elapsed=time.perf_counter() - t0,
         evaluations=evals,
+        meta={"refined": refined, "target_rtol": target} if method == "spectral" else {},
     )
