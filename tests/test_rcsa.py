@@ -152,8 +152,8 @@ def test_noisy_holder_error_stays_within_the_propagated_noise():
     # order dG = H_tc S^-1 dH_A S^-1 H_ct, so the error is complex Gaussian with
     # variance sigma^2 sum_jk |u_j|^2 |H_A,jk|^2 |v_k|^2 (u = H_tc S^-1,
     # v = S^-1 H_ct); P(|dG| > 4.5 sd) = exp(-4.5^2) = 1.6e-9 per frequency.
-    # The second-order term is ~ sigma |S^-1 H_A| times the first; 1.3 x covers
-    # |S^-1 H_A| up to 15 (measured max here: printed on failure).
+    # The second-order term is ~ sigma |S^-1 H_A| times the first, so the
+    # bound is 4.5 (1 + sigma max|S^-1 H_A|) per frequency.
     sigma = 0.02
     rng = np.random.default_rng(7)
     hold = assemble(holder_model()).at()

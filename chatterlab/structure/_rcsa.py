@@ -456,7 +456,8 @@ def identify_joint(
     band: tuple[float, float] | None = None,
 ) -> JointFit:
     """Fit the (y, rz) joint's k, k_rot, c, c_rot to a measured tool-point
-    receptance by least squares on the complex log ratio
+    receptance (a 1 x 1 MeasuredFRF, or the ``output`` entry of a larger
+    one; ``output`` is the tool's point) by least squares on the complex log ratio
     log(G_model / G_measured) (magnitude and phase errors weighted alike,
     the maximum-likelihood choice for relative noise), over the logarithms
     of the free parameters (``scipy.optimize.least_squares``).  The
@@ -476,9 +477,16 @@ def identify_joint(
             raise InputError(f"identify_joint: the initial {f} must be finite and > 0 (got {x0[f]!r})")
     w_h, HA, _, _ = _holder_arrays(holder, holder_coords)
     w_m = np.asarray(measured.frequency, float)
-    Gm = np.asarray(measured.H, complex)[
-        :, list(measured.outputs).index(output), list(measured.inputs).index(output)
-    ]
+    Hm = np.asarray(measured.H, complex)
+    if Hm.shape[1:] == (1, 1):
+        Gm = Hm[:, 0, 0]  # a tap test's one FRF, whatever its coordinates are called
+    elif output in measured.outputs and output in measured.inputs:
+        Gm = Hm[:, list(measured.outputs).index(output), list(measured.inputs).index(output)]
+    else:
+        raise InputError(
+            f"identify_joint: the measured FRF ({getattr(measured, 'source', '')}) has no '{output}' as output"
+            f" and input (outputs {', '.join(measured.outputs)}); select() the tool-point entry"
+        )
     if w_m.shape != w_h.shape or not np.allclose(w_m, w_h, rtol=1e-12, atol=0):
         raise InputError(
             "identify_joint: the holder and the measured tool-point FRF must share their frequencies"

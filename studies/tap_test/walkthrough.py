@@ -182,7 +182,7 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
 
     guess = Joint.spring(2.0e7, 1.0e5, 100.0, 1.0)  # a catalogue guess, off by 3x
     measured_y = frf.select(["tool.y"], ["tool.y"])
-    jfit = identify_joint(smooth["y"], tool, _renamed(measured_y, "tip.y"), initial=guess)
+    jfit = identify_joint(smooth["y"], tool, measured_y, initial=guess)
     J = gen.JOINT
     res["joint"] = {
         "k": (jfit.joint.stiffness[0], J["k"]),
@@ -241,12 +241,6 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
     res.pop("exact_tool_point")
     res.pop("exact_new")
     return res
-
-
-def _renamed(frf: Any, name: str) -> Any:
-    from chatterlab.structure import MeasuredFRF
-
-    return MeasuredFRF.from_arrays(frf.frequency, frf.H, (name,), (name,), source=frf.source)
 
 
 def _with_cut(model: Any, build_model: Any) -> Any:
