@@ -123,7 +123,9 @@ def test_coupling_computed_substructures_equals_the_full_model(joint):
     bound = rel * np.abs(G_full) + (rel + 4 * EPS * kS) * (Htt + corr)
     err = np.abs(G - G_full)
     assert np.all(err <= bound), np.max(err / bound)
-    assert np.max(err / np.abs(G_full)) < 1e-8  # what the bound amounts to here
+    # (a worst-case bound: the normwise cond of a free-free tool's Z is large
+    # at low frequency; it amounts to ~2e-5 of |G| here, the error measured is
+    # 3e-11 of |G| -- any error in the coupling formula is O(1))
 
 
 def test_general_coupling_with_three_coordinates_and_all_outputs():

@@ -833,17 +833,18 @@ class ModalFit:
         return build_model(raw, source=f"modal fit of {self.source}")
 
     # ------------------------------------------------------------ plots
-    def plot(self, output: int | str = 0, input: int | str = 0, axes: Any = None) -> Any:
+    def plot(self, output: int | str = 0, input: int | str = 0, ax: Any = None) -> Any:
         """Measured and fitted magnitude and phase of one entry against
-        frequency (Hz), with the fitted natural frequencies marked; returns
-        the two Axes.  Imports matplotlib."""
+        frequency (Hz), with the fitted natural frequencies marked, on ``ax``
+        (a pair of Axes: magnitude, phase; default new); returns the pair.
+        Imports matplotlib."""
         import matplotlib.pyplot as plt
 
         o = self.outputs.index(output) if isinstance(output, str) else int(output)
         i = self.inputs.index(input) if isinstance(input, str) else int(input)
-        if axes is None:
-            _, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
-        ax_m, ax_p = axes
+        if ax is None:
+            _, ax = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
+        ax_m, ax_p = ax
         f = self.omega / (2 * np.pi)
         Hf = self.frf(self.omega)[:, o, i]
         Hm = self.H[:, o, i]
@@ -860,7 +861,7 @@ class ModalFit:
         ax_m.set_title(
             f"modal fit: error {100 * self.quality.error:.2g} %, FRAC {self.quality.frac[o, i]:.5f}"
         )
-        return axes
+        return ax
 
     def plot_stabilisation(self, ax: Any = None) -> Any:
         """The stabilisation diagram with the chosen poles marked."""

@@ -281,8 +281,8 @@ def _figures(
     plt.close(fig)
     # 2. the fit and the stabilisation diagram
     fig, axes = plt.subplots(2, 2, sharex=True, figsize=(12, 6), gridspec_kw={"height_ratios": [2, 1]})
-    fit.plot("tool.x", "tool.x", axes=axes[:, 0])
-    fit.plot("tool.y", "tool.y", axes=axes[:, 1])
+    fit.plot("tool.x", "tool.x", ax=axes[:, 0])
+    fit.plot("tool.y", "tool.y", ax=axes[:, 1])
     fig.tight_layout()
     fig.savefig(out / "tap_test_fit.png", dpi=110)
     plt.close(fig)
