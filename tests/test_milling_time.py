@@ -41,6 +41,17 @@ from chatterlab.time._milling import MillingSimulation, default_steps_per_period
 
 # ----------------------------------------------------------------------------- the benchmark
 
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_blas_thread():
+    """Small dense products only: one BLAS thread (a threaded BLAS on a loaded
+    2-core machine made this module 4x slower; results agree to round-off)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        yield
+
+
 MASS = 0.03993
 WN = 2.0 * math.pi * 922.0
 ZETA = 0.011
