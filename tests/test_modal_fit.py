@@ -198,6 +198,32 @@ def test_matrix_fit_recovers_shapes_and_to_model_is_exact():
     assert np.max(np.abs(G - H)) < 1e-9 * np.abs(H).max()
 
 
+def test_noisy_matrix_fit_within_its_standard_deviations():
+    # The poly-reference path on a full 2 x 2 receptance with 2 % relative
+    # noise on every entry: the errors within 4.5 of the fit's standard
+    # deviations (which the single-entry test checks against the Cramer-Rao
+    # bound), and the shapes within their first-order noise: a relative
+    # error of ~ sigma / sqrt(N_half-power) per entry, bounded here by 5 %
+    # of |phi| (> 10 x that for the ~60 points in each half-power band).
+    sigma = 0.02
+    rng = np.random.default_rng(23)
+    w = 2 * np.pi * np.linspace(100.0, 5000.0, 900)
+    Phi, H = matrix_data(w)
+    Hn = H * (1 + relative_noise(rng, H.shape, sigma))
+    fit = fit_modes((w, Hn), max_order=12)
+    assert fit.n_modes == 3
+    assert np.all(np.abs(fit.omega_n - 2 * np.pi * FN) < 4.5 * fit.std_omega)
+    assert np.all(np.abs(fit.damping - ZETA) < 4.5 * fit.std_damping)
+    for r in range(3):
+        sgn = np.sign(fit.shapes[r] @ Phi[r])
+        assert np.max(np.abs(sgn * fit.shapes[r] - Phi[r])) < 0.05 * np.abs(Phi[r]).max()
+    assert abs(fit.quality.weighted_error / sigma - 1) < 0.05
+    # a noise pole at 2140 Hz is stable over the orders by chance; the
+    # significance test drops it (its term ~ the noise, the modes' ~ 100x)
+    assert "dropped 1 pole(s)" in fit.message
+    assert np.all(fit.quality.significance > 20)
+
+
 def test_fitted_model_poles_are_the_fitted_poles():
     # What to_model is for: every analysis of chatterlab runs on the model.
     # Its complex modes (the eigenvalues the root solver and the lobes use)

@@ -33,7 +33,10 @@ Three steps:
    choice are those of the highest order whose track stays stable down
    through at least ``min_stable`` consecutive lower orders in frequency
    (or the stable poles closest to frequencies the user names); two poles
-   closer than their half-power half-width count as one.
+   closer than their half-power half-width count as one, and after the
+   refinement a pole whose term is not at least ``SIGNIFICANCE`` (5) times
+   the noise where it acts is dropped (a noise pole that was stable by
+   chance) and the rest refined again.
 2. **Residues** (LSFD, [3] Ch. 4): for fixed poles the model is linear in
    Re R_r, Im R_r, LR, UR: one real weighted least-squares problem per
    entry (o, i).
@@ -314,9 +317,10 @@ def _track_length(
 ) -> int:
     """How many consecutive orders below j_top hold a pole within tol_f in
     frequency of the one found at the order above (the pole's track in the
-    stabilisation diagram).  Damping is checked at the top only (by the
-    caller): under noise it wanders more than 5 % between orders while the
-    frequency stays, and the refinement settles it."""
+    stabilisation diagram).  Damping is not required to be stable along the
+    track (the diagram marks it): under noise it wanders more than 5 %
+    between orders while the frequency stays, and the refinement settles
+    it."""
     n = 0
     cur = lam
     for j in range(j_top - 1, -1, -1):
@@ -504,7 +508,9 @@ class FitQuality:
     (|H|^2 |H_fit|^2) per entry; per mode, over the half-power band
     w_r (1 +- zeta_r): ``mode_error`` (normalised error) and ``mode_frac``,
     and ``complexity``: |Im A_r| / |A_r| of the driving-point or largest
-    modal constant (0 for a real mode).
+    modal constant (0 for a real mode); ``significance``: each mode's
+    weighted term over the noise where it acts (below 5 the automatic
+    choice drops a pole).
     """
 
     error: float
@@ -513,6 +519,7 @@ class FitQuality:
     mode_error: np.ndarray
     mode_frac: np.ndarray
     complexity: np.ndarray
+    significance: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -925,6 +932,33 @@ def _refine(
     return _pole(wn, ze), std_w, std_z, sol.message
 
 
+#: a mode kept by the automatic choice stands this many noise levels above the noise
+SIGNIFICANCE = 5.0
+
+
+def _significance(
+    w: np.ndarray, H: np.ndarray, Wt: np.ndarray, lam: np.ndarray, lower: bool, upper: bool
+) -> np.ndarray:
+    """Per pole, the weighted norm of its term over the weighted norm the
+    noise has in the same place: ||W t_r|| / (s sqrt(n_r)), with s the rms
+    weighted residual of the fit and n_r the number of measured samples in
+    the pole's half-power band (at least 1) times the measured entries.  A
+    mode that the data show stands far above 1 (hundreds for a tap-test
+    mode); a pole fitted to the noise is about 1."""
+    R, _, _, res, _ = _lsfd(w, H, lam, Wt, lower, upper)
+    meas = Wt > 0
+    s_hat = float(np.sqrt(np.mean(np.abs(res[meas]) ** 2))) if meas.any() else 0.0
+    s = 1j * w
+    n_entries = int(np.any(meas, axis=0).sum())
+    out = np.zeros(lam.size)
+    for r, l_ in enumerate(lam):
+        term = R[r][None] / (s[:, None, None] - l_) + R[r].conj()[None] / (s[:, None, None] - np.conj(l_))
+        norm = float(np.sqrt(np.sum(np.abs(Wt * term) ** 2)))
+        n_r = max(int(np.sum(np.abs(w - abs(l_)) <= abs(l_.real))), 1) * max(n_entries, 1)
+        out[r] = norm / (s_hat * np.sqrt(n_r)) if s_hat > 0 else np.inf
+    return out
+
+
 def _quality(
     fit_H: np.ndarray, H: np.ndarray, Wt: np.ndarray, w: np.ndarray, lam: np.ndarray, A: np.ndarray
 ) -> FitQuality:
@@ -1057,6 +1091,19 @@ def _fit(
     if refine:
         lam, std_w, std_z, m2 = _refine(w, H, Wt, lam, lower, upper)
         msg += f"; refined by variable projection ({m2})"
+    if isinstance(modes, str) and lam.size > 1:
+        # "auto": a pole that fits the noise (stable over orders by chance) has
+        # a term no larger than the noise where it acts; drop it and refit
+        sig = _significance(w, H, Wt, lam, lower, upper)
+        weak = sig < SIGNIFICANCE
+        if np.any(weak) and not np.all(weak):
+            msg += (
+                f"; dropped {int(weak.sum())} pole(s) not above the noise (significance < {SIGNIFICANCE:g})"
+            )
+            lam = lam[~weak]
+            std_w, std_z = std_w[~weak], std_z[~weak]
+            if refine:
+                lam, std_w, std_z, _ = _refine(w, H, Wt, lam, lower, upper)
     order = np.argsort(np.abs(lam))
     lam, std_w, std_z = lam[order], std_w[order], std_z[order]
     R, LR, UR, _ = lsfd(w, H, lam, weights=Wt, lower=lower, upper=upper)
@@ -1089,5 +1136,6 @@ def _fit(
         message=msg,
     )
     q = _quality(fit.frf(w), H, Wt, w, lam, fit.modal_constants)
+    object.__setattr__(q, "significance", _significance(w, H, Wt, lam, lower, upper))
     object.__setattr__(fit, "quality", q)
     return fit
