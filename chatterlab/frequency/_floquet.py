@@ -512,11 +512,14 @@ class SpectralMonodromy:
                         continue
                     # delayed value x(t_k - tau_j)
                     td = t_nodes[s, k] - taus[j]
-                    old = td < mesh.t0 - 1e-12 * T
+                    old = td <= mesh.t0 + 1e-12 * T  # x(t0) is the old period's end: keeps U bidiagonal
                     if old:
                         td += T
                     target = V1 if old else U1
                     sign = 1.0 if old else -1.0
+                    if old and abs(td - t_nodes[s, k]) <= 1e-12 * T:  # one period back: the same node
+                        target[r, blk(s, k)][qrows, :n] += Bq
+                        continue
                     for col, wgt in self._locate(td, mesh, s_nodes, bw, p, d, expA):
                         target[r, col][qrows, :] += sign * (Bq @ wgt[:n, :])
         self.U0, self.U1, self.V0, self.V1 = U0, U1, V0, V1
@@ -571,7 +574,7 @@ class SpectralMonodromy:
             if s > 0:
                 C = self.U0[s * b : s * b + d, s * b - d : s * b]
                 rhs[:d] -= C @ X[s * b - d : s * b]
-            X[sl] = sla.solve(self.U0[sl, sl] + a * self.U1[sl, sl], rhs, check_finite=False)
+            X[sl] = np.linalg.solve(self.U0[sl, sl] + a * self.U1[sl, sl], rhs)
         return X
 
     def at(self, depth: float) -> np.ndarray:
@@ -597,7 +600,7 @@ class SpectralMonodromy:
                 pass
         return float(np.max(np.abs(np.linalg.eigvals(X))))
 
-    def critical(self, depth: float, samples: int = 256) -> tuple[complex, float]:
+    def critical(self, depth: float, samples: int = 128) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its
         solution's dominant harmonic.
 
