@@ -218,3 +218,22 @@ def test_reduction_keeps_the_static_compliance_and_all_modes_give_the_structure(
         assert 0 < err < 0.1
     full, err = st.reduce(1e6)  # every mode kept: the same response
     assert full.n == st.n and err < 1e-10
+
+
+@pytest.mark.parametrize(
+    "make,words",
+    [
+        (lambda: ToolStructure.modal([WN], [ZETA], [-1e6], [[1.0, 0.0]]), ["mode 1 stiffness", "> 0"]),
+        (lambda: ToolStructure.modal([WN], [ZETA], [1e6, 2e6], [[1.0, 0.0]]), ["one value per mode"]),
+        (lambda: ToolStructure.single_dof(MASS, WN, ZETA, direction="z"), ["direction"]),  # type: ignore[arg-type]
+        (lambda: milling_lobes(one_dof(), cutter(0.5), np.array([-100.0])), ["rpm", "> 0"]),
+        (lambda: milling_lobes(one_dof(), cutter(0.5), np.array([1e4]), method="x"), ["method"]),  # type: ignore[arg-type]
+    ],
+)
+def test_bad_input_one_line(make, words):
+    with pytest.raises(InputError) as e:
+        make()
+    msg = str(e.value)
+    assert "\n" not in msg
+    for w in words:
+        assert w in msg, msg
