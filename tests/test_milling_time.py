@@ -229,6 +229,7 @@ def two_dof() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         pytest.param("2dof", 0.1, 10000.0, 0.5e-3, 100, id="2dof-stable"),
         pytest.param("modal", 0.05, 10000.0, 1e-3, 200, id="modal-stable"),
         pytest.param("modal", 0.3, 8000.0, 1e-3, 200, id="modal-hopf"),
+        pytest.param("1dof", -0.05, 12500.0, 3e-3, 100, id="1dof-up-milling"),
     ],
 )
 def test_linear_growth_equals_the_spectral_floquet_reference(structure, immersion, rpm, ap, m):
@@ -244,7 +245,8 @@ def test_linear_growth_equals_the_spectral_floquet_reference(structure, immersio
         P = np.array([[1.0], [0.0]])
     else:
         M, C, K, P = two_dof() if structure == "2dof" else modal_tool()
-    mill = cutter(immersion)
+    # a negative immersion stands for up-milling
+    mill = cutter(immersion) if immersion > 0 else Milling.from_immersion(2, 0.02, KT, KN, -immersion, "up")
     ref = multipliers(ToolStructure(M, C, K, P), mill, rpm, ap)
     td = [
         simulate_milling(
@@ -666,6 +668,8 @@ def test_csv_and_plot(tmp_path):
         (dict(depth=-1e-3), ("depth",)),
         (dict(runout=[1e-6, 0.0, 0.0]), ("runout", "2")),
         (dict(rpm=0.0), ("rpm",)),
+        (dict(revolutions=1e9), ("revolutions", "GiB")),
+        (dict(feed=-1e-4), ("feed",)),
     ],
 )
 def test_bad_input_is_one_line(kw, words):

@@ -639,6 +639,13 @@ def simulate_milling(
     n_rev = N * m
     h = (TWO_PI / omega) / n_rev
     n_total = int(round(revolutions * n_rev))
+    need = 8 * (n_total + 1) * (8 + 2 * N)  # history, forces, chips and the result's copies
+    if need > opts.max_output_bytes:
+        raise InputError(
+            f"revolutions = {revolutions:g} at {m} steps per tooth period needs ~{need / 2**30:.3g} GiB "
+            f"(limit options.max_output_bytes = {opts.max_output_bytes / 2**30:.3g} GiB); "
+            "simulate fewer revolutions or steps"
+        )
     periodic_tooth = milling.uniform and (not np.any(rho) or not nonlinear)
     per_sample = m if periodic_tooth else n_rev
     run = _Run(M, C, K, P, Minv, milling, omega, h, n_rev, depth, feed, rho, K_pass, nonlinear, opts)
