@@ -293,10 +293,11 @@ class MillingSimulation:
         a1.legend(fontsize=8)
         p = self.poincare
         half = p.shape[0] // 2
-        a2.plot(1e6 * p[:half, 0], 1e3 * p[:half, 2], ".", ms=3, color="0.7", label="first half")
-        a2.plot(1e6 * p[half:, 0], 1e3 * p[half:, 2], ".", ms=4, color="C3", label="last half")
-        a2.set_xlabel("x at t = k T [µm]")
-        a2.set_ylabel("x' at t = k T [mm/s]")
+        c = 0 if np.ptp(p[:, 0]) >= np.ptp(p[:, 1]) else 1  # the coordinate that moves more
+        a2.plot(1e6 * p[:half, c], 1e3 * p[:half, 2 + c], ".", ms=3, color="0.7", label="first half")
+        a2.plot(1e6 * p[half:, c], 1e3 * p[half:, 2 + c], ".", ms=4, color="C3", label="last half")
+        a2.set_xlabel(f"{'xy'[c]} at t = k T [µm]")
+        a2.set_ylabel(f"{'xy'[c]}' at t = k T [mm/s]")
         a2.set_title("Poincaré samples", fontsize=9)
         a2.legend(fontsize=8)
         return axes
