@@ -210,3 +210,21 @@ def test_bad_input_one_line(make, words):
     assert "\n" not in msg
     for w in words:
         assert w in msg, msg
+
+
+def test_directional_on_is_the_one_sided_limit_at_a_breakpoint():
+    m = cutter(1.0, "down")  # teeth enter at 0 and leave at pi, where H has nonzero xy, yy entries
+    rpm = 6000.0
+    T = m.period(rpm)
+    tb = 0.0  # tooth 0 enters, tooth 1 leaves
+    eps = 1e-9 * T
+    after = m.directional_on(np.array([tb]), rpm, 0.5 * T)[0]
+    before = m.directional_on(np.array([T]), rpm, 0.5 * T)[0]
+    # the limits from inside the piece (tb, T): H is continuous there, so eps away differs by
+    # at most eps * Omega * max|H'| <= eps * Omega * (Kt + Kn)
+    tol = eps * m.omega(rpm) * (KT + KN)
+    np.testing.assert_allclose(after, m.directional(np.array([tb + eps]), rpm)[0], rtol=0, atol=tol)
+    np.testing.assert_allclose(before, m.directional(np.array([T - eps]), rpm)[0], rtol=0, atol=tol)
+    # while the open windows drop both teeth exactly at the breakpoint
+    assert np.abs(m.directional(np.array([tb]), rpm)[0].sum(axis=0)).max() < 1e-6 * KT
+    assert np.abs(after.sum(axis=0)).max() > 0.5 * KT
