@@ -546,6 +546,37 @@ def test_above_the_limit_the_tool_leaves_the_cut_and_the_orbit_saturates(rpm, ap
         assert corr < -0.9
 
 
+def test_the_chip_is_the_minimum_over_the_recorded_passes():
+    """In a chattering run with runout (teeth leaving the material), every
+    recorded chip equals Eq. (2) rebuilt from the recorded tool path: pass k of
+    tooth j is k m grid steps back, made by tooth j - k, with the feed k f_z
+    (uniform pitch, so exact grid values).  Checks the bookkeeping of passes,
+    tooth order and runout against the outputs."""
+    mill = cutter(0.05)
+    m, fz, rho = 60, 1e-4, np.array([2e-5, -1e-5])
+    r = simulate_milling(
+        ONE_DOF, mill, 10000.0, 5e-3, feed=fz, runout=rho, steps_per_period=m, revolutions=40, passes=6
+    )
+    assert 0.1 < r.fraction_out_of_cut < 0.9
+    phi = mill.tooth_angles(r.t, 10000.0)
+    xy = np.stack([r.x, r.y], axis=1)
+    n = r.t.size
+    cand = np.full((6, n, 2), np.inf)
+    for k in range(1, 7):
+        past = np.zeros((n, 2))
+        past[k * m :] = xy[: n - k * m]  # the nominal path before t = 0
+        for j in range(2):
+            nj = np.stack([np.sin(phi[:, j]), np.cos(phi[:, j])], axis=1)
+            cand[k - 1, :, j] = (
+                k * fz * nj[:, 0] + rho[j] - rho[(j - k) % 2] + np.sum(nj * (xy - past), axis=1)
+            )
+    expect = cand.min(axis=0).T
+    arc = ~np.isnan(r.would_be_chip)
+    assert np.all(arc[mill.in_cut(phi).T])  # recorded wherever the tooth is in the arc
+    scale = fz + np.max(np.abs(xy))
+    assert np.max(np.abs(r.would_be_chip[arc] - expect[arc])) <= 1e-12 * scale
+
+
 def test_second_order_with_teeth_leaving_the_material_and_edge_forces():
     """Full immersion, 25000 rpm, 2 mm (stable), runout 0.05 mm = f_z / 2 and
     edge forces: the tooth with the smaller radius leaves the material where
