@@ -808,7 +808,7 @@ def test_plot_and_dataset(tmp_path: Path) -> None:
     mpl.use("Agg")
     r = sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="serial", progress=False)
     ax = r.plot("freq")
-    assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "width [m]"
+    assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "width [mm]"  # lengths shown in mm (plot_sweep)
     assert ax.figure.axes[-1].get_ylabel() == "freq [Hz]"  # the colour bar
     ax = r.plot("freq", at={"width": 2e-3})
     assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "freq [Hz]"

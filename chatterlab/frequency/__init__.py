@@ -17,7 +17,16 @@ from ._floquet import (
     multipliers,
     sdm_monodromy,
 )
-from ._frf import FRF, ComplexModes, complex_modes, frequencies, frf, loop_determinant, resonance_grid
+from ._frf import (
+    FRF,
+    ComplexModes,
+    complex_modes,
+    frequencies,
+    frf,
+    loop_determinant,
+    loop_eigenvalues,
+    resonance_grid,
+)
 from ._roots import (
     AXIS_GRID_MAX,
     WINDOW_MAX,
@@ -45,6 +54,7 @@ __all__ = [
     "frf",
     "frequencies",
     "loop_determinant",
+    "loop_eigenvalues",
     "resonance_grid",
     "ComplexModes",
     "complex_modes",

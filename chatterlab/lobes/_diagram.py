@@ -276,10 +276,11 @@ class LobeDiagram:
                     ]
                 )
 
-    def to_netcdf(self, path: str, attrs: dict[str, Any] | None = None) -> None:
-        """Labelled netCDF (speed as coordinate; b_lim in m, chatter frequency
-        in Hz, delay in s, lobe number as data; the model text as attribute)."""
-        from ..io._netcdf import write_netcdf
+    def to_xarray(self, attrs: dict[str, Any] | None = None) -> Any:
+        """The diagram as an :class:`xarray.Dataset`: speed as coordinate;
+        b_lim in m, chatter frequency in Hz, delay in s, lobe number and the
+        claim code as data; summary numbers and checks as attributes."""
+        from ..io import make_dataset
 
         a = {
             "title": "chatterlab stability lobe diagram",
@@ -300,8 +301,7 @@ class LobeDiagram:
         }
         a.update(self.meta)
         a.update(attrs or {})
-        write_netcdf(
-            path,
+        return make_dataset(
             coords={"speed": (self.speed, self.speed_unit)},
             data={
                 "b_lim": (self.b_lim, "m", "largest chatter-free width of cut"),
@@ -316,6 +316,13 @@ class LobeDiagram:
             },
             attrs=a,
         )
+
+    def to_netcdf(self, path: str, attrs: dict[str, Any] | None = None) -> None:
+        """Labelled netCDF-4 file of :meth:`to_xarray` (the model text as
+        an attribute when the caller passes it), written atomically."""
+        from ..io import write_dataset
+
+        write_dataset(path, self.to_xarray(attrs))
 
     def plot(
         self, ax: Any = None, *, lobe_numbers: int = 8, title: str | None = None, axes: Any = None

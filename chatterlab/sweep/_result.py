@@ -12,11 +12,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from chatterlab.errors import InputError
 from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_dataset
 from chatterlab.io._netcdf_csv import write_csv
 
-from ._grid import Axis, Grid
+from ._grid import Grid
 
 _FILE_FAILURES = 100  # failures written to the netCDF ``failures`` attribute
 STATUS_VARIABLE = "task_status"  # per grid point: 0 ok, k > 0 failed for reasons[k - 1]
@@ -291,48 +290,6 @@ class SweepResult:
         -------
         matplotlib.axes.Axes
         """
-        import matplotlib.pyplot as plt
+        from ..plot import plot_sweep
 
-        arr = np.asarray(self[output], dtype=float)
-        at = dict(at or {})
-        for name in at:
-            self.grid[name]  # KeyError for an unknown axis
-        sel: list[Any] = []
-        free: list[Axis] = []
-        for a in self.grid.axes:
-            if a.name in at:
-                sel.append(int(np.argmin(np.abs(a.values - float(at[a.name])))))
-            else:
-                sel.append(slice(None))
-                free.append(a)
-        sub = arr[tuple(sel)]
-        if not 1 <= len(free) <= 2:
-            raise InputError(
-                f"plot({output!r}): {len(free)} free axes {[a.name for a in free]}; hold all "
-                "but one or two fixed with at={name: value}"
-            )
-        if ax is None:
-            _, ax = plt.subplots()
-        unit = self.units.get(output, "")
-        label = self.long_names.get(output, output) + (f" [{unit}]" if unit else "")
-
-        def axis_label(a: Axis) -> str:
-            return a.name + (f" [{a.unit}]" if a.unit else "")
-
-        if len(free) == 1:
-            ax.plot(free[0].values, sub, marker="." if sub.size < 60 else None)
-            ax.set_xlabel(axis_label(free[0]))
-            ax.set_ylabel(label)
-        else:
-            xa = free[1] if x is None else self.grid[x]
-            if xa not in free:
-                raise InputError(f"plot: x={x!r} is held fixed by at=")
-            ya = free[0] if xa is free[1] else free[1]
-            c = sub if xa is free[1] else sub.T
-            mesh = ax.pcolormesh(xa.values, ya.values, np.ma.masked_invalid(c), shading="auto")
-            ax.set_xlabel(axis_label(xa))
-            ax.set_ylabel(axis_label(ya))
-            ax.figure.colorbar(mesh, ax=ax, label=label)
-        if at:
-            ax.set_title(self.grid.format_point({k: float(v) for k, v in at.items()}))
-        return ax
+        return plot_sweep(self, output, ax=ax, x=x, at=at)
