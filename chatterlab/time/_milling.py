@@ -39,8 +39,8 @@ The chip is therefore the smallest distance to the previous edge positions,
 
 the "minimum over previous passes" of the models with the tool leaving the
 cut (Balachandran 2001; Insperger, Mann, Stepan & Bayly 2003, whose
-period-doubling solutions are computed with this surface memory; Tlusty's
-time-domain model).  The arc of the tooth is approximated by a circle about
+period-doubling solutions are computed with this surface memory; Tlusty &
+Ismail 1981, the first time-domain model with the tool leaving the cut).  The arc of the tooth is approximated by a circle about
 the current centre (no trochoid), as in those references.  K = 4N
 passes (four revolutions) by default; the result reports how often the
 deepest pass gave the minimum (a sign that K is too small).
@@ -77,8 +77,9 @@ the step is split there with the old teeth before and a restart with the new
 ones after: without edge forces the force is only kinked there (h_j -> 0),
 with them it jumps by a_p (K_te, K_ne), which unlocated would cost one order
 (tested: slope 2 with runout and edge forces; without the location the
-ratio of successive differences fell to 1.1 in that test).  Cost: a few small matrix-vector products per step (the delayed
-values of a whole chunk, up to the shortest delay, are gathered at once).
+ratio of successive differences fell to 1.1 in that test).  Cost: a few
+small matrix-vector products per step (the delayed values of a whole chunk,
+up to the shortest delay, are gathered at once).
 
 Default step (``steps_per_period=None``).  The average-acceleration rule
 lengthens the period of a mode of circular frequency w by about
@@ -148,6 +149,8 @@ References
    I. Mezic, "Ergodic theory, dynamic mode decomposition, and computation of
    spectral properties of the Koopman operator", SIAM J. Appl. Dyn. Syst. 16
    (2017) 2096-2126 (the Hankel, delay-embedded variant).
+.. [7] J. Tlusty, F. Ismail, "Basic non-linearity in machining chatter",
+   Annals of the CIRP 30 (1981) 299-304.
 """
 
 from __future__ import annotations
