@@ -114,3 +114,16 @@ def test_modal_and_matrices_do_not_mix():
     extra = '\n[matrices]\ncoordinates = ["q"]\nM = [[1.0]]\nK = [[1.0]]\n'
     with pytest.raises(ModelError, match=r"cannot be combined with matrices"):
         cl.loads_model(MODAL + extra)
+
+
+def test_an_undamped_mode_is_refused_by_the_lobes_not_a_crash():
+    """A pole on the imaginary axis makes the receptance infinite there; the
+    lobe engine says so in one line (it raised LinAlgError inside the
+    boundary solver before)."""
+    from chatterlab.errors import InputError
+    from chatterlab.lobes import lobes
+
+    fz = cl.assemble(cl.loads_model(MODAL.replace("damping_ratio = 0.011", "damping_ratio = 0.0"))).at()
+    with pytest.raises(InputError, match=r"undamped or unstable mode at 922 Hz") as e:
+        lobes(fz, np.linspace(5000.0, 9000.0, 5), width_max=0.005)
+    assert "\n" not in str(e.value)

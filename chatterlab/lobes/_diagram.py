@@ -716,6 +716,25 @@ def _interval_candidates(sg: _Segment, T: np.ndarray) -> _Candidates:
     return _Candidates(sg, psi, kc, Fa, Fb, has, bc, lb)
 
 
+def _check_damped(plant: Plant, frozen: FrozenSystem | None) -> None:
+    """A structural pole on (or right of) the imaginary axis: the structure
+    alone is not asymptotically stable, its receptance is infinite on the
+    axis, and no width is chatter-free with certainty -- refuse, naming the
+    mode, instead of failing inside the boundary solver."""
+    lam = plant.poles
+    if lam.size == 0:
+        return
+    bad = lam.real >= -1e-12 * np.maximum(np.abs(lam), 1.0)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        src = frozen.model.source if frozen is not None else "the plant"
+        raise InputError(
+            f"{src}: the structure has an undamped or unstable mode at {abs(lam[k].imag) / (2 * np.pi):.6g} Hz"
+            f" (pole {lam[k]:.6g} 1/s): stability lobes need every mode damped; add damping (a spring's d,"
+            " a beam's eta, a mode's damping_ratio > 0) or hold the free coordinate"
+        )
+
+
 def _check_terms(terms: str) -> None:
     if terms not in ("pdo", "o"):
         raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
@@ -766,6 +785,7 @@ class Boundary:
         self.plant = plant
         if not np.any(plant.Dl_O):
             raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
+        _check_damped(plant, frozen)
         self.band = _band(plant, fmin, fmax, self.width_max)
         if self.band.hi > self.band.lo:
             self.omega = _grid(plant, self.band.lo, self.band.hi, n_base or 2000)
