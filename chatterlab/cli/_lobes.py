@@ -24,6 +24,7 @@ from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
 from ._claims import ceiling_claim, inf_note, ok_infs
 from ._common import load, m_to_mm, model_args, outputs, warn, width_max_m, width_slips
 from ._measured import frf_args, frf_model, uses_frf
+from ._milling import milling_lobe_args, milling_lobes, milling_report
 from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
 
 
@@ -75,6 +76,7 @@ def add_parser(sub: Any) -> None:
     lo.add_argument("--out", metavar="FILE.nc|FILE.csv")
     lo.add_argument("--plot", metavar="FILE.png")
     parallel_args(lo)
+    milling_lobe_args(lo)
     frf_args(lo)
 
 
@@ -95,6 +97,10 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     warn(args, width_slips(wmax, "--width-max"))
     if model.frf is not None:
         return _report(args, model, _measured_diagram(args, model, v, wmax), outs)
+    if model.process.kind == "milling" and args.method != "zoa":
+        return milling_report(args, model, milling_lobes(args, model, v, wmax), outs)
+    if args.method not in (None, "zoa"):
+        raise InputError(f'--method {args.method} is for milling models ([process] kind = "milling")')
     sy = assemble(model)
     if args.positions is not None:
         return _atlas(args, model, v, wmax, outs)

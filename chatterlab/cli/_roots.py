@@ -13,8 +13,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..errors import InputError
 from ..io._files import json_text
-from ._common import FORMAT_SUFFIXES, cut_args, emit, frozen, model_args, outputs, warn, width_m
+from ._common import FORMAT_SUFFIXES, cut_args, emit, frozen, load, model_args, outputs, warn, width_m
 
 
 def add_parser(sub: Any) -> None:
@@ -26,6 +27,12 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--format", choices=["table", "json"], default="table")
     r.add_argument("--out", metavar="FILE")
     r.add_argument("--no-winding", action="store_true", help="skip the argument-principle cross-check")
+    r.add_argument(
+        "--method",
+        choices=["spectral", "sdm"],
+        help="milling models: Floquet multipliers by spectral elements (default) or semi-discretisation",
+    )
+    r.add_argument("--steps", type=int, default=40, metavar="M", help="milling, sdm: steps per period")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,6 +51,13 @@ def _verdict(args: argparse.Namespace) -> Any:
     from ..frequency._stability import stability
 
     warn(args, terms_slips(args))
+    model = load(args)
+    if model.process is not None and model.process.kind == "milling":
+        from ._milling import milling_verdict
+
+        return milling_verdict(args, model)
+    if args.method is not None:
+        raise InputError(f'--method {args.method} is for milling models ([process] kind = "milling")')
     fz = frozen(args)
     return stability(
         fz,

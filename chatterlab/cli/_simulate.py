@@ -62,9 +62,23 @@ def add_parser(sub: Any) -> None:
     )
     si.add_argument("--out", metavar="FILE.nc|FILE.csv")
     si.add_argument("--plot", metavar="FILE.png")
+    g3 = si.add_argument_group('milling models ([process] kind = "milling")')
+    g3.add_argument(
+        "--revolutions",
+        type=float,
+        default=50.0,
+        metavar="N",
+        help="spindle revolutions simulated (default 50)",
+    )
+    g3.add_argument(
+        "--linear", action="store_true", help="the linearised equation (no tooth leaving the cut)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
+    model = load(args)
+    if model.process is not None and model.process.kind == "milling":
+        return _milling(args, model)
     cases: list[Literal["none", "pd", "pdo"]] = (
         ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
     )
@@ -72,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     with outputs(
         args, *((f, "--out", DATA_SUFFIXES) for f in files), (args.plot, "--plot", PLOT_SUFFIXES)
     ) as outs:
-        simulate_case = _runner(args)
+        simulate_case = _runner(args, model)
         sims = []
         for fb in cases:
             sim = simulate_case(fb)
@@ -81,12 +95,45 @@ def run(args: argparse.Namespace) -> int:
         return _report(args, outs, sims, files)
 
 
-def _runner(args: argparse.Namespace) -> Callable[[str], Any]:
+def _milling(args: argparse.Namespace, model: Any) -> int:
+    """The milling branch: one run with the tooth leaving the cut (or
+    ``--linear``), its verdict from the once-per-period samples."""
+    from ._milling import milling_simulation
+
+    with outputs(args, (args.out, "--out", (".csv",)), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
+        run = milling_simulation(args, model)
+        print(
+            f"milling at {run.rpm:g} rpm, a_p = {run.depth * 1e3:g} mm ({'nonlinear' if run.nonlinear else 'linear'},"
+            f" {run.steps_per_period} steps per period): {run.verdict}"
+        )
+        print(f"  {run.reason}")
+        print(
+            f"  growth per period {run.growth_per_period:+.5f} (|mu| = {abs(run.multiplier):.5f}),"
+            f" chatter {run.chatter_frequency:.2f} Hz, tooth out of the material {run.fraction_out_of_cut:.1%}"
+            " of its time in the arc"
+        )
+        from ._milling import PERTURBATION
+
+        print(
+            f"  initial condition: the tool point displaced by {PERTURBATION * 1e6:g} um in x and y, at rest;"
+            f" feed per tooth {run.feed * 1e3:g} mm"
+        )
+        print(f"  {run.message}")
+        if args.out:
+            run.to_csv(outs.path(args.out))
+        if args.plot:
+            from ..plot import savefig
+
+            savefig(run.plot(), outs.path(args.plot))
+    return 0 if run.status == "ok" else 1
+
+
+def _runner(args: argparse.Namespace, model: Any) -> Callable[[str], Any]:
     """The model of the command line as ``feedback case -> Simulation``."""
     from ..structure._assembly import assemble
     from ..time._simulate import simulate
 
-    sy = assemble(load(args))
+    sy = assemble(model)
     width = width_m(args) if args.width is not None else None
 
     def simulate_case(fb: Any) -> Any:

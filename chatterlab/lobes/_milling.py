@@ -45,7 +45,6 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..errors import InputError, check_count, check_positive, check_speed
 from ..frequency import (
@@ -143,31 +142,70 @@ class MillingLobes:
         return "\n".join(lines)
 
     def to_csv(self, path: Any) -> None:
-        """rpm, a_lim_mm, kind, chatter_hz, |mu|, arg mu, error_mm."""
-        with open(path, "w", encoding="utf-8") as f:
+        """rpm, a_lim_mm, kind, chatter_hz, |mu|, arg mu, error_mm (17
+        significant digits: exact), written atomically."""
+        from ..io._files import text_out
+
+        def g(x: Any) -> str:
+            return repr(float(x))
+
+        with text_out(path) as f:
             f.write(f"# milling lobes: method {self.method}, {self.resolution}; depths in mm\n")
             f.write("rpm,a_lim_mm,kind,chatter_hz,mu_abs,mu_arg,error_mm\n")
             for i in range(self.rpm.size):
-                mu = self.multiplier[i]
+                mu = complex(self.multiplier[i])
                 f.write(
-                    f"{self.rpm[i]!r},{self.a_lim[i] * 1e3!r},{self.kind[i]},{self.frequency_hz[i]!r},"
-                    f"{abs(mu)!r},{np.angle(mu)!r},{self.error[i] * 1e3!r}\n"
+                    f"{g(self.rpm[i])},{g(self.a_lim[i] * 1e3)},{self.kind[i]},{g(self.frequency_hz[i])},"
+                    f"{g(abs(mu))},{g(np.angle(mu))},{g(self.error[i] * 1e3)}\n"
                 )
 
-    def plot(self, ax: Any = None, *, label: str | None = None, **kw: Any) -> Any:
-        """a_lim (mm) against rpm; flip parts dashed.  Returns the Axes."""
-        import matplotlib.pyplot as plt
+    def to_xarray(self, attrs: dict[str, Any] | None = None) -> Any:
+        """The lobes as an :class:`xarray.Dataset` with the spindle speed as
+        coordinate: a_lim (m), the lobe type (0 none, 1 Hopf, 2 flip, 3 fold),
+        chatter frequency (Hz), critical multiplier, error estimate (m)."""
+        from ..io import make_dataset
 
-        if ax is None:
-            _, ax = plt.subplots(figsize=(8, 4.5))
-        a = np.where(np.isfinite(self.a_lim), self.a_lim * 1e3, np.nan)
-        (line,) = ax.plot(self.rpm, a, label=label or self.method, **kw)
-        flip = np.where(self.kind == "flip", a, np.nan)
-        if np.any(np.isfinite(flip)):
-            ax.plot(self.rpm, flip, ls="none", marker=".", ms=3, color=line.get_color())
-        ax.set_xlabel("spindle speed (rpm)")
-        ax.set_ylabel("a_lim (mm)")
-        return ax
+        code = {"": 0, "hopf": 1, "flip": 2, "fold": 3}
+        mu = self.multiplier.astype(complex)
+        a = {
+            "title": "chatterlab milling stability lobes",
+            "model": self.name,
+            "method": self.method,
+            "resolution": self.resolution,
+            "depth_max_m": self.depth_max,
+            "scan_step_m": self.scan_step,
+            "claim": "a_lim = inf: stable at every scanned depth up to depth_max (a band narrower than"
+            " scan_step between two stable scan depths can be missed)",
+        }
+        a.update(self.meta if all(isinstance(v, (int, float, str)) for v in self.meta.values()) else {})
+        a.update(attrs or {})
+        return make_dataset(
+            coords={"speed": (self.rpm, "rpm", "spindle speed")},
+            data={
+                "a_lim": (self.a_lim, "m", "limit axial depth of cut"),
+                "kind": (np.array([code.get(str(k), -1) for k in self.kind], float), "1",
+                         "lobe type: 0 none, 1 Hopf, 2 flip, 3 fold"),
+                "chatter_frequency": (self.frequency_hz, "Hz", "chatter frequency at the limit"),
+                "multiplier_abs": (np.abs(mu), "1", "|critical Floquet multiplier|"),
+                "multiplier_arg": (np.angle(mu), "rad", "arg of the critical Floquet multiplier"),
+                "error": (self.error, "m", "estimated error of a_lim"),
+            },
+            attrs=a,
+        )  # fmt: skip
+
+    def to_netcdf(self, path: Any, attrs: dict[str, Any] | None = None) -> None:
+        """netCDF-4 file of :meth:`to_xarray`, written atomically."""
+        from ..io import write_dataset
+
+        write_dataset(path, self.to_xarray(attrs))
+
+    def plot(self, ax: Any = None, *, label: str | None = None, title: str | None = None, **kw: Any) -> Any:
+        """a_lim (mm) against rpm, Hopf and flip lobes told apart, the
+        unstable side shaded (:func:`chatterlab.plot.plot_milling_lobes`).
+        Returns the Axes."""
+        from ..plot import plot_milling_lobes
+
+        return plot_milling_lobes(self, ax=ax, label=label, title=title, **kw)
 
 
 # ============================================================================ ZOA
@@ -241,6 +279,8 @@ def _first_crossing(
         f = rho(float(a)) - 1.0
         count += 1
         if f >= 0.0:
+            from scipy.optimize import brentq  # here: import chatterlab stays light
+
             calls = [0]
 
             def g(x: float, calls: list[int] = calls) -> float:

@@ -6,7 +6,8 @@ inside the functions, so importing this package is light.
 One module per subject: ``_lobes`` (with ``_lobe_panel`` and the geometry in
 ``_envelope``), ``_atlas``, ``_frf`` (FRF, Nyquist of the determinant and
 of the loop), ``_time`` (histories, spectra, one run's response), ``_modes``
-(mode shapes on the structure, frequencies), ``_sweep`` (any output, the
+(mode shapes on the structure, frequencies), ``_milling`` (milling
+lobes, Hopf and flip), ``_sweep`` (any output, the
 stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 from ._atlas import plot_atlas
 from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
+from ._milling import plot_milling_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
@@ -26,6 +28,7 @@ __all__ = [
     "touching_width",
     "track_loci",
     "plot_lobes",
+    "plot_milling_lobes",
     "plot_atlas",
     "plot_histories",
     "plot_spectra",

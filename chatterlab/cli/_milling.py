@@ -1,0 +1,210 @@
+"""The milling branches of ``lobes``, ``roots`` and ``simulate``.
+
+A model whose ``[process]`` is ``kind = "milling"`` (docs/model-format.md)
+is analysed with its periodic directional matrices, not their average:
+
+* ``lobes``: the limit axial depth a_lim against rpm by the spectral-element
+  Floquet method (default), first-order semi-discretisation (``--method
+  sdm --steps M``) or the zeroth-order approximation (``--method zoa``,
+  the averaged matrix through the D-subdivision engine), Hopf and flip
+  lobes told apart;
+* ``roots``: the Floquet multipliers at (``--width`` a_p, ``--speed`` rpm),
+  the critical one with its type and the convergence check;
+* ``simulate``: the Newmark solution with the tooth leaving the cut
+  (``--linear`` for the linearised equation), with a Poincare verdict.
+
+Widths (axial depths) are typed and printed in mm, speeds in rpm, as for
+every command.  A structural model is reduced to the modes that matter
+(:func:`chatterlab.lobes.reduce_structure`) and the reduction and its
+tool-point FRF error are printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError, check_count
+
+#: initial displacement of the tool point in x and y of a milling simulation, m
+PERTURBATION = 1e-6
+
+__all__ = ["milling_lobe_args", "milling_lobes", "milling_report", "milling_verdict", "milling_simulation"]
+
+
+def milling_lobe_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group('milling models ([process] kind = "milling", docs/milling.md)')
+    g.add_argument(
+        "--method",
+        choices=["spectral", "sdm", "zoa"],
+        help="Floquet by spectral elements (default), semi-discretisation, or the zeroth-order approximation",
+    )
+    g.add_argument("--steps", type=int, default=40, metavar="M", help="sdm: steps per period (default 40)")
+    g.add_argument(
+        "--scan",
+        type=int,
+        default=40,
+        metavar="N",
+        help="depths scanned up to --width-max before refining (default 40)",
+    )
+
+
+def _structure(model: Any, position: float | None) -> tuple[Any, Any, str]:
+    from ..lobes._milling_model import milling_of, reduce_structure, tool_structure
+    from ..structure._assembly import assemble
+
+    fz = assemble(model).at(position)
+    S = tool_structure(fz)
+    note = ""
+    if not model.modes and not model.is_matrix_model:  # a structural model: keep the modes that matter
+        S, info = reduce_structure(S)
+        note = info.note()
+    return S, milling_of(model), note
+
+
+def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -> Any:
+    """``lobes`` on a milling model: :func:`chatterlab.lobes.milling_lobes`."""
+    from ..lobes._milling import milling_lobes as compute
+
+    for opt, val in (
+        ("--positions", args.positions),
+        ("--confirm", args.confirm or None),
+        ("--terms o", args.terms == "o" or None),
+    ):
+        if val is not None:
+            raise InputError(
+                f"{opt} is not available for milling models (the Floquet lobes are one configuration, all terms)"
+            )
+    S, mill, note = _structure(model, args.position)
+    if note:
+        print(note)
+    method: Any = args.method or "spectral"
+    ml = compute(
+        S, mill, rpm, method=method, depth_max=wmax, scan=check_count(args.scan, "--scan", 2),
+        steps=check_count(args.steps, "--steps", 2),
+    )  # fmt: skip
+    return ml
+
+
+def milling_report(args: argparse.Namespace, model: Any, ml: Any, outs: Any) -> int:
+    """Summary, --out (CSV or netCDF), --plot of milling lobes."""
+    print(ml.summary())
+    if args.out:
+        if args.out.lower().endswith(".csv"):
+            ml.to_csv(outs.path(args.out))
+        else:
+            ml.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)})
+    if args.plot:
+        from ..plot import savefig
+
+        savefig(ml.plot(), outs.path(args.plot))
+    return 0
+
+
+class _MultiplierTable:
+    """``roots`` output for a milling cut: the multipliers and the verdict."""
+
+    def __init__(self, r: Any, count: int, note: str) -> None:
+        self.r, self.count, self.note = r, count, note
+
+    def verdict(self) -> str:
+        r = self.r
+        if r.stable:
+            return f"stable: every |mu| < 1 (spectral radius {r.spectral_radius:.6f}, error {r.error:.1e})"
+        kind = {"hopf": "Hopf (quasi-periodic) chatter", "flip": "flip (period-doubling) chatter"}.get(
+            r.kind, r.kind
+        )
+        return f"unstable: {kind}, |mu| = {r.spectral_radius:.6f} (error {r.error:.1e})"
+
+    def table(self) -> str:
+        r = self.r
+        lines = [
+            f"Floquet multipliers ({r.method}, {r.resolution}) at a_p = {r.depth * 1e3:g} mm, {r.rpm:g} rpm"
+            f" (period {r.period * 1e3:.6g} ms)"
+        ]
+        if self.note:
+            lines.append(self.note)
+        lines.append("    |mu|        arg mu [deg]   type")
+        for mu in r.mu[: self.count]:
+            from ..frequency._floquet import classify
+
+            lines.append(f"  {abs(mu):10.6f}  {np.degrees(np.angle(mu)):12.4f}   {classify(complex(mu))}")
+        lines.append(f"critical: {self.verdict()}; chatter frequency {r.frequency_hz:.2f} Hz")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        r = self.r
+        return {
+            "kind": "milling",
+            "method": r.method,
+            "resolution": r.resolution,
+            "rpm": r.rpm,
+            "depth_m": r.depth,
+            "period_s": r.period,
+            "stable": bool(r.stable),
+            "spectral_radius": float(r.spectral_radius),
+            "error": float(r.error),
+            "critical": {"re": float(np.real(r.critical)), "im": float(np.imag(r.critical)), "type": r.kind},
+            "chatter_frequency_hz": float(r.frequency_hz),
+            "multipliers": [{"re": float(m.real), "im": float(m.imag)} for m in r.mu[: self.count]],
+            "reduction": self.note,
+        }
+
+
+def milling_verdict(args: argparse.Namespace, model: Any) -> Any:
+    """``roots`` on a milling model: the Floquet multipliers at (a_p, rpm)."""
+    from ..frequency._floquet import multipliers
+    from ._common import width_m
+
+    if args.delay is not None:
+        raise InputError(
+            "milling: give the spindle speed with --speed RPM (the delays follow from the pitch)"
+        )
+    rpm = args.speed if args.speed is not None else model.process.speed
+    S, mill, note = _structure(model, args.position)
+    r = multipliers(S, mill, float(rpm), width_m(args), method=args.method or "spectral", steps=args.steps)
+    return _MultiplierTable(r, args.count, note)
+
+
+def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
+    """``simulate`` on a milling model: :func:`chatterlab.time.simulate_milling`."""
+    from ..lobes._milling_model import milling_of
+    from ..structure._assembly import assemble
+    from ..time._milling import simulate_milling
+    from ._common import width_m
+
+    if args.width is None:
+        raise InputError("milling: give the axial depth of cut with --width A_P (mm)")
+    if args.delay is not None:
+        raise InputError(
+            "milling: give the spindle speed with --speed RPM (the delays follow from the pitch)"
+        )
+    if not args.linear and model.process.milling.feed_per_tooth <= 0:
+        raise InputError(
+            f"{model.source}: [process] feed_per_tooth is 0, so the teeth cut no chip and a nonlinear run"
+            " shows only free vibration (its 'stable' would prove nothing): give feed_per_tooth, or --linear"
+        )
+    fz = assemble(model).at(args.position)
+    cm = [c for c in fz.couplings() if c.coupling.kind == "milling"]
+    if len(cm) != 1:
+        raise InputError(f'{model.source}: simulate takes one model = "milling" coupling')
+    P = np.asarray(cm[0].J, dtype=float)[:2]
+    cut = model.process.milling
+    # a run at rest with no feed would never be excited, and its "stable" would prove nothing: start
+    # from the tool point displaced by PERTURBATION in x and y (printed with the verdict)
+    q0 = np.linalg.pinv(P) @ np.full(2, PERTURBATION)
+    return simulate_milling(
+        (fz.A, fz.B, fz.C),
+        milling_of(model),
+        float(args.speed if args.speed is not None else model.process.speed),
+        width_m(args),
+        feed=cut.feed_per_tooth,
+        revolutions=args.revolutions,
+        nonlinear=not args.linear,
+        tool_point=P,
+        runout=cut.runout or None,
+        q0=q0,
+    )

@@ -1,0 +1,140 @@
+"""A milling model file in the Floquet methods' terms.
+
+A model with ``[process] kind = "milling"`` and a ``model = "milling"``
+coupling (docs/model-format.md) holds a cutter description
+(:class:`chatterlab.model.MillingCut`) and a structure.  The Floquet methods
+(:mod:`chatterlab.frequency._floquet`, :mod:`chatterlab.lobes._milling`)
+take a :class:`~chatterlab.process.Milling` and a
+:class:`~chatterlab.frequency.ToolStructure` (M, C, K and the map J from the
+coordinates to the tool's x, y relative to the workpiece): this module is
+the one place that turns the first into the second, so the CLI and Python
+users reach the same numbers from a model file.
+
+The structure is the frozen configuration's independent coordinates:
+M = A*, C = B*, K = C* (Eq. 2.23 without feedback) and J the first two rows
+of the coupling's map (its CE axes 1 and 2: the feed x and the normal y of
+the cutter).
+
+Modal reduction (:func:`reduce_structure`).  The spectral Floquet method
+resolves the highest pole of the structure (its elements are sized by
+omega_max L), so a beam model's axial and high bending modes, which the cut
+barely excites, would cost most of the work.  The structure is therefore
+reduced (:meth:`ToolStructure.reduce`) by a Rayleigh-Ritz projection on the
+undamped modes below f_keep augmented by the static residual of the tool
+point (modal truncation augmentation; Dickens, Nakagawa & Wittbrodt,
+Comput. Struct. 62 (1997) 985-998): the kept modes stay exact, the tool
+point's static compliance is exact, and what is lost is the dynamics of
+the truncated modes, whose error on the tool-point FRF over
+[0, f_keep / 2] is computed and reported (``Reduction.frf_error``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import InputError
+from ..frequency import ToolStructure
+from ..process import Milling
+
+__all__ = ["milling_of", "tool_structure", "is_milling", "reduce_structure", "Reduction"]
+
+
+def is_milling(model: Any) -> bool:
+    """True for a model whose process is milling."""
+    p = getattr(model, "process", None)
+    return p is not None and p.kind == "milling"
+
+
+def milling_of(model: Any) -> Milling:
+    """The cutter of a model's ``[process] kind = "milling"`` as a
+    :class:`~chatterlab.process.Milling` (SI units, radians)."""
+    if not is_milling(model):
+        raise InputError(f'{model.source}: its [process] is not milling (kind = "milling")')
+    c = model.process.milling
+    return Milling(
+        c.teeth,
+        c.diameter,
+        c.Kt,
+        c.Kn,
+        c.entry,
+        c.exit,
+        pitch=c.pitch,
+        helix=c.helix,
+        Kte=c.Kte,
+        Kne=c.Kne,
+        rpm=model.process.speed,
+    )
+
+
+def tool_structure(frozen: Any, coupling: str | None = None) -> ToolStructure:
+    """The frozen structure seen by the cutter of its ``model = "milling"``
+    coupling (``coupling`` names it when there are several), unreduced
+    (see :func:`reduce_structure`)."""
+    cms = [
+        c
+        for c in frozen.couplings()
+        if c.coupling.kind == "milling" and (coupling is None or c.id == coupling)
+    ]
+    if len(cms) != 1:
+        known = [c.id for c in frozen.couplings() if c.coupling.kind == "milling"]
+        raise InputError(
+            f'{frozen.model.source}: the Floquet methods take one model = "milling" coupling'
+            f" (found {', '.join(known) or 'none'}); name it with coupling="
+        )
+    cm = cms[0]
+    J = np.asarray(cm.J, dtype=float)[:2]
+    if not np.any(J):
+        raise InputError(f"{frozen.model.source}: the milling coupling's tool point does not move")
+    return ToolStructure(frozen.A, frozen.B, frozen.C, J, name=str(frozen.model.source))
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """What :func:`reduce_structure` kept and what it costs.
+
+    ``kept``: modes kept (below ``f_keep``, Hz) of ``n_full`` coordinates,
+    plus ``augment`` static residual vectors; ``frf_error``: the largest
+    error of the tool-point FRF over ``[0, f_keep / 2]`` relative to its
+    peak, against the full structure; ``omega_max``: the highest pole
+    before and after, rad/s."""
+
+    n_full: int
+    kept: int
+    augment: int
+    f_keep: float
+    frf_error: float
+    omega_max_full: float
+    omega_max: float
+
+    def note(self) -> str:
+        return (
+            f"structure reduced from {self.n_full} coordinates to {self.kept} modes below"
+            f" {self.f_keep:.4g} Hz + {self.augment} static vectors (tool-point FRF error"
+            f" {self.frf_error:.1e} up to {self.f_keep / 2:.4g} Hz)"
+        )
+
+
+def reduce_structure(S: ToolStructure, f_keep: float | None = None) -> tuple[ToolStructure, Reduction]:
+    """The structure on its undamped modes below ``f_keep`` (Hz) and the
+    static residual of the tool point (:meth:`ToolStructure.reduce`), with
+    what was kept and the truncation error.
+
+    Default ``f_keep``: 4 x the highest natural frequency among the modes
+    that carry at least 5 % of the tool point's static compliance (its
+    trace over the cut's directions: the modes the cut can excite)."""
+    lam, Phi = sla.eigh(S.K, S.M)  # mass-normalised: Phi^T M Phi = I
+    lam = np.maximum(lam, np.finfo(float).tiny)
+    f = np.sqrt(lam) / (2 * np.pi)
+    if f_keep is None:
+        contrib = np.sum((S.J @ Phi) ** 2, axis=0) / lam  # static compliance carried by each mode
+        f_keep = 4.0 * float(f[contrib >= 0.05 * contrib.sum()].max())
+    kept = int(np.count_nonzero(f < f_keep))
+    full = float(S.omega_max)
+    if kept >= S.n - S.J.shape[0]:  # nothing to gain
+        return S, Reduction(S.n, S.n, 0, float(f_keep), 0.0, full, full)
+    R, err = S.reduce(f_keep)
+    return R, Reduction(S.n, kept, R.n - kept, float(f_keep), float(err), full, float(R.omega_max))

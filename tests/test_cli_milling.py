@@ -1,0 +1,96 @@
+"""The command line on milling models (issue 12, item 7): ``lobes`` prints and
+writes what :func:`chatterlab.lobes.milling_lobes` computes, ``roots`` the
+Floquet multipliers, ``simulate`` the time-domain verdict, with the same
+units at the edge (a_p in mm, speeds in rpm) and bad input as one line."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import assert_clean_error
+
+import chatterlab as cl
+from chatterlab.cli import main
+from chatterlab.frequency import multipliers
+from chatterlab.lobes import milling_lobes, milling_of, tool_structure
+
+ROOT = Path(__file__).resolve().parents[1]
+ONE = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    m = cl.load_model(ONE)
+    return m, tool_structure(cl.assemble(m).at()), milling_of(m)
+
+
+def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
+    m, S, mill = bench
+    out = tmp_path / "l.csv"
+    code = main(["lobes", str(ONE), "--speed", "8000", "20000", "--points", "7", "--width-max", "10",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    ref = milling_lobes(S, mill, np.linspace(8000.0, 20000.0, 7), depth_max=0.01)
+    with open(out) as fh:
+        rows = [r for r in csv.reader(fh) if r and not r[0].startswith("#")]
+    head, body = rows[0], rows[1:]
+    got = np.array([float(r[head.index("a_lim_mm")]) for r in body])
+    # the same computation through the CLI: the CSV holds repr() of the floats, so exactly equal
+    np.testing.assert_array_equal(got, ref.a_lim * 1e3)
+    assert [r[head.index("kind")] for r in body] == list(ref.kind)
+
+
+def test_roots_json_is_the_floquet_result(bench, tmp_path, capsys):
+    m, S, mill = bench
+    out = tmp_path / "r.json"
+    code = main(["roots", str(ONE), "--width", "2", "--speed", "18000", "--format", "json", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    d = json.loads(out.read_text())
+    ref = multipliers(S, mill, 18000.0, 2e-3)
+    assert d["kind"] == "milling" and d["stable"] is False and d["critical"]["type"] == ref.kind
+    assert d["spectral_radius"] == ref.spectral_radius
+
+
+def test_simulate_above_and_below_the_limit(bench, capsys):
+    """At 18000 rpm the Floquet limit is a flip lobe near 1.3 mm (a_e/D = 0.05): the nonlinear run at
+    2 mm saturates on a period-two orbit, the one at 1 mm settles on the forced periodic motion, and
+    the linear run at 2 mm grows at ln|mu| per period."""
+    m, S, mill = bench
+    a_lim = milling_lobes(S, mill, np.array([18000.0]), depth_max=0.01).a_lim[0]
+    assert 1e-3 < a_lim < 2e-3
+    main(["simulate", str(ONE), "--width", "2", "--speed", "18000", "--revolutions", "60"])
+    assert "flip chatter" in capsys.readouterr().out.splitlines()[0]
+    main(["simulate", str(ONE), "--width", "1", "--speed", "18000", "--revolutions", "60"])
+    assert capsys.readouterr().out.splitlines()[0].endswith(": stable")
+    main(["simulate", str(ONE), "--width", "2", "--speed", "18000", "--revolutions", "60", "--linear"])
+    out = capsys.readouterr().out
+    mu = multipliers(S, mill, 18000.0, 2e-3).spectral_radius
+    g = float(out.split("growth per period")[1].split()[0])
+    # Newmark at 150 steps per period: phase error (w h)^2 / 12 ~ 2e-4 per period; the fit's own spread
+    # over the last 60 periods is reported as growth_error ~1e-3 (docs/time-domain.md)
+    assert g == pytest.approx(np.log(mu), abs=3e-3)
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["lobes", str(ONE), "--speed", "8000", "9000", "--positions", "0", "1", "3"], ["--positions", "milling"]),
+        (["roots", str(ONE), "--width", "1", "--delay", "0.003"], ["--speed"]),
+        (["simulate", str(ONE), "--speed", "9000"], ["--width"]),
+        (["lobes", str(ROOT / "studies" / "traverse_shaper" / "model.toml"), "--speed", "0.1", "1", "--method",
+          "sdm"], ["--method sdm", "milling"]),  # fmt: skip
+    ],
+)
+def test_bad_milling_options_are_one_line(argv, words, capsys):
+    assert_clean_error(main(argv), capsys.readouterr().err, *words)
+
+
+def test_nonlinear_without_feed_is_refused(tmp_path, capsys):
+    text = ONE.read_text().replace("feed_per_tooth = 1.0e-4", "feed_per_tooth = 0.0")
+    (tmp_path / "m.toml").write_text(text)
+    code = main(["simulate", str(tmp_path / "m.toml"), "--width", "1", "--speed", "9000"])
+    assert_clean_error(code, capsys.readouterr().err, "feed_per_tooth", "--linear")
