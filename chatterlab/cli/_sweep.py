@@ -15,7 +15,11 @@ from ._claims import inf_note, ok_infs, sweep_inf_claims
 from ._common import cut_args, load, mm_to_m, model_args, outputs, width_m, width_max_m
 from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
 
-QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-frequencies")
+#: depths scanned by the a-lim quantity before a crossing is refined (chatterlab.lobes.milling_lobes)
+MILLING_SCAN = 40
+
+#: the quantities of the sweep command (chatterlab.quantities.QUANTITIES; the last two for milling models)
+QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-frequencies", "spectral-radius", "a-lim")
 
 #: the options a checkpoint belongs to (besides the model and the grid): a
 #: --resume with another value of one of them is refused, naming it
@@ -138,6 +142,15 @@ def _summary(
         rng = f"min {fin.min():.6g}, max {fin.max():.6g}" if fin.size else "no finite values"
         if k in ("b_lim", "b_lim_min") and ok_infs(a, res.task_status).any():
             rng += "; " + inf_note(*sweep_inf_claims(res, k, task, model))
+        if k == "a_lim" and ok_infs(a, res.task_status).any():
+            n_inf = int(ok_infs(a, res.task_status).sum())
+            rng += (
+                f"; inf at {n_inf} of {a.size} points: no instability at the {MILLING_SCAN} depths scanned up to"
+                f" {task.width_max * 1e3:g} mm (a band narrower than {task.width_max * 1e3 / MILLING_SCAN:.3g} mm"
+                " between two of them can be missed)"
+            )
+        if k == "stable" and args.quantity == "spectral-radius" and np.isnan(a).any():
+            rng += f"; undetermined (|mu| within its error of 1) at {int(np.isnan(a).sum())} points"
         print(f"  {k} [{outputs[k]}]: {rng}")
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed; first: {res.message}", file=sys.stderr)

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import InputError, check_delay, check_position, check_speed, check_width
 from ..model._items import Model
 
-__all__ = ["AtlasTask", "QuantityTask", "QUANTITIES", "model_fingerprint", "axis_name"]
+__all__ = ["AtlasTask", "QuantityTask", "QUANTITIES", "KIND_CODES", "model_fingerprint", "axis_name"]
 
 # The tasks keep ``terms: str`` (it comes from the command line); Boundary and stability
 # refuse any other value with an InputError, so the casts below only inform the type checker.
@@ -50,7 +50,13 @@ QUANTITIES: dict[str, dict[str, str]] = {
     "b-lim": {"b_lim": "m", "chatter_frequency": "Hz"},
     "min-b-lim": {"b_lim_min": "m", "chatter_frequency": "Hz"},
     "natural-frequencies": {"f1": "Hz", "f2": "Hz", "f3": "Hz"},
+    # milling models (Floquet, spectral elements): at (width = a_p, speed = rpm)
+    "spectral-radius": {"spectral_radius": "1", "stable": "1", "kind": "1", "error": "1"},
+    # milling models: the limit depth at a speed, searched up to width_max
+    "a-lim": {"a_lim": "m", "chatter_frequency": "Hz", "kind": "1"},
 }
+#: the ``kind`` output of the milling quantities: the type of the critical multiplier
+KIND_CODES = {"": 0.0, "hopf": 1.0, "flip": 2.0, "fold": 3.0}
 _BUILTIN_AXES = {"width", "speed", "delay", "position"}
 
 _CACHE: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
@@ -243,7 +249,7 @@ class QuantityTask:
         if params:
             self.model.with_parameters(params)
         if (
-            self.quantity in ("rightmost-root", "stable")
+            self.quantity in ("rightmost-root", "stable", "spectral-radius")
             and "width" not in names
             and "width" not in self.fixed
         ):
@@ -273,6 +279,8 @@ class QuantityTask:
             f = np.concatenate([f, np.full(3, np.nan)])[:3]
             return {"f1": float(f[0]), "f2": float(f[1]), "f3": float(f[2])}
         fz = _cached(("frozen", self.key, pkey, pos), lambda: sy.at(pos))
+        if q in ("spectral-radius", "a-lim"):
+            return self._milling(sy, fz, vals, pkey, pos)
         if q in ("rightmost-root", "stable"):
             from ..frequency._stability import stability
 
@@ -309,6 +317,48 @@ class QuantityTask:
             raise InputError("quantity 'b-lim' needs a speed or a delay")
         b, f, _ = bd.envelope(np.array([T]))
         return {"b_lim": float(b[0]), "chatter_frequency": float(f[0])}
+
+    def _milling(self, sy: Any, fz: Any, vals: dict[str, float], pkey: Any, pos: Any) -> dict[str, float]:
+        """The Floquet quantities of a milling model (docs/milling.md): the
+        spectral radius at (a_p, rpm) with its convergence check, or the
+        limit depth a_lim at a speed (inf: stable at every scanned depth
+        up to ``width_max``)."""
+        from ..frequency._floquet import multipliers
+        from ..lobes._milling import milling_lobes
+        from ..lobes._milling_model import is_milling, milling_of, reduce_structure, tool_structure
+
+        mdl = sy.model
+        if not is_milling(mdl):
+            raise InputError(
+                f"quantity '{self.quantity}' is for milling models ([process] kind = \"milling\");"
+                f" {mdl.source} is {mdl.process.kind if mdl.process else 'without a process'}"
+            )
+
+        def structure() -> Any:
+            S = tool_structure(fz)
+            return S if (mdl.modes or mdl.is_matrix_model) else reduce_structure(S)[0]
+
+        S = _cached(("tool", self.key, pkey, pos), structure)
+        mill = milling_of(mdl)
+        rpm = float(vals.get("speed", mdl.process.speed))
+        if "delay" in vals:
+            raise InputError("milling quantities take the spindle speed (speed, rpm), not a delay")
+        if self.quantity == "spectral-radius":
+            r = multipliers(S, mill, rpm, vals["width"])
+            rho, err = float(r.spectral_radius), float(r.error)
+            verdict = 1.0 if rho + err < 1.0 else 0.0 if rho - err > 1.0 else float("nan")
+            return {
+                "spectral_radius": rho,
+                "stable": verdict,
+                "kind": KIND_CODES.get(r.kind, -1.0),
+                "error": err,
+            }
+        ml = milling_lobes(S, mill, np.array([rpm]), depth_max=self.width_max)
+        return {
+            "a_lim": float(ml.a_lim[0]),
+            "chatter_frequency": float(ml.frequency_hz[0]),
+            "kind": KIND_CODES.get(str(ml.kind[0]), -1.0),
+        }
 
 
 def _current_value(model: Model, path: str) -> Any:
