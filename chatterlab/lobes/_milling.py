@@ -269,9 +269,11 @@ def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max:
 # ============================================================================ Floquet
 def _first_crossing(
     rho: Callable[[float], float], depth_max: float, scan: int, rtol: float
-) -> tuple[float, int]:
+) -> tuple[float, int, float]:
     """Smallest a in (0, depth_max] with rho(a) = 1 found on the scan, refined
-    by Brent's method; inf if rho < 1 at every scan depth."""
+    by Brent's method; inf if rho < 1 at every scan depth.  Also the slope
+    d rho / d a at the root from the closest evaluations on either side (nan
+    when they are further apart than 1e-4 a)."""
     grid = depth_max * np.arange(1, scan + 1) / scan
     count = 0
     prev_a, prev_f = 0.0, -1.0  # rho(0) < 1: the structure is stable (checked by the caller)
@@ -281,21 +283,29 @@ def _first_crossing(
         if f >= 0.0:
             from scipy.optimize import brentq  # here: import chatterlab stays light
 
-            calls = [0]
+            seen: list[tuple[float, float]] = [(prev_a, prev_f), (float(a), f)]
 
-            def g(x: float, calls: list[int] = calls) -> float:
-                calls[0] += 1
-                return rho(x) - 1.0
+            def g(x: float, seen: list[tuple[float, float]] = seen) -> float:
+                v = rho(x) - 1.0
+                seen.append((x, v))
+                return v
 
             if prev_a == 0.0:
+                seen.clear()
                 prev_f = g(1e-12 * depth_max)
                 prev_a = 1e-12 * depth_max
                 if prev_f >= 0:
-                    return prev_a, count + calls[0]
+                    return prev_a, count + len(seen), float("nan")
+                seen.append((float(a), f))
             root = brentq(g, prev_a, float(a), xtol=rtol * prev_a, rtol=4 * np.finfo(float).eps, maxiter=200)
-            return float(root), count + calls[0]
+            below = [p for p in seen if p[1] < 0]
+            above = [p for p in seen if p[1] >= 0]
+            lo = max(below, key=lambda p: p[0])
+            hi = min(above, key=lambda p: p[0])
+            slope = (hi[1] - lo[1]) / (hi[0] - lo[0]) if hi[0] - lo[0] <= 1e-4 * root else float("nan")
+            return float(root), count + len(seen) - 2, slope
         prev_a, prev_f = float(a), f
-    return float("inf"), count
+    return float("inf"), count, float("nan")
 
 
 def _spectral_rho(sm: SpectralMonodromy) -> Callable[[float], float]:
@@ -413,15 +423,17 @@ def milling_lobes(
             else:
                 mu_at = _sdm_top(structure, milling, float(r), steps)
                 rho = _abs_of(mu_at)
-            a, cnt = _first_crossing(rho, depth_max, scan, rtol)
+            a, cnt, slope = _first_crossing(rho, depth_max, scan, rtol)
             evals += cnt
             if method != "spectral" or not check or not np.isfinite(a):
                 break
             sm2 = SpectralMonodromy(structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
-            da = max(1e-6 * a, 10 * rtol * a)
-            slope = (rho(a + da) - rho(a - da)) / (2 * da)
+            if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
+                da = max(1e-6 * a, 10 * rtol * a)
+                slope = (rho(a + da) - rho(a - da)) / (2 * da)
+                evals += 2
             err[i] = abs(sm2.radius(a) - 1.0) / abs(slope) if slope else np.inf
-            evals += 3
+            evals += 1
             if err[i] <= target * a or elements is not None or attempt == 3:
                 break
             span /= 2.0
