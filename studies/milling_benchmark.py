@@ -88,13 +88,14 @@ def draw(res: dict[str, Any], folder: Path) -> list[Path]:
             ("spectral Floquet (reference)", res[imm]["spectral"], {"color": "tab:blue", "lw": 1.4}),
         ]
         for label, L, kw in sets:
-            L.plot(ax, label=label, **kw)
+            ax.plot(L.rpm, np.where(np.isfinite(L.a_lim), L.a_lim * 1e3, np.nan), label=label, **kw)
         sp = res[imm]["spectral"]
         flip = sp.kind == "flip"
         ax.plot(
             sp.rpm[flip], sp.a_lim[flip] * 1e3, "v", ms=3, color="tab:red", label="flip (period doubling)"
         )
         ax.set_ylim(0, DEPTH_MAX * 1e3)
+        ax.set_ylabel("limit axial depth a_lim (mm)")
         ax.set_title(
             f"a_e/D = {imm:g}, down-milling, N = 2 (Insperger & Stepan 1-DOF benchmark)", fontsize=10
         )
@@ -108,9 +109,17 @@ def draw(res: dict[str, Any], folder: Path) -> list[Path]:
     paths.append(p)
 
     fig, ax = plt.subplots(figsize=(9, 4.2))
-    res["uniform"].plot(ax, label="uniform pitch, 4 x 90 deg", color="0.4")
-    res["variable"].plot(ax, label="variable pitch, 70/110/70/110 deg", color="tab:green")
+    for key, label, colour in (
+        ("uniform", "uniform pitch, 4 x 90 deg", "0.4"),
+        ("variable", "variable pitch, 70/110/70/110 deg", "tab:green"),
+    ):
+        L = res[key]
+        ax.plot(
+            L.rpm, np.where(np.isfinite(L.a_lim), L.a_lim * 1e3, np.nan), label=label, color=colour, lw=1.3
+        )
     ax.set_ylim(0, DEPTH_MAX * 1e3)
+    ax.set_xlabel("spindle speed (rpm)")
+    ax.set_ylabel("limit axial depth a_lim (mm)")
     ax.set_title(
         "N = 4, a_e/D = 0.25 down-milling, 1-DOF benchmark structure (spectral Floquet)", fontsize=10
     )
