@@ -237,3 +237,12 @@ def test_plot_draws_the_histories(runs):
     assert [ln.get_label() for ln in ax.get_lines()] == ["tip.x", "cut_distance"]
     assert ax.get_ylabel() == "[m]"
     plt.close("all")
+
+
+def test_one_implementation_of_the_shared_methods():
+    # issue 9: the two result types had two copies of these, with different names;
+    # an override in either would be a second copy again
+    for cls in (TimeResponse, Simulation):
+        for method in ("spectrum", "growth", "to_xarray", "to_netcdf"):
+            assert getattr(cls, method) is getattr(TimeHistory, method), (cls.__name__, method)
+    assert "to_csv" not in vars(Simulation) and "growth" not in vars(TimeResponse)
