@@ -237,3 +237,41 @@ def test_bad_input_one_line(make, words):
     assert "\n" not in msg
     for w in words:
         assert w in msg, msg
+
+
+def test_helix_at_one_helical_pitch_is_the_constant_coefficient_delay_equation():
+    # at a_p = pi D / (N tan beta) each flute spans one pitch angle, so sum_j H_j(t) is the mean
+    # over one pitch of the N teeth = H0 at every t (any immersion): the Floquet multipliers are
+    # then exp(lambda tau) of the characteristic roots of the autonomous delay equation, which
+    # chatterlab's roots solver finds independently
+    from chatterlab.frequency import characteristic_roots
+
+    st = one_dof()
+    m = Milling.from_immersion(4, 0.01, KT, KN, 0.5, "down", helix=np.radians(45.0))
+    a_star = np.pi * 0.01 / (4 * np.tan(np.radians(45.0)))
+    rpm = 9000.0
+    r = multipliers(st, m, rpm, a_star)
+    B = st.J.T @ m.zoa() @ st.J
+    tau = m.tooth_period(rpm)
+    roots = characteristic_roots(st.M, st.C, st.K, DP=-a_star * B, DO=a_star * B, tau=tau, count=4)
+    rho = np.exp(np.max(roots.roots.real) * tau)
+    # both converged far below 1e-9 (the spectral check says r.error; the roots are Newton-refined)
+    assert r.error < 1e-9
+    assert r.spectral_radius == pytest.approx(rho, rel=1e-9)
+
+
+def test_helix_lobes():
+    st = one_dof()
+    rpm = np.array([8000.0, 14000.0])
+    straight = milling_lobes(st, cutter(0.5), rpm)
+    tiny = milling_lobes(st, cutter(0.5, helix=np.radians(1e-4)), rpm)
+    # a lag of 2 a tan(1e-4 deg) / D < 1e-6 rad changes H by less than 1e-6 relative
+    np.testing.assert_allclose(tiny.a_lim, straight.a_lim, rtol=1e-5)
+    assert list(tiny.kind) == list(straight.kind)
+    h = milling_lobes(st, cutter(0.5, helix=np.radians(30.0)), rpm)
+    for i in range(rpm.size):  # the limit is where the multiplier of the helical cutter crosses 1
+        assert multipliers(st, cutter(0.5, helix=np.radians(30.0)), rpm[i], h.a_lim[i]).spectral_radius == (
+            pytest.approx(1.0, abs=1e-7)
+        )
+    with pytest.raises(InputError, match="helix"):
+        milling_lobes(st, cutter(0.5, helix=0.3), rpm, method="sdm")

@@ -228,3 +228,13 @@ def test_directional_on_is_the_one_sided_limit_at_a_breakpoint():
     # while the open windows drop both teeth exactly at the breakpoint
     assert np.abs(m.directional(np.array([tb]), rpm)[0].sum(axis=0)).max() < 1e-6 * KT
     assert np.abs(after.sum(axis=0)).max() > 0.5 * KT
+
+
+def test_helix_at_one_helical_pitch_averages_the_teeth():
+    # each flute spans one pitch angle at a_p = pi D / (N tan beta): sum_j H_j(t) = H0 at every t
+    m = Milling.from_immersion(4, 0.01, KT, KN, 0.3, "up", helix=math.radians(40))
+    a_star = math.pi * 0.01 / (4 * math.tan(math.radians(40)))
+    t = np.linspace(0, 2 * m.period(7000.0), 501)
+    H = m.directional(t, 7000.0, depth=a_star).sum(axis=-3)
+    # primitives of size Kt * 2 pi, differenced and divided by psi ~ 1.6: rounding 1e-14 (Kt + Kn)
+    np.testing.assert_allclose(H, np.broadcast_to(m.zoa(), H.shape), rtol=0, atol=1e-13 * (KT + KN))

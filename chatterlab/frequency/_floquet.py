@@ -677,7 +677,8 @@ def sdm_monodromy(
     The state is (x_i, r_{i-1}, ..., r_{i-L}) with r = Jr q the cut
     coordinates; on step i the coefficients are their exact mean over the
     step and r(t - tau_j) is linear between its values at the step's ends,
-    each interpolated linearly on the grid.  Helix is not supported.
+    each interpolated linearly on the grid.  Helix is not supported (the
+    spectral method takes it).
     """
     m = check_count(steps, "steps", 2)
     if milling.helix > 0:

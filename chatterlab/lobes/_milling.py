@@ -312,6 +312,16 @@ def _spectral_rho(sm: SpectralMonodromy) -> Callable[[float], float]:
     return sm.radius
 
 
+def _helix_rho(
+    structure: ToolStructure, milling: Milling, rpm: float, degree: int, elements: int | None, span: float
+) -> Callable[[float], float]:
+    def rho(a: float) -> float:
+        sm = SpectralMonodromy(structure, milling, rpm, degree, elements, depth=a, depth_hint=0.0, span=span)
+        return sm.radius(a)
+
+    return rho
+
+
 def _sdm_top(
     structure: ToolStructure, milling: Milling, rpm: float, steps: int
 ) -> Callable[[float], complex]:
@@ -403,10 +413,11 @@ def milling_lobes(
     mult = np.full(n, np.nan + 0j)
     err = np.full(n, np.nan)
     evals = 0
-    if milling.helix > 0 and method == "spectral":
+    if milling.helix > 0 and method != "spectral":
         raise InputError(
-            "milling_lobes: a helix angle needs the matrices per depth; not supported yet, use helix=0"
+            f"milling_lobes: method {method!r} takes no helix angle; use method='spectral' or helix=0"
         )
+    helix = milling.helix > 0
     target = max(10.0 * rtol, 1e-7)  # relative error of a_lim the spectral check must confirm
     refined = 0
     for i, r in enumerate(rpm):
@@ -418,8 +429,11 @@ def milling_lobes(
             if method == "spectral":
                 # the mesh resolves the structure's own frequencies (span); where the limit lies
                 # deeper than the cut's stiffening allows, the check below asks for a finer one
-                sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
-                rho = _spectral_rho(sm)
+                if helix:  # the coefficients depend on a_p: a discretisation per depth
+                    rho = _helix_rho(structure, milling, float(r), degree, elements, span)
+                else:
+                    sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
+                    rho = _spectral_rho(sm)
             else:
                 mu_at = _sdm_top(structure, milling, float(r), steps)
                 rho = _abs_of(mu_at)
@@ -427,7 +441,19 @@ def milling_lobes(
             evals += cnt
             if method != "spectral" or not check or not np.isfinite(a):
                 break
-            sm2 = SpectralMonodromy(structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
+            if helix:
+                sm = SpectralMonodromy(
+                    structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
+                )
+            sm2 = SpectralMonodromy(
+                structure,
+                milling,
+                float(r),
+                degree + CHECK_DEGREE,
+                mesh=sm.mesh,
+                depth=a if helix else None,
+                depth_hint=0.0,
+            )
             if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
                 da = max(1e-6 * a, 10 * rtol * a)
                 slope = (rho(a + da) - rho(a - da)) / (2 * da)
@@ -441,6 +467,10 @@ def milling_lobes(
         if not np.isfinite(a):
             continue
         if method == "spectral":
+            if helix and not check:
+                sm = SpectralMonodromy(
+                    structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
+                )
             mu, freq[i] = sm.critical(a)
         else:
             mu = mu_at(a)
