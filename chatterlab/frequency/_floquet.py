@@ -372,6 +372,12 @@ def _mesh(
     tb = milling.breakpoints(rpm, depth)
     if tb.size == 0:
         tb = np.array([0.0])
+    if not milling.uniform:
+        # the solution's second derivative jumps at a breakpoint b, its fourth at b + tau_j: with
+        # those as element ends too, a delayed image t - tau_j never straddles a jump of x''
+        shifted = np.mod(tb[:, None] + milling.delays(rpm)[None, :], T).ravel()
+        tb = np.unique(np.r_[tb, shifted])
+        tb = tb[np.r_[True, np.diff(tb) > 1e-9 * T]]
     ends = np.r_[tb, tb[0] + T]
     starts, stops = [], []
     for lo, hi in zip(ends[:-1], ends[1:], strict=True):
@@ -522,6 +528,20 @@ class SpectralMonodromy:
                         continue
                     for col, wgt in self._locate(td, mesh, s_nodes, bw, p, d, expA):
                         target[r, col][qrows, :] += sign * (Bq @ wgt[:n, :])
+        # scaling (it leaves the multipliers alone): velocities in units of omega_s = the highest
+        # pole frequency, each equation divided by its largest natural size (1 for continuity of
+        # q, omega_s for q' = v, omega_s^2 for the equations of motion); unscaled, U's condition
+        # number reached 1e12 on a variable-pitch mesh and the multipliers scattered by 1e-7
+        ws = max(structure.omega_max, 1.0 / T)
+        unit = np.r_[np.ones(n), np.full(n, ws)]
+        col = np.tile(unit, S * nn)
+        row_c = np.r_[np.ones(n), np.full(n, 1.0 / ws)]  # continuity rows (node 0)
+        row_e = np.r_[np.full(n, 1.0 / ws), np.full(n, 1.0 / ws**2)]  # collocation rows
+        row = np.tile(np.r_[row_c, np.tile(row_e, p)], S)
+        for X_ in (U0, U1, V0, V1):
+            X_ *= row[:, None]
+            X_ *= col[None, :]
+        self.colscale = col
         self.U0, self.U1, self.V0, self.V1 = U0, U1, V0, V1
         used = np.nonzero(np.any(V0 != 0, axis=0) | np.any(V1 != 0, axis=0))[0]
         self.cols = used
@@ -616,7 +636,7 @@ class SpectralMonodromy:
         mu, vec = np.linalg.eig(X[self.cols])
         i = int(np.argmax(np.abs(mu)))
         m = complex(mu[i])
-        x_new = X @ vec[:, i]
+        x_new = (X @ vec[:, i]) * getattr(self, "colscale", 1.0)
         return m, self._dominant_hz(m, x_new, samples)
 
     def _dominant_hz(self, mu: complex, x_nodes: np.ndarray, samples: int) -> float:
