@@ -24,9 +24,14 @@ analytic on each piece; every piece where a tooth cuts is split into
 x(t) = e^{A t} x(0).  The delayed argument t - tau_j of a node in tooth j's
 cut falls in tooth j-1's cut at the same angle: at a node of the same
 sub-element for a uniform pitch, by spectral interpolation otherwise.
-The error falls faster than any power of p (geometrically); the result
-reports the change of the critical multiplier when the degree is raised by
-``CHECK_DEGREE`` as its convergence check.
+For a variable pitch the mesh also has the breakpoints shifted by each
+delay (where the solution's fourth derivative jumps), so a delayed image
+never straddles a jump of x''.  Unknowns and equations are scaled
+(velocities in units of the highest pole frequency), which keeps U well
+conditioned without changing the multipliers.  The error falls faster than
+any power of p (geometrically); the result reports the change of the
+critical multiplier when the degree is raised by ``CHECK_DEGREE`` as its
+convergence check.
 
 ``"sdm"``.  First-order semi-discretisation (Insperger & Stepan 2004;
 Insperger, Stepan & Turi 2008): ``steps`` steps per period, the
@@ -466,7 +471,8 @@ class SpectralMonodromy:
         if N > MAX_UNKNOWNS:
             raise InputError(
                 f"spectral elements: {S} elements x {nn} nodes x {d} states = {N} unknowns exceed {MAX_UNKNOWNS};"
-                " reduce the structure to the modes that matter (ToolStructure.reduce(freq_max)) or lower the degree"
+                " a period this long holds many vibrations of the highest mode: reduce the structure to the modes"
+                " that matter (ToolStructure.reduce(freq_max)), lower the degree, or raise the spindle speed"
             )
         U0 = np.zeros((N, N))
         U1 = np.zeros((N, N))
