@@ -24,7 +24,7 @@ from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
 from ._claims import ceiling_claim, inf_note, ok_infs
 from ._common import load, m_to_mm, model_args, outputs, warn, width_max_m, width_slips
 from ._measured import frf_args, frf_model, uses_frf
-from ._milling import milling_lobe_args, milling_lobes, milling_report
+from ._milling import milling_lobe_args, milling_lobes
 from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
 
 
@@ -98,7 +98,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     if model.frf is not None:
         return _report(args, model, _measured_diagram(args, model, v, wmax), outs)
     if model.process.kind == "milling" and args.method != "zoa":
-        return milling_report(args, model, milling_lobes(args, model, v, wmax), outs)
+        return _report(args, model, milling_lobes(args, model, v, wmax), outs)
     if args.method not in (None, "zoa"):
         raise InputError(f'--method {args.method} is for milling models ([process] kind = "milling")')
     sy = assemble(model)
@@ -159,7 +159,8 @@ def _measured_diagram(args: argparse.Namespace, model: Any, v: Any, wmax: float)
 
 
 def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
-    """Summary, --out, --plot and the exit status of a lobe diagram."""
+    """Summary, --out, --plot and the exit status of a lobe diagram (a
+    ``LobeDiagram`` or milling's ``MillingLobes``: the same methods)."""
     print(d.summary())
     if args.out:
         if args.out.lower().endswith(".csv"):
@@ -170,7 +171,7 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
         from ..plot import savefig
 
         savefig(d.plot(), outs.path(args.plot))
-    if d.verified is False:
+    if getattr(d, "verified", None) is False:
         print(
             "chatterlab: the argument principle contradicts the diagram at the checks marked CHECK FAILED:"
             " treat the diagram as undetermined there",

@@ -22,7 +22,6 @@ tool-point FRF error are printed.
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
 import numpy as np
@@ -32,7 +31,7 @@ from ..errors import InputError, check_count
 #: initial displacement of the tool point in x and y of a milling simulation, m
 PERTURBATION = 1e-6
 
-__all__ = ["milling_lobe_args", "milling_lobes", "milling_report", "milling_verdict", "milling_simulation"]
+__all__ = ["milling_lobe_args", "milling_lobes", "milling_verdict", "milling_simulation"]
 
 
 def milling_lobe_args(p: argparse.ArgumentParser) -> None:
@@ -87,21 +86,6 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -
         steps=check_count(args.steps, "--steps", 2),
     )  # fmt: skip
     return ml
-
-
-def milling_report(args: argparse.Namespace, model: Any, ml: Any, outs: Any) -> int:
-    """Summary, --out (CSV or netCDF), --plot of milling lobes."""
-    print(ml.summary())
-    if args.out:
-        if args.out.lower().endswith(".csv"):
-            ml.to_csv(outs.path(args.out))
-        else:
-            ml.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)})
-    if args.plot:
-        from ..plot import savefig
-
-        savefig(ml.plot(), outs.path(args.plot))
-    return 0
 
 
 class _MultiplierTable:

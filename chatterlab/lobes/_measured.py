@@ -289,17 +289,7 @@ def model_frf(model: Any) -> MeasuredFRF:
     src = getattr(model, "frf", None)
     if src is None:
         raise InputError(f"{model.source} has no [frf] table: its structure is not a measured FRF")
-    t = src.table
-    return MeasuredFRF.from_arrays(
-        t.frequency_hz,
-        t.H,
-        t.outputs,
-        t.inputs,
-        hz=True,
-        coherence=t.coherence,
-        source=src.file,
-        meta=dict(t.meta),
-    )
+    return MeasuredFRF.from_table(src.table, source=src.file)
 
 
 def lobes_model_frf(

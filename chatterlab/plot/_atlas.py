@@ -7,26 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from ._style import axes_arg, cell_edges
+from ._style import axes_arg, cell_edges, model_of
 
 
 def _atlas_model_name(result: Any, model: str | None) -> str:
-    if model:
-        return model
-    attrs = getattr(result, "attrs", {}) or {}
-    if attrs.get("model"):
-        return str(attrs["model"])
-    text = attrs.get("model_text")
-    if text:
-        import tomllib
-
-        try:
-            name = tomllib.loads(str(text)).get("model", {}).get("name")
-        except tomllib.TOMLDecodeError:
-            name = None
-        if name:
-            return str(name)
-    return "model not named"
+    return model or model_of(result)
 
 
 def plot_atlas(

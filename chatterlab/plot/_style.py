@@ -57,3 +57,22 @@ def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
     fig.savefig(path, dpi=dpi, **extra)
     plt.close(fig)
 
+
+
+def model_of(result: Any) -> str:
+    """The name of the model a result was computed on, from its attributes
+    (``model``, or the ``[model] name`` of the ``model_text`` it carries)."""
+    attrs = getattr(result, "attrs", {}) or {}
+    if attrs.get("model"):
+        return str(attrs["model"])
+    text = attrs.get("model_text")
+    if text:
+        import tomllib
+
+        try:
+            name = tomllib.loads(str(text)).get("model", {}).get("name")
+        except tomllib.TOMLDecodeError:
+            name = None
+        if name:
+            return str(name)
+    return "model not named"

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ._style import cell_edges
+from ._style import cell_edges, model_of
 
 #: the categories of a stability map: code -> (name, colour, hatch)
 STATUS = {
@@ -107,21 +107,6 @@ def _display(name: str, unit: str) -> tuple[float, str]:
     return (1e3, "mm") if unit == "m" and name not in ("position",) else (1.0, unit)
 
 
-def _model_of(result: Any) -> str:
-    attrs = getattr(result, "attrs", {}) or {}
-    if attrs.get("model"):
-        return str(attrs["model"])
-    text = attrs.get("model_text")
-    if text:
-        import tomllib
-
-        try:
-            name = tomllib.loads(str(text)).get("model", {}).get("name")
-        except tomllib.TOMLDecodeError:
-            name = None
-        if name:
-            return str(name)
-    return "model not named"
 
 
 def plot_sweep(
@@ -197,7 +182,7 @@ def plot_sweep(
         _sweep_line(ax, xv, sub * ys, long + (f" [{yu}]" if yu else ""))
         ax.set_xlabel(xl)
     fixed = ", ".join(f"{k} = {v:g}" for k, v in at.items())
-    ax.set_title(title or f"{_model_of(result)}: {long}" + (f" at {fixed}" if fixed else ""), fontsize=9)
+    ax.set_title(title or f"{model_of(result)}: {long}" + (f" at {fixed}" if fixed else ""), fontsize=9)
     return ax
 
 

@@ -187,7 +187,12 @@ class MeasuredFRF:
         """
         from ..io._frf_files import read_frf
 
-        t = read_frf(path, units=units, quantity=quantity, point=point, format=format)
+        return cls.from_table(read_frf(path, units=units, quantity=quantity, point=point, format=format))
+
+    @classmethod
+    def from_table(cls, t: Any, source: str | None = None) -> MeasuredFRF:
+        """From what :func:`chatterlab.io.read_frf` returns (an ``FRFTable``:
+        frequencies in Hz, receptance in m/N, coordinate names)."""
         return cls.from_arrays(
             t.frequency_hz,
             t.H,
@@ -195,7 +200,7 @@ class MeasuredFRF:
             t.inputs,
             hz=True,
             coherence=t.coherence,
-            source=t.source,
+            source=source or t.source,
             meta=dict(t.meta),
         )
 
