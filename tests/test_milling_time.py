@@ -680,9 +680,17 @@ def test_csv_and_plot(tmp_path):
     assert isinstance(r, MillingSimulation)
     p = tmp_path / "mill.csv"
     r.to_csv(p)
-    data = np.loadtxt(p, delimiter=",", skiprows=1)
-    assert data.shape == (r.t.size, 7)
-    np.testing.assert_allclose(data[:, 1], r.x, rtol=1e-8, atol=1e-20)
+    head = p.read_text().splitlines()[0].split(",")
+    data = np.loadtxt(p, delimiter=",", skiprows=1, usecols=range(len(head) - 1))  # the last: status
+    # t, x, y, vx, vy, Fx, Fy and one chip per tooth (TimeHistory's writer: round-trip exact)
+    assert data.shape == (r.t.size, 7 + r.chip.shape[0])
+    np.testing.assert_array_equal(data[:, head.index("x [m]")], r.x)
+    nc = r.to_netcdf(tmp_path / "mill.nc")
+    from chatterlab.io import read_dataset
+
+    ds = read_dataset(nc)
+    np.testing.assert_array_equal(ds["x"].values, r.x)
+    assert ds.attrs["verdict"] == r.verdict
     axes = r.plot()
     assert len(axes) == 3
     import matplotlib.pyplot as plt

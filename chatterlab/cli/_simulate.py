@@ -100,7 +100,7 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
     ``--linear``), its verdict from the once-per-period samples."""
     from ._milling import milling_simulation
 
-    with outputs(args, (args.out, "--out", (".csv",)), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
+    with outputs(args, (args.out, "--out", DATA_SUFFIXES), (args.plot, "--plot", PLOT_SUFFIXES)) as outs:
         run = milling_simulation(args, model)
         print(
             f"milling at {run.rpm:g} rpm, a_p = {run.depth * 1e3:g} mm ({'nonlinear' if run.nonlinear else 'linear'},"
@@ -120,7 +120,10 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
         )
         print(f"  {run.message}")
         if args.out:
-            run.to_csv(outs.path(args.out))
+            if args.out.lower().endswith(".csv"):
+                run.to_csv(outs.path(args.out))
+            else:
+                run.to_netcdf(outs.path(args.out), attrs={"model_text": model.text})
         if args.plot:
             from ..plot import savefig
 

@@ -158,13 +158,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InputError, check_count, check_nonneg, check_positive, check_speed
 from ..process._milling import Milling
+from ._history import TimeHistory
 from ._options import NewmarkOptions
 
 __all__ = ["MillingSimulation", "simulate_milling", "default_steps_per_period"]
@@ -180,7 +181,7 @@ _MIN_WINDOW = 20
 
 
 @dataclass(frozen=True, eq=False)
-class MillingSimulation:
+class MillingSimulation(TimeHistory):
     """A milling transient: tool-point vibration, chips, forces, Poincare samples.
 
     Attributes
@@ -227,6 +228,17 @@ class MillingSimulation:
         (h <= 0), over the analysed window.
     """
 
+    #: the histories shared with every time result (spectrum, growth, CSV, netCDF: TimeHistory)
+    history_fields: ClassVar[dict[str, tuple[str, str]]] = {
+        "x": ("m", "tool displacement x relative to the workpiece"),
+        "y": ("m", "tool displacement y relative to the workpiece"),
+        "vx": ("m/s", "tool velocity x"),
+        "vy": ("m/s", "tool velocity y"),
+        "Fx": ("N", "cutting force on the tool x"),
+        "Fy": ("N", "cutting force on the tool y"),
+        "chip": ("m", "chip thickness of tooth"),
+    }
+
     t: FloatArray
     x: FloatArray
     y: FloatArray
@@ -264,14 +276,20 @@ class MillingSimulation:
         """N n / 60, Hz."""
         return float(self.attrs.get("teeth", 1)) * self.rpm / 60.0
 
-    def to_csv(self, path: Any) -> None:
-        """Write t [s], x, y [m], Fx, Fy [N] and the chip of each tooth [m]."""
-        n = self.chip.shape[0]
-        cols = [self.t, self.x, self.y, self.Fx, self.Fy, *self.chip]
-        head = "t [s],x [m],y [m],Fx [N],Fy [N]," + ",".join(f"h{j + 1} [m]" for j in range(n))
-        np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="", fmt="%.9g")
+    def file_attrs(self) -> dict[str, Any]:
+        """The files' global attributes: the run's status and the cut."""
+        return {
+            **super().file_attrs(),
+            "title": "chatterlab milling simulation",
+            "rpm": float(self.rpm),
+            "depth_m": float(self.depth),
+            "feed_m": float(self.feed),
+            "nonlinear": str(self.nonlinear),
+            "verdict": self.verdict,
+            "growth_per_period": float(self.growth_per_period),
+        }
 
-    def plot(self, axes: Any = None) -> Any:
+    def plot(self, axes: Any = None) -> Any:  # type: ignore[override]
         """Vibration, forces and the Poincare map; returns the three Axes."""
         import matplotlib.pyplot as plt
 
