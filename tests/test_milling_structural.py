@@ -1,0 +1,81 @@
+"""A structural model through the milling path (issue 12): a rigid tool on a
+spring is the 1-DOF benchmark exactly, so its Floquet lobes from the
+structural model file equal those of the modal model file; a beam model is
+reduced to the modes that matter with its FRF error stated."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+import chatterlab as cl
+from chatterlab.lobes import milling_lobes, milling_of, reduce_structure, tool_structure
+
+ROOT = Path(__file__).resolve().parents[1]
+ONE = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
+BEAM = ROOT / "studies" / "milling" / "tool_cantilever.toml"
+
+M, F, Z = 0.03993, 922.0, 0.011
+W = 2 * math.pi * F
+RIGID_TOOL = f"""
+[[body]]
+id = "tool"
+mass = {M!r}
+inertia = 1.0e-6
+centre = [0.0, 0.0]
+
+[[support]]
+id = "guide"
+body = "tool"
+fix = ["y", "rz"]
+
+[[spring]]
+id = "holder"
+a = "tool"
+b = "ground"
+c1 = {M * W * W!r}
+d1 = {2 * Z * M * W!r}
+
+[[point]]
+id = "tip"
+body = "tool"
+
+[[coupling]]
+id = "cut"
+a = "tip"
+b = "ground"
+model = "milling"
+"""
+
+
+def test_rigid_tool_on_a_spring_is_the_modal_benchmark():
+    text = ONE.read_text()
+    process = text[text.index("\n[process]") :]
+    structural = cl.loads_model(RIGID_TOOL + process)
+    modal = cl.load_model(ONE)
+    rpm = np.array([9000.0, 18000.0])
+    a = [
+        milling_lobes(tool_structure(cl.assemble(m).at()), milling_of(m), rpm, depth_max=0.01)
+        for m in (structural, modal)
+    ]
+    # the same 1-DOF equation in other coordinates: equal to Brent's tolerance (rtol 1e-8)
+    np.testing.assert_allclose(a[0].a_lim, a[1].a_lim, rtol=2e-8)
+    assert list(a[0].kind) == list(a[1].kind)
+
+
+def test_beam_tool_is_reduced_with_its_error_stated():
+    fz = cl.assemble(cl.load_model(BEAM)).at()
+    S = tool_structure(fz)
+    R, info = reduce_structure(S)
+    assert R.n < S.n and info.kept == 3 and info.rigid == 1  # the planar tool's axis held rigid
+    # the reported error is the reduced FRF's against the full structure's, both directions
+    w = 2 * np.pi * np.linspace(0.0, info.f_keep / 2, 400)
+    err = np.max(np.abs(S.frf(w) - R.frf(w))) / np.max(np.abs(S.frf(w)))
+    assert info.frf_error == err and err < 1e-3
+    # the first bending modes are kept exactly (a Ritz basis holding them)
+    lam_full = np.sort(np.abs(np.linalg.eigvals(S.A).imag))
+    lam_red = np.sort(np.abs(np.linalg.eigvals(R.A).imag))
+    f1 = lam_full[lam_full > 0][0]
+    assert abs(lam_red[lam_red > 0][0] - f1) < 1e-6 * f1
