@@ -79,3 +79,35 @@ def test_beam_tool_is_reduced_with_its_error_stated():
     lam_red = np.sort(np.abs(np.linalg.eigvals(R.A).imag))
     f1 = lam_full[lam_full > 0][0]
     assert abs(lam_red[lam_red > 0][0] - f1) < 1e-6 * f1
+
+
+def test_matrix_level_model_is_the_modal_benchmark():
+    """The 2-DOF benchmark written as [matrices] (x and y coordinates, M, L, K) gives the modal
+    file's multipliers: the same equation, so the same numbers to round-off."""
+    from chatterlab.frequency import multipliers
+
+    modal = cl.load_model(ROOT / "studies" / "milling" / "benchmark_2dof.toml")
+    k, c = M * W * W, 2 * Z * M * W
+    text = modal.text[modal.text.index("\n[process]") :]
+    matrices = f"""
+[matrices]
+coordinates = ["tx", "ty"]
+M = [[{M!r}, 0.0], [0.0, {M!r}]]
+L = [[{c!r}, 0.0], [0.0, {c!r}]]
+K = [[{k!r}, 0.0], [0.0, {k!r}]]
+
+[[point]]
+id = "tip"
+coords = {{ x = "tx", y = "ty" }}
+
+[[coupling]]
+id = "cut"
+a = "tip"
+b = "ground"
+model = "milling"
+"""
+    mat = cl.loads_model(matrices + text)
+    r = [multipliers(tool_structure(cl.assemble(m).at()), milling_of(m), 12000.0, 1e-3) for m in (mat, modal)]
+    # the modal file's modal mass is k / w^2 = M to within one rounding of (2 pi 922)^2: a few ulp
+    assert abs(r[0].spectral_radius - r[1].spectral_radius) < 1e-12
+    assert r[0].kind == r[1].kind
