@@ -5,7 +5,9 @@ joined; ``$M`` and ``$B`` from an earlier ``M=...`` line of the page
 substituted) is run in a scratch folder where ``studies/`` is the
 repository's, and must end with the exit status the page shows: the number
 printed by a following ``$ echo $?``, 2 when its output starts with
-``chatterlab: error:``, 0 otherwise.  A command that cannot run here is
+``chatterlab: error:``, 0 otherwise; and every result the page quotes in
+that output (a number with two or more decimals and a unit: mm, Hz, rpm,
+m/s, um) must be printed again.  A command that cannot run here is
 listed in ``NOT_RUN`` with the reason; an entry that no longer matches
 exactly one command fails, so nothing is left out silently.  Files the
 examples write (figures into ``docs/figures/``) land in the scratch folder.
@@ -37,7 +39,11 @@ NOT_RUN = {
 SLOW = ("--positions 0.6 1.1 6", "--feedback all --passes 3", "--step 1.4e-3 --passes 3", "--duration 20")
 
 
-def _commands() -> list[tuple[str, str, int]]:
+#: a number the pages quote with a unit of a result (not a time: timings vary with the machine)
+QUOTED = re.compile(r"(?<![\w.])(\d+\.\d{2,})\s?(mm|Hz|rpm|m/s|um|µm)\b")
+
+
+def _commands() -> list[tuple[str, str, int, list[str]]]:
     out = []
     for page in PAGES:
         text = page.read_text()
@@ -64,14 +70,15 @@ def _commands() -> list[tuple[str, str, int]]:
                 for k, v in env.items():
                     cmd = cmd.replace(f"${k}", v)
                 # the expected status: an '$ echo $?' after the output, or an error line
-                j, status = i + 1, 0
+                j, status, quoted = i + 1, 0, []
                 while j < len(lines) and not lines[j].startswith("$ "):
                     if lines[j].startswith("chatterlab: error:"):
                         status = 2
+                    quoted += [f"{num} {unit}" for num, unit in QUOTED.findall(lines[j])]
                     j += 1
                 if j < len(lines) and lines[j].strip() == "$ echo $?" and j + 1 < len(lines):
                     status = int(lines[j + 1].strip())
-                out.append((rel, cmd, status))
+                out.append((rel, cmd, status, quoted))
                 i += 1
     return out
 
@@ -85,22 +92,22 @@ RUN = [c for c in ALL if not _excluded(c[0], c[1])]
 
 
 def test_commands_are_found():
-    assert len(ALL) >= 40 and {p for p, _, _ in ALL} >= {"docs/cli.md", "docs/frequency-domain.md"}
+    assert len(ALL) >= 40 and {p for p, _, _, _ in ALL} >= {"docs/cli.md", "docs/frequency-domain.md"}
 
 
 def test_each_exclusion_names_exactly_one_command():
     for (pg, phrase), why in NOT_RUN.items():
-        hits = [c for p, c, _ in ALL if p == pg and phrase in c]
+        hits = [c for p, c, _, _ in ALL if p == pg and phrase in c]
         assert len(hits) == 1, f"NOT_RUN entry {pg} {phrase!r} ({why}) matches {hits}"
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("page", "cmd", "status"),
+    ("page", "cmd", "status", "quoted"),
     [pytest.param(*c, marks=[pytest.mark.timeout(600)] if any(s in c[1] for s in SLOW) else []) for c in RUN],
-    ids=[f"{p}:{c[11:60]}" for p, c, _ in RUN],
+    ids=[f"{p}:{c[11:60]}" for p, c, _, _ in RUN],
 )
-def test_documented_command_runs(page, cmd, status, tmp_path):
+def test_documented_command_runs(page, cmd, status, quoted, tmp_path):
     (tmp_path / "studies").symlink_to(ROOT / "studies")
     (tmp_path / "docs" / "figures").mkdir(parents=True)
     env = dict(os.environ, MPLBACKEND="Agg")
