@@ -56,6 +56,24 @@ def read_frf_uff(
     where = str(p)
     if not p.is_file():
         raise InputError(f"{where}: no such file")
+    frfs, cohs = _uff_datasets(pyuff, p, where)
+    x0, power0, entries, coh_entries = _uff_entries(frfs, cohs, quantity, where)
+    A, coh, outs, ins = _uff_matrix(entries, coh_entries, x0.size, where)
+    qname = None if power0 is None else _QNAME[power0]
+    scale, power, used = _resolve_units(units, quantity, None, qname, where, "m/N" if qname is None else None)
+    H = _to_receptance(x0, A, scale, power, where, None)
+    meta = {"units": used, "quantity": _QNAME[power], "format": "uff58", "datasets": len(frfs)}
+    return FRFTable(x0, H, outs, ins, coh, where, meta)
+
+
+#: datasets as (index in the file, pyuff's fields); FRFs or coherences per (output, input) pair
+_Sets = list[tuple[int, dict[str, Any]]]
+_Pairs = dict[tuple[str, str], np.ndarray]
+
+
+def _uff_datasets(pyuff: Any, p: Path, where: str) -> tuple[_Sets, _Sets]:
+    """The datasets 58 of the file as (index, fields): the FRFs (function
+    type 4) and the coherences (6); InputError when there is no FRF."""
     try:
         uf = pyuff.UFF(str(p))
         types = [int(t) for t in uf.get_set_types()]
@@ -78,11 +96,20 @@ def read_frf_uff(
     if not frfs:
         kinds = sorted({int(s.get("func_type", 0)) for _, s in sets})
         raise InputError(f"{where}: the datasets 58 hold no FRF (function type 4; found types {kinds})")
+    return frfs, cohs
+
+
+def _uff_entries(
+    frfs: _Sets, cohs: _Sets, quantity: str | None, where: str
+) -> tuple[np.ndarray, int | None, _Pairs, _Pairs]:
+    """(frequencies, power of j w of the FRFs' quantity, FRF per (output,
+    input), coherence per pair), every dataset checked: one frequency grid,
+    one quantity, complex finite FRFs, each pair once."""
     ent = _entity_names(frfs)
     x0: np.ndarray | None = None
     power0: int | None = None
-    entries: dict[tuple[str, str], np.ndarray] = {}
-    coh_entries: dict[tuple[str, str], np.ndarray] = {}
+    entries: _Pairs = {}
+    coh_entries: _Pairs = {}
     for group, target in ((frfs, entries), (cohs, coh_entries)):
         for k, s in group:
             ds = f"{where}, dataset {k + 1} (58)"
@@ -123,6 +150,15 @@ def read_frf_uff(
                 raise InputError(f"{ds}, point {j + 1} ({x[j]:g} Hz): not a finite value; repair or drop it")
             target[(o, i)] = val
     assert x0 is not None
+    return x0, power0, entries, coh_entries
+
+
+def _uff_matrix(
+    entries: _Pairs, coh_entries: _Pairs, n: int, where: str
+) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...], tuple[str, ...]]:
+    """(A (n, n_out, n_in), coherence like A or None, outputs, inputs) from
+    the pairs; InputError when a pair of the matrix is missing.  A coherence
+    of a pair that is not an FRF's is ignored; one not given is 1."""
     outs = tuple(dict.fromkeys(o for o, _ in entries))
     ins = tuple(dict.fromkeys(i for _, i in entries))
     missing = [f"{o}/{i}" for o in outs for i in ins if (o, i) not in entries]
@@ -131,7 +167,7 @@ def read_frf_uff(
             f"{where}: the FRFs form a {len(outs)}x{len(ins)} matrix but {', '.join(missing)} is not in the file;"
             " add its dataset 58"
         )
-    A = np.empty((x0.size, len(outs), len(ins)), dtype=complex)
+    A = np.empty((n, len(outs), len(ins)), dtype=complex)
     for (o, i), v in entries.items():
         A[:, outs.index(o), ins.index(i)] = v
     coh = None
@@ -140,11 +176,7 @@ def read_frf_uff(
         for (o, i), v in coh_entries.items():
             if o in outs and i in ins:
                 coh[:, outs.index(o), ins.index(i)] = v
-    qname = None if power0 is None else _QNAME[power0]
-    scale, power, used = _resolve_units(units, quantity, None, qname, where, "m/N" if qname is None else None)
-    H = _to_receptance(x0, A, scale, power, where, None)
-    meta = {"units": used, "quantity": _QNAME[power], "format": "uff58", "datasets": len(frfs)}
-    return FRFTable(x0, H, outs, ins, coh, where, meta)
+    return A, coh, outs, ins
 
 
 def _entity_names(frfs: list[tuple[int, dict[str, Any]]]) -> dict[int, str] | None:
