@@ -1,0 +1,341 @@
+"""The boundary curve of one frozen configuration and its lower envelope:
+the branches of (beta, z) on the frequency grid followed around their folds
+(:func:`boundary`), :class:`Boundary` (computed once, evaluated at any
+delays), the regula-falsi refinement of the envelope on the phase condition,
+and the smallest width over all delays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from ..errors import InputError, check_width
+from ..process._cutting import feedback
+from ..structure._assembly import FrozenSystem
+from ._band import _band, _grid
+from ._boundary import Ops, link, refine_folds, static_width
+from ._plant import Plant, _ops, _solve_beta, _widths_between, _z_at
+
+__all__ = ["Boundary", "boundary"]
+
+
+@dataclass(frozen=True)
+class _Segment:
+    branch: int
+    omega: np.ndarray
+    beta: np.ndarray
+    z: np.ndarray
+    idx: np.ndarray  # frequency indices into the grid
+
+
+def boundary(plant: Plant, omega: np.ndarray, beta_max: float) -> tuple[Ops, list[_Segment], int]:
+    """Every boundary solution (beta, z) on a frequency grid (refined at the
+    folds of the curve), organised into continuous branches that follow the
+    curve around its folds.  Returns the operators on the final grid, the
+    branches and the number of folds located."""
+
+    def make(w: np.ndarray) -> Ops:
+        return _ops(plant, w)
+
+    w, xs, folds = refine_folds(make, omega, beta_max)
+    ops = make(w)
+    segs: list[_Segment] = []
+    chains = link(xs)
+    for j, ch in enumerate(chains):
+        if len(ch) < 2:
+            continue
+        fi = np.array([c[0] for c in ch])
+        beta = np.array([xs[f][k] for f, k in ch]) * beta_max
+        z = _z_at(ops, beta, fi)
+        segs.append(_Segment(j, w[fi], beta, z, fi))
+    return ops, segs, folds
+
+
+def _refine_crossings(
+    plant: Plant,
+    T: np.ndarray,
+    k: np.ndarray,
+    w0: np.ndarray,
+    w1: np.ndarray,
+    h0: np.ndarray,
+    h1: np.ndarray,
+    b0: np.ndarray,
+    b1: np.ndarray,
+    psi0: np.ndarray,
+    psi1: np.ndarray,
+    iters: int = 60,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Solve h(w) = w T - psi(w) - 2 pi k = 0 in [w0, w1] by regula falsi
+    (Illinois), with beta and psi = -arg z re-solved exactly near the branch
+    at each trial frequency.  ``h0``, ``h1`` are the (exact) end values."""
+    blo = np.minimum(b0, b1) / 1.5
+    bhi = np.maximum(b0, b1) * 1.5
+    wa, wb, ha, hb = w0.copy(), w1.copy(), h0.copy(), h1.copy()
+    beta = np.where(h1 != h0, b0 + (b1 - b0) * h0 / (h0 - h1), 0.5 * (b0 + b1))
+    w = np.where(h1 != h0, w0 - h0 * (w1 - w0) / (h1 - h0), 0.5 * (w0 + w1))
+    ok = np.ones(T.size, bool)
+    active = np.ones(T.size, bool)
+    last = np.zeros(T.size)
+    for _ in range(iters):
+        idx = np.nonzero(active)[0]
+        if idx.size == 0:
+            break
+        wa_, wb_, ha_, hb_ = wa[idx], wb[idx], ha[idx], hb[idx]
+        wt = np.where(hb_ != ha_, wb_ - hb_ * (wb_ - wa_) / (hb_ - ha_), 0.5 * (wa_ + wb_))
+        wt = np.clip(wt, np.minimum(wa_, wb_), np.maximum(wa_, wb_))
+        ops = _ops(plant, wt)
+        fi, bb, zz = _widths_between(ops, blo[idx], bhi[idx])
+        frac = (wt - w0[idx]) / np.where(w1[idx] != w0[idx], w1[idx] - w0[idx], 1.0)
+        target = b0[idx] + (b1[idx] - b0[idx]) * frac
+        psi_guess = psi0[idx] + (psi1[idx] - psi0[idx]) * frac
+        best_b = np.full(idx.size, np.nan)
+        best_z = np.full(idx.size, np.nan + 0j)
+        dist = np.abs(np.log(bb / target[fi]))
+        ordr = np.argsort(-dist)  # later writes (smaller distance) win
+        best_b[fi[ordr]] = bb[ordr]
+        best_z[fi[ordr]] = zz[ordr]
+        good = np.isfinite(best_b)
+        ok[idx[~good]] = False
+        active[idx[~good]] = False
+        psi = -np.angle(best_z)
+        psi = psi + 2 * np.pi * np.round((psi_guess - psi) / (2 * np.pi))
+        ht = wt * T[idx] - psi - 2 * np.pi * k[idx]
+        w[idx] = np.where(good, wt, w[idx])
+        beta[idx] = np.where(good, best_b, beta[idx])
+        same = np.sign(ht) == np.sign(ha_)
+        lst = last[idx]
+        new_wa = np.where(same, wt, wa_)
+        new_ha = np.where(same, ht, np.where(lst == -1, 0.5 * ha_, ha_))
+        new_wb = np.where(same, wb_, wt)
+        new_hb = np.where(same, np.where(lst == 1, 0.5 * hb_, hb_), ht)
+        last[idx] = np.where(same, 1, -1)
+        wa[idx], ha[idx], wb[idx], hb[idx] = new_wa, new_ha, new_wb, new_hb
+        done = (np.abs(wb[idx] - wa[idx]) <= 1e-14 * np.abs(wt)) | (ht == 0)
+        active[idx[done & good]] = False
+    return w, beta, ok
+
+
+def _refine_rows(plant: Plant, T: np.ndarray, info: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_refine_crossings` on candidate rows (k, w0, w1, h0, h1, b0, b1, psi0, psi1)."""
+    k, w0, w1, h0, h1, b0, b1, psi0, psi1 = info.T
+    return _refine_crossings(plant, T, k, w0, w1, h0, h1, b0, b1, psi0, psi1)
+
+
+@dataclass(frozen=True)
+class _Candidates:
+    """Integer crossings of F = (w T - psi) / 2 pi on each interval of a branch
+    (rows: delays, columns: intervals)."""
+
+    sg: _Segment
+    psi: np.ndarray
+    kc: np.ndarray
+    Fa: np.ndarray
+    Fb: np.ndarray
+    has: np.ndarray
+    bc: np.ndarray  # interpolated width of the lowest crossing (inf: none)
+    lb: np.ndarray  # smaller end width: a lower bound of any crossing
+
+    def info(self, ri: np.ndarray, ji: np.ndarray) -> np.ndarray:
+        """Rows k, w0, w1, h0, h1, b0, b1, psi0, psi1 for :func:`_refine_crossings`."""
+        sg, kk = self.sg, self.kc[ri, ji]
+        return np.stack(
+            [
+                kk,
+                sg.omega[ji],
+                sg.omega[ji + 1],
+                2 * np.pi * (self.Fa[ri, ji] - kk),
+                2 * np.pi * (self.Fb[ri, ji] - kk),
+                sg.beta[ji],
+                sg.beta[ji + 1],
+                self.psi[ji],
+                self.psi[ji + 1],
+            ],
+            axis=1,
+        )
+
+
+def _interval_candidates(sg: _Segment, T: np.ndarray) -> _Candidates:
+    psi = -np.unwrap(np.angle(sg.z))
+    F = (sg.omega[None, :] * T[:, None] - psi[None, :]) / (2 * np.pi)  # (nT, L)
+    Fa, Fb = F[:, :-1], F[:, 1:]
+    ba, bb = sg.beta[:-1], sg.beta[1:]
+    lo_end_is_a = (ba <= bb)[None, :]
+    inc = Fb >= Fa
+    Flo, Fhi = np.minimum(Fa, Fb), np.maximum(Fa, Fb)
+    k_lo = np.floor(Flo) + 1.0  # smallest integer in (Flo, Fhi]
+    k_hi = np.floor(Fhi)
+    kc = np.where(lo_end_is_a, np.where(inc, k_lo, k_hi), np.where(inc, k_hi, k_lo))
+    has = k_hi >= k_lo
+    den = np.where(Fb != Fa, Fb - Fa, 1.0)
+    t = np.clip((kc - Fa) / den, 0.0, 1.0)
+    bc = np.where(has, ba[None, :] + t * (bb - ba)[None, :], np.inf)
+    lb = np.broadcast_to(np.minimum(ba, bb)[None, :], bc.shape)
+    return _Candidates(sg, psi, kc, Fa, Fb, has, bc, lb)
+
+
+def _check_damped(plant: Plant, frozen: FrozenSystem | None) -> None:
+    """A structural pole on (or right of) the imaginary axis: the structure
+    alone is not asymptotically stable, its receptance is infinite on the
+    axis, and no width is chatter-free with certainty -- refuse, naming the
+    mode, instead of failing inside the boundary solver."""
+    lam = plant.poles
+    if lam.size == 0:
+        return
+    bad = lam.real >= -1e-12 * np.maximum(np.abs(lam), 1.0)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        src = frozen.model.source if frozen is not None else "the plant"
+        raise InputError(
+            f"{src}: the structure has an undamped or unstable mode at {abs(lam[k].imag) / (2 * np.pi):.6g} Hz"
+            f" (pole {lam[k]:.6g} 1/s): stability lobes need every mode damped; add damping (a spring's d,"
+            " a beam's eta, a mode's damping_ratio > 0) or hold the free coordinate"
+        )
+
+
+def _check_terms(terms: str) -> None:
+    if terms not in ("pdo", "o"):
+        raise InputError("terms must be 'pdo' or 'o': lobes need the delayed (regenerative) term")
+
+
+class Boundary:
+    """The stability boundary of one frozen configuration, computed once on a
+    frequency grid and evaluated at any delays (:meth:`envelope`).
+
+    Used by :func:`lobes` and, cached per slide position, by the stability
+    atlas sweep.
+
+    Attributes
+    ----------
+    band : Band
+        The chatter-frequency band searched (rad/s) and its certificate: with
+        ``band.certified`` no boundary point with width <= ``width_max``
+        exists outside it (gain bound, :mod:`chatterlab.frequency._bounds`).
+    folds : int
+        Folds of the boundary curve located (and followed) on the grid.
+    static_width : float
+        Smallest width (m) with a root at s = 0, for every delay (inf: none).
+    """
+
+    def __init__(
+        self,
+        frozen: FrozenSystem | None,
+        *,
+        width_max: float,
+        terms: Literal["pdo", "o"] = "pdo",
+        fmin: float | None = None,
+        fmax: float | None = None,
+        n_base: int | None = None,
+        couplings: list[str] | None = None,
+        plant: Plant | None = None,
+    ) -> None:
+        _check_terms(terms)
+        self.frozen = frozen
+        self.width_max = check_width(width_max, "width_max")
+        if plant is None:
+            if frozen is None:
+                raise InputError("give a frozen system or a plant")
+            # feedback at b = 1 m: beta is the width in m
+            fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+            plant = Plant.from_frozen(frozen, fb_ref)
+        elif terms == "o":
+            plant = plant.with_terms_o()
+        self.plant = plant
+        if not np.any(plant.Dl_O):
+            raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
+        _check_damped(plant, frozen)
+        self.band = _band(plant, fmin, fmax, self.width_max)
+        if self.band.hi > self.band.lo:
+            self.omega = _grid(plant, self.band.lo, self.band.hi, n_base or 2000)
+            self.ops, self.segments, self.folds = boundary(plant, self.omega, self.width_max)
+        else:  # the gain bound excludes every frequency
+            self.omega = np.zeros(0)
+            self.ops, self.segments, self.folds = _ops(plant, self.omega), [], 0
+        with np.errstate(all="ignore"):
+            H0 = plant.H(np.array([0.0]))[0]
+        self.static_width = static_width(H0, plant.Dl_P, plant.Dl_O, self.width_max)
+
+    def envelope(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s).
+
+        On each grid interval of each branch, F(w) = (w T - psi(w)) / 2 pi
+        crosses the integers k between its end values; with beta monotone on
+        the interval (folds are grid points) the lowest crossing is the integer
+        nearest the lower-beta end, and its width is at least the smaller end
+        value.  The best interpolated candidate is refined first; then every
+        other interval whose smaller end lies below that refined width is
+        refined too, so a crossing whose linear interpolation was poor cannot
+        be lost."""
+        plant = self.plant
+        T = np.atleast_1d(np.asarray(T, dtype=float))
+        nT = T.size
+        cand = [_interval_candidates(sg, T) for sg in self.segments]
+        best = np.full(nT, np.inf)
+        info = np.zeros((nT, 9))  # k, w0, w1, h0, h1, b0, b1, psi0, psi1
+        r = np.arange(nT)
+        for c in cand:
+            j = np.argmin(c.bc, axis=1)
+            bmin = c.bc[r, j]
+            upd = bmin < best
+            if np.any(upd):
+                best[upd] = bmin[upd]
+                info[upd] = c.info(r[upd], j[upd])
+        b_lim = np.full(nT, np.inf)
+        chatter = np.full(nT, np.nan)
+        h = np.nonzero(np.isfinite(best))[0]
+        if h.size:
+            w, beta, ok = _refine_rows(plant, T[h], info[h])
+            b_lim[h] = np.where(ok, beta, best[h])
+            chatter[h] = w / (2 * np.pi)
+            # second pass: every interval that could hold a lower crossing
+            rows, infos = [], []
+            for c in cand:
+                ri, ji = np.nonzero(c.has & (c.lb < b_lim[:, None] * (1 - 1e-12)))
+                if ri.size:
+                    rows.append(ri)
+                    infos.append(c.info(ri, ji))
+            if rows:
+                ri = np.concatenate(rows)
+                inf_ = np.concatenate(infos)
+                w2, beta2, ok2 = _refine_rows(plant, T[ri], inf_)
+                for i in np.nonzero(ok2)[0]:
+                    if beta2[i] < b_lim[ri[i]]:
+                        b_lim[ri[i]], chatter[ri[i]] = beta2[i], w2[i] / (2 * np.pi)
+        lobe_k = np.where(
+            np.isfinite(b_lim), np.floor(2 * np.pi * np.nan_to_num(chatter) * T / (2 * np.pi)), -1
+        )
+        lobe_k = lobe_k.astype(int)
+        if np.isfinite(self.static_width):
+            # a root through s = 0 bounds every delay at the same width
+            st = self.static_width < b_lim
+            b_lim[st], chatter[st], lobe_k[st] = self.static_width, 0.0, 0
+        return b_lim, chatter, lobe_k
+
+    def absolute_minimum(self) -> dict[str, float]:
+        """Smallest boundary width over all delays: ``width`` (m), ``chatter_hz``."""
+        return _absolute_minimum(self.plant, self.segments, 1.0)
+
+
+def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[str, float]:
+    if not segs:
+        return {"width": float("inf"), "chatter_hz": float("nan")}
+    cand = [(float(sg.beta.min()), sg, int(np.argmin(sg.beta))) for sg in segs]
+    bmin, sg, j = min(cand, key=lambda c: c[0])
+    # bounded Brent refinement of min over w of beta(w) between the neighbouring samples
+    if 0 < j < sg.omega.size - 1:
+        from scipy.optimize import minimize_scalar
+
+        def f(w: float) -> float:
+            ops = _ops(plant, np.array([w]))
+            _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=8)
+            return float(bb.min()) if bb.size else np.inf
+
+        a, c = sorted((float(sg.omega[j - 1]), float(sg.omega[j + 1])))
+        if not c > a:
+            return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
+        res = minimize_scalar(f, bounds=(a, c), method="bounded", options={"xatol": 1e-10 * c})
+        if np.isfinite(res.fun) and res.fun <= bmin:
+            return {"width": float(res.fun) * b_ref, "chatter_hz": float(res.x) / (2 * np.pi)}
+    return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}

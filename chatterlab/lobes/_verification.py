@@ -1,0 +1,93 @@
+"""Verification of a lobe diagram by the argument principle, a route
+independent of the boundary computation: which speeds are checked and the
+count of right-half-plane roots just below and above the envelope and at the
+width ceiling.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..process._cutting import feedback
+from ..structure._assembly import FrozenSystem
+from ._result import LobeDiagram
+
+#: relative offset of the verification widths from the envelope
+VERIFY_OFFSET = 1e-3
+
+
+def _check_speeds(d: LobeDiagram, count: int) -> list[tuple[int, str]]:
+    """Indices of the speeds checked and what is checked there.
+
+    The global minimum (below and above the envelope), the highest local
+    maxima of the sampled envelope (a lobe missed by the boundary search
+    shows as a claim that is too high: the risk sits at the cusps between
+    lobes), spread local minima (each a lobe's bottom), and the ends of every
+    run of ``inf`` (checked at the width ceiling)."""
+    b = d.b_lim
+    fin = np.isfinite(b)
+    out: list[tuple[int, str]] = []
+    if np.any(fin):
+        jmin = int(np.nanargmin(np.where(fin, b, np.nan)))
+        out += [(jmin, "below"), (jmin, "above")]
+        bb = np.where(fin, b, -np.inf)
+        inner = np.arange(1, b.size - 1)
+        peak = inner[(bb[inner] >= bb[inner - 1]) & (bb[inner] >= bb[inner + 1]) & fin[inner]]
+        for j in ([0] if fin[0] else []) + ([b.size - 1] if fin[-1] else []):
+            peak = np.append(peak, j)
+        peak = peak[np.argsort(-b[peak])]
+        out += [(int(j), "below") for j in peak[: max(count - 1, 0)] if int(j) != jmin]
+        low = inner[(bb[inner] <= bb[inner - 1]) & (bb[inner] <= bb[inner + 1]) & fin[inner]]
+        low = low[low != jmin]
+        if low.size and count > 2:
+            pick = low[np.linspace(0, low.size - 1, min(count // 2, low.size)).astype(int)]
+            out += [(int(j), "below") for j in pick]
+    inf = ~fin
+    if np.any(inf):
+        edges = np.nonzero(np.diff(np.r_[False, inf, False].astype(int)))[0]
+        for a, e in zip(edges[::2], edges[1::2] - 1, strict=True):
+            for j in {int(a), int(e), int((a + e) // 2)}:
+                out.append((j, "ceiling"))
+    return list(dict.fromkeys(out))
+
+
+def _verify(
+    frozen: FrozenSystem, d: LobeDiagram, count: int, couplings: list[str] | None
+) -> tuple[dict[str, Any], ...]:
+    """Check the diagram's claims by the argument principle, a route
+    independent of the boundary computation: the number of closed-loop roots
+    in the right half plane (:func:`chatterlab.frequency._winding.rhp_count_system`) is
+    0 just below the envelope (b = (1 - VERIFY_OFFSET) b_lim) and > 0 just
+    above it; where the diagram says ``inf``, 0 at the width ceiling."""
+    from ..frequency._roots import make_system
+    from ..frequency._winding import rhp_count_system
+
+    out = []
+    for j, kind in _check_speeds(d, count):
+        if kind == "ceiling":
+            b, expect = d.width_max, "stable"
+        else:
+            b = float(d.b_lim[j]) * (1 - VERIFY_OFFSET if kind == "below" else 1 + VERIFY_OFFSET)
+            expect = "stable" if kind == "below" else "unstable"
+        fb = feedback(frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings)
+        sys_ = make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay)
+        w = rhp_count_system(sys_)
+        if w.status != "converged":
+            verdict = "undetermined"
+        else:
+            verdict = "stable" if w.count == 0 else "unstable"
+        out.append(
+            {
+                "speed": float(d.speed[j]),
+                "delay": float(d.delay[j]),
+                "width": b,
+                "kind": kind,
+                "expected": expect,
+                "verdict": verdict,
+                "rhp_roots": int(w.count),
+                "agrees": verdict == expect,
+            }
+        )
+    return tuple(out)
