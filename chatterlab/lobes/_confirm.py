@@ -89,33 +89,15 @@ def confirm(
         raise InputError(
             "time-domain confirmation simulates all feedback terms: compute the lobes with terms='pdo'"
         )
-    fin = np.nonzero(np.isfinite(diagram.b_lim))[0]
-    if fin.size == 0:
+    picks = _picks(diagram, count)
+    if not picks:
         return Confirmation(())
-    picks = [int(np.nanargmin(diagram.b_lim))]
-    for p in fin[np.linspace(0, fin.size - 1, count + 1).astype(int)[1:]]:
-        if len(picks) >= count:
-            break
-        if int(p) not in picks:
-            picks.append(int(p))
-    c0 = system.model.couplings[0]
-    cid = c0.id
-    # the regenerated CE axis: where the delayed matrix acts
-    axis = int(np.argmax(np.abs(np.array(c0.DO)).sum(axis=0)))
-    fz = system.at(diagram.position)
-    J = fz.couplings()[0].J
-    e = np.zeros(3)
-    e[axis] = 1e-6
-    q0 = np.linalg.lstsq(J, e, rcond=None)[0]  # a small disturbance of that axis
+    cid, axis, q0 = _disturbance(system, diagram.position)
     rows = []
     for j in picks:
         T = float(diagram.delay[j])
         fch = float(diagram.chatter_hz[j])
-        w = 2 * np.pi * fch
-        h = min(1.0 / (25.0 * fch), T / 10.0, math.sqrt(12.0 * phase_error / (w**3 * T)))
-        h = T / math.ceil(T / h)
-        dur = max(periods * T, min_duration, 12.0 / fch)
-        dur = min(dur, max_steps * h)
+        h, dur = _step_and_duration(T, fch, periods, min_duration, phase_error, max_steps)
         for fac in factors:
             b = float(diagram.b_lim[j] * fac)
             sim = simulate(
@@ -150,3 +132,47 @@ def confirm(
                 }
             )
     return Confirmation(tuple(rows))
+
+
+def _picks(diagram: Any, count: int) -> list[int]:
+    """Indices of the speeds simulated: the minimum of the envelope first,
+    then up to ``count`` spread over the finite b_lim (none if there is none)."""
+    fin = np.nonzero(np.isfinite(diagram.b_lim))[0]
+    if fin.size == 0:
+        return []
+    picks = [int(np.nanargmin(diagram.b_lim))]
+    for p in fin[np.linspace(0, fin.size - 1, count + 1).astype(int)[1:]]:
+        if len(picks) >= count:
+            break
+        if int(p) not in picks:
+            picks.append(int(p))
+    return picks
+
+
+def _disturbance(system: System, position: float | None) -> tuple[str, int, np.ndarray]:
+    """The first coupling element's id, its regenerated axis (where the
+    delayed matrix acts) and initial displacements that disturb that axis by
+    1 micrometre."""
+    c0 = system.model.couplings[0]
+    cid = c0.id
+    # the regenerated CE axis: where the delayed matrix acts
+    axis = int(np.argmax(np.abs(np.array(c0.DO)).sum(axis=0)))
+    fz = system.at(position)
+    J = fz.couplings()[0].J
+    e = np.zeros(3)
+    e[axis] = 1e-6
+    q0 = np.linalg.lstsq(J, e, rcond=None)[0]  # a small disturbance of that axis
+    return cid, axis, q0
+
+
+def _step_and_duration(
+    T: float, fch: float, periods: int, min_duration: float, phase_error: float, max_steps: int
+) -> tuple[float, float]:
+    """Newmark step (a whole fraction of the delay T, fine enough for the
+    chatter frequency's phase over one delay) and the simulated duration."""
+    w = 2 * np.pi * fch
+    h = min(1.0 / (25.0 * fch), T / 10.0, math.sqrt(12.0 * phase_error / (w**3 * T)))
+    h = T / math.ceil(T / h)
+    dur = max(periods * T, min_duration, 12.0 / fch)
+    dur = min(dur, max_steps * h)
+    return h, dur
