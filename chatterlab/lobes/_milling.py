@@ -40,7 +40,6 @@ method ..., Commun. Nonlinear Sci. Numer. Simul. 35 (2016) 177-189.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -48,19 +47,15 @@ import numpy as np
 
 from ..errors import InputError, check_count, check_positive, check_speed
 from ..frequency import (
-    CHECK_DEGREE,
     DEGREE,
-    ELEMENT_SPAN,
     PoleResidue,
-    SpectralMonodromy,
     ToolStructure,
-    chatter_frequency,
     classify,
-    sdm_monodromy,
 )
 from ..model import Process
 from ..process import Milling
 from ._diagram import Plant, lobes
+from ._milling_search import floquet_limit
 
 __all__ = ["MillingLobes", "milling_lobes", "zoa_plant"]
 
@@ -266,76 +261,6 @@ def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max:
     }
 
 
-# ============================================================================ Floquet
-def _first_crossing(
-    rho: Callable[[float], float], depth_max: float, scan: int, rtol: float
-) -> tuple[float, int, float]:
-    """Smallest a in (0, depth_max] with rho(a) = 1 found on the scan, refined
-    by Brent's method; inf if rho < 1 at every scan depth.  Also the slope
-    d rho / d a at the root from the closest evaluations on either side (nan
-    when they are further apart than 1e-4 a)."""
-    grid = depth_max * np.arange(1, scan + 1) / scan
-    count = 0
-    prev_a, prev_f = 0.0, -1.0  # rho(0) < 1: the structure is stable (checked by the caller)
-    for a in grid:
-        f = rho(float(a)) - 1.0
-        count += 1
-        if f >= 0.0:
-            from scipy.optimize import brentq  # here: import chatterlab stays light
-
-            seen: list[tuple[float, float]] = [(prev_a, prev_f), (float(a), f)]
-
-            def g(x: float, seen: list[tuple[float, float]] = seen) -> float:
-                v = rho(x) - 1.0
-                seen.append((x, v))
-                return v
-
-            if prev_a == 0.0:
-                seen.clear()
-                prev_f = g(1e-12 * depth_max)
-                prev_a = 1e-12 * depth_max
-                if prev_f >= 0:
-                    return prev_a, count + len(seen), float("nan")
-                seen.append((float(a), f))
-            root = brentq(g, prev_a, float(a), xtol=rtol * prev_a, rtol=4 * np.finfo(float).eps, maxiter=200)
-            below = [p for p in seen if p[1] < 0]
-            above = [p for p in seen if p[1] >= 0]
-            lo = max(below, key=lambda p: p[0])
-            hi = min(above, key=lambda p: p[0])
-            slope = (hi[1] - lo[1]) / (hi[0] - lo[0]) if hi[0] - lo[0] <= 1e-4 * root else float("nan")
-            return float(root), count + len(seen) - 2, slope
-        prev_a, prev_f = float(a), f
-    return float("inf"), count, float("nan")
-
-
-def _spectral_rho(sm: SpectralMonodromy) -> Callable[[float], float]:
-    return sm.radius
-
-
-def _helix_rho(
-    structure: ToolStructure, milling: Milling, rpm: float, degree: int, elements: int | None, span: float
-) -> Callable[[float], float]:
-    def rho(a: float) -> float:
-        sm = SpectralMonodromy(structure, milling, rpm, degree, elements, depth=a, depth_hint=0.0, span=span)
-        return sm.radius(a)
-
-    return rho
-
-
-def _sdm_top(
-    structure: ToolStructure, milling: Milling, rpm: float, steps: int
-) -> Callable[[float], complex]:
-    def mu_at(a: float) -> complex:
-        ev = np.linalg.eigvals(sdm_monodromy(structure, milling, rpm, a, steps))
-        return complex(ev[np.argmax(np.abs(ev))])
-
-    return mu_at
-
-
-def _abs_of(f: Callable[[float], complex]) -> Callable[[float], float]:
-    return lambda a: abs(f(a))
-
-
 def milling_lobes(
     structure: ToolStructure,
     milling: Milling,
@@ -384,17 +309,7 @@ def milling_lobes(
     MillingLobes
     """
     t0 = time.perf_counter()
-    if method not in METHODS:
-        raise InputError(f"method must be one of {', '.join(METHODS)} (got {method!r})")
-    rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
-    if rpm.ndim != 1 or rpm.size == 0:
-        raise InputError("rpm must be a non-empty 1-D array of spindle speeds")
-    for v in (rpm.min(), rpm.max()) if np.all(np.isfinite(rpm)) else rpm[~np.isfinite(rpm)][:1]:
-        check_speed(v, "rpm", "rpm")
-    depth_max = check_positive(depth_max, "depth_max", "m")
-    scan = check_count(scan, "scan", 2)
-    if not structure.stable():
-        raise InputError(f"{structure.name}: the structure without cutting is unstable; check its damping")
+    rpm, depth_max, scan = _checked(structure, milling, rpm, method, depth_max, scan)
     if method == "zoa":
         out = _zoa(structure, milling, rpm, depth_max)
         return MillingLobes(
@@ -413,68 +328,17 @@ def milling_lobes(
     mult = np.full(n, np.nan + 0j)
     err = np.full(n, np.nan)
     evals = 0
-    if milling.helix > 0 and method != "spectral":
-        raise InputError(
-            f"milling_lobes: method {method!r} takes no helix angle; use method='spectral' or helix=0"
-        )
-    helix = milling.helix > 0
     target = max(10.0 * rtol, 1e-7)  # relative error of a_lim the spectral check must confirm
     refined = 0
     for i, r in enumerate(rpm):
-        T = milling.period(float(r))
-        rho: Callable[[float], float]
-        mu_at: Callable[[float], complex]
-        span = ELEMENT_SPAN
-        for attempt in range(4):
-            if method == "spectral":
-                # the mesh resolves the structure's own frequencies (span); where the limit lies
-                # deeper than the cut's stiffening allows, the check below asks for a finer one
-                if helix:  # the coefficients depend on a_p: a discretisation per depth
-                    rho = _helix_rho(structure, milling, float(r), degree, elements, span)
-                else:
-                    sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
-                    rho = _spectral_rho(sm)
-            else:
-                mu_at = _sdm_top(structure, milling, float(r), steps)
-                rho = _abs_of(mu_at)
-            a, cnt, slope = _first_crossing(rho, depth_max, scan, rtol)
-            evals += cnt
-            if method != "spectral" or not check or not np.isfinite(a):
-                break
-            if helix:
-                sm = SpectralMonodromy(
-                    structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
-                )
-            sm2 = SpectralMonodromy(
-                structure,
-                milling,
-                float(r),
-                degree + CHECK_DEGREE,
-                mesh=sm.mesh,
-                depth=a if helix else None,
-                depth_hint=0.0,
-            )
-            if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
-                da = max(1e-6 * a, 10 * rtol * a)
-                slope = (rho(a + da) - rho(a - da)) / (2 * da)
-                evals += 2
-            err[i] = abs(sm2.radius(a) - 1.0) / abs(slope) if slope else np.inf
-            evals += 1
-            if err[i] <= target * a or elements is not None or attempt == 3:
-                break
-            span /= 2.0
-            refined += 1
+        a, err[i], mu, f_hz, cnt, n_ref = floquet_limit(
+            structure, milling, r, method, depth_max, scan, rtol, degree, elements, steps, check, target
+        )
+        evals += cnt
+        refined += n_ref
         if not np.isfinite(a):
             continue
-        if method == "spectral":
-            if helix and not check:
-                sm = SpectralMonodromy(
-                    structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
-                )
-            mu, freq[i] = sm.critical(a)
-        else:
-            mu = mu_at(a)
-            freq[i] = chatter_frequency(mu, T, structure)
+        freq[i] = f_hz
         a_lim[i] = a
         mult[i] = mu
         kind[i] = classify(mu)
@@ -503,3 +367,25 @@ def milling_lobes(
         evaluations=evals,
         meta={"refined": refined, "target_rtol": target} if method == "spectral" else {},
     )
+
+
+def _checked(
+    structure: ToolStructure, milling: Milling, rpm: np.ndarray, method: str, depth_max: float, scan: int
+) -> tuple[np.ndarray, float, int]:
+    """The arguments of :func:`milling_lobes` checked: (rpm, depth_max, scan)."""
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)} (got {method!r})")
+    rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
+    if rpm.ndim != 1 or rpm.size == 0:
+        raise InputError("rpm must be a non-empty 1-D array of spindle speeds")
+    for v in (rpm.min(), rpm.max()) if np.all(np.isfinite(rpm)) else rpm[~np.isfinite(rpm)][:1]:
+        check_speed(v, "rpm", "rpm")
+    depth_max = check_positive(depth_max, "depth_max", "m")
+    scan = check_count(scan, "scan", 2)
+    if not structure.stable():
+        raise InputError(f"{structure.name}: the structure without cutting is unstable; check its damping")
+    if milling.helix > 0 and method == "sdm":  # (zoa averages the helix away)
+        raise InputError(
+            f"milling_lobes: method {method!r} takes no helix angle; use method='spectral' or helix=0"
+        )
+    return rpm, depth_max, scan
