@@ -12,11 +12,13 @@ another input is a branch there.  The summary, files, plot and exit status
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
+from ..errors import InputError
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
 from ._common import load, model_args, outputs, progress_bar, width_m
 
@@ -62,6 +64,27 @@ def add_parser(sub: Any) -> None:
     )
     si.add_argument("--out", metavar="FILE.nc|FILE.csv")
     si.add_argument("--plot", metavar="FILE.png")
+    g4 = si.add_argument_group("initial condition (default: at rest, zero history before t = 0)")
+    g4.add_argument(
+        "--q0",
+        action="append",
+        metavar="P.DIR=VALUE",
+        help="initial displacement of a point, mm (rad for rz); repeatable. Other coordinates: the static "
+        "shape under forces at the named points",
+    )
+    g4.add_argument(
+        "--v0",
+        action="append",
+        metavar="P.DIR=VALUE",
+        help="initial velocity of a point, mm/s (rad/s for rz); repeatable. Other coordinates: the state "
+        "right after impulses at the named points",
+    )
+    g4.add_argument(
+        "--history",
+        choices=["zero", "constant"],
+        default="zero",
+        help="displacement before t = 0 read by the delayed term: zero (default) or constant (the --q0 state held)",
+    )
     g3 = si.add_argument_group('milling models ([process] kind = "milling")')
     g3.add_argument(
         "--revolutions",
@@ -78,7 +101,14 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     model = load(args)
     if model.process is not None and model.process.kind == "milling":
+        if args.q0 or args.v0 or args.history != "zero":
+            raise InputError(
+                "--q0, --v0 and --history apply to cutting-process models; a milling run starts from the "
+                "tool point displaced by 1 um, at rest, on the nominal path"
+            )
         return _milling(args, model)
+    q0 = _named(args.q0, "--q0", "mm")
+    v0 = _named(args.v0, "--v0", "mm/s")
     cases: list[Literal["none", "pd", "pdo"]] = (
         ["none", "pd", "pdo"] if args.feedback == "all" else [args.feedback]
     )
@@ -86,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     with outputs(
         args, *((f, "--out", DATA_SUFFIXES) for f in files), (args.plot, "--plot", PLOT_SUFFIXES)
     ) as outs:
-        simulate_case = _runner(args, model)
+        simulate_case = _runner(args, model, q0, v0)
         sims = []
         for fb in cases:
             sim = simulate_case(fb)
@@ -131,7 +161,37 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
     return 0 if run.status == "ok" else 1
 
 
-def _runner(args: argparse.Namespace, model: Any) -> Callable[[str], Any]:
+def _named(values: list[str] | None, option: str, unit: str) -> dict[str, float] | None:
+    """``P.DIR=VALUE`` options (mm or mm/s; rad or rad/s for ``rz``) as
+    ``{"P.DIR": value in m, m/s, rad or rad/s}``, checked."""
+    if not values:
+        return None
+    out: dict[str, float] = {}
+    for item in values:
+        name, eq, text = item.partition("=")
+        name = name.strip()
+        if not eq or not name:
+            raise InputError(
+                f"{option} {item!r}: expected P.DIR=VALUE with VALUE in {unit}, e.g. {option} tip.x=0.01"
+            )
+        try:
+            value = float(text)
+        except ValueError:
+            raise InputError(f"{option} {item!r}: {text!r} is not a number ({unit})") from None
+        if not math.isfinite(value):
+            raise InputError(f"{option} {item!r}: the value must be finite")
+        if name in out:
+            raise InputError(f"{option}: {name} is given twice")
+        out[name] = value if name.endswith(".rz") else value * 1e-3
+    return out
+
+
+def _runner(
+    args: argparse.Namespace,
+    model: Any,
+    q0: dict[str, float] | None = None,
+    v0: dict[str, float] | None = None,
+) -> Callable[[str], Any]:
     """The model of the command line as ``feedback case -> Simulation``."""
     from ..structure._assembly import assemble
     from ..time._simulate import simulate
@@ -151,6 +211,9 @@ def _runner(args: argparse.Namespace, model: Any) -> Callable[[str], Any]:
             duration=args.duration,
             step=args.step,
             outputs=args.output,
+            q0=q0,
+            v0=v0,
+            history="constant" if args.history == "constant" else None,
             progress=None if args.quiet else progress_bar(f"simulate ({fb})"),
         )
 
@@ -170,7 +233,9 @@ def _summary(sim: Any, fb: str) -> None:
         print(line)
         for what, why in missing.items():
             short.setdefault(what, why)
-    if short or not any(np.any(x) for x in sim.data.values()):
+    from ..time._simulate import AT_REST
+
+    if short or not any(np.any(x) for x in sim.data.values()) or _initial_condition(sim) != AT_REST:
         print(f"  initial condition: {_initial_condition(sim)}")
     if short:
         print("  too short to estimate " + "; ".join(f"the {w} ({why})" for w, why in short.items()))
@@ -274,8 +339,8 @@ def _spectral_peak(sim: Any, name: str, m: Any) -> tuple[float, str]:
 
 
 def _initial_condition(sim: Any) -> str:
-    """The initial state the run started from (the command line gives none:
-    at rest, with a zero history before t = 0)."""
+    """The initial state the run started from (``--q0``, ``--v0``,
+    ``--history``; by default at rest, with a zero history before t = 0)."""
     return str(sim.meta.get("initial_condition", "at rest (q = 0, v = 0, zero delay history before t = 0)"))
 
 
