@@ -342,15 +342,6 @@ def milling_lobes(
         a_lim[i] = a
         mult[i] = mu
         kind[i] = classify(mu)
-    res = (
-        (
-            f"degree {degree}, omega L <= 5 per element"
-            if elements is None
-            else f"degree {degree} x {elements}"
-        )
-        if method == "spectral"
-        else f"{steps} steps per period"
-    )
     return MillingLobes(
         rpm=rpm,
         a_lim=a_lim,
@@ -359,13 +350,22 @@ def milling_lobes(
         multiplier=mult,
         error=err,
         method=method,
-        resolution=res,
+        resolution=_resolution(method, degree, elements, steps),
         depth_max=depth_max,
         scan_step=depth_max / scan,
         name=structure.name,
         elapsed=time.perf_counter() - t0,
         evaluations=evals,
         meta={"refined": refined, "target_rtol": target} if method == "spectral" else {},
+    )
+
+
+def _resolution(method: str, degree: int, elements: int | None, steps: int) -> str:
+    """The discretisation, as the result states it."""
+    if method != "spectral":
+        return f"{steps} steps per period"
+    return (
+        f"degree {degree}, omega L <= 5 per element" if elements is None else f"degree {degree} x {elements}"
     )
 
 
