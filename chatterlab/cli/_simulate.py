@@ -233,7 +233,7 @@ def _summary(sim: Any, fb: str) -> None:
         print(line)
         for what, why in missing.items():
             short.setdefault(what, why)
-    from ..time._simulate import AT_REST
+    from ..time._initial import AT_REST
 
     if short or not any(np.any(x) for x in sim.data.values()) or _initial_condition(sim) != AT_REST:
         print(f"  initial condition: {_initial_condition(sim)}")
