@@ -1,7 +1,11 @@
 """Stability lobes: the D-subdivision boundary found completely
-(``_boundary``), the lobe diagram and its verification (``_diagram``),
-time-domain confirmation (``_confirm``), python-control structures
-(``_control``), a measured FRF as the structure (``_measured``).
+(``_boundary``), the entry point :func:`lobes` (``_diagram``), its result
+(``_result``), the structure as a plant (``_plant``), the chatter band
+(``_band``), the envelope (``_envelope``), the argument-principle checks
+(``_verification``), time-domain confirmation (``_confirm``),
+python-control structures (``_control``), a measured FRF as the structure
+(``_measured``), milling lobes by Floquet multipliers (``_milling``,
+``_milling_search``, a model file in their terms: ``_milling_model``).
 
 The diagram is computed by :func:`lobes` (``from chatterlab.lobes import lobes``).
 """
