@@ -94,8 +94,14 @@ class _MultiplierTable:
     def __init__(self, r: Any, count: int, note: str) -> None:
         self.r, self.count, self.note = r, count, note
 
+    def undetermined(self) -> bool:
+        """|mu| within its own convergence error of 1: neither claim is proven."""
+        return abs(self.r.spectral_radius - 1.0) <= self.r.error
+
     def verdict(self) -> str:
         r = self.r
+        if self.undetermined():
+            return f"undetermined: |mu| = {r.spectral_radius:.9f} is within its convergence error {r.error:.1e} of 1"
         if r.stable:
             return f"stable: every |mu| < 1 (spectral radius {r.spectral_radius:.6f}, error {r.error:.1e})"
         kind = {"hopf": "Hopf (quasi-periodic) chatter", "flip": "flip (period-doubling) chatter"}.get(
@@ -128,7 +134,7 @@ class _MultiplierTable:
             "rpm": r.rpm,
             "depth_m": r.depth,
             "period_s": r.period,
-            "stable": bool(r.stable),
+            "stable": None if self.undetermined() else bool(r.stable),
             "spectral_radius": float(r.spectral_radius),
             "error": float(r.error),
             "critical": {"re": float(np.real(r.critical)), "im": float(np.imag(r.critical)), "type": r.kind},
