@@ -94,3 +94,18 @@ def test_nonlinear_without_feed_is_refused(tmp_path, capsys):
     (tmp_path / "m.toml").write_text(text)
     code = main(["simulate", str(tmp_path / "m.toml"), "--width", "1", "--speed", "9000"])
     assert_clean_error(code, capsys.readouterr().err, "feed_per_tooth", "--linear")
+
+
+def test_a_multiplier_within_its_error_of_one_is_undetermined():
+    """|mu| - 1 smaller than the convergence check: neither stable nor chatter is claimed."""
+    from types import SimpleNamespace
+
+    from chatterlab.cli._milling import _MultiplierTable
+
+    r = SimpleNamespace(spectral_radius=1.0 - 1e-12, error=1e-10, stable=True, kind="hopf", critical=1j,
+                        method="spectral", resolution="", rpm=1.0, depth=1e-3, period=1.0, frequency_hz=1.0,
+                        mu=np.array([1j]))  # fmt: skip
+    t = _MultiplierTable(r, 1, "")
+    assert t.verdict().startswith("undetermined") and t.to_dict()["stable"] is None
+    r.error = 1e-14
+    assert t.verdict().startswith("stable") and t.to_dict()["stable"] is True
