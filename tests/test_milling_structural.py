@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.lobes import milling_lobes, milling_of, reduce_structure, tool_structure
@@ -19,41 +20,20 @@ BEAM = ROOT / "studies" / "milling" / "tool_cantilever.toml"
 
 M, F, Z = 0.03993, 922.0, 0.011
 W = 2 * math.pi * F
-RIGID_TOOL = f"""
-[[body]]
-id = "tool"
-mass = {M!r}
-inertia = 1.0e-6
-centre = [0.0, 0.0]
 
-[[support]]
-id = "guide"
-body = "tool"
-fix = ["y", "rz"]
 
-[[spring]]
-id = "holder"
-a = "tool"
-b = "ground"
-c1 = {M * W * W!r}
-d1 = {2 * Z * M * W!r}
-
-[[point]]
-id = "tip"
-body = "tool"
-
-[[coupling]]
-id = "cut"
-a = "tip"
-b = "ground"
-model = "milling"
-"""
+def _rigid_tool(process: str) -> str:
+    """conftest's 1-DOF tool (a body free along x on a spring-damper) with
+    the benchmark's mass, stiffness and damping, cut by a milling coupling."""
+    text = turning_text(mass=M, stiffness=M * W * W, damping=2 * Z * M * W)
+    head = text[: text.index("[[coupling]]")]
+    return head + '[[coupling]]\nid = "cut"\na = "tip"\nb = "ground"\nmodel = "milling"\n' + process
 
 
 def test_rigid_tool_on_a_spring_is_the_modal_benchmark():
     text = ONE.read_text()
     process = text[text.index("\n[process]") :]
-    structural = cl.loads_model(RIGID_TOOL + process)
+    structural = cl.loads_model(_rigid_tool(process))
     modal = cl.load_model(ONE)
     rpm = np.array([9000.0, 18000.0])
     a = [
