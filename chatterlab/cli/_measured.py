@@ -147,7 +147,7 @@ def _model_text(args: argparse.Namespace, frf: Path) -> str:
         point = f"coords = {{ x = {json.dumps(coords[0])}, y = {json.dumps(coords[1])} }}"
         coupling = 'model = "milling"'
         process = (
-            f'kind = "milling"\nrpm = {args.speed[0]!r}\nteeth = {args.teeth}\ndiameter = 1.0\n'
+            f'kind = "milling"\nrpm = {args.speed[0]!r}\nteeth = {args.teeth}\ndiameter = 1.0\n'  # D: no effect on ZOA
             f"Kt = {args.kt!r}\nKn = {args.kn!r}\nradial_immersion = {args.immersion!r}\nmilling = {json.dumps(args.milling)}"
         )
     else:

@@ -248,7 +248,12 @@ class MillingCut:
     def average_directional(self) -> np.ndarray:
         """H0 = (N / 2 pi) int_entry^exit H(phi) dphi (N/m^2, 2x2): the mean of
         the directional matrix over a revolution (Altintas & Budak 1995),
-        with H(phi) = [K_t (cos, -sin) + K_n (sin, cos)] (sin, cos)^T."""
+        with H(phi) = [K_t (cos, -sin) + K_n (sin, cos)] (sin, cos)^T.
+
+        The same closed form as :meth:`chatterlab.process.Milling.zoa`, written
+        here because the model (layer 2) may not import the process (layer 4)
+        and the reader must give the coupling its matrices;
+        tests/test_milling_model.py checks that the two agree to 1e-13."""
 
         def primitive(p: float) -> np.ndarray:
             s2, half, q = math.sin(p) ** 2 / 2, p / 2, math.sin(2 * p) / 4
