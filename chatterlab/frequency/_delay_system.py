@@ -169,7 +169,9 @@ class DelaySystem:
         p, L, R = pf
         with np.errstate(all="ignore"):
             g = 1.0 / (lam[..., None] - p)
-        return np.einsum("ik,...k,kj->...ij", L, g, R)
+        # sum_k L_ik g_k R_kj as one product over k (a GEMM; the 3-operand einsum is 2-4x slower)
+        LR = self.cached("pf_outer", lambda: L[:, :, None] * R[None, :, :])
+        return np.tensordot(g, LR, axes=([-1], [1]))
 
     def loop_eigenvalues(self, lam: ArrayLike) -> ComplexArray:
         """Eigenvalues :math:`\\mu_j(\\lambda)` of the loop transfer :math:`H(\\lambda)`

@@ -247,8 +247,8 @@ def phase_change(
         mu = passive.mu(w[idx])
         zz = np.exp(-1j * w[idx] * tau)[:, None]
         arg = np.angle(1.0 - mu * zz).sum(axis=1)
-        pos = {int(k): j for j, k in enumerate(idx)}
-        inc[ends] = np.array([arg[pos[int(k) + 1]] - arg[pos[int(k)]] for k in ends])
+        # idx is sorted and holds every end and end + 1: their places in it
+        inc[ends] = arg[np.searchsorted(idx, ends + 1)] - arg[np.searchsorted(idx, ends)]
     inc[~np.isfinite(inc)] = 0.0
     total = float(np.sum(inc))
     # remaining phase to infinity: F -> 1

@@ -138,7 +138,7 @@ def _real_poly_roots(c: np.ndarray) -> np.ndarray:
     coefficients below 1e-8 of the row's largest are dropped: their roots lie
     beyond ~1e8 (the widths wanted are in (0, 1]), and a companion matrix
     holding them would lose the small roots to its norm; the roots in range
-    move by ~1e-8 relative, which :func:`_polish` removes on the full
+    move by ~1e-8 relative, which :func:`_polish_rows` removes on the full
     polynomial.  Each degree is solved batched by its companion matrix."""
     N, d1 = c.shape
     d = d1 - 1
@@ -182,33 +182,53 @@ def widths_rank1(ops: Ops, beta_max: float | np.ndarray) -> tuple[list[np.ndarra
     with np.errstate(invalid="ignore"):
         near_real = np.abs(roots.imag) <= 1e-7 * np.maximum(np.abs(roots.real), xlo)
         inside = (roots.real > xlo) & (roots.real <= _X_MAX)
-    out = []
-    for i in range(roots.shape[0]):
-        x = np.sort(roots[i, near_real[i] & inside[i]].real)
-        out.append(_polish(Q[i], x))
+    out = _polish_rows(Q, roots, near_real & inside)
     with np.errstate(invalid="ignore"):
         cand = ~near_real & (roots.real > -0.05) & (roots.real < 1.05)
         prox = np.where(cand, np.abs(roots.imag) / np.maximum(np.abs(roots.real), 0.05), np.inf)
     return out, np.min(prox, axis=1)
 
 
-def _polish(q: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Newton on the full polynomial (ascending coefficients) from the
-    companion-matrix roots; steps are capped at 5 % of x (a start near a
-    double root only creeps, never jumps to another root)."""
-    if x.size == 0:
-        return x
-    p = q[::-1]
-    dp = np.polyder(p)
+def _polish_rows(q: np.ndarray, roots: np.ndarray, take: np.ndarray) -> list[np.ndarray]:
+    """Newton on the full polynomials (ascending coefficients, one per row of
+    ``q``) from the real parts of the companion-matrix roots selected by
+    ``take``; steps are capped at 5 % of x (a start near a double root only
+    creeps, never jumps to another root).  A row stops when all its steps
+    fall below 1e-15 relative (at most 8 steps).  All rows at once: the
+    arithmetic of each row is that of :func:`numpy.polyval` (Horner) on it
+    alone.  Returns the sorted polished roots of each row."""
+    n, d1 = q.shape
+    counts = take.sum(axis=1)
+    width = int(counts.max(initial=0))
+    if width == 0:
+        return [np.zeros(0) for _ in range(n)]
+    # the selected roots packed left, sorted, NaN-padded: x (n, width)
+    key = np.where(take, roots.real, np.inf)
+    x = np.sort(key, axis=1)[:, :width]
+    valid = np.arange(width)[None, :] < counts[:, None]
+    x = np.where(valid, x, np.nan)
+    p = q[:, ::-1]  # descending, as numpy.polyval
+    dp = p[:, :-1] * np.arange(d1 - 1, 0, -1)
+    active = counts > 0
     for _ in range(8):
-        f, g = np.polyval(p, x), np.polyval(dp, x)
+        rows = np.nonzero(active)[0]
+        if rows.size == 0:
+            break
+        xr = x[rows]
+        f = np.zeros_like(xr)
+        for c in p[rows].T:
+            f = f * xr + c[:, None]
+        g = np.zeros_like(xr)
+        for c in dp[rows].T:
+            g = g * xr + c[:, None]
         with np.errstate(all="ignore"):
             step = np.where(g != 0, f / g, 0.0)
-        step = np.clip(np.nan_to_num(step), -0.05 * np.abs(x), 0.05 * np.abs(x))
-        x = x - step
-        if np.all(np.abs(step) <= 1e-15 * np.abs(x)):
-            break
-    return np.sort(x)
+        step = np.clip(np.nan_to_num(step), -0.05 * np.abs(xr), 0.05 * np.abs(xr))
+        x[rows] = xr - step
+        with np.errstate(invalid="ignore"):
+            done = np.all((np.abs(step) <= 1e-15 * np.abs(x[rows])) | ~valid[rows], axis=1)
+        active[rows[done]] = False
+    return [np.sort(x[i, : counts[i]]) for i in range(n)]
 
 
 def _sylvester_det(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -413,6 +433,8 @@ def link(xs: list[np.ndarray]) -> list[list[tuple[int, int]]]:
             c = chain_of[i - 1][p]
             chain_of[i][q] = c
             chains[c].append((i, int(q)))
+        if ra.size == a.size and rb.size == b.size:
+            continue  # every point matched: no chain ends or starts here
         for p in np.setdiff1d(np.arange(a.size), ra):
             ends.append((i - 1, 0, int(chain_of[i - 1][p])))
         for q in np.setdiff1d(np.arange(b.size), rb):
