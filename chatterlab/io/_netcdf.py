@@ -10,9 +10,11 @@ builds that dataset from plain specifications and writes and reads it:
   index variable of the same name, each variable with ``units`` and
   ``long_name`` attributes, the attributes checked to be storable.
   A result object's ``to_xarray()`` is this call.
-* :func:`write_dataset` / :func:`write_netcdf` -- netCDF-4 (HDF5) through
-  xarray's ``h5netcdf`` engine, written atomically, with provenance
-  attributes (chatterlab version, creation time, command line).  No
+* :func:`write_dataset` / :func:`write_netcdf` -- netCDF-4 (HDF5), written
+  atomically, with provenance attributes (chatterlab version, creation
+  time, command line): a Dataset through xarray's ``h5netcdf`` engine, or
+  the specifications straight through h5netcdf (the same file, without the
+  quarter second of importing xarray; the result objects' ``to_netcdf``).  No
   ``_FillValue`` is added: the variables carry ``units`` and ``long_name``
   only, and a NaN is stored as NaN.  With the same data and a fixed
   ``created`` attribute the bytes are identical.
@@ -307,8 +309,10 @@ def write_netcdf(
     *,
     provenance: bool = True,
 ) -> Path:
-    """Write labelled arrays to a netCDF-4 file (atomically):
-    ``write_dataset(path, make_dataset(coords, data, attrs))``.
+    """Write labelled arrays to a netCDF-4 file (atomically): the file of
+    ``write_dataset(path, make_dataset(coords, data, attrs))``, written with
+    h5netcdf directly (xarray is not imported; the two routes give the same
+    variables, dimensions, values and attributes: tested).
 
     Parameters
     ----------
@@ -331,7 +335,54 @@ def write_netcdf(
         On an invalid name, mismatched shapes, a complex array or an
         attribute of an unsupported type.
     """
-    return write_dataset(path, make_dataset(coords, data, attrs), provenance=provenance)
+    cnorm = normalise_coords(coords)
+    dnorm = normalise_data(cnorm, data)
+    given = {str(k): attr_value(str(k), v) for k, v in (attrs or {}).items()}
+    final: dict[str, Any] = dict(provenance_attrs()) if provenance else {}
+    final.update(given)
+    path = Path(path)
+    with atomic_write(path) as tmp:
+        _write_h5netcdf(tmp, cnorm, dnorm, final)
+    return path
+
+
+def _write_h5netcdf(
+    path: Path,
+    coords: Mapping[str, tuple[np.ndarray, str, str]],
+    data: Mapping[str, tuple[np.ndarray, str, str, tuple[str, ...]]],
+    attrs: Mapping[str, Any],
+) -> None:
+    """The netCDF-4 file of ``write_dataset(path, make_dataset(...))``, made
+    with h5netcdf's own API and the calls xarray's h5netcdf backend makes,
+    in its order: global attributes, dimensions (in order of first use),
+    each variable created contiguous without a fill value and given
+    ``units`` and ``long_name``, then the values.  It saves importing xarray
+    (about 0.25 s, a tenth of the main job); the test suite checks that both
+    routes give the same dataset, variable by variable and attribute by
+    attribute."""
+    import h5netcdf
+
+    variables: dict[str, tuple[np.ndarray, tuple[str, ...], str, str]] = {
+        name: (values, (name,), unit, long_name) for name, (values, unit, long_name) in coords.items()
+    }
+    variables.update({name: (arr, dims, unit, ln) for name, (arr, unit, ln, dims) in data.items()})
+    sizes: dict[str, int] = {}
+    for arr, dims, _, _ in variables.values():
+        for d, n in zip(dims, arr.shape, strict=True):
+            sizes.setdefault(d, n)
+    with h5netcdf.File(path, mode="w", format="NETCDF4") as f:
+        for k, v in attrs.items():
+            f.attrs[k] = v
+        for d, n in sizes.items():
+            f.dimensions[d] = n
+        created = []
+        for name, (arr, dims, unit, long_name) in variables.items():
+            var = f.create_variable(name, dimensions=dims, dtype=arr.dtype, fillvalue=None, chunks=None)
+            var.attrs["units"] = unit
+            var.attrs["long_name"] = long_name
+            created.append((var, arr))
+        for var, arr in created:
+            var[...] = arr
 
 
 def _engine(path: Path) -> str:

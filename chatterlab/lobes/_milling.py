@@ -160,6 +160,12 @@ class MillingLobes:
         chatter frequency (Hz), critical multiplier, error estimate (m)."""
         from ..io import make_dataset
 
+        return make_dataset(*self.dataset_parts(attrs))
+
+    def dataset_parts(
+        self, attrs: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """``(coords, data, attrs)`` of :meth:`to_xarray` and :meth:`to_netcdf`."""
         code = {"": 0, "hopf": 1, "flip": 2, "fold": 3}
         mu = self.multiplier.astype(complex)
         a = {
@@ -174,9 +180,9 @@ class MillingLobes:
         }
         a.update(self.meta if all(isinstance(v, (int, float, str)) for v in self.meta.values()) else {})
         a.update(attrs or {})
-        return make_dataset(
-            coords={"speed": (self.rpm, "rpm", "spindle speed")},
-            data={
+        return (
+            {"speed": (self.rpm, "rpm", "spindle speed")},
+            {
                 "a_lim": (self.a_lim, "m", "limit axial depth of cut"),
                 "kind": (np.array([code.get(str(k), -1) for k in self.kind], float), "1",
                          "lobe type: 0 none, 1 Hopf, 2 flip, 3 fold"),
@@ -185,14 +191,15 @@ class MillingLobes:
                 "multiplier_arg": (np.angle(mu), "rad", "arg of the critical Floquet multiplier"),
                 "error": (self.error, "m", "estimated error of a_lim"),
             },
-            attrs=a,
+            a,
         )  # fmt: skip
 
     def to_netcdf(self, path: Any, attrs: dict[str, Any] | None = None) -> None:
-        """netCDF-4 file of :meth:`to_xarray`, written atomically."""
-        from ..io import write_dataset
+        """netCDF-4 file of :meth:`to_xarray`, written atomically by
+        :func:`chatterlab.io.write_netcdf` (the same file, without xarray)."""
+        from ..io import write_netcdf
 
-        write_dataset(path, self.to_xarray(attrs))
+        write_netcdf(path, *self.dataset_parts(attrs))
 
     def plot(self, ax: Any = None, *, label: str | None = None, title: str | None = None, **kw: Any) -> Any:
         """a_lim (mm) against rpm, Hopf and flip lobes told apart, the

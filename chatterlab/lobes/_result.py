@@ -237,6 +237,13 @@ class LobeDiagram:
         claim code as data; summary numbers and checks as attributes."""
         from ..io import make_dataset
 
+        return make_dataset(*self.dataset_parts(attrs))
+
+    def dataset_parts(
+        self, attrs: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """``(coords, data, attrs)`` of :meth:`to_xarray` and :meth:`to_netcdf`
+        (the specifications :func:`chatterlab.io.make_dataset` takes)."""
         a = {
             "title": "chatterlab stability lobe diagram",
             "model": self.model,
@@ -256,9 +263,9 @@ class LobeDiagram:
         }
         a.update(self.meta)
         a.update(attrs or {})
-        return make_dataset(
-            coords={"speed": (self.speed, self.speed_unit)},
-            data={
+        return (
+            {"speed": (self.speed, self.speed_unit)},
+            {
                 "b_lim": (self.b_lim, "m", "largest chatter-free width of cut"),
                 "chatter_frequency": (self.chatter_hz, "Hz", "chatter frequency on the envelope"),
                 "delay": (self.delay, "s", "delay between passes"),
@@ -269,15 +276,17 @@ class LobeDiagram:
                     "status: " + ", ".join(f"{i} {t}" for i, t in enumerate(self.CLAIMS)),
                 ),
             },
-            attrs=a,
+            a,
         )
 
     def to_netcdf(self, path: str, attrs: dict[str, Any] | None = None) -> None:
         """Labelled netCDF-4 file of :meth:`to_xarray` (the model text as
-        an attribute when the caller passes it), written atomically."""
-        from ..io import write_dataset
+        an attribute when the caller passes it), written atomically by
+        :func:`chatterlab.io.write_netcdf` (the same file, without importing
+        xarray)."""
+        from ..io import write_netcdf
 
-        write_dataset(path, self.to_xarray(attrs))
+        write_netcdf(path, *self.dataset_parts(attrs))
 
     def plot(
         self, ax: Any = None, *, lobe_numbers: int = 8, title: str | None = None, axes: Any = None

@@ -12,7 +12,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_dataset
+from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_netcdf
 from chatterlab.io._netcdf_csv import write_csv
 
 from ._grid import Grid
@@ -181,7 +181,7 @@ class SweepResult:
 
     def to_netcdf(self, path: str | os.PathLike[str], *, provenance: bool = True) -> Path:
         """Write :meth:`to_xarray` to a netCDF-4 file, atomically (see
-        :func:`chatterlab.io.write_dataset`).
+        :func:`chatterlab.io.write_netcdf`: the same file, without importing xarray).
 
         Grid axes become coordinate variables, outputs data variables with
         ``units`` and ``long_name``; ``attrs``, ``status``, ``message``,
@@ -189,7 +189,13 @@ class SweepResult:
         attributes, plus provenance unless ``provenance=False`` or ``attrs``
         fixes it (e.g. ``attrs={"created": "..."}`` for reproducible bytes).
         """
-        return write_dataset(path, self.to_xarray(), provenance=provenance)
+        return write_netcdf(
+            path,
+            self.grid.coords,
+            self._data_specs() | self._status_spec(),
+            self.file_attrs(),
+            provenance=provenance,
+        )
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write a long-format CSV file: one row per grid point, header ``name [unit]``,

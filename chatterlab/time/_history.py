@@ -13,7 +13,7 @@ this one implementation of
   (:func:`chatterlab.time.growth_rate`);
 * :meth:`TimeHistory.to_xarray` / :meth:`TimeHistory.to_netcdf` -- an
   :class:`xarray.Dataset` with a ``time`` coordinate (s) and ``units`` on
-  every variable, written by :func:`chatterlab.io.write_dataset`;
+  every variable, written by :func:`chatterlab.io.write_netcdf`;
 * :meth:`TimeHistory.to_csv` -- one wide CSV writer for every time history:
   ``t [s]``, one column per history (``name [unit]``), the run's status in
   the last column; every number written as the shortest decimal that reads
@@ -216,14 +216,12 @@ class TimeHistory:
 
     def to_netcdf(self, path: str | Path, attrs: Mapping[str, Any] | None = None) -> Path:
         """Write :meth:`to_xarray` (plus the global ``attrs`` given) to a
-        netCDF-4 file, atomically, through :func:`chatterlab.io.write_dataset`;
-        returns the path."""
-        from ..io import write_dataset
+        netCDF-4 file, atomically, through :func:`chatterlab.io.write_netcdf`
+        (the same file, without importing xarray); returns the path."""
+        from ..io import write_netcdf
 
-        ds = self.to_xarray()
-        if attrs:
-            ds.attrs.update(attrs)
-        return write_dataset(path, ds)
+        coords, data, file_attrs = self.dataset_parts()
+        return write_netcdf(path, coords, data, {**file_attrs, **(attrs or {})})
 
     def to_csv(self, path: Any, names: Sequence[str] | None = None) -> Path | None:
         """Write ``t [s]``, the histories ``names`` (default: all) as
