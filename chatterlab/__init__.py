@@ -6,24 +6,61 @@ The flow runs one way, and each step has its room::
         -> frequency (FRF, roots, verdict) / time (Newmark) -> lobes -> sweep
         -> io (netCDF, CSV) / plot / cli
 
-``import chatterlab`` stays light: matplotlib, joblib and python-control are
-imported only inside the functions that need them.  The lobe diagram and the
+``import chatterlab`` stays light: the names below are imported from their
+subpackage on first use, and matplotlib, joblib, xarray and python-control
+only inside the functions that need them.  The lobe diagram and the
 sweep engine are subpackages: ``from chatterlab.lobes import lobes``,
 ``from chatterlab.sweep import sweep, Grid``.
 """
 
 from __future__ import annotations
 
-from . import lobes, sweep
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from ._version import __version__
 from .errors import ChatterlabError, InputError, ModelError, SweepError
-from .frequency import FRF, Stability, frequencies, frf, loop_determinant, stability
-from .lobes import LobeDiagram
-from .model import Model, load_model, loads_model
-from .process import Feedback, feedback
-from .structure import CouplingMatrices, FrozenSystem, Modes, System, assemble, modes
-from .sweep import Grid, SweepResult
-from .time import Simulation, simulate
+
+if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, below
+    from . import lobes, sweep
+    from .frequency import FRF, Stability, frequencies, frf, loop_determinant, stability
+    from .lobes import LobeDiagram
+    from .model import Model, load_model, loads_model
+    from .process import Feedback, feedback
+    from .structure import CouplingMatrices, FrozenSystem, Modes, System, assemble, modes
+    from .sweep import Grid, SweepResult
+    from .time import Simulation, simulate
+
+#: public name -> the subpackage that holds it, imported on first use (PEP 562):
+#: ``import chatterlab`` loads numpy and nothing heavier, scipy included
+_HOME = {
+    **dict.fromkeys(("lobes", "sweep"), ""),
+    **dict.fromkeys(("FRF", "Stability", "frequencies", "frf", "loop_determinant", "stability"), "frequency"),
+    "LobeDiagram": "lobes",
+    **dict.fromkeys(("Model", "load_model", "loads_model"), "model"),
+    **dict.fromkeys(("Feedback", "feedback"), "process"),
+    **dict.fromkeys(
+        ("CouplingMatrices", "FrozenSystem", "Modes", "System", "assemble", "modes"), "structure"
+    ),
+    **dict.fromkeys(("Grid", "SweepResult"), "sweep"),
+    **dict.fromkeys(("Simulation", "simulate"), "time"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'chatterlab' has no attribute {name!r}")
+    if home == "":  # a subpackage itself
+        return importlib.import_module(f".{name}", __name__)
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "__version__",

@@ -189,12 +189,38 @@ def test_the_contract_catches_an_upward_import(tmp_path, monkeypatch):
 
 
 def test_import_chatterlab_is_light():
+    """``import chatterlab`` loads no scipy (let alone matplotlib, xarray...):
+    the public names come from their subpackages on first use."""
     code = (
         "import sys, chatterlab\n"
-        "heavy = [m for m in ('matplotlib', 'joblib', 'control', 'xarray', 'dask') if m in sys.modules]\n"
+        "heavy = [m for m in ('scipy', 'matplotlib', 'joblib', 'control', 'xarray', 'dask', 'h5py')"
+        " if m in sys.modules]\n"
         "print(','.join(heavy))"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout.strip()
     assert out == ""
+
+
+def test_every_public_name_resolves_to_its_subpackage_object():
+    """The lazy top level gives, for each name of ``chatterlab.__all__``, the
+    very object its subpackage exports (and subpackages as modules); an
+    unknown name is an AttributeError, as for any module."""
+    import importlib
+
+    import chatterlab
+
+    for name in chatterlab.__all__:
+        obj = getattr(chatterlab, name)
+        home = chatterlab._HOME.get(name)
+        if home is None:
+            continue  # defined in chatterlab/__init__.py itself (version, errors)
+        if home == "":
+            assert obj is importlib.import_module(f"chatterlab.{name}")
+        else:
+            assert obj is getattr(importlib.import_module(f"chatterlab.{home}"), name), name
+    assert set(chatterlab.__all__) <= set(dir(chatterlab))
+    assert set(chatterlab._HOME) <= set(chatterlab.__all__)
+    with pytest.raises(AttributeError, match="no attribute 'lobe_diagram'"):
+        chatterlab.lobe_diagram  # noqa: B018
