@@ -193,10 +193,13 @@ def test_stale_temporary_files_of_a_killed_run_are_removed(capsys, tmp_path, tur
     dead = 2**22 + 12345  # above the default pid_max: no such process
     stale = tmp_path / f".l.csv.part-{dead}-abcd1234.csv"
     stale.write_text("half a file")
+    # killed while write_netcdf wrote atomically to the command's temporary name
+    nested = tmp_path / f"..l.csv.part-{dead}-abcd1234.csv.tmp-{dead}-0123abcd"
+    nested.write_text("half of a temporary file")
     mine = tmp_path / f".l.csv.part-{os.getpid()}-abcd1234.csv"  # a live process's: kept
     mine.write_text("in progress")
     assert main(COMMANDS["lobes"].format(m=turning).split() + ["--out", str(tmp_path / "l.csv")]) == 0
-    assert not stale.exists() and mine.exists()
+    assert not stale.exists() and not nested.exists() and mine.exists()
 
 
 def test_output_that_is_a_directory_is_refused(capsys, tmp_path, turning):

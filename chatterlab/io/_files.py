@@ -59,12 +59,14 @@ def _pid_alive(pid: int) -> bool:
 
 def clean_stale(path: str | os.PathLike[str], tags: Iterable[str] = ("part", "tmp", "sweep")) -> list[Path]:
     """Remove temporary files and folders left next to ``path`` by a run that
-    was killed (``.NAME.TAG-PID-...`` whose process is gone); returns them."""
+    was killed (``.NAME.TAG-PID-...`` whose process is gone, and the
+    ``..NAME.TAG-PID-....tmp-...`` of a writer that was itself writing
+    atomically to that temporary name); returns them."""
     import re
     import shutil
 
     p = Path(path)
-    pat = re.compile(rf"^\.{re.escape(p.name)}\.(?:{'|'.join(map(re.escape, tags))})-(\d+)-")
+    pat = re.compile(rf"^\.\.?{re.escape(p.name)}\.(?:{'|'.join(map(re.escape, tags))})-(\d+)-")
     # chatterlab 0.1 named a sweep's scratch folder .NAME.sweep-XXXXXXXX (no pid): always stale now
     legacy = re.compile(rf"^\.{re.escape(p.name)}\.sweep-[a-z0-9_]{{8}}$") if "sweep" in tags else None
     removed: list[Path] = []
