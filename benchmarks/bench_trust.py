@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -148,7 +149,8 @@ def measure(pythonpath: str, repeat: int, label: str) -> dict[str, object]:
         cwd=CWD,
     ).stdout.strip()
     with tempfile.TemporaryDirectory() as tmp:
-        extra = ", '--force'" if "--force" in _cli_help(pythonpath) else ""
+        # old versions refused to overwrite without --force (not --force-angle, a milling option)
+        extra = ", '--force'" if re.search(r"--force(?![-\w])", _cli_help(pythonpath)) else ""
         code = MAIN_JOB.format(model=str(MODEL), out=f"{tmp}/l.nc", png=f"{tmp}/l.png", extra=extra)
         out["main_job"] = timed(code, pythonpath, repeat)
     out["refined_stability"] = timed(REFINED.format(model=str(MODEL)), pythonpath, max(1, repeat // 2))
@@ -187,13 +189,14 @@ def report(r: dict[str, object]) -> None:
     for key, (tw, tm) in {"main_job": (2.5, 250.0), "refined_stability": (10.0, 1000.0)}.items():
         m = r[key]
         assert isinstance(m, dict)
+        if m["exit_status"]:
+            print(f"  {key:18s} FAILED (exit {m['exit_status']}): no timing reported\n      {m['output_tail']}")
+            continue
         print(
             f"  {key:18s} wall min {m['wall_min_s']:.2f} s, median {m['wall_median_s']:.2f} s"
             f" (target {tw} s: {m['wall_min_s'] / tw:.2f}x), peak RSS {m['rss_max_mb']:.0f} MB"
             f" (target {tm:.0f} MB: {m['rss_max_mb'] / tm:.2f}x), exit {m['exit_status']}"
         )
-        if m["exit_status"]:
-            print(f"      {m['output_tail']}")
     print(f"  correctness        {r['correctness']}")
 
 
@@ -227,7 +230,9 @@ def main() -> None:
         for key in ("main_job", "refined_stability"):
             ma, mb = a[key], b[key]
             assert isinstance(ma, dict) and isinstance(mb, dict)
-            if not mb["exit_status"]:
+            if ma["exit_status"]:
+                print(f"  {key}: this checkout failed (exit {ma['exit_status']}): no comparison")
+            elif not mb["exit_status"]:
                 print(
                     f"  {key}: baseline / this = {mb['wall_min_s'] / ma['wall_min_s']:.2f}x wall,"
                     f" {mb['rss_max_mb'] / ma['rss_max_mb']:.2f}x memory"
