@@ -114,6 +114,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # on a 2-core machine with any other load, threaded BLAS oversubscribes
         # (README main job, load 2-3: 8.9 s with default threads, 2.5 s with one);
         # parallel work goes through the sweep engine's worker processes
+        # threadpoolctl limits the libraries loaded when it is entered: load
+        # scipy's own OpenBLAS first (import chatterlab no longer does)
+        import scipy.linalg  # noqa: F401
         from threadpoolctl import threadpool_limits
 
         with threadpool_limits(limits=1):

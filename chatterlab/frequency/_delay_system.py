@@ -26,9 +26,10 @@ References
 from __future__ import annotations
 
 import contextlib
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 import scipy.linalg as sla
@@ -37,6 +38,9 @@ from numpy.typing import ArrayLike, NDArray
 from chatterlab.errors import InputError
 
 from ._checks import as_real_matrix, check_tau, factor_delayed
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 __all__ = [
     "DelaySystem",
@@ -269,6 +273,18 @@ def single_threaded_blas() -> Any:
     except ImportError:
         return contextlib.nullcontext()
     return threadpool_limits(limits=1, user_api="blas")
+
+
+def single_threaded(func: Callable[P, R]) -> Callable[P, R]:
+    """Run ``func`` under :func:`single_threaded_blas` (a public entry point
+    whose work is many small dense problems: the lobe engine's)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        with single_threaded_blas():
+            return func(*args, **kwargs)
+
+    return wrapper
 
 
 def batched_solve(A: ComplexArray, B: ComplexArray, singular: Any = np.nan) -> ComplexArray:

@@ -56,6 +56,7 @@ from typing import Literal
 import numpy as np
 
 from ..errors import InputError, check_speed, check_width
+from ..frequency._delay_system import single_threaded
 from ..model._items import Process
 from ..structure._assembly import FrozenSystem
 from ._envelope import Boundary, _check_terms, _Segment, boundary
@@ -68,6 +69,7 @@ from ._verification import _verify
 __all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
 
 
+@single_threaded
 def lobes(
     frozen: FrozenSystem | None,
     speeds: np.ndarray,

@@ -52,6 +52,7 @@ from ..frequency import (
     ToolStructure,
     classify,
 )
+from ..frequency._delay_system import single_threaded
 from ..model import Process
 from ..process import Milling
 from ._diagram import Plant, lobes
@@ -268,6 +269,7 @@ def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max:
     }
 
 
+@single_threaded
 def milling_lobes(
     structure: ToolStructure,
     milling: Milling,
