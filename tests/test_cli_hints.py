@@ -53,6 +53,10 @@ def test_shipped_model_raises_no_warning(capsys):
     [
         ([*FRF, "--width", "200000", "--speed", "0.5"], "typed in um"),
         ([*FRF, "--width", "0.0002", "--speed", "0.5"], "typed in m"),
+        # the review's case: 2 mm typed in m gave "stable", exit 0 and no warning
+        (["roots", SHAPER, "--width", "0.002", "--speed", "0.5", "--no-winding"], "typed in m"),
+        (["lobes", SHAPER, "--speed", "0.5", "0.6", "--points", "3", "--width-max", "0.001", "--verify", "0"],
+         "typed in m"),  # fmt: skip
         (["roots", SHAPER, "--width", "0.2", "--speed", "500", "--no-winding"], "outside 0.001..10 m/s"),
         (["roots", SHAPER, "--width", "0.2", "--terms", "pd", "--delay", "1.5"], "--delay has no effect"),
     ],

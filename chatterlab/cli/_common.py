@@ -209,10 +209,18 @@ def flush_warnings() -> None:
     WARNINGS.clear()
 
 
+#: widths (m) below this get a warning: the 0.1-20 mm of practice typed in m
+#: (0.0001-0.02) land below it, as mm; a micro-machining width may too (--quiet)
+WIDTH_SLIP_BELOW = 2e-5
+
+
 def width_slips(b: float, option: str) -> list[str]:
-    """A width ``b`` (m) below 1 um or above 1 m: a unit slip."""
-    if b < 1e-6:
-        return [f"{option} is {m_to_mm(b):g} mm, below 1 um: was the width typed in m? (the CLI takes mm)"]
+    """A width ``b`` (m) below 0.02 mm or above 1 m: a unit slip."""
+    if b < WIDTH_SLIP_BELOW:
+        return [
+            f"{option} is {m_to_mm(b):g} mm, below {m_to_mm(WIDTH_SLIP_BELOW):g} mm: was the width typed"
+            " in m? (the CLI takes mm; --quiet silences this)"
+        ]
     if b > 1.0:
         return [f"{option} is {m_to_mm(b):g} mm, above 1 m: was the width typed in um?"]
     return []
