@@ -36,12 +36,16 @@ def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     ref = milling_lobes(S, mill, np.linspace(8000.0, 20000.0, 7), depth_max=0.01)
     with open(out) as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].startswith("#")]
+        rows = list(csv.reader(fh))
     head, body = rows[0], rows[1:]
-    got = np.array([float(r[head.index("a_lim_mm")]) for r in body])
+    # SI, name [unit], no comment line: what every chatterlab CSV is (pandas reads it as it is)
+    assert head == ["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]", "arg mu [rad]",
+                    "error [m]"]  # fmt: skip
+    got = np.array([float(r[head.index("a_lim [m]")]) for r in body])
     # the same computation through the CLI: the CSV holds repr() of the floats, so exactly equal
-    np.testing.assert_array_equal(got, ref.a_lim * 1e3)
-    assert [r[head.index("kind")] for r in body] == list(ref.kind)
+    np.testing.assert_array_equal(got, ref.a_lim)
+    np.testing.assert_array_equal([float(r[0]) for r in body], ref.rpm)
+    assert [r[head.index("kind")] for r in body] == [k or "none" for k in ref.kind]
 
 
 def test_roots_json_is_the_floquet_result(bench, tmp_path, capsys):

@@ -138,22 +138,27 @@ class MillingLobes:
         return "\n".join(lines)
 
     def to_csv(self, path: Any) -> None:
-        """rpm, a_lim_mm, kind, chatter_hz, |mu|, arg mu, error_mm (17
-        significant digits: exact), written atomically."""
+        """One row per speed, SI with ``name [unit]`` headers like every
+        chatterlab CSV: ``speed [rpm]``, ``a_lim [m]`` (``inf``: no
+        instability at the scanned depths), ``kind`` (hopf, flip, fold or
+        none), ``chatter frequency [Hz]``, ``|mu| [-]`` and ``arg mu [rad]``
+        of the critical multiplier, ``error [m]``; floats as ``repr`` (exact),
+        written atomically."""
+        import csv
+
         from ..io._files import text_out
 
         def g(x: Any) -> str:
             return repr(float(x))
 
-        with text_out(path) as f:
-            f.write(f"# milling lobes: method {self.method}, {self.resolution}; depths in mm\n")
-            f.write("rpm,a_lim_mm,kind,chatter_hz,mu_abs,mu_arg,error_mm\n")
+        with text_out(path) as fh:
+            w = csv.writer(fh)
+            w.writerow(["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]",
+                        "arg mu [rad]", "error [m]"])  # fmt: skip
             for i in range(self.rpm.size):
                 mu = complex(self.multiplier[i])
-                f.write(
-                    f"{g(self.rpm[i])},{g(self.a_lim[i] * 1e3)},{self.kind[i]},{g(self.frequency_hz[i])},"
-                    f"{g(abs(mu))},{g(np.angle(mu))},{g(self.error[i] * 1e3)}\n"
-                )
+                w.writerow([g(self.rpm[i]), g(self.a_lim[i]), self.kind[i] or "none", g(self.frequency_hz[i]),
+                            g(abs(mu)), g(np.angle(mu)), g(self.error[i])])  # fmt: skip
 
     def to_xarray(self, attrs: dict[str, Any] | None = None) -> Any:
         """The lobes as an :class:`xarray.Dataset` with the spindle speed as

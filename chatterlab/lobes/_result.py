@@ -254,6 +254,7 @@ class LobeDiagram:
             "min_b_lim_speed": self.minimum["speed"],
             "min_b_lim_chatter_hz": self.minimum["chatter_hz"],
             "absolute_min_b_lim_m": self.absolute_minimum["width"],
+            "absolute_min_chatter_hz": self.absolute_minimum["chatter_hz"],
             "verified": str(self.verified),
             "chatter_band_hz": list(self.band_hz),
             "chatter_band_certified": str(self.band_certified),
