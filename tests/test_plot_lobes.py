@@ -21,6 +21,7 @@ quarter of a pixel of the saved figure -- and, as a second bound, 2e-3
 from __future__ import annotations
 
 import importlib.util
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -214,10 +215,17 @@ def test_inf_is_shown_with_a_legend_entry(turning):
     d = lobes(turning, np.linspace(2000.0, 12000.0, 300), width_max=1e-3, verify=0)
     assert np.any(d.claim == 1)
     ax = plot_lobes(d)[0]
-    assert [c for c in ax.collections if c.get_gid() == "claim-1"]
+    spans = [c for c in ax.collections if c.get_gid() == "claim-1"]
+    assert spans
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert any("inf" in t and "1 mm" in t for t in legend)
     assert ax.get_ylim()[1] == pytest.approx(1.0)  # the ceiling is the data's top here
+    # a span one speed wide is a pixel or two: each also has a marker on the top edge
+    (mk,) = [ln for ln in ax.lines if ln.get_gid() == "claim-1-marker"]
+    centres = sorted(0.5 * (p.get_paths()[0].vertices[:, 0].min() + p.get_paths()[0].vertices[:, 0].max())
+                     for p in spans)  # fmt: skip
+    np.testing.assert_allclose(sorted(mk.get_xdata()), centres, rtol=1e-12)
+    assert set(mk.get_ydata()) == {1.0} and not mk.get_clip_on()
 
 
 def test_undetermined_is_shown_between_samples_too(turning):
@@ -255,6 +263,19 @@ def test_lobe_numbers_are_the_engines_and_do_not_overlap(turning_diagram):
         assert int(t.get_text()) == d.lobe[j]
     legend = " ".join(" ".join(t.get_text() for t in ax.get_legend().get_texts()).split())
     assert f"{len(d.lobes)} lobes" in legend and "as in the summary" in legend
+
+
+def test_branches_are_named_by_their_mode(shaper_diagram):
+    """Labels k/branch: the legend says which chatter frequency each branch
+    has at its lowest width -- on the shaper, the 83.4 Hz mode (the absolute
+    minimum's) and the 76.2 Hz one."""
+    axes = plot_lobes(shaper_diagram)
+    legend = " ".join(" ".join(t.get_text() for t in axes[1].get_legend().get_texts()).split())
+    found = {int(b): float(f) for b, f in re.findall(r"branch (\d+): chatter at ([\d.]+) Hz at its lowest", legend)}
+    assert len(found) == 2, legend
+    low = min(found, key=lambda b: abs(found[b] - shaper_diagram.absolute_minimum["chatter_hz"]))
+    assert found[low] == pytest.approx(shaper_diagram.absolute_minimum["chatter_hz"], abs=0.01)
+    assert min(found.values()) == pytest.approx(76.2, abs=0.1)
 
 
 def test_title_says_what_is_shown(turning_diagram, shaper_diagram):

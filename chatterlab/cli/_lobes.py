@@ -170,7 +170,9 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
     if args.plot:
         from ..plot import savefig
 
-        savefig(d.plot(), outs.path(args.plot))
+        name = getattr(model, "name", "")
+        title = f"{name} ({model.source}): stability lobes" if name else None
+        savefig(d.plot(title=title), outs.path(args.plot))
     if getattr(d, "verified", None) is False:
         print(
             "chatterlab: the argument principle contradicts the diagram at the checks marked CHECK FAILED:"

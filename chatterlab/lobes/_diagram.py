@@ -177,7 +177,8 @@ def _lobe_curves(
 ) -> tuple[list[Lobe], int]:
     """Every lobe in the range of delays, as curves on the frequency grid, and
     the number of lobes crossing the range (when more than 400 of a branch do,
-    only those that form the envelope are kept as curves)."""
+    only the lobe numbers k of the envelope are kept as curves, on every
+    branch)."""
     lobe_list: list[Lobe] = []
     Tlo, Thi = float(T.min()), float(T.max())
     n_in_range = 0

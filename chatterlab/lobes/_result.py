@@ -117,7 +117,7 @@ class LobeDiagram:
             f"  speeds {self.speed.min():g} .. {self.speed.max():g} {self.speed_unit} ({self.speed.size} points),"
             f" {self.n_lobes} lobes"
             + (
-                f" ({len(self.lobes)} of them on the envelope kept as curves)"
+                f" ({len(self.lobes)} kept as curves: on each branch, the lobe numbers k of the envelope)"
                 if self.n_lobes > len(self.lobes)
                 else ""
             )

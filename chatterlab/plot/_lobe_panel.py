@@ -299,6 +299,13 @@ def _draw_claims(
             p.set_gid(f"claim-{code}")
             if k == 0:
                 handles.append(p)
+        if code == 1 and handles and spans.get(1):
+            # a span of one speed is a pixel or two wide: mark each on the top edge too
+            xs = [0.5 * (a + b) for a, b in spans[1] if lo <= 0.5 * (a + b) <= hi]
+            (mk,) = ax.plot(xs, [1.0] * len(xs), "v", color="tab:green", ms=6, transform=trans,
+                            clip_on=False, zorder=7, gid="claim-1-marker")  # fmt: skip
+            i = next(j for j, h in enumerate(handles) if h.get_gid() == "claim-1")
+            handles[i] = (handles[i], mk)
     return handles
 
 

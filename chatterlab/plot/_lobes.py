@@ -170,7 +170,7 @@ def _dense_note(main: dict[str, Any], has_zoom: bool) -> str | None:
 def _dense_legend(ax: Any, main: dict[str, Any], note: str | None) -> None:
     """The main panel's legend beside a zoom panel or over dense lobes, with the note as its title."""
     leg = ax.legend(
-        handles=main["handles"],
+        *_with_labels(main["handles"]),
         loc="upper left",
         bbox_to_anchor=(1.01, 1.0),
         fontsize=6.5,
@@ -207,7 +207,7 @@ def _frequency_panel(axf: Any, main: dict[str, Any], d: Any) -> None:
     """The chatter frequency along the envelope drawn on the main panel."""
     fin = np.isfinite(main["width"]) & (main["freq"] > 0)
     axf.plot(main["speed"][fin], main["freq"][fin], ".", ms=1, color="tab:blue", rasterized=True)
-    axf.set_ylabel("chatter [Hz]")
+    axf.set_ylabel("chatter frequency [Hz]", fontsize=8)
     axf.set_xlabel(f"{d.speed_name} [{d.speed_unit}]")
     axf.set_title("chatter frequency along the envelope", fontsize=8, loc="left")
     axf.grid(alpha=0.3)
@@ -222,7 +222,10 @@ def _lobe_count(curves: list[Curve], d: Any) -> str:
     txt = f"{len(ks)} lobes in the speed range (k = {kk[0]}-{kk[-1]})"
     if len(ks) == len(d.lobes):
         return txt + ", as in the summary"
-    return txt + f";\nthe summary's {len(d.lobes)} are those on the envelope at its {np.size(d.speed)} speeds"
+    return txt + (
+        f";\nthe summary's {len(d.lobes)} are the lobe numbers k of the envelope at its"
+        f" {np.size(d.speed)} speeds, on each branch"
+    )
 
 
 def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[Curve], d: Any, loc: str, count: str) -> None:
@@ -236,13 +239,33 @@ def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[Curve], d: Any, lo
         if drawn["labelled"]:
             multi = len({c.branch for c in curves}) > 1
             txt += "\nnumbers: lobe k" + ("/branch" if multi else "") + " at its bottom"
+            if multi:
+                txt += "; " + _branch_modes(curves)
         if loc == "outside":
             txt = "\n".join(textwrap.fill(line, 46) for line in txt.split("\n"))
         handles.append(Line2D([], [], ls="none", label=txt))
     if loc == "outside":
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5, framealpha=0.9)
+        ax.legend(*_with_labels(handles), loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
+                  framealpha=0.9)  # fmt: skip
     else:
-        ax.legend(handles=handles, loc=loc, fontsize=6.5, framealpha=0.9, ncol=2)
+        ax.legend(*_with_labels(handles), loc=loc, fontsize=6.5, framealpha=0.9, ncol=2)
+
+
+def _with_labels(handles: list[Any]) -> tuple[list[Any], list[str]]:
+    """Handles and their labels (a tuple handle, drawn as its artists
+    overlaid, takes the label of its first)."""
+    return handles, [(h[0] if isinstance(h, tuple) else h).get_label() for h in handles]
+
+
+def _branch_modes(curves: list[Curve]) -> str:
+    """Which mode each branch is: its chatter frequency where its width is least."""
+    chains = {c.branch: c.chain for c in curves}
+    parts = []
+    for b in sorted(chains):
+        ch = chains[b]
+        f = float(ch.omega[int(np.argmin(ch.width))]) / (2 * np.pi)
+        parts.append(f"branch {b}: chatter at {f:.4g} Hz at its lowest")
+    return ", ".join(parts)
 
 
 def _model_name(d: Any) -> str:
