@@ -47,7 +47,16 @@ _HOME = {
 }
 
 
+#: the subpackages, reachable as attributes (``chatterlab.frequency.frf``) as
+#: when the top level imported them all
+_SUBPACKAGES = frozenset(
+    ("model", "structure", "process", "frequency", "time", "lobes", "sweep", "quantities", "io", "plot", "cli")
+)
+
+
 def __getattr__(name: str) -> Any:
+    if name in _SUBPACKAGES:
+        return importlib.import_module(f".{name}", __name__)
     home = _HOME.get(name)
     if home is None:
         raise AttributeError(f"module 'chatterlab' has no attribute {name!r}")
@@ -59,7 +68,7 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    return sorted(set(globals()) | set(__all__) | _SUBPACKAGES)
 
 
 __all__ = [

@@ -221,6 +221,18 @@ def test_every_public_name_resolves_to_its_subpackage_object():
         else:
             assert obj is getattr(importlib.import_module(f"chatterlab.{home}"), name), name
     assert set(chatterlab.__all__) <= set(dir(chatterlab))
+    # every subpackage is an attribute, as when the top level imported them all
+    # (fresh interpreter: nothing imported by this session may bind them first)
+    code = (
+        "import chatterlab as cl\n"
+        "print(cl.frequency.frf.__name__, cl.time.simulate.__name__, cl.model.load_model.__name__,"
+        " cl.structure.assemble.__name__, cl.process.feedback.__name__, cl.io.read_netcdf.__name__,"
+        " cl.quantities.__name__, cl.plot.__name__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["frf", "simulate", "load_model", "assemble", "feedback", "read_netcdf",
+                           "chatterlab.quantities", "chatterlab.plot"]  # fmt: skip
+    assert chatterlab._SUBPACKAGES <= set(dir(chatterlab))
     assert set(chatterlab._HOME) <= set(chatterlab.__all__)
     with pytest.raises(AttributeError, match="no attribute 'lobe_diagram'"):
         chatterlab.lobe_diagram  # noqa: B018

@@ -81,3 +81,17 @@ fz = cl.assemble(cl.load_model({str(SHAPER)!r})).at(0.85)
 lobes(fz, np.linspace(0.5, 0.6, 3), width_max=1e-3, verify=1)
 """
     _check(_run(setup))
+
+
+def test_every_blas_has_one_thread_in_a_serial_sweep() -> None:
+    """The serial backend's limit, with a task that reaches scipy only inside
+    the sweep (a user's function; import chatterlab loads no scipy)."""
+    setup = """
+from chatterlab.sweep import sweep
+def task(x):
+    import scipy.linalg
+    seen["inside"] = blas()
+    return {"y": x}
+sweep(task, {"x": [1.0]}, outputs={"y": ""}, backend="serial", progress=False)
+"""
+    _check(_run(setup))

@@ -363,6 +363,7 @@ def test_unreadable_and_unstorable_are_one_line_errors(tmp_path: Path) -> None:
         ({"y": (np.ones(2), "")}, {"_FillValue": 1.0}, ("'_FillValue' is reserved", "chatterlab_FillValue")),
         ({"y": (np.ones(3), "")}, {}, ("'y' has shape (3,)", "(2,)")),
         ({"bad name": (np.ones(2), "")}, {}, ("'bad name' is not a valid netCDF name",)),
+        ({"y": (np.ones(2), "")}, {Path("p"): 1}, ("is not a valid netCDF name",)),  # not a str
     ]:
         with pytest.raises(InputError) as e:
             write_netcdf(tmp_path / "w.nc", c, data, attrs)

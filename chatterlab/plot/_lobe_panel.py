@@ -277,12 +277,15 @@ def _draw_claims(
         3: dict(y=(0.0, 1.0), hatch=None, fc="magenta", ec="none", label="contradicted by a check"),
     }
     for code, st in styles.items():
-        for k, (x0, x1) in enumerate(spans.get(code, [])):
+        drawn: list[tuple[float, float]] = []  # the spans clipped to [lo, hi]
+        for x0, x1 in spans.get(code, []):
             if x1 < lo or x0 > hi:
                 continue
             x0, x1 = max(x0, lo), min(x1, hi)
             if x1 <= x0:
                 x1 = x0 + 1e-3 * (hi - lo)
+            first = not drawn
+            drawn.append((x0, x1))
             p = ax.fill_between(
                 [x0, x1],
                 st["y"][0],
@@ -294,18 +297,17 @@ def _draw_claims(
                 alpha=0.35 if st["hatch"] is None else 1.0,
                 lw=0,
                 zorder=2.5,
-                label=st["label"] if k == 0 else None,
+                label=st["label"] if first else None,
             )
             p.set_gid(f"claim-{code}")
-            if k == 0:
+            if first:
                 handles.append(p)
-        if code == 1 and handles and spans.get(1):
+        if code == 1 and drawn:
             # a span of one speed is a pixel or two wide: mark each on the top edge too
-            xs = [0.5 * (a + b) for a, b in spans[1] if lo <= 0.5 * (a + b) <= hi]
+            xs = [0.5 * (a + b) for a, b in drawn]
             (mk,) = ax.plot(xs, [1.0] * len(xs), "v", color="tab:green", ms=6, transform=trans,
                             clip_on=False, zorder=7, gid="claim-1-marker")  # fmt: skip
-            i = next(j for j, h in enumerate(handles) if h.get_gid() == "claim-1")
-            handles[i] = (handles[i], mk)
+            handles[-1] = (handles[-1], mk)
     return handles
 
 

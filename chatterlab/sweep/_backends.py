@@ -98,11 +98,17 @@ def _run_chunk(payload: _Payload, chunk: int, start: int, stop: int) -> _ChunkOu
 
 
 def _blas_limit() -> AbstractContextManager[Any]:
-    """Single-threaded BLAS/OpenMP in this process, when threadpoolctl is installed."""
+    """Single-threaded BLAS/OpenMP in this process, when threadpoolctl is installed.
+
+    threadpoolctl limits the libraries loaded when the limit is entered: scipy
+    (whose wheels carry their own OpenBLAS) is loaded first, since a task may
+    reach it only later (``import chatterlab`` does not load it)."""
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return nullcontext()
+    import scipy.linalg  # noqa: F401
+
     return threadpool_limits(limits=1)
 
 
