@@ -213,7 +213,7 @@ class FRF:
         from ..io._files import text_out
 
         with text_out(path) as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             head = ["frequency [Hz]"]
             for o in self.outputs:
                 for i in self.inputs:

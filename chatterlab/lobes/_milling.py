@@ -152,7 +152,7 @@ class MillingLobes:
             return repr(float(x))
 
         with text_out(path) as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]",
                         "arg mu [rad]", "error [m]"])  # fmt: skip
             for i in range(self.rpm.size):

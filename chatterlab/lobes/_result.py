@@ -207,7 +207,7 @@ class LobeDiagram:
         from ..io._files import text_out
 
         with text_out(path) as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(
                 [
                     f"speed [{self.speed_unit}]",

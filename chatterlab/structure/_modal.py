@@ -130,7 +130,7 @@ class Modes:
         from ..io._files import text_out
 
         with text_out(path) as fh:
-            w = csv.writer(fh)
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(["mode", "frequency [Hz]", "period [s]", "damping ratio [-]"])
             for k in range(len(self)):
                 f = self.frequency_hz[k]
