@@ -55,8 +55,9 @@ _ARGV: list[str] = []
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argparse parser whose errors suggest the nearest option of the
-    (sub)command for a misspelled one, with that command's own usage."""
+    """An argparse parser whose errors are one line, like every chatterlab
+    input error: the message, the nearest option of the (sub)command for a
+    misspelled one, and where the command's usage is (``-h``)."""
 
     def error(self, message: str) -> Any:
         import difflib
@@ -68,9 +69,8 @@ class _Parser(argparse.ArgumentParser):
             if opt.startswith("--") and opt not in known:
                 near = difflib.get_close_matches(opt, known, n=1)
                 hints.append(f"{opt}: did you mean {near[0]}?" if near else f"{opt}: no such option")
-        self.print_usage(sys.stderr)
         hint = f" ({'; '.join(hints)})" if hints else ""
-        self.exit(2, f"{self.prog}: error: {message}{hint}\n")
+        self.exit(2, f"{self.prog}: error: {message}{hint}; the options: {self.prog} -h\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
