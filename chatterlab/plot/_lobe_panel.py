@@ -132,14 +132,27 @@ def draw_lobe_panel(
     px = axes_pixels(ax, DISPLAY_DPI)
     density = lobe_density(curves, lo, hi, px)
     dense = dense_ok and density > 1
-    vg = _speed_grid(ax, lo, hi, np.asarray(d.speed, float))
-    vx, env, fq = envelope_line(segs, vg, delay_of, static)
+    measured = bool(getattr(d, "band_measured", False))
+    if measured:
+        # a measured FRF's lobes are curves through noisy samples, and noise
+        # breaks them into pieces the plot cannot join: between the requested
+        # speeds their minimum could miss a lobe and draw a "pocket" that is
+        # not there (a review found 17 mm spikes over a 0.42 mm limit), so the
+        # envelope is the engine's b_lim at the requested speeds, nothing between
+        v = np.asarray(d.speed, float)
+        o = np.argsort(v)
+        keep = (v[o] >= lo) & (v[o] <= hi)
+        vx, env, fq = v[o][keep], np.asarray(d.b_lim, float)[o][keep], np.asarray(d.chatter_hz, float)[o][keep]
+        dense = False
+    else:
+        vg = _speed_grid(ax, lo, hi, np.asarray(d.speed, float))
+        vx, env, fq = envelope_line(segs, vg, delay_of, static)
     em = env * 1e3
     fin = np.isfinite(em)
     top = d.width_max * 1e3
     peak = float(np.max(em[fin])) if np.any(fin) else top
     ytop = top if 1.2 * peak >= top else 1.2 * peak
-    handles = _draw_lobes_and_envelope(ax, curves, lo, hi, vx, em, ytop, px, dense)
+    handles = _draw_lobes_and_envelope(ax, curves, lo, hi, vx, em, ytop, px, dense, measured)
     handles += _draw_limits(ax, d, lo, hi, references)
     handles += _draw_claims(ax, _claim_spans(d, vx, em), lo, hi, top)
     ax.set_ylim(0, ytop)
@@ -167,10 +180,12 @@ def _draw_lobes_and_envelope(
     ytop: float,
     px: float,
     dense: bool,
+    measured: bool = False,
 ) -> list[Any]:
     """The lobes (unless dense), the unstable region above the envelope
     ``em`` (mm at speeds ``vx``), the band the envelope sweeps per pixel
-    column (when dense) and the envelope line.  Returns the legend handles."""
+    column (when dense) and the envelope line (for a measured FRF: b_lim at
+    the requested speeds, marked).  Returns the legend handles."""
     from matplotlib.collections import LineCollection
     from matplotlib.patches import Patch
 
@@ -186,7 +201,11 @@ def _draw_lobes_and_envelope(
         lc.set_gid("lobes")
         ax.add_collection(lc)
         handles.append(lc)
-        lc.set_label("lobes (each an exact boundary curve)")
+        lc.set_label(
+            "lobes through the measured samples"
+            if measured
+            else "lobes (each an exact boundary curve)"
+        )
     ax.fill_between(vx, np.where(fin, em, np.nan), ytop * 2, color="tab:red", alpha=0.15, lw=0, zorder=0)
     handles.append(Patch(color="tab:red", alpha=0.15, label="unstable (chatter)"))
     if dense:
@@ -202,9 +221,13 @@ def _draw_lobes_and_envelope(
         handles.append(
             Patch(color="tab:red", alpha=0.55, label="b_lim sweeps this band within each pixel column")
         )
-    (line,) = ax.plot(
-        vx, em, color="tab:red", lw=0.5 if dense else 1.6, zorder=3, label="b_lim (exact lower envelope)"
-    )
+    if measured:
+        (line,) = ax.plot(vx, em, ".-", color="tab:red", lw=0.8, ms=2.5, zorder=3,
+                          label="b_lim at the requested speeds (measured FRF)")  # fmt: skip
+    else:
+        (line,) = ax.plot(
+            vx, em, color="tab:red", lw=0.5 if dense else 1.6, zorder=3, label="b_lim (exact lower envelope)"
+        )
     line.set_gid("envelope")
     handles.append(line)
     return handles

@@ -67,7 +67,9 @@ def plot_lobes(
     segs = Segments(curves)
     delay_of = speed_maps(d)[1] if d.lobes else (lambda s: np.asarray(s, float))
     created = ax_arg is None
-    panels = _new_lobe_figure(curves, lo, hi) if ax_arg is None else tuple(ax_arg)
+    # a measured FRF's lobes are not exact curves: no zoom on them (see draw_lobe_panel)
+    measured = bool(getattr(d, "band_measured", False))
+    panels = _new_lobe_figure([] if measured else curves, lo, hi) if ax_arg is None else tuple(ax_arg)
     ax, axf = panels[0], panels[-1]
     axz = panels[1] if len(panels) > 2 else None
 
@@ -261,6 +263,8 @@ def _branch_modes(curves: list[Curve]) -> str:
     """Which mode each branch is: its chatter frequency where its width is least."""
     chains = {c.branch: c.chain for c in curves}
     parts = []
+    if len(chains) > 4:
+        return f"{len(chains)} branches (the modes of the structure)"
     for b in sorted(chains):
         ch = chains[b]
         f = float(ch.omega[int(np.argmin(ch.width))]) / (2 * np.pi)
