@@ -54,6 +54,7 @@ def test_shipped_model_raises_no_warning(capsys):
     ("argv", "phrase"),
     [
         ([*FRF, "--width", "200000", "--speed", "0.5"], "typed in um"),
+        ([*FRF, "--width", "200", "--speed", "0.5"], "above 100 mm"),  # as the Python API's UnitWarning
         ([*FRF, "--width", "0.0002", "--speed", "0.5"], "typed in m"),
         # the review's case: 2 mm typed in m gave "stable", exit 0 and no warning
         (["roots", SHAPER, "--width", "0.002", "--speed", "0.5", "--no-winding"], "typed in m"),
@@ -104,3 +105,39 @@ def test_every_documented_field_is_sweepable(capsys, tmp_path):
         "--speed", "3000", "--out", str(out), "--quiet",
     )  # fmt: skip
     assert code == 2 and "Did you mean 'c2'" in err
+
+
+def test_python_api_warns_for_a_width_in_mm_and_the_cli_shows_only_its_own(capsys):
+    """stability(width=2) meant 2 mm: a UnitWarning naming the likely value;
+    the CLI says it in mm in its own one line, with no Python warning text."""
+    import warnings
+
+    import chatterlab as cl
+    from chatterlab.errors import UnitWarning
+
+    fz = cl.assemble(cl.load_model(SHAPER)).at(0.85)
+    with pytest.warns(UnitWarning, match=r"width = 2 m is above 0.1 m and 1000 times.*did you mean 0.002"):
+        cl.feedback(fz, width=2.0, speed=0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitWarning)
+        cl.feedback(fz, width=2e-3, speed=0.5)  # 2 mm in m: no warning
+    code, _, err = run(capsys, "roots", SHAPER, "--width", "200", "--speed", "0.5", "--no-winding", "--count", "1")
+    assert "UnitWarning" not in err and err.count("warning:") == 1 and "above 100 mm" in err
+
+
+TAP = str(Path(__file__).resolve().parents[1] / "studies" / "tap_test" / "tool_point.csv")
+MILL_FRF = ["lobes", "--frf", TAP, "--teeth", "3", "--immersion", "0.5", "--speed", "3000", "30000",
+            "--points", "20"]  # fmt: skip
+
+
+def test_milling_from_a_measured_frf_says_zoa_warns_on_kt_in_n_per_mm2_and_refuses_floquet(capsys):
+    """From a tap-test file the milling lobes are ZOA: the summary says so
+    and what it misses; Kt typed in N/mm^2 is named as typed; --method
+    spectral|sdm, which needs modes, is refused (all found by a review)."""
+    code, out, err = run(capsys, *MILL_FRF, "--kt", "7e8", "--kn", "2.1e8")
+    assert code == 0 and "zeroth-order approximation" in out and "flip lobes are not modelled" in out
+    assert "warning" not in err
+    code, _, err = run(capsys, *MILL_FRF, "--kt", "700", "--kn", "210")
+    assert code == 0 and "milling Kt = 700 N/m^2" in err and "7e+08" in err
+    code, _, err = run(capsys, *MILL_FRF, "--kt", "7e8", "--kn", "2.1e8", "--method", "spectral")
+    assert code == 2 and "fit_modes" in err and len(err.strip().splitlines()) == 1

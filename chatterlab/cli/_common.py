@@ -215,14 +215,18 @@ WIDTH_SLIP_BELOW = 2e-5
 
 
 def width_slips(b: float, option: str) -> list[str]:
-    """A width ``b`` (m) below 0.02 mm or above 1 m: a unit slip."""
+    """A width ``b`` (m) below 0.02 mm, or above 100 mm (a width of cut, as
+    the Python API warns) or 1 m (a ceiling): a unit slip."""
+    from ..errors import WIDTH_WARN_ABOVE
+
     if b < WIDTH_SLIP_BELOW:
         return [
             f"{option} is {m_to_mm(b):g} mm, below {m_to_mm(WIDTH_SLIP_BELOW):g} mm: was the width typed"
             " in m? (the CLI takes mm; --quiet silences this)"
         ]
-    if b > 1.0:
-        return [f"{option} is {m_to_mm(b):g} mm, above 1 m: was the width typed in um?"]
+    hi = WIDTH_WARN_ABOVE if option == "--width" else 1.0
+    if b > hi:
+        return [f"{option} is {m_to_mm(b):g} mm, above {m_to_mm(hi):g} mm: was the width typed in um?"]
     return []
 
 
@@ -231,7 +235,18 @@ def model_slips(model: Any, args: argparse.Namespace) -> list[str]:
     import numpy as np
 
     out = []
+    proc = model.process
+    cut = getattr(proc, "milling", None)
+    if cut is not None:  # the coefficients as the user typed them, not the ZOA matrix made of them
+        for name, k in (("Kt", cut.Kt), ("Kn", cut.Kn)):
+            if k and not 1e7 <= abs(k) <= 1e11:
+                out.append(
+                    f"milling {name} = {k:g} N/m^2 is outside 1e7..1e11 N/m^2: was it given in N/mm^2"
+                    f" (x 1e6: {k * 1e6:g})?"
+                )
     for c in model.couplings:
+        if cut is not None and c.kind == "milling":
+            continue  # said above, in the user's own numbers
         kf = float(np.max(np.abs(np.asarray(c.DO, float)))) / c.width_ref
         if kf and not 1e7 <= kf <= 1e11:
             out.append(
@@ -245,9 +260,8 @@ def model_slips(model: Any, args: argparse.Namespace) -> list[str]:
             out.append(
                 f"the structure spans {span:g} m: outside 1 mm..100 m; were the coordinates given in mm?"
             )
-    proc = model.process
     speed = getattr(args, "speed", None)
-    limits = {"shaping": (1e-3, 10.0), "turning": (1.0, 1e5)}
+    limits = {"shaping": (1e-3, 10.0), "turning": (1.0, 1e5), "milling": (10.0, 2e5)}
     if proc is not None and proc.kind in limits:
         lo, hi = limits[proc.kind]
         given = speed if isinstance(speed, list | tuple) else [speed]

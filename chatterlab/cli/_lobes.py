@@ -96,6 +96,12 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
     wmax = width_max_m(args)
     warn(args, width_slips(wmax, "--width-max"))
     if model.frf is not None:
+        if args.method not in (None, "zoa"):
+            raise InputError(
+                f"--method {args.method} needs the structure's modes: a measured FRF gives milling lobes by"
+                " the zeroth-order approximation only; fit modes to it (chatterlab.structure.fit_modes(...)"
+                ".to_model(), docs/tap-test.md) for Floquet lobes"
+            )
         return _report(args, model, _measured_diagram(args, model, v, wmax), outs)
     if model.process.kind == "milling" and args.method != "zoa":
         return _report(args, model, milling_lobes(args, model, v, wmax), outs)

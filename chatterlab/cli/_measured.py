@@ -81,9 +81,13 @@ def frf_model(args: argparse.Namespace) -> Any:
     text = _model_text(args, frf)
     if args.show_model:
         print(text)
-    return loads_model(
+    from ._common import model_slips, warn
+
+    model = loads_model(
         text, source=f"lobes --frf {args.frf}", base_dir=frf.parent.resolve(), files_outside=False
     )
+    warn(args, model_slips(model, args))
+    return model
 
 
 def _frf_table(args: argparse.Namespace, name: str) -> str:

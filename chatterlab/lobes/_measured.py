@@ -348,7 +348,13 @@ def lobes_model_frf(
         fmin=fmin,
         fmax=fmax,
         n_frequencies=n_frequencies,
-        name=f"{model.source} with the measured FRF {frf.source}",
+        name=f"{model.source} with the measured FRF {frf.source}"
+        + (
+            " (milling by the zeroth-order approximation, Altintas & Budak 1995: flip lobes are not modelled;"
+            " at low immersion the limits can be several times too deep)"
+            if model.process is not None and model.process.kind == "milling"
+            else ""
+        ),
         coordinates=coords,
         DP=DP,
         DV=DV,

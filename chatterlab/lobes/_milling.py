@@ -115,10 +115,15 @@ class MillingLobes:
 
     def summary(self) -> str:
         fin = np.isfinite(self.a_lim)
+        zoa = self.method == "zoa" or not np.isfinite(self.scan_step)
+        searched = (
+            "(zeroth-order approximation: D-subdivision, no depth scan; flip lobes are not modelled)"
+            if zoa
+            else f"(scan step {self.scan_step * 1e3:.3g} mm)"
+        )
         lines = [
             f"milling lobes ({self.method}, {self.resolution}) of {self.name}: {self.rpm.size} speeds "
-            f"{self.rpm.min():g}-{self.rpm.max():g} rpm, depths to {self.depth_max * 1e3:g} mm "
-            f"(scan step {self.scan_step * 1e3:.3g} mm)"
+            f"{self.rpm.min():g}-{self.rpm.max():g} rpm, depths to {self.depth_max * 1e3:g} mm {searched}"
         ]
         if np.any(fin):
             j = int(np.argmin(np.where(fin, self.a_lim, np.inf)))
@@ -130,9 +135,10 @@ class MillingLobes:
                 f"  flip lobes at {int(np.sum(self.kind == 'flip'))} speeds, Hopf at {int(np.sum(self.kind == 'hopf'))}"
             )
         if np.any(~fin):
+            n = int(np.sum(~fin))
             lines.append(
-                f"  no instability found up to {self.depth_max * 1e3:g} mm at {int(np.sum(~fin))} speeds"
-                " (searched on the scan above)"
+                f"  no instability found up to {self.depth_max * 1e3:g} mm at {n} speed{'s' if n != 1 else ''}"
+                + (" (by the approximation above)" if zoa else " (searched on the scan above)")
             )
         lines.append(f"  {self.evaluations} evaluations, {self.elapsed:.2f} s")
         return "\n".join(lines)
