@@ -12,11 +12,14 @@ converge) are *not* exceptions: they are reported as a ``status`` and
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = [
     "ChatterlabError",
     "ModelError",
     "InputError",
     "SweepError",
+    "UnitWarning",
     "check_count",
     "check_delay",
     "check_finite",
@@ -25,6 +28,7 @@ __all__ = [
     "check_positive",
     "check_speed",
     "check_width",
+    "warn_width",
 ]
 
 
@@ -142,9 +146,39 @@ def check_nonneg(value: object, name: str, unit: str = "") -> float:
     return x
 
 
+class UnitWarning(UserWarning):
+    """A value in the Python API that machines do not have, most likely typed
+    in another unit (a width in mm where m is wanted).  The command line says
+    the same in its own warnings, so it silences these."""
+
+
+#: a width of cut (m) above this is a warning in the Python API: 100 mm
+WIDTH_WARN_ABOVE = 0.1
+
+
 def check_width(value: object, name: str = "width", unit: str = "m") -> float:
     """A width of cut (or a largest width): finite and > 0."""
     return check_positive(value, name, unit)
+
+
+def warn_width(width: float, width_refs: Any) -> None:
+    """A :class:`UnitWarning` for a width of cut (m) above 0.1 m and 20 times
+    the model's largest reference width: 2 (mm) passed as 2 m gives a
+    confident verdict on a cut 1000 times too wide.  A model whose widths are
+    gains (``width_ref = 1``) is not warned at 1."""
+    refs = [float(r) for r in width_refs] or [0.0]
+    if width > WIDTH_WARN_ABOVE and width > 20.0 * max(refs):
+        import warnings
+
+        warnings.warn(
+            UnitWarning(
+                f"width = {width:g} m is above {WIDTH_WARN_ABOVE:g} m and {width / max(refs):.0f} times the"
+                f" model's width_ref: widths are in m (did you mean {width * 1e-3:g}?)"
+                if max(refs) > 0
+                else f"width = {width:g} m is above {WIDTH_WARN_ABOVE:g} m: widths are in m"
+            ),
+            stacklevel=3,
+        )
 
 
 def check_speed(value: object, name: str = "speed", unit: str = "") -> float:

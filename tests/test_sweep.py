@@ -828,3 +828,22 @@ def test_import_is_light() -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(("verdict", "code"), [("stable", 1.0), ("unstable", 0.0), ("undetermined", None),
+                                               ("marginal", None)])  # fmt: skip
+def test_stable_quantity_never_counts_undetermined_with_either(verdict, code, monkeypatch, tmp_path):
+    """The 'stable' output is 1 / 0 for a proven verdict and NaN otherwise (an
+    undetermined point was 0, the same as a proven chatter)."""
+    import types
+
+    import chatterlab as cl
+    import chatterlab.frequency._stability as st
+    from chatterlab.quantities._tasks import QuantityTask
+    from tests.conftest import turning_text
+
+    m = tmp_path / "t.toml"
+    m.write_text(turning_text())
+    monkeypatch.setattr(st, "stability", lambda *a, **k: types.SimpleNamespace(verdict=verdict, abscissa=-1.0))
+    out = QuantityTask(cl.load_model(m), "stable")(width=1e-3, speed=3000.0)
+    assert (np.isnan(out["stable"]) if code is None else out["stable"] == code) and out["abscissa"] == -1.0

@@ -211,6 +211,7 @@ def test_deprecated_growth_rate_warns_and_keeps_its_meaning(runs):
         (lambda tr, sim: tr.spectrum("nope"), "not one of the output names"),
         (lambda tr, sim: sim.growth("tip.x", window="first-cut"), "window must be"),
         (lambda tr, sim: tr.growth(0, window="cut"), "window must be 'all' or"),
+
         (lambda tr, sim: tr.growth(0, skip=-1.0), "skip must be a time >= 0"),
         (lambda tr, sim: sim.to_csv("x.csv", names=["tip.y"]), "no history 'tip.y'"),
         (lambda tr, sim: tr.to_csv("x.csv", fields=("u",)), "field must be 'q', 'v' or 'a'"),
@@ -220,6 +221,20 @@ def test_bad_names_and_windows_say_what_exists(runs, call, match):
     _, _, tr, sim = runs
     with pytest.raises(InputError, match=match):
         call(tr, sim)
+
+
+def test_cut_over_several_passes_is_refused_by_name(runs):
+    """Two passes in the cut are two stretches with a gap: a spectrum or a
+    growth rate needs one, so window='cut' is refused naming the window (it
+    was 't must be increasing and uniformly spaced', a t the user never
+    passed); one pass in the cut is accepted."""
+    t, x, _, _ = runs
+    cut = (t < 1.0) | (t > 2.0)
+    _, sim = pair(x, t, in_cut=cut)
+    for call in (sim.spectrum, sim.growth):
+        with pytest.raises(InputError, match="window 'cut' selects 2 separate stretches.*'last-cut'"):
+            call("tip.x", window="cut")
+    assert sim.growth("tip.x", window="last-cut") == sim.growth("tip.x", window=(float(t[t > 2.0][0]), T_END))
 
 
 def test_plot_draws_the_histories(runs):

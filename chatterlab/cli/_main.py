@@ -116,10 +116,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         # parallel work goes through the sweep engine's worker processes
         # threadpoolctl limits the libraries loaded when it is entered: load
         # scipy's own OpenBLAS first (import chatterlab no longer does)
+        import warnings
+
         import scipy.linalg  # noqa: F401
         from threadpoolctl import threadpool_limits
 
-        with threadpool_limits(limits=1):
+        from ..errors import UnitWarning
+
+        with threadpool_limits(limits=1), warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnitWarning)  # the CLI's own warnings say it in its units
             code = COMMANDS[args.command](args)
         flush_warnings()
         return code

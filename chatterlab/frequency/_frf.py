@@ -158,9 +158,10 @@ class FRF:
         o, i = key
         return self.data[self.outputs.index(o), self.inputs.index(i)]
 
-    def peaks(self, output: int = 0, input: int = 0, n: int = 3) -> list[tuple[float, float]]:
-        """The n largest local maxima of |data| as (frequency Hz, magnitude)."""
-        mag = np.abs(self.data[output, input])
+    def peaks(self, output: int | str = 0, input: int | str = 0, n: int = 3) -> list[tuple[float, float]]:
+        """The n largest local maxima of |data| as (frequency Hz, magnitude);
+        ``output`` and ``input`` by index or by name (``"rfe5.x"``), as in :meth:`plot`."""
+        mag = np.abs(self.data[_pick(self.outputs, output, "output"), _pick(self.inputs, input, "input")])
         k = np.nonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:]))[0] + 1
         k = k[np.argsort(-mag[k])][:n]
         out = []
@@ -196,12 +197,14 @@ class FRF:
             **({"meta": self.meta} if self.meta else {}),
         }
 
-    def to_json(self, path: str | None = None) -> str:
-        from ..io._files import json_text
+    def to_json(self, path: Any = None, *, indent: int | None = None) -> str:
+        """Strict JSON of :meth:`to_dict` (non-finite numbers as null),
+        returned, and written to ``path`` (atomically) when one is given."""
+        from ..io._files import json_text, text_out
 
-        s = json_text(self.to_dict(), None)
-        if path:
-            with open(path, "w") as fh:
+        s = json_text(self.to_dict(), indent)
+        if path is not None:
+            with text_out(path) as fh:
                 fh.write(s)
         return s
 
@@ -325,6 +328,11 @@ def frf(
     Co = _rows(frozen, outs, "outputs")
     Bi = _rows(frozen, ins, "inputs").T
     s = 1j * omega
+    if feedback is not None and not hasattr(feedback, "is_zero"):
+        raise InputError(
+            f"feedback must be a Feedback from chatterlab.feedback(frozen, width=..., speed=..., terms=...)"
+            f" (got {type(feedback).__name__} {str(feedback)[:40]!r}); the letters 'pd'/'pdo' go to its terms="
+        )
     fb = feedback if feedback is not None and not feedback.is_zero else None
     if method == "direct":
         data = _direct(frozen, Co, Bi, s, fb)
@@ -458,3 +466,13 @@ def loop_eigenvalues(
     J = fb.J
     G = _pole_residue(frozen.complex_modes, J, J.T, s) if method == "modal" else _direct(frozen, J, J.T, s, None)
     return np.linalg.eigvals(np.transpose(G, (2, 0, 1)) @ fb.Dl(s)) / fb.width
+
+
+def _pick(names: Any, key: int | str, what: str) -> int:
+    """The index of an output or input given by index or by name."""
+    names = list(names)
+    if isinstance(key, str):
+        if key not in names:
+            raise InputError(f"{what} {key!r} is not one of the FRF's {what}s {names}")
+        return names.index(key)
+    return int(key)

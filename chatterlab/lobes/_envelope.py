@@ -238,7 +238,13 @@ class Boundary:
             if frozen is None:
                 raise InputError("give a frozen system or a plant")
             # feedback at b = 1 m: beta is the width in m
-            fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+            import warnings
+
+            from ..errors import UnitWarning
+
+            with warnings.catch_warnings():  # 1 m is a reference, not a user's width
+                warnings.simplefilter("ignore", UnitWarning)
+                fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
             plant = Plant.from_frozen(frozen, fb_ref)
         elif terms == "o":
             plant = plant.with_terms_o()

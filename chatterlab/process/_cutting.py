@@ -26,7 +26,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InputError, check_delay, check_speed, check_width
+from ..errors import InputError, check_delay, check_speed, check_width, warn_width
 from ..model._items import Process
 from ..structure._assembly import FrozenSystem
 
@@ -149,6 +149,7 @@ def feedback(
     if terms not in TERMS:
         raise InputError(f"terms must be one of {', '.join(TERMS)} (got {terms!r})")
     width = check_width(width)
+    warn_width(width, [c.width_ref for c in frozen.model.couplings])
     known = [c.id for c in frozen.model.couplings]
     if not known:
         raise InputError(

@@ -295,7 +295,9 @@ class QuantityTask:
                 winding=False,
             )
             if q == "stable":
-                return {"stable": float(st.verdict == "stable"), "abscissa": st.abscissa}
+                # 1 stable, 0 unstable, NaN undetermined or marginal: as spectral-radius's
+                code = {"stable": 1.0, "unstable": 0.0}.get(st.verdict, float("nan"))
+                return {"stable": code, "abscissa": st.abscissa}
             return {"abscissa": st.abscissa, "frequency": st.chatter_hz}
         from ..lobes._diagram import Boundary
 

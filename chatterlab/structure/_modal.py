@@ -107,11 +107,19 @@ class Modes:
             "rigid_body_modes": list(self.rigid),
         }
 
-    def to_json(self, indent: int | None = 2) -> str:
-        """Strict JSON of :meth:`to_dict` (non-finite numbers as null)."""
-        from ..io._files import json_text
+    def to_json(self, path: Any = None, *, indent: int | None = 2) -> str:
+        """Strict JSON of :meth:`to_dict` (non-finite numbers as null),
+        returned, and written to ``path`` (atomically) when one is given --
+        the signature of ``FRF.to_json``."""
+        from ..io._files import json_text, text_out
 
-        return json_text(self.to_dict(), indent)
+        if isinstance(path, int) and not isinstance(path, bool):
+            raise TypeError("Modes.to_json(path=None, *, indent=2): pass the indent by keyword")
+        s = json_text(self.to_dict(), indent)
+        if path is not None:
+            with text_out(path) as fh:
+                fh.write(s)
+        return s
 
     def table(self) -> str:
         """A readable table: mode, frequency (Hz), period (s), damping ratio."""

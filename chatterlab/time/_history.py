@@ -165,7 +165,8 @@ class TimeHistory:
         """
         from ._signals import amplitude_spectrum
 
-        m = self.window(self.spectrum_window if window is None else window)
+        which = self.spectrum_window if window is None else window
+        m = _one_run(self.window(which), which)
         return amplitude_spectrum(self._time()[m], self.history(name)[m], window=taper, **kwargs)
 
     def growth(
@@ -203,7 +204,7 @@ class TimeHistory:
         if not (isinstance(skip, (int, float)) and math.isfinite(skip) and skip >= 0):
             raise InputError(f"skip must be a time >= 0 in s (got {skip!r})")
         t = self._time()
-        m = self.window(window) & (t >= t[0] + skip)
+        m = _one_run(self.window(window) & (t >= t[0] + skip), window)
         return growth_rate(t[m], self.history(name)[m], **kwargs)
 
     def to_xarray(self) -> Any:
@@ -308,3 +309,16 @@ def _py(a: np.ndarray) -> list[Any]:
     if a.dtype == bool:
         return a.astype(np.int8).tolist()
     return a.tolist()
+
+
+def _one_run(mask: np.ndarray, which: Any) -> np.ndarray:
+    """``mask`` if it selects one contiguous run of samples; a window of
+    several runs with gaps between them (``"cut"`` over several passes) is
+    refused: a spectrum or a growth rate needs uniformly spaced samples."""
+    starts = np.count_nonzero(mask[1:] & ~mask[:-1]) + int(bool(mask.size and mask[0]))
+    if starts > 1:
+        raise InputError(
+            f"window {which!r} selects {starts} separate stretches of time (passes in the cut with gaps"
+            " between them); a spectrum or growth rate needs one: use window='last-cut' or (t0, t1) in s"
+        )
+    return mask

@@ -33,7 +33,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from ..errors import InputError, check_positive, check_width
+from ..errors import InputError, check_positive, check_width, warn_width
 from ..process._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ..structure._assembly import System
 from ._history import TimeHistory
@@ -171,7 +171,7 @@ def simulate(
     passes: int = 2,
     duration: float | None = None,
     step: float | None = None,
-    outputs: list[str] | tuple[str, ...] | None = None,
+    outputs: str | list[str] | tuple[str, ...] | None = None,
     forces: bool = True,
     options: NewmarkOptions | None = None,
     q0: Any = None,
@@ -210,9 +210,12 @@ def simulate(
         natural frequency below 300 Hz, and at most T/20, rounded down so
         that the process events (cut entry and exit, reversal, one cycle)
         fall on the step grid.
-    outputs : list of str, optional
+    outputs : str or list of str, optional
         ``"POINT.DIR"`` time histories to record (default: the first CE's
-        points ``b`` along x and y — the paper's q1, q2 at RFE 5).
+        points ``b`` along x and y — the paper's q1, q2 at RFE 5; when ``b``
+        is the ground, the body or node of its point ``a``).  In the netCDF file a
+        name becomes a valid variable name (``"rfe5.x"`` -> ``rfe5_x``; the
+        name itself is its ``long_name``).
     forces : bool
         Apply the desired cutting forces while in the cut.
     loads : mapping, optional
@@ -273,6 +276,8 @@ def simulate(
     T = float(kin.delay)
     if duration is None:
         duration = passes * T
+    if isinstance(outputs, str):  # one point, as frf(inputs="rfe5.x") takes it
+        outputs = [outputs]
     outs = list(outputs) if outputs is not None else _default_outputs(mdl)
     out_rows = [_output_map(system, name) for name in outs]  # refuse unknown outputs before the run
     step = _time_step(system, kin, feedback, step, position, duration)
@@ -336,6 +341,7 @@ def _check_run(
     if width is None:
         width = mdl.couplings[0].width_ref
     width = check_width(width)
+    warn_width(width, [c.width_ref for c in mdl.couplings])
     if not (isinstance(passes, int | np.integer) and not isinstance(passes, bool) and passes >= 1):
         raise InputError(f"passes must be an integer >= 1 (got {passes!r})")
     if duration is not None:
