@@ -261,3 +261,22 @@ def test_one_implementation_of_the_shared_methods():
         for method in ("spectrum", "growth", "to_xarray", "to_netcdf"):
             assert getattr(cls, method) is getattr(TimeHistory, method), (cls.__name__, method)
     assert "to_csv" not in vars(Simulation) and "growth" not in vars(TimeResponse)
+
+
+def test_growth_claims_a_class_only_when_the_fit_decides_it():
+    """Two modes 1 Hz apart beat: the envelope swings by a factor of 19 each
+    second while its trend is a slow growth of 0.02 1/s (3 % over the fit):
+    neither "growing" nor "steady" can be claimed from it (it was "growing"
+    from the slope's sign alone).  One clean mode decides: its rate is exact
+    and its class follows."""
+    from chatterlab.time import growth_rate
+
+    t = np.arange(0.0, 2.0, 1e-4)
+    beat = np.exp(0.02 * t) * (np.sin(2 * np.pi * 50 * t) + 0.9 * np.sin(2 * np.pi * 51 * t))
+    g = growth_rate(t, beat)
+    assert g.classification == "undetermined" and g.r2 < 0.5, g
+    assert "does not decide" in g.message
+    for sigma, cls in ((0.5, "growing"), (-0.5, "decaying"), (0.0, "steady")):
+        clean = np.exp(sigma * t) * np.sin(2 * np.pi * 50 * t)
+        g = growth_rate(t, clean)
+        assert g.classification == cls and abs(g.rate - sigma) < 1e-3, g

@@ -299,9 +299,12 @@ def growth_rate(
         Envelope estimate, see above.
     tol : float, default 0.05
         Classification tolerance, relative to the fitted time span ``D``:
-        ``"steady"`` when the fitted envelope changes by less than a factor
-        ``1 + tol`` over ``D`` (``|sigma| D < log(1 + tol)``), otherwise
-        ``"growing"`` (``sigma > 0``) or ``"decaying"``.
+        with ``c = sigma D`` and ``se`` the standard error of ``c`` from the
+        least-squares fit, ``"growing"`` when ``c - 2 se > log(1 + tol)``,
+        ``"decaying"`` when ``c + 2 se < -log(1 + tol)``, ``"steady"`` when
+        ``|c| + 2 se <= log(1 + tol)``, and ``"undetermined"`` otherwise: a
+        class is claimed only when the fit's +-2 se interval lies in it (a
+        beating envelope with r2 = 0.1 is not "growing").
 
     Returns
     -------
@@ -386,17 +389,30 @@ def growth_rate(
     span = float(te[-1] - te[0])
     change = rate * span
     thr = math.log1p(tol)
-    if change > thr:
+    # two standard errors of the fitted change over D (least-squares slope),
+    # inflated by (1 + rho) / (1 - rho) for the lag-1 correlation rho of the
+    # residuals (a beating envelope's residuals are one slow wave, not noise):
+    # a class is claimed only when the whole +-2 se interval lies in it
+    dof = env.size - 2
+    ssr = float(np.dot(resid, resid))
+    rho = float(np.dot(resid[1:], resid[:-1])) / ssr if ssr > 0 else 0.0
+    inflate = (1 + rho) / (1 - rho) if 0 < rho < 1 else (math.inf if rho >= 1 else 1.0)
+    se = span * math.sqrt(ssr / dof / float(np.dot(tc, tc)) * inflate) if dof > 0 else math.inf
+    if change - 2 * se > thr:
         cls = "growing"
-    elif change < -thr:
+    elif change + 2 * se < -thr:
         cls = "decaying"
-    else:
+    elif abs(change) + 2 * se <= thr:
         cls = "steady"
+    else:
+        cls = "undetermined"
     msg = (
         f"{method} envelope, {env.size} points over [{te[0]:.6g}, {te[-1]:.6g}] s: "
         f"sigma = {rate:.6g} 1/s, envelope factor exp(sigma D) = {math.exp(change):.4g} "
-        f"over D = {span:.4g} s (steady within {tol:.0%}), r2 = {r2:.4f}"
+        f"(+-2 se: x{math.exp(min(2 * se, 700.0)):.3g}) over D = {span:.4g} s (steady: within +-{tol:.0%}), r2 = {r2:.4f}"
     )
+    if cls == "undetermined":
+        msg += ": the fit does not decide between growing, steady and decaying (a beating or noisy envelope?)"
     if dropped:
         msg += f"; {dropped} points below 1e-10 of the maximum dropped"
     return GrowthEstimate(rate, cls, r2, msg, (float(te[0]), float(te[-1])), int(env.size))
