@@ -148,7 +148,10 @@ class MillingLobes:
         chatterlab CSV: ``speed [rpm]``, ``a_lim [m]`` (``inf``: no
         instability at the scanned depths), ``kind`` (hopf, flip, fold or
         none), ``chatter frequency [Hz]``, ``|mu| [-]`` and ``arg mu [rad]``
-        of the critical multiplier, ``error [m]``; floats as ``repr`` (exact),
+        of the critical multiplier, ``error [m]``, and what was searched:
+        ``searched up to [m]`` and ``scan step [m]`` (an ``inf`` says no
+        instability at those depths, nothing more; the scan step is ``nan``
+        for the zeroth-order approximation); floats as ``repr`` (exact),
         written atomically."""
         import csv
 
@@ -160,11 +163,12 @@ class MillingLobes:
         with text_out(path) as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]",
-                        "arg mu [rad]", "error [m]"])  # fmt: skip
+                        "arg mu [rad]", "error [m]", "searched up to [m]", "scan step [m]"])  # fmt: skip
             for i in range(self.rpm.size):
                 mu = complex(self.multiplier[i])
                 w.writerow([g(self.rpm[i]), g(self.a_lim[i]), self.kind[i] or "none", g(self.frequency_hz[i]),
-                            g(abs(mu)), g(np.angle(mu)), g(self.error[i])])  # fmt: skip
+                            g(abs(mu)), g(np.angle(mu)), g(self.error[i]), g(self.depth_max),
+                            g(self.scan_step)])  # fmt: skip
 
     def to_xarray(self, attrs: dict[str, Any] | None = None) -> Any:
         """The lobes as an :class:`xarray.Dataset` with the spindle speed as

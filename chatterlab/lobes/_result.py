@@ -200,8 +200,10 @@ class LobeDiagram:
 
     def to_csv(self, path: Any) -> None:
         """Envelope: speed, delay (s), b_lim (m), chatter frequency (Hz), lobe
-        number and the claim's status (see :attr:`claim`) -- SI like every
-        chatterlab result file."""
+        number and the claim's status (see :attr:`claim`), and what was
+        searched (the width ceiling, m, and the chatter band, Hz: an ``inf``
+        means no boundary there, nothing more) -- SI like every chatterlab
+        result file."""
         import csv
 
         from ..io._files import text_out
@@ -216,9 +218,13 @@ class LobeDiagram:
                     "chatter frequency [Hz]",
                     "lobe [-]",
                     "status",
+                    "searched below [m]",
+                    "band low [Hz]",
+                    "band high [Hz]",
                 ]
             )
             claim = self.claim
+            lo, hi = self.band_hz
             for k in range(self.speed.size):
                 w.writerow(
                     [
@@ -228,6 +234,9 @@ class LobeDiagram:
                         f"{self.chatter_hz[k]:.9g}",
                         int(self.lobe[k]),
                         self.CLAIMS[int(claim[k])],
+                        f"{self.width_max:.9g}",
+                        f"{lo:.9g}",
+                        f"{hi:.9g}",
                     ]
                 )
 
