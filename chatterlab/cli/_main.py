@@ -114,16 +114,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         # on a 2-core machine with any other load, threaded BLAS oversubscribes
         # (README main job, load 2-3: 8.9 s with default threads, 2.5 s with one);
         # parallel work goes through the sweep engine's worker processes
-        # threadpoolctl limits the libraries loaded when it is entered: load
-        # scipy's own OpenBLAS first (import chatterlab no longer does)
         import warnings
 
-        import scipy.linalg  # noqa: F401
-        from threadpoolctl import threadpool_limits
-
+        from .._threads import one_blas_thread
         from ..errors import UnitWarning
 
-        with threadpool_limits(limits=1), warnings.catch_warnings():
+        with one_blas_thread(blas_only=False), warnings.catch_warnings():
             warnings.simplefilter("ignore", UnitWarning)  # the CLI's own warnings say it in its units
             code = COMMANDS[args.command](args)
         flush_warnings()

@@ -25,7 +25,6 @@ References
 
 from __future__ import annotations
 
-import contextlib
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -262,17 +261,11 @@ def _companion(cho: Any, K: FloatArray, C: FloatArray) -> FloatArray:
 
 
 def single_threaded_blas() -> Any:
-    """Single-threaded BLAS for the many small dense problems, if possible.
+    """Single-threaded BLAS for the many small dense problems
+    (:func:`chatterlab._threads.one_blas_thread`)."""
+    from .._threads import one_blas_thread
 
-    The matrices here are a few hundred wide; multi-threaded OpenBLAS gains
-    nothing on them and loses 10x or more when the cores are shared.  Uses
-    ``threadpoolctl`` when it is installed (optional), else does nothing.
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    return one_blas_thread()
 
 
 def single_threaded(func: Callable[P, R]) -> Callable[P, R]:

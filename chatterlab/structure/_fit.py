@@ -79,7 +79,6 @@ References
 
 from __future__ import annotations
 
-import contextlib
 from typing import Any
 
 import numpy as np
@@ -100,14 +99,10 @@ __all__ = ["ModalFit", "Stabilisation", "FitQuality", "fit_modes", "lscf_poles",
 
 def one_blas_thread() -> Any:
     """Single-threaded BLAS while the fit's many small dense solves run
-    (threaded OpenBLAS is ~10x slower on them when the cores are shared);
-    threadpoolctl when installed, else nothing.  (The frequency layer has
-    the same guard for its solves; the structure layer cannot import it.)"""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    (:func:`chatterlab._threads.one_blas_thread`)."""
+    from .._threads import one_blas_thread as limit
+
+    return limit()
 
 
 def _as_arrays(

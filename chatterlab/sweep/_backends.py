@@ -9,7 +9,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Generator, Iterator, Mapping
-from contextlib import AbstractContextManager, contextmanager, nullcontext
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -98,18 +98,11 @@ def _run_chunk(payload: _Payload, chunk: int, start: int, stop: int) -> _ChunkOu
 
 
 def _blas_limit() -> AbstractContextManager[Any]:
-    """Single-threaded BLAS/OpenMP in this process, when threadpoolctl is installed.
+    """Single-threaded BLAS/OpenMP in this process (a task may reach scipy
+    only later: :func:`chatterlab._threads.one_blas_thread` loads it first)."""
+    from .._threads import one_blas_thread
 
-    threadpoolctl limits the libraries loaded when the limit is entered: scipy
-    (whose wheels carry their own OpenBLAS) is loaded first, since a task may
-    reach it only later (``import chatterlab`` does not load it)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return nullcontext()
-    import scipy.linalg  # noqa: F401
-
-    return threadpool_limits(limits=1)
+    return one_blas_thread(blas_only=False)
 
 
 def _serial_runner(

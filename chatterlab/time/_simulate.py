@@ -465,16 +465,11 @@ def _histories(
 
 def _blas_limits() -> Any:
     """Single-threaded BLAS while integrating: every product is small (n_i
-    of a few tens), so threads gain nothing, and on shared cores a
-    multi-threaded call waits for a time slice (10x slower and erratic).
-    The integrator's own worker threads use the second core."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        import contextlib
+    of a few tens); the integrator's own worker threads use the second core
+    (:func:`chatterlab._threads.one_blas_thread`)."""
+    from .._threads import one_blas_thread
 
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    return one_blas_thread()
 
 
 def _default_outputs(mdl: Any) -> list[str]:
