@@ -24,8 +24,6 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-import numpy as np
-
 from ..errors import InputError, check_count
 
 #: initial displacement of the tool point in x and y of a milling simulation, m
@@ -110,6 +108,8 @@ class _MultiplierTable:
         return f"unstable: {kind}, |mu| = {r.spectral_radius:.6f} (error {r.error:.1e})"
 
     def table(self) -> str:
+        import numpy as np
+
         r = self.r
         lines = [
             f"Floquet multipliers ({r.method}, {r.resolution}) at a_p = {r.depth * 1e3:g} mm, {r.rpm:g} rpm"
@@ -126,6 +126,8 @@ class _MultiplierTable:
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
+        import numpy as np
+
         r = self.r
         return {
             "kind": "milling",
@@ -161,6 +163,8 @@ def milling_verdict(args: argparse.Namespace, model: Any) -> Any:
 
 def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
     """``simulate`` on a milling model: :func:`chatterlab.time.simulate_milling`."""
+    import numpy as np
+
     from ..lobes._milling_model import milling_of
     from ..structure._assembly import assemble
     from ..time._milling import simulate_milling
