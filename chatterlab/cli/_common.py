@@ -308,14 +308,32 @@ def emit(text: str, out: str | None) -> None:
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
 
 
+class CommandOutputs(Outputs):
+    """The output files of one command (:class:`Outputs`) and what is done
+    only once they are all in place (:meth:`then`: e.g. removing the
+    checkpoint they were made from)."""
+
+    def __init__(self, inputs: Sequence[str]) -> None:
+        super().__init__(inputs=inputs)
+        self.after: list[Callable[[], Any]] = []
+
+    def then(self, action: Callable[[], Any]) -> None:
+        """Run ``action()`` after the files are moved into place (never if the
+        command fails or is killed before)."""
+        self.after.append(action)
+
+
 @contextlib.contextmanager
-def outputs(args: argparse.Namespace, *specs: tuple[str | None, str, tuple[str, ...]]) -> Iterator[Outputs]:
+def outputs(
+    args: argparse.Namespace, *specs: tuple[str | None, str, tuple[str, ...]]
+) -> Iterator[CommandOutputs]:
     """Check every output of the command before it computes (suffix,
     directory, writability, not an input, not named twice); the command
     writes to ``outs.path(FILE)``; the files are moved into place together
-    when it returns, and removed if it raises (docs/cli.md, "Output files")."""
+    when it returns, and removed if it raises (docs/cli.md, "Output files");
+    then the actions given to ``outs.then`` run."""
     inputs = [args.model] if getattr(args, "model", None) else []
-    outs = Outputs(inputs=inputs)
+    outs = CommandOutputs(inputs=inputs)
     for path, option, suffixes in specs:
         outs.add(path, option, suffixes)
     try:
@@ -324,6 +342,34 @@ def outputs(args: argparse.Namespace, *specs: tuple[str | None, str, tuple[str, 
         outs.discard()
         raise
     outs.commit(note=lambda msg: print(msg, file=sys.stderr))
+    for action in outs.after:
+        action()
+
+
+# ----------------------------------------------------------------------------- sweep engine runs
+
+
+def engine_opts(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``sweep()`` keywords of the engine's options (``_parallel.sweep_opts``),
+    with the checkpoint always kept by the engine: the command removes its
+    default checkpoint itself, after its outputs are in place
+    (:func:`drop_checkpoint_after`)."""
+    from ._parallel import sweep_opts
+
+    return {**sweep_opts(args), "keep_checkpoint": True}
+
+
+def drop_checkpoint_after(args: argparse.Namespace, outs: CommandOutputs, res: Any) -> None:
+    """Remove the checkpoint of a complete sweep ``res`` once the outputs are
+    moved into place -- only the default ``OUT.ckpt`` (a ``--checkpoint DIR``
+    is the user's; a partial run keeps it for a ``--resume`` that retries).
+    Never before: a run killed between its last chunk and its files leaves
+    the complete checkpoint, from which ``--resume`` writes the files
+    without computing anything."""
+    from ._parallel import sweep_opts
+
+    if res.status == "ok" and res.checkpoint is not None and not sweep_opts(args)["keep_checkpoint"]:
+        outs.then(res.discard_checkpoint)
 
 
 def progress_bar(label: str) -> Callable[[float], None] | None:

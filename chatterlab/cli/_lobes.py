@@ -22,10 +22,21 @@ from typing import Any
 from ..errors import InputError, check_count, check_position, check_speed
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
 from ._claims import ceiling_claim, inf_note, ok_infs
-from ._common import load, m_to_mm, model_args, outputs, warn, width_max_m, width_slips
+from ._common import (
+    CommandOutputs,
+    drop_checkpoint_after,
+    engine_opts,
+    load,
+    m_to_mm,
+    model_args,
+    outputs,
+    warn,
+    width_max_m,
+    width_slips,
+)
 from ._measured import frf_args, frf_model, uses_frf
 from ._milling import milling_lobe_args, milling_lobes
-from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
+from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal
 
 
 def add_parser(sub: Any) -> None:
@@ -86,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         return _run(args, outs)
 
 
-def _run(args: argparse.Namespace, outs: Outputs) -> int:
+def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     from ..structure._assembly import assemble
 
     model = frf_model(args) if uses_frf(args) else load(args)
@@ -204,8 +215,7 @@ def _positions(args: argparse.Namespace, model: Any) -> Any:
     return np.linspace(a, b, n)
 
 
-def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outputs) -> int:
-
+def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: CommandOutputs) -> int:
     from ..quantities._tasks import AtlasTask, model_fingerprint
     from ..sweep._engine import sweep
 
@@ -228,8 +238,9 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Outp
                 model_fingerprint(model), args, ("--width-max", "--terms", "--fmin", "--fmax")
             ),
             attrs={"title": "chatterlab stability atlas", "model_text": model.text, "terms": args.terms},
-            **sweep_opts(args),
+            **engine_opts(args),
         )
+    drop_checkpoint_after(args, outs, res)  # once the files below are in place
     _atlas_summary(model, task, res, pos, v, wmax)
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed: {res.message}", file=sys.stderr)

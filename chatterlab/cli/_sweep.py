@@ -10,16 +10,35 @@ import sys
 from typing import Any
 
 from ..errors import InputError, check_axis_values
-from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
 from ._claims import inf_note, ok_infs, sweep_inf_claims
-from ._common import cut_args, load, mm_to_m, model_args, outputs, width_m, width_max_m
-from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal, sweep_opts
+from ._common import (
+    CommandOutputs,
+    cut_args,
+    drop_checkpoint_after,
+    engine_opts,
+    load,
+    mm_to_m,
+    model_args,
+    outputs,
+    width_m,
+    width_max_m,
+)
+from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal
 
 #: depths scanned by the a-lim quantity before a crossing is refined (chatterlab.lobes.milling_lobes)
 MILLING_SCAN = 40
 
 #: the quantities of the sweep command (chatterlab.quantities.QUANTITIES; the last two for milling models)
-QUANTITY_NAMES = ("rightmost-root", "stable", "b-lim", "min-b-lim", "natural-frequencies", "spectral-radius", "a-lim")
+QUANTITY_NAMES = (
+    "rightmost-root",
+    "stable",
+    "b-lim",
+    "min-b-lim",
+    "natural-frequencies",
+    "spectral-radius",
+    "a-lim",
+)
 
 #: the options a checkpoint belongs to (besides the model and the grid): a
 #: --resume with another value of one of them is refused, naming it
@@ -88,7 +107,7 @@ def _grid(args: argparse.Namespace, model: Any) -> tuple[Any, dict[str, str]]:
     return Grid(axes), aliases
 
 
-def _run(args: argparse.Namespace, outs: Outputs) -> int:
+def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     from ..quantities._tasks import QUANTITIES, QuantityTask, model_fingerprint
     from ..sweep._engine import sweep
 
@@ -114,8 +133,9 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
             fingerprint=fingerprint(model_fingerprint(model), args, _FINGERPRINT_OPTIONS),
             out=outs.path(args.out) if args.out and not args.out.lower().endswith(".csv") else None,
             attrs={"model_text": model.text, "quantity": args.quantity, "parameters": json.dumps(aliases)},
-            **sweep_opts(args),
+            **engine_opts(args),
         )
+    drop_checkpoint_after(args, outs, res)  # once the files below are in place
     _summary(args, grid, res, QUANTITIES[args.quantity], task, model)
     if args.out and args.out.lower().endswith(".csv"):
         res.to_csv(outs.path(args.out))  # (a .nc file was streamed by the sweep)

@@ -48,6 +48,12 @@ def _open_checkpoint(
     )
     where = f"checkpoint directory {str(directory)!r}"
     if existing and not resume:
+        if _is_complete(directory):
+            raise InputError(
+                f"{where} holds every chunk of a finished sweep whose results were not stored (the run"
+                " ended before writing them): pass resume=True (CLI: --resume) to write them without"
+                " computing anything, or delete the directory to start afresh"
+            )
         raise InputError(
             f"{where} is not empty: pass resume=True (CLI: --resume) to continue the sweep "
             "saved there, or delete the directory to start afresh"
@@ -150,6 +156,37 @@ def _lock_checkpoint(directory: Path) -> Any:
         elif p.name.startswith(".") and ".tmp-" in p.name:
             p.unlink(missing_ok=True)
     return fh
+
+
+def _is_complete(directory: Path) -> bool:
+    """True when the checkpoint holds a chunk file for every chunk its manifest
+    declares (a sweep that finished; whether it was stored is the caller's)."""
+    try:
+        m = json.loads((directory / _MANIFEST).read_text(encoding="utf-8"))
+        n_chunks = -(-int(m["n_tasks"]) // int(m["chunk_size"]))
+        have = {int(g[1]) for p in directory.iterdir() if (g := _CHUNK_RE.match(p.name))}
+    except (OSError, ValueError, KeyError, TypeError, ZeroDivisionError):
+        return False
+    return n_chunks > 0 and have >= set(range(n_chunks))
+
+
+def _remove_checkpoint(directory: Path) -> bool:
+    """Remove a sweep's checkpoint directory once its results are stored
+    elsewhere, taking its lock first: a run using it (a ``--resume`` started
+    meanwhile) keeps it.  A directory without a manifest is not a checkpoint
+    and is left alone.  True when removed."""
+    if not (directory / _MANIFEST).is_file():
+        return False
+    try:
+        lock = _lock_checkpoint(directory)
+    except InputError:  # in use by another run, or not writable
+        return False
+    try:
+        shutil.rmtree(directory, ignore_errors=True)
+    finally:
+        if lock is not None:
+            lock.close()
+    return not directory.exists()
 
 
 def _auto_fingerprint(func: Callable[..., Any]) -> str:

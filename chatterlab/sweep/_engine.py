@@ -26,6 +26,10 @@ Design
   (grid, outputs, chunk size, fingerprint of the function); ``resume=True``
   loads the finished chunks and computes only the missing ones, and refuses a
   checkpoint written for another grid, other outputs or another function.
+  The engine never removes a checkpoint before the results are stored: it
+  writes ``out=`` first, and by default keeps the directory for the caller to
+  remove (``SweepResult.discard_checkpoint``) once its own files are in
+  place, so a kill at any moment leaves the finished chunks or the output.
 * **Failures**: an exception in a task is caught in the worker; the task's
   outputs become NaN and the failure (grid point, exception type, message) is
   recorded; the result's ``status`` is then ``"partial"``.  ``on_error="raise"``
@@ -53,6 +57,10 @@ Example
 With ``checkpoint="runs/ck", fingerprint=model_hash`` an interrupted sweep is
 continued by the same call with ``resume=True``; ``out="runs/sweep.nc"``
 streams the result to a netCDF file (``SweepResult.from_netcdf`` reads it).
+The checkpoint is kept after a complete run: remove it with
+``res.discard_checkpoint()`` once the results are stored (the command line
+does so after moving its output files into place), or pass
+``keep_checkpoint=False`` to have the engine remove it after writing ``out=``.
 """
 
 from __future__ import annotations
@@ -224,8 +232,15 @@ def sweep(
     connect_timeout : float, default 10
         Seconds to wait for a dask scheduler (and its first worker).
     keep_checkpoint : bool, default True
-        False: remove the checkpoint directory after a complete run (status
-        ``"ok"``), while this run still holds its lock.
+        True: the checkpoint directory stays, complete, after the run; the
+        result names it (``SweepResult.checkpoint``) and
+        :meth:`SweepResult.discard_checkpoint` removes it once the caller
+        has stored the results where it wants them (a kill before that
+        loses nothing: ``resume=True`` on the complete checkpoint computes
+        no task).  False: remove it after a complete run (status ``"ok"``),
+        while this run still holds its lock -- after ``out=`` is written,
+        so with ``out=`` nothing is ever lost; without ``out=`` the results
+        are then only in memory.
     security : distributed.Security, optional
         TLS settings for a remote dask ``scheduler`` (``"tls://host:8786"``):
         CA, client certificate and key.  A scheduler can run any code as the
@@ -352,7 +367,9 @@ def _sweep_locked(
             + (f", {len(done)} chunks from checkpoint" if done else "")
         )
         runner: Generator[_ChunkOut, None, None]
-        if backend == "serial":
+        if len(done) == n_chunks:  # a finished checkpoint (its output was not written): no workers
+            runner = _serial_runner(payload, iter(()))
+        elif backend == "serial":
             runner = _serial_runner(payload, pending)
         elif backend == "loky":
             runner = _loky_runner(payload, pending, jobs)
@@ -389,11 +406,19 @@ def _sweep_locked(
             n_resumed=n_resumed,
             n_failed=store.n_failed,
         )
-        data, task_status = store.finish(common)
+        data, task_status = store.finish(common)  # out= is written (atomically) before anything is removed
+        kept = ckpt_dir
         if ckpt_dir is not None and status == "ok" and not keep_checkpoint:
             shutil.rmtree(ckpt_dir, ignore_errors=True)  # still under our lock
             store.scratch = None
-        return SweepResult(data=data, task_status=task_status, elapsed=time.perf_counter() - t0, **common)
+            kept = None
+        return SweepResult(
+            data=data,
+            task_status=task_status,
+            elapsed=time.perf_counter() - t0,
+            checkpoint=None if kept is None else str(kept),
+            **common,
+        )
     finally:
         if store.scratch is not None:
             shutil.rmtree(store.scratch, ignore_errors=True)

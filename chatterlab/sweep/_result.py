@@ -95,6 +95,11 @@ class SweepResult:
         attribute (netCDF), ``status`` and ``reason`` columns (CSV).
     reasons : tuple of str
         The distinct failure reasons, in the order of their first grid point.
+    checkpoint : str or None
+        The checkpoint directory this result's chunks are saved in, kept
+        after the run (None: no checkpoint, or ``keep_checkpoint=False``
+        removed it).  :meth:`discard_checkpoint` removes it once the results
+        are stored.
     """
 
     grid: Grid
@@ -111,11 +116,29 @@ class SweepResult:
     elapsed: float = 0.0
     task_status: np.ndarray | None = field(default=None, repr=False)
     reasons: tuple[str, ...] = ()
+    checkpoint: str | None = None
 
     @property
     def ok(self) -> bool:
         """True when every task succeeded."""
         return self.status == "ok"
+
+    def discard_checkpoint(self) -> bool:
+        """Remove the checkpoint directory of this result (:attr:`checkpoint`).
+
+        Call it once the results are stored where they belong (a file moved
+        into place): until then a killed process loses nothing, since
+        ``resume=True`` on the complete checkpoint computes no task and gives
+        the same result.  The checkpoint's lock is taken first, so a run that
+        is using it meanwhile keeps it.  A ``"partial"`` result's checkpoint
+        holds its failures (``retry_failed=True`` recomputes them): keep it
+        if they may be retried.  Returns True when the directory was removed.
+        """
+        if self.checkpoint is None:
+            return False
+        from ._checkpoint import _remove_checkpoint
+
+        return _remove_checkpoint(Path(self.checkpoint))
 
     def __getitem__(self, output: str) -> np.ndarray:
         try:
