@@ -186,10 +186,11 @@ def stability(
         w = rhp_count_system(sys_, omega_max=loop_band(frozen, fb))
         if verdict in ("stable", "unstable") and w.status == "converged":
             agree = (w.count == 0) == (verdict == "stable")
+            how = "every phase increment proven" if w.proven else "phase sampled, not proven"
             if not agree:
                 msg += (
-                    f"; DISAGREEMENT: the argument principle counts {w.count} right-half-plane root(s)"
-                    f" while the rightmost root found has Re = {absc:.4g} 1/s"
+                    f"; DISAGREEMENT: the argument principle ({how}) counts {w.count} right-half-plane"
+                    f" root(s) while the rightmost root found has Re = {absc:.4g} 1/s"
                 )
                 verdict = "undetermined"
             else:

@@ -72,7 +72,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._checks import check_integer, check_omega_max
 from ._delay_system import DelaySystem, make_system, single_threaded_blas
-from ._phase_sampling import MAX_SAMPLES, Sampler, band_end, initial_grid, phase_change, refine
+from ._phase_sampling import (
+    MAX_SAMPLES,
+    Sampler,
+    band_end,
+    certified_phase,
+    initial_grid,
+    phase_change,
+    refine,
+)
 
 __all__ = ["WindingResult", "rhp_count", "rhp_count_system"]
 
@@ -107,6 +115,12 @@ class WindingResult:
     winding : float
         :math:`\\Delta_0^\\infty \\arg f(j\\omega) / \\pi` (an integer when
         converged).
+    proven : bool
+        Every phase increment is proven (passive or Lipschitz bound, see
+        :func:`chatterlab.frequency._phase_sampling.certified_phase`) and so is
+        the tail: the count then does not rest on the sampling.  False in the
+        direct mode (sampled with the wrapped-increment heuristic) and when
+        status is not ``"converged"``.
     """
 
     count: int
@@ -118,6 +132,7 @@ class WindingResult:
     omega_max: float = float("nan")
     delay_free_count: int = 0
     winding: float = float("nan")
+    proven: bool = False
 
     @property
     def stable(self) -> bool:
@@ -252,6 +267,7 @@ def rhp_count_system(
             omega_max=0.0,
             delay_free_count=z_p,
             winding=float(z_open - z_p),
+            proven=not marginal,
         )
     ref = _reference(sys, direct, p0, p, z_open, z_p, scale)
     logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1]) if len(sys.coeffs) == 3 else 0.0
@@ -266,16 +282,28 @@ def rhp_count_system(
     pieces, n0, passive = initial_grid(sys, ref.mode, W, poles, scale, n_points)
     if n0 > MAX_SAMPLES:
         return _failed(z_open, z_p, W, f"{n0} samples needed up to {W:.4g} rad/s; pass a smaller omega_max")
-    w, val, passive_iv, unresolved = refine(F, np.unique(np.concatenate(pieces)), passive)
-    total, tail = phase_change(w, val, passive_iv, passive, sys.tau)
+    cert = certified_phase(F, np.unique(np.concatenate(pieces)), W) if ref.mode == "factored" else None
+    if cert is not None:
+        w, val, unresolved, total, tail, W = cert.w, cert.val, cert.unresolved, cert.total, 0.0, cert.W
+        proven_note = (
+            f"every increment proven ({cert.n_passive} passive, {cert.n_lipschitz} Lipschitz intervals,"
+            f" passive tail beyond {W:.4g} rad/s)"
+        )
+    else:
+        w, val, passive_iv, unresolved = refine(F, np.unique(np.concatenate(pieces)), passive)
+        total, tail = phase_change(w, val, passive_iv, passive, sys.tau)
+        proven_note = "increments sampled (wrapped below pi/4), not proven"
     # F(0) is real: its phase is 0 or pi, and the sum starts there
     winding = total / math.pi
     count_f = ref.z_base - winding
     count = int(round(count_f))
     status, msg = _status(w, val, unresolved, winding, count_f, count, tail)
+    if cert is not None and not cert.complete and status == "converged":
+        status = "not_converged"
+        msg.append(f"sample limit {MAX_SAMPLES} reached before every increment was proven")
     msg.append(
         f"{count} RHP root(s): Z = {ref.z_base} - ({winding:.4g}) with "
-        f"{w.size} samples on [0, {W:.4g}] rad/s ({ref.mode})"
+        f"{w.size} samples on [0, {W:.4g}] rad/s ({ref.mode}); {proven_note}"
     )
     msg.extend(ref.notes)
     finite = np.isfinite(val)
@@ -289,6 +317,7 @@ def rhp_count_system(
         omega_max=W,
         delay_free_count=z_p,
         winding=winding,
+        proven=cert is not None and status == "converged",
     )
 
 
