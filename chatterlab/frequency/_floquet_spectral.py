@@ -325,7 +325,10 @@ class SpectralMonodromy:
 
     def _solve(self, a: float) -> np.ndarray:
         """X = U(a)^-1 V(a)[:, cols]."""
-        Vc = (self.V0 + a * self.V1)[:, self.cols]
+        return self._solve_rhs(a, (self.V0 + a * self.V1)[:, self.cols])
+
+    def _solve_rhs(self, a: float, Vc: np.ndarray) -> np.ndarray:
+        """U(a)^-1 Vc (element by element where U is block bidiagonal)."""
         b = getattr(self, "block", 0)
         if not b:
             return sla.solve(self.U0 + a * self.U1, Vc, check_finite=False)
@@ -339,6 +342,60 @@ class SpectralMonodromy:
                 rhs[:d] -= C @ X[s * b - d : s * b]
             X[sl] = np.linalg.solve(self.U0[sl, sl] + a * self.U1[sl, sl], rhs)
         return X
+
+    def tangent(self, depth: float) -> tuple[np.ndarray, np.ndarray]:
+        """The nonzero Floquet multipliers mu_k at depth a_p and their
+        derivatives d mu_k / d a_p (without helix: U and V affine in a_p).
+
+        With X(a) = U(a)^-1 V(a) the monodromy, dX/da = U^-1 (V1 - U1 X)
+        exactly, and for a simple eigenvalue d mu = y^H (dX/da) x / (y^H x)
+        with x, y its right and left eigenvectors (first-order perturbation
+        theory, e.g. Golub & Van Loan, Matrix Computations, sec. 7.2.2).  At a
+        defective multiplier (two real multipliers meeting) y^H x = 0 and the
+        derivative is infinite: returned as inf, which a caller must read as
+        "moves arbitrarily fast here"."""
+        if self.helix_depth is not None:
+            raise InputError("tangent: with a helix the matrices are not affine in a_p")
+        a = float(depth)
+        cols = self.cols
+        Xf = self._solve(a)
+        X = Xf[cols]
+        mu, vl, vr = sla.eig(X, left=True, right=True, check_finite=False)
+        dX = self._solve_rhs(a, self.V1[:, cols] - self.U1 @ Xf)[cols]
+        num = np.einsum("ik,ij,jk->k", vl.conj(), dX, vr)
+        den = np.einsum("ik,ik->k", vl.conj(), vr)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dmu = np.where(np.abs(den) > 1e3 * np.finfo(float).eps * np.abs(num), num / den, np.inf)
+        order = np.argsort(-np.abs(mu))
+        return mu[order], dmu[order]
+
+    def unit_depths(self, z: float, depth_max: float) -> np.ndarray:
+        """Every depth a_p in (0, depth_max] at which the discretised
+        monodromy has the multiplier z = +1 (fold) or -1 (flip), ascending.
+
+        A multiplier z at depth a is det(V(a) - z U(a)) = 0, with
+        V - z U = P0 + a P1 affine in a (P0 = V0 - z U0, P1 = V1 - z U1).  P1
+        is nonzero only on the r rows where the cut acts, P1 = E P1[rows]; by
+        Sylvester's identity det(P0 + a P1) = det(P0) det(I_r + a M) with
+        M = P1[rows] P0^-1 E, so the depths are -1/nu for the real eigenvalues
+        nu < 0 of the real r x r matrix M: all of them, from one eigenproblem,
+        no sampling (P0 is regular: the free structure, damped, has no
+        multiplier on the unit circle).  An eigenvalue within 1e-6 (relative)
+        of the real axis is taken as real: a double root (a multiplier
+        touching z) is split by rounding into a pair ~sqrt(eps) apart, and
+        counting a touch as a crossing errs on the safe side."""
+        P1 = self.V1 - z * self.U1
+        rows = np.nonzero(np.any(P1 != 0.0, axis=1))[0]
+        if rows.size == 0:
+            return np.zeros(0)
+        P0 = self.V0 - z * self.U0
+        E = np.zeros((P0.shape[0], rows.size))
+        E[rows, np.arange(rows.size)] = 1.0
+        M = P1[rows] @ sla.solve(P0, E, check_finite=False)
+        nu = np.linalg.eigvals(M)
+        real = (np.abs(nu.imag) <= 1e-6 * np.abs(nu)) & (nu.real < 0.0)
+        a = -1.0 / nu.real[real]
+        return np.sort(a[a <= depth_max])
 
     def at(self, depth: float) -> np.ndarray:
         """The nonzero Floquet multipliers at depth a_p, largest modulus first."""

@@ -2,16 +2,28 @@
 
 Three methods return the same :class:`MillingLobes`:
 
-* ``"spectral"`` (the reference) and ``"sdm"`` (first-order
-  semi-discretisation): at each speed the spectral radius of the Floquet
-  multipliers rho(a_p) (:mod:`chatterlab.frequency._floquet`) is scanned on
-  ``scan`` depths up to ``depth_max``; the first scan interval where it
-  reaches 1 is refined by Brent's method to ``rtol``.  The multiplier at the
-  limit gives the type of the lobe: secondary Hopf (complex pair) or flip
-  (mu = -1, period doubling).  What is searched is stated in the result:
-  a band of instability narrower than the scan step lying entirely between
-  two stable scan depths (an "island") can be missed, and ``inf`` means
-  "stable at every scanned depth up to depth_max".
+* ``"spectral"`` (the reference), without helix: a_lim is the first depth
+  in (0, ``depth_max``] at which a Floquet multiplier
+  (:mod:`chatterlab.frequency._floquet`) reaches the unit circle, by a
+  complete search (:func:`chatterlab.lobes._milling_search.certified_crossing`):
+  every depth with a multiplier at -1 (flip) or +1 (fold) exactly, as the
+  real eigenvalues of a matrix built from the affine monodromy pencil (no
+  sampling), and the complex pairs (secondary Hopf) tracked with their
+  exact derivatives d mu / d a_p between ``scan`` depths, bisected wherever
+  a multiplier comes within its own rate of change of the unit circle.  No
+  band of instability can hide between samples unless a complex multiplier
+  moves more than its first-order rate predicts; where the search cannot
+  decide, the speed is ``"undetermined"`` (``basis``) and a_lim is the depth
+  up to which stability was established (a lower bound), never more.
+* ``"spectral"`` with helix and ``"sdm"`` (first-order
+  semi-discretisation): the spectral radius rho(a_p) is scanned on ``scan``
+  depths up to ``depth_max``; the first scan interval where it reaches 1 is
+  refined by Brent's method to ``rtol``.  A band of instability narrower
+  than the scan step lying between two stable scan depths can be missed
+  (``basis`` ``"scan"``).
+
+  The multiplier at the limit gives the type of the lobe: secondary Hopf
+  (complex pair), flip (mu = -1, period doubling) or fold (mu = +1).
 * ``"zoa"`` (Altintas & Budak 1995): the time-averaged directional matrix H0
   handed to the D-subdivision lobe engine (:func:`chatterlab.lobes.lobes`)
   as a turning-like process with delay tau = 60/(N n).  Exact for the
@@ -72,11 +84,12 @@ class MillingLobes:
     rpm : ndarray (n,)
         Spindle speeds, rpm.
     a_lim : ndarray (n,)
-        Limit axial depth of cut, m; ``inf`` where stable at every scanned
-        depth up to ``depth_max``.
+        Limit axial depth of cut, m; ``inf`` where stable up to
+        ``depth_max`` (on the ``basis`` stated); where undetermined, the
+        depth up to which stability was established.
     kind : ndarray of str (n,)
         ``"hopf"`` (secondary Hopf), ``"flip"`` (period doubling), ``"fold"``,
-        or ``""`` where a_lim is inf.
+        ``"undetermined"`` (see ``basis``), or ``""`` where a_lim is inf.
     frequency_hz : ndarray (n,)
         Chatter frequency at the limit, Hz: the dominant harmonic of the
         critical Floquet solution (spectral), the member of the family
@@ -94,8 +107,19 @@ class MillingLobes:
     depth_max : float
         Largest depth searched, m.
     scan_step : float
-        Spacing of the depth scan, m: instability bands narrower than this
-        between two stable scan points can be missed.
+        Spacing of the depth scan, m (with basis ``"scan"``, instability
+        bands narrower than this between two stable scan points can be
+        missed; with ``"complete"`` the scan only seeds the tracking).
+    basis : ndarray of str (n,)
+        What each speed's verdict rests on: ``"complete"`` (every flip/fold
+        depth exact, complex pairs tracked to first order: see the module
+        docstring), ``"undetermined"`` (the search could not decide above
+        ``certified``; a_lim is then ``certified``, kind ``"undetermined"``),
+        ``"scan"`` (first crossing seen on the scan: helix or SDM) or
+        ``"zoa"``.
+    certified : ndarray (n,)
+        Depth, m, up to which the search established stability (nan for
+        ``"scan"`` and ``"zoa"``): the limit itself, or depth_max for inf.
     """
 
     rpm: np.ndarray
@@ -112,15 +136,36 @@ class MillingLobes:
     elapsed: float = 0.0
     evaluations: int = 0
     meta: dict[str, Any] = field(default_factory=dict)
+    basis: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
+    certified: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.rpm).size
+        if np.asarray(self.basis).size != n:
+            object.__setattr__(self, "basis", np.full(n, "zoa" if self.method == "zoa" else "scan"))
+        if np.asarray(self.certified).size != n:
+            object.__setattr__(self, "certified", np.full(n, np.nan))
 
     def summary(self) -> str:
-        fin = np.isfinite(self.a_lim)
+        basis = np.asarray(self.basis).astype(str)
+        und = basis == "undetermined"
+        fin = np.isfinite(self.a_lim) & ~und
         zoa = self.method == "zoa" or not np.isfinite(self.scan_step)
-        searched = (
-            "(zeroth-order approximation: D-subdivision, no depth scan; flip lobes are not modelled)"
-            if zoa
-            else f"(scan step {self.scan_step * 1e3:.3g} mm)"
-        )
+        complete = bool(np.all((basis == "complete") | und))
+        if zoa:
+            searched = (
+                "(zeroth-order approximation: D-subdivision, no depth scan; flip lobes are not modelled)"
+            )
+        elif complete:
+            searched = (
+                f"(scan step {self.scan_step * 1e3:.3g} mm; complete: every flip/fold depth exact,"
+                " complex pairs tracked between the scan depths to first order)"
+            )
+        else:
+            searched = (
+                f"(scan step {self.scan_step * 1e3:.3g} mm; first crossing seen on the scan: a narrower"
+                " band between two stable scan depths can be missed)"
+            )
         lines = [
             f"milling lobes ({self.method}, {self.resolution}) of {self.name}: {self.rpm.size} speeds "
             f"{self.rpm.min():g}-{self.rpm.max():g} rpm, depths to {self.depth_max * 1e3:g} mm {searched}"
@@ -133,12 +178,27 @@ class MillingLobes:
             )
             lines.append(
                 f"  flip lobes at {int(np.sum(self.kind == 'flip'))} speeds, Hopf at {int(np.sum(self.kind == 'hopf'))}"
+                + (f", fold at {int(np.sum(self.kind == 'fold'))}" if np.any(self.kind == "fold") else "")
             )
-        if np.any(~fin):
-            n = int(np.sum(~fin))
+        inf = ~np.isfinite(self.a_lim) & ~und
+        if np.any(inf):
+            n = int(np.sum(inf))
+            how = (
+                "by the approximation above"
+                if zoa
+                else "complete search"
+                if complete
+                else "searched on the scan above"
+            )
             lines.append(
-                f"  no instability found up to {self.depth_max * 1e3:g} mm at {n} speed{'s' if n != 1 else ''}"
-                + (" (by the approximation above)" if zoa else " (searched on the scan above)")
+                f"  no instability found up to {self.depth_max * 1e3:g} mm at {n} speed{'s' if n != 1 else ''} ({how})"
+            )
+        if np.any(und):
+            j = int(np.argmin(np.where(und, self.a_lim, np.inf)))
+            n = int(np.sum(und))
+            lines.append(
+                f"  undetermined at {n} speed{'s' if n != 1 else ''}: stable proven only up to the a_lim shown"
+                f" (a lower bound; {self.a_lim[j] * 1e3:.6g} mm at {self.rpm[j]:g} rpm)"
             )
         lines.append(f"  {self.evaluations} evaluations, {self.elapsed:.2f} s")
         return "\n".join(lines)
@@ -149,10 +209,12 @@ class MillingLobes:
         instability at the scanned depths), ``kind`` (hopf, flip, fold or
         none), ``chatter frequency [Hz]``, ``|mu| [-]`` and ``arg mu [rad]``
         of the critical multiplier, ``error [m]``, and what was searched:
-        ``searched up to [m]`` and ``scan step [m]`` (an ``inf`` says no
-        instability at those depths, nothing more; the scan step is ``nan``
-        for the zeroth-order approximation); floats as ``repr`` (exact),
-        written atomically."""
+        ``searched up to [m]`` and ``scan step [m]`` (the scan step is
+        ``nan`` for the zeroth-order approximation), ``basis`` (what the
+        row's verdict rests on: complete, undetermined, scan or zoa, see
+        :attr:`basis`) and ``certified to [m]`` (depth up to which
+        stability was established; nan for scan and zoa); floats as
+        ``repr`` (exact), written atomically."""
         import csv
 
         from ..io._files import text_out
@@ -163,12 +225,13 @@ class MillingLobes:
         with text_out(path) as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]",
-                        "arg mu [rad]", "error [m]", "searched up to [m]", "scan step [m]"])  # fmt: skip
+                        "arg mu [rad]", "error [m]", "searched up to [m]", "scan step [m]", "basis",
+                        "certified to [m]"])  # fmt: skip
             for i in range(self.rpm.size):
                 mu = complex(self.multiplier[i])
                 w.writerow([g(self.rpm[i]), g(self.a_lim[i]), self.kind[i] or "none", g(self.frequency_hz[i]),
                             g(abs(mu)), g(np.angle(mu)), g(self.error[i]), g(self.depth_max),
-                            g(self.scan_step)])  # fmt: skip
+                            g(self.scan_step), self.basis[i], g(self.certified[i])])  # fmt: skip
 
     def to_xarray(self, attrs: dict[str, Any] | None = None) -> Any:
         """The lobes as an :class:`xarray.Dataset` with the spindle speed as
@@ -182,7 +245,7 @@ class MillingLobes:
         self, attrs: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
         """``(coords, data, attrs)`` of :meth:`to_xarray` and :meth:`to_netcdf`."""
-        code = {"": 0, "hopf": 1, "flip": 2, "fold": 3}
+        code = {"": 0, "hopf": 1, "flip": 2, "fold": 3, "undetermined": 4}
         mu = self.multiplier.astype(complex)
         a = {
             "title": "chatterlab milling stability lobes",
@@ -191,8 +254,7 @@ class MillingLobes:
             "resolution": self.resolution,
             "depth_max_m": self.depth_max,
             "scan_step_m": self.scan_step,
-            "claim": "a_lim = inf: stable at every scanned depth up to depth_max (a band narrower than"
-            " scan_step between two stable scan depths can be missed)",
+            "claim": _claim(self),
         }
         a.update(self.meta if all(isinstance(v, (int, float, str)) for v in self.meta.values()) else {})
         a.update(attrs or {})
@@ -201,7 +263,7 @@ class MillingLobes:
             {
                 "a_lim": (self.a_lim, "m", "limit axial depth of cut"),
                 "kind": (np.array([code.get(str(k), -1) for k in self.kind], float), "1",
-                         "lobe type: 0 none, 1 Hopf, 2 flip, 3 fold"),
+                         "lobe type: 0 none, 1 Hopf, 2 flip, 3 fold, 4 undetermined"),
                 "chatter_frequency": (self.frequency_hz, "Hz", "chatter frequency at the limit"),
                 "multiplier_abs": (np.abs(mu), "1", "|critical Floquet multiplier|"),
                 "multiplier_arg": (np.angle(mu), "rad", "arg of the critical Floquet multiplier"),
@@ -224,6 +286,24 @@ class MillingLobes:
         from ..plot import plot_milling_lobes
 
         return plot_milling_lobes(self, ax=ax, label=label, title=title, **kw)
+
+
+def _claim(ml: MillingLobes) -> str:
+    """What a_lim and inf rest on, for the dataset attributes."""
+    basis = set(np.asarray(ml.basis).astype(str))
+    if basis <= {"complete", "undetermined"}:
+        return (
+            "a_lim: the first depth with a Floquet multiplier on the unit circle; flip/fold depths exact"
+            " (real eigenvalues of the affine monodromy pencil), complex pairs tracked with their derivatives"
+            " between scan depths to first order; inf: no multiplier reaches the unit circle up to depth_max;"
+            " basis 'undetermined': stable proven only up to a_lim (a lower bound)"
+        )
+    if basis == {"zoa"}:
+        return "zeroth-order approximation (averaged coefficients); flip lobes are not modelled"
+    return (
+        "a_lim: the first crossing of rho = 1 seen on the scan; inf: stable at every scanned depth up to"
+        " depth_max (a band narrower than scan_step between two stable scan depths can be missed)"
+    )
 
 
 # ============================================================================ ZOA
@@ -354,12 +434,18 @@ def milling_lobes(
     evals = 0
     target = max(10.0 * rtol, 1e-7)  # relative error of a_lim the spectral check must confirm
     refined = 0
+    basis = np.full(n, "scan", dtype=object)
+    certified = np.full(n, np.nan)
     for i, r in enumerate(rpm):
-        a, err[i], mu, f_hz, cnt, n_ref = floquet_limit(
+        a, err[i], mu, f_hz, cnt, n_ref, basis[i], certified[i] = floquet_limit(
             structure, milling, r, method, depth_max, scan, rtol, degree, elements, steps, check, target
         )
         evals += cnt
         refined += n_ref
+        if basis[i] == "undetermined":
+            a_lim[i] = a
+            kind[i] = "undetermined"
+            continue
         if not np.isfinite(a):
             continue
         freq[i] = f_hz
@@ -381,6 +467,8 @@ def milling_lobes(
         elapsed=time.perf_counter() - t0,
         evaluations=evals,
         meta={"refined": refined, "target_rtol": target} if method == "spectral" else {},
+        basis=basis.astype(str),
+        certified=certified,
     )
 
 

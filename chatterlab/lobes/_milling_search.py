@@ -1,11 +1,19 @@
 """The search for the limit depth a_lim at one spindle speed by Floquet
-multipliers (spectral or SDM): the scan of rho(a_p) for its first crossing of
-1, Brent's refinement, the spectral method's convergence check and its finer
-meshes (see :mod:`chatterlab.lobes._milling`)."""
+multipliers (see :mod:`chatterlab.lobes._milling`).
+
+Spectral elements without helix (U, V affine in a_p): the complete search
+:func:`certified_crossing` -- every flip and fold depth exactly, from two
+real eigenproblems, and the complex pairs tracked with their exact
+derivatives between the scan depths, bisected wherever a multiplier comes
+within its own rate of change of the unit circle -- then the convergence
+check and its finer meshes.  With a helix or by SDM: the scan of rho(a_p)
+for its first crossing of 1 and Brent's refinement (:func:`_first_crossing`),
+which can miss a band narrower than the scan step."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,7 +27,7 @@ from ..frequency import (
 )
 from ..process import Milling
 
-__all__ = ["floquet_limit"]
+__all__ = ["Certified", "certified_crossing", "floquet_limit"]
 
 
 def _first_crossing(
@@ -63,8 +71,186 @@ def _first_crossing(
     return float("inf"), count, float("nan")
 
 
-def _spectral_rho(sm: SpectralMonodromy) -> Callable[[float], float]:
-    return sm.radius
+#: an interval is refined until it is this short (relative to its end) before a crossing is
+#: bracketed or a near-touch is declared undetermined
+MIN_WIDTH = 1e-7
+#: evaluations of the multipliers and their derivatives allowed per speed (beyond the scan)
+MAX_TANGENTS = 400
+
+
+@dataclass(frozen=True)
+class Certified:
+    """What the complete search found at one speed (see :func:`certified_crossing`).
+
+    ``status``: ``"crossing"`` (a_lim = ``depth``, the first depth with a
+    multiplier on the unit circle), ``"stable"`` (no multiplier on the unit
+    circle in (0, depth_max]: ``depth`` is inf) or ``"undetermined"``
+    (stability holds on (0, ``certified``] and is not decided beyond).
+    ``kind``: flip, fold or hopf for a crossing; ``certified`` the depth up
+    to which every interval passed the test; ``flip``/``fold`` the exact
+    depths of multipliers -1 and +1 found in (0, depth_max]."""
+
+    status: str
+    depth: float
+    kind: str
+    certified: float
+    evaluations: int
+    slope: float
+    flip: tuple[float, ...]
+    fold: tuple[float, ...]
+
+
+def _end_safe(mu: np.ndarray, dmu: np.ndarray, h: float, skip: float | None) -> bool:
+    """One end of an interval of length h: see :func:`_interval_safe`."""
+    step = np.abs(dmu) * h
+    step = np.where(np.isnan(step), np.inf, step)
+    ok = np.abs(mu) + step < 1.0
+    if skip is not None:
+        ok |= np.abs(mu - skip) <= 1e-6
+    if np.all(ok):
+        return True
+    real = np.nonzero(mu.imag == 0.0)[0]
+    for i in np.nonzero(~ok)[0]:
+        if mu[i].imag != 0.0 or abs(mu[i]) >= 1.0 or not np.isfinite(step[i]):
+            return False
+        others = real[real != i]
+        if np.any(np.abs(mu[others] - mu[i]) <= step[others] + step[i]):
+            return False
+    return True
+
+
+def _simple_bracket(lo: tuple[np.ndarray, np.ndarray], hi: tuple[np.ndarray, np.ndarray], h: float) -> bool:
+    """rho < 1 at the left end, >= 1 at the right, and one multiplier (a
+    complex pair) crossing once: the others pass :func:`_end_safe` at both
+    ends, and the crossing one's |mu| rises at both ends with slopes s that
+    differ by less than the smaller (d|mu|/da, linear between the ends,
+    keeps its sign: |mu| is monotone on the interval to second order)."""
+    s = []
+    for mu, dmu in (lo, hi):
+        top = np.abs(mu) >= np.abs(mu).max() * (1.0 - 1e-9)
+        if np.sum(top) > 2 or (np.sum(top) == 2 and mu[top][0].imag == 0.0):
+            return False
+        m0 = mu[top][0]
+        s.append(float(np.real(np.conj(m0) * dmu[top][0]) / abs(m0)))
+        if not _end_safe(mu[~top], dmu[~top], h, None):
+            return False
+    return bool(np.isfinite(s).all() and min(s) > 0.0 and abs(s[1] - s[0]) < min(s))
+
+
+def _interval_safe(
+    lo: tuple[np.ndarray, np.ndarray], hi: tuple[np.ndarray, np.ndarray], h: float, skip_hi: float | None
+) -> bool:
+    """No multiplier reaches the unit circle on an interval of length h, to
+    first order, judged from each end with its own derivatives.
+
+    A multiplier moves at most |d mu/da| h to first order over h; it stays
+    inside if |mu| + |d mu/da| h < 1 at both ends.  A real multiplier can
+    leave the unit disc only through +-1 (those depths are known exactly,
+    :meth:`SpectralMonodromy.unit_depths`) or by meeting another real
+    multiplier and leaving the axis as a pair; so it is also safe if it
+    stays further from every other real multiplier than both move,
+    |mu_k - mu_j| > (|d mu_k| + |d mu_j|) h.  ``skip_hi``: the known
+    multiplier (+-1) at a right end that is a flip/fold depth, left out
+    there."""
+    return _end_safe(*lo, h, None) and _end_safe(*hi, h, skip_hi)
+
+
+def certified_crossing(
+    sm: SpectralMonodromy, depth_max: float, scan: int, rtol: float, max_tangents: int = MAX_TANGENTS
+) -> Certified:
+    """The first depth in (0, depth_max] at which a multiplier of ``sm``
+    (spectral elements, no helix: affine in a_p) reaches the unit circle.
+
+    1. Flip and fold: every depth with a multiplier at -1 or +1 in
+       (0, depth_max], exactly, from two real eigenproblems
+       (:meth:`SpectralMonodromy.unit_depths`); no sampling.
+    2. Complex pairs (secondary Hopf): the multipliers and their exact
+       derivatives (:meth:`SpectralMonodromy.tangent`) on the scan depths
+       below the first flip/fold depth; every interval is bisected until
+       :func:`_interval_safe` passes (no multiplier comes within its own
+       rate of change of the unit circle, nor a real one within its rate
+       of change of another real one), or until it is ``MIN_WIDTH`` short:
+       then a radius >= 1 at its right end brackets the crossing (refined by
+       Brent's method to ``rtol``), and otherwise the multiplier touches the
+       circle within the resolution: undetermined.
+
+    The limit is the first depth either finds; stability below it rests on
+    step 1 (exact) and the first-order test of step 2 on every interval."""
+    from scipy.optimize import brentq  # here: import chatterlab stays light
+
+    flips = sm.unit_depths(-1.0, depth_max)
+    folds = sm.unit_depths(1.0, depth_max)
+    reals = [(float(a), "flip", -1.0) for a in flips] + [(float(a), "fold", 1.0) for a in folds]
+    a_real, kind_real, z_real = min(reals) if reals else (np.inf, "", 0.0)
+    end = min(a_real, depth_max)
+    cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    count = [0]
+
+    def data(a: float) -> tuple[np.ndarray, np.ndarray]:
+        if a not in cache:
+            count[0] += 1
+            cache[a] = sm.tangent(a)
+        return cache[a]
+
+    def radius(a: float) -> float:
+        return float(np.max(np.abs(data(a)[0])))
+
+    certified = [0.0]
+
+    class _Stop(Exception):
+        pass
+
+    def refine(lo: float, hi: float) -> tuple[str, float] | None:
+        if count[0] > max_tangents + scan:
+            raise _Stop
+        skip = z_real if hi == a_real else None
+        if radius(hi) < 1.0 or skip is not None:
+            if _interval_safe(data(lo), data(hi), hi - lo, skip):
+                certified[0] = hi
+                return None
+        if skip is None and radius(hi) >= 1.0 and _simple_bracket(data(lo), data(hi), hi - lo):
+            return "hopf", hi
+        if hi - lo <= MIN_WIDTH * hi:
+            if skip is not None:  # the flip/fold depth itself, certified to within MIN_WIDTH
+                return "real", hi
+            if radius(hi) >= 1.0:
+                return "hopf", hi
+            return "undetermined", lo
+        mid = 0.5 * (lo + hi)
+        return refine(lo, mid) or refine(mid, hi)
+
+    grid = [0.0] + [float(g) for g in depth_max * np.arange(1, scan + 1) / scan if g < end] + [float(end)]
+    found: tuple[str, float] | None = None
+    try:
+        for lo, hi in zip(grid[:-1], grid[1:], strict=True):
+            found = refine(lo, hi)
+            if found:
+                break
+    except _Stop:
+        found = ("undetermined", certified[0])
+    fl, fo = tuple(float(a) for a in flips), tuple(float(a) for a in folds)
+    if found is None:
+        if np.isfinite(a_real):
+            mu, dmu = data(a_real)
+            i = int(np.argmin(np.abs(mu - z_real)))
+            slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
+            return Certified("crossing", a_real, kind_real, a_real, count[0], slope, fl, fo)
+        return Certified("stable", np.inf, "", depth_max, count[0], np.nan, fl, fo)
+    status, a = found
+    if status == "real":
+        mu, dmu = data(a_real)
+        i = int(np.argmin(np.abs(mu - z_real)))
+        slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
+        return Certified("crossing", a_real, kind_real, certified[0], count[0], slope, fl, fo)
+    if status == "undetermined":
+        return Certified("undetermined", a, "undetermined", certified[0], count[0], np.nan, fl, fo)
+    # a bracket [a (1 - MIN_WIDTH), a] with rho < 1 at the left end, >= 1 at the right: Brent
+    lo = max(k for k in cache if k < a)
+    root = brentq(lambda x: sm.radius(x) - 1.0, lo, a, xtol=rtol * lo, rtol=4 * np.finfo(float).eps)
+    mu, dmu = data(float(root))
+    i = int(np.argmax(np.abs(mu)))
+    slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
+    return Certified("crossing", float(root), "hopf", lo, count[0], slope, fl, fo)
 
 
 def _helix_rho(
@@ -104,12 +290,21 @@ def floquet_limit(
     steps: int,
     check: bool,
     target: float,
-) -> tuple[float, float, complex, float, int, int]:
+) -> tuple[float, float, complex, float, int, int, str, float]:
     """a_lim at speed ``r`` (rpm), its error estimate, the critical multiplier
-    and chatter frequency there, the evaluations of rho and the mesh
-    refinements: (a, error, mu, frequency_hz, evaluations, refined).  a is
-    inf (mu and the frequency nan) when rho < 1 at every scanned depth."""
+    and chatter frequency there, the evaluations and the mesh refinements,
+    the basis of the claim and the depth to which stability is established:
+    (a, error, mu, frequency_hz, evaluations, refined, basis, certified).
+
+    ``basis`` is ``"complete"`` (spectral without helix:
+    :func:`certified_crossing`), ``"undetermined"`` (that search could not
+    decide beyond ``certified``; a is then ``certified``, a lower bound) or
+    ``"scan"`` (helix or SDM: the first crossing seen on the scan, a band
+    narrower than the scan step between stable scan depths can be missed).
+    a is inf (mu and the frequency nan) when no crossing is found."""
     helix = milling.helix > 0
+    if method == "spectral" and not helix:
+        return _complete_limit(structure, milling, r, depth_max, scan, rtol, degree, elements, check, target)
     T = milling.period(float(r))
     rho: Callable[[float], float]
     mu_at: Callable[[float], complex]
@@ -118,13 +313,7 @@ def floquet_limit(
     err = np.nan
     for attempt in range(4):
         if method == "spectral":
-            # the mesh resolves the structure's own frequencies (span); where the limit lies
-            # deeper than the cut's stiffening allows, the check below asks for a finer one
-            if helix:  # the coefficients depend on a_p: a discretisation per depth
-                rho = _helix_rho(structure, milling, float(r), degree, elements, span)
-            else:
-                sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
-                rho = _spectral_rho(sm)
+            rho = _helix_rho(structure, milling, float(r), degree, elements, span)
         else:
             mu_at = _sdm_top(structure, milling, float(r), steps)
             rho = _abs_of(mu_at)
@@ -132,18 +321,11 @@ def floquet_limit(
         evals += cnt
         if method != "spectral" or not check or not np.isfinite(a):
             break
-        if helix:
-            sm = SpectralMonodromy(
-                structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
-            )
+        sm = SpectralMonodromy(
+            structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
+        )
         sm2 = SpectralMonodromy(
-            structure,
-            milling,
-            float(r),
-            degree + CHECK_DEGREE,
-            mesh=sm.mesh,
-            depth=a if helix else None,
-            depth_hint=0.0,
+            structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh, depth=a, depth_hint=0.0
         )
         if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
             da = max(1e-6 * a, 10 * rtol * a)
@@ -156,9 +338,9 @@ def floquet_limit(
         span /= 2.0
         refined += 1
     if not np.isfinite(a):
-        return a, err, complex(np.nan, 0.0), np.nan, evals, refined
+        return a, err, complex(np.nan, 0.0), np.nan, evals, refined, "scan", np.nan
     if method == "spectral":
-        if helix and not check:
+        if not check:
             sm = SpectralMonodromy(
                 structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
             )
@@ -166,4 +348,43 @@ def floquet_limit(
     else:
         mu = mu_at(a)
         freq = chatter_frequency(mu, T, structure)
-    return a, err, mu, freq, evals, refined
+    return a, err, mu, freq, evals, refined, "scan", np.nan
+
+
+def _complete_limit(
+    structure: ToolStructure,
+    milling: Milling,
+    r: float,
+    depth_max: float,
+    scan: int,
+    rtol: float,
+    degree: int,
+    elements: int | None,
+    check: bool,
+    target: float,
+) -> tuple[float, float, complex, float, int, int, str, float]:
+    """:func:`floquet_limit` for the spectral method without helix: the
+    complete search (:func:`certified_crossing`) and the convergence check
+    of its limit, on a finer mesh where the check asks for one."""
+    span = ELEMENT_SPAN
+    evals = refined = 0
+    err = np.nan
+    for attempt in range(4):
+        sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
+        c = certified_crossing(sm, depth_max, scan, rtol)
+        evals += c.evaluations
+        if not check or c.status != "crossing":
+            break
+        sm2 = SpectralMonodromy(structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
+        err = abs(sm2.radius(c.depth) - 1.0) / abs(c.slope) if c.slope else np.inf
+        evals += 1
+        if err <= target * c.depth or elements is not None or attempt == 3:
+            break
+        span /= 2.0
+        refined += 1
+    if c.status == "stable":
+        return np.inf, err, complex(np.nan, 0.0), np.nan, evals, refined, "complete", depth_max
+    if c.status == "undetermined":
+        return c.depth, np.nan, complex(np.nan, 0.0), np.nan, evals, refined, "undetermined", c.certified
+    mu, freq = sm.critical(c.depth)
+    return c.depth, err, mu, freq, evals, refined, "complete", c.certified
