@@ -31,6 +31,7 @@ PKG = Path(__file__).resolve().parents[1] / "chatterlab"
 LAYERS = {
     "_version": 0,
     "_threads": 0,
+    "_examples": 1,  # the bundled examples (imports errors only)
     "errors": 0,
     "io": 1,
     "plot": 1,

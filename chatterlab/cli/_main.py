@@ -2,8 +2,10 @@
 one module per command, and the exit statuses.
 
 Each command lives in its own module (``_check``, ``_modes``, ``_frf``,
-``_roots``, ``_lobes``, ``_simulate``, ``_sweep``) with ``add_parser(sub)``
-and ``run(args) -> int``; what they share (model and cut options, the mm/Hz
+``_roots``, ``_lobes``, ``_simulate``, ``_sweep``, ``_example``) with
+``add_parser(sub)`` and ``run(args) -> int``, imported only when its command
+is chosen (the command line is parsed first: ``--help`` and every ``-h`` load
+no numpy); what they share (model and cut options, the mm/Hz
 and speed units of this edge, warnings, output files) is ``_common``, the
 sweep engine's options ``_parallel``, the meaning of an ``inf`` b_lim in a
 sweep's summary ``_claims``.
@@ -14,41 +16,80 @@ in the process's unit (shaping: m/s, turning: rpm), delay and positions in SI
 exits with status 2; no traceback.  Exit statuses: 0 done, 1 computed but
 not everything succeeded or was verified, 2 refused input (or a file system
 refusal, or out of memory), 3 an internal error, 130 interrupted.
+
+``example:NAME`` in place of a model or FRF file is a bundled example
+(chatterlab/_examples.py), resolved here before the command opens anything.
+
+A closed standard output or error (``chatterlab lobes ... | head -1``) costs
+nothing: what is printed after the reader left is dropped, the command
+finishes, commits its output files and checkpoint as an uninterrupted run
+would, and exits with the status that run would have had (not 141, the
+shell's SIGPIPE convention for a writer that stops: this one does not stop,
+its files are its real output).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-# absolute imports of the sibling modules: ``from . import _check`` would also
-# import this package's __init__, which imports this module (a cycle to the
-# import contract of tests/test_architecture.py)
-import chatterlab.cli._check as _check
-import chatterlab.cli._frf as _frf
-import chatterlab.cli._lobes as _lobes
-import chatterlab.cli._modes as _modes
-import chatterlab.cli._roots as _roots
-import chatterlab.cli._simulate as _simulate
-import chatterlab.cli._sweep as _sweep
-
+# nothing heavy at the top: the parser is built and the command line parsed
+# first (``chatterlab --help`` and every ``-h`` load no numpy), then only the
+# chosen command's module is imported (tests/test_cli_help_fast.py)
 from ..errors import ChatterlabError
-from ._common import WARNINGS, check_numbers, flush_warnings
 
 __all__ = ["main", "build_parser"]
 
-#: the commands in the order ``chatterlab --help`` lists them
-_MODULES = (_check, _modes, _frf, _roots, _lobes, _simulate, _sweep)
+#: command -> (its module, the line ``chatterlab --help`` shows for it), in
+#: the order ``chatterlab --help`` lists them; each module has
+#: ``add_parser(sub)`` and ``run(args) -> int``, and is imported only when its
+#: command is chosen (the line equals the module's own ``help=``: tested)
+_COMMAND_TABLE: dict[str, tuple[str, str]] = {
+    "check": ("chatterlab.cli._check", "validate a model file and summarise it"),
+    "modes": ("chatterlab.cli._modes", "natural frequencies and mode shapes at a frozen configuration"),
+    "frf": ("chatterlab.cli._frf", "open- or closed-loop frequency response between named points"),
+    "roots": ("chatterlab.cli._roots", "rightmost characteristic roots and the stability verdict at (b, T)"),
+    "lobes": (
+        "chatterlab.cli._lobes",
+        "stability lobe diagram (b_lim against speed), or an atlas along the stroke",
+    ),
+    "simulate": (
+        "chatterlab.cli._simulate",
+        "Newmark transient of the moving, delayed closed loop (Eq. 2.28)",
+    ),
+    "sweep": (
+        "chatterlab.cli._sweep",
+        "a chatter quantity over a grid of widths, speeds, positions or model parameters",
+    ),
+    "example": (
+        "chatterlab.cli._example",
+        "copy a bundled example (model, FRF) into this folder; alone: list them",
+    ),
+}
+
+
+def _module(command: str) -> Any:
+    # absolute imports of the sibling modules: ``from . import _check`` would also
+    # import this package's __init__, which imports this module (a cycle to the
+    # import contract of tests/test_architecture.py)
+    import importlib
+
+    return importlib.import_module(_COMMAND_TABLE[command][0])
+
+
+def _runner(command: str) -> Callable[[argparse.Namespace], int]:
+    def run(args: argparse.Namespace) -> int:
+        return int(_module(command).run(args))
+
+    run.__name__ = f"run_{command}"
+    return run
+
 
 #: command name -> run(args) -> exit status (the dispatch table)
-COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
-    name: mod.run
-    for name, mod in zip(
-        ("check", "modes", "frf", "roots", "lobes", "simulate", "sweep"), _MODULES, strict=True
-    )
-}
+COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {name: _runner(name) for name in _COMMAND_TABLE}
 
 #: the command line being parsed (for "did you mean" in parser errors)
 _ARGV: list[str] = []
@@ -73,19 +114,39 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}{hint}; the options: {self.prog} -h\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of the ``chatterlab`` command and its subcommands."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of the ``chatterlab`` command and its subcommands; with
+    ``command``, only that subcommand's options are built (and only its
+    module imported), the others are listed by name and help line."""
     from .._version import __version__
 
     p = _Parser(
         prog="chatterlab",
         description="Machining chatter from structural models (RDFEM): modes, FRFs, roots, transients, lobes.",
+        epilog="Worked examples (the traverse shaper, milling benchmarks, tap-test FRFs) come with the package:"
+        " 'chatterlab example' lists them, and 'example:NAME' stands for one wherever a model or FRF file"
+        " is asked for (chatterlab lobes example:traverse_shaper ...). The model format: docs/model-format.md"
+        " in the source tree.",
     )
     p.add_argument("--version", action="version", version=f"chatterlab {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in _MODULES:
-        mod.add_parser(sub)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name, (_, line) in _COMMAND_TABLE.items():
+        if command is None or name == command:
+            _module(name).add_parser(sub)
+        else:
+            sub.add_parser(name, help=line, add_help=False)
     return p
+
+
+def _chosen(argv: Sequence[str]) -> str | None:
+    """The command named on the command line (its first word that is not an
+    option), if it is one; else None (``--help``, ``--version``, a misspelling)."""
+    for tok in argv:
+        if tok == "--":
+            return None
+        if not tok.startswith("-"):
+            return tok if tok in _COMMAND_TABLE else None
+    return None
 
 
 def _subparser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
@@ -95,11 +156,68 @@ def _subparser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentP
     return parser
 
 
+class _PipeGuard:
+    """Standard output or error that outlives its reader: when the pipe is
+    closed (``chatterlab lobes ... | head -1``), what is printed after goes to
+    the null device instead of raising ``BrokenPipeError`` in the middle of the
+    command, so the command finishes and its output files and checkpoint are
+    committed as in an uninterrupted run (docs/cli.md, "Exit statuses")."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self.closed_pipe = False
+
+    def _closed(self) -> None:
+        self.closed_pipe = True
+        # the descriptor now points to the null device: what is still in the
+        # stream's buffer, and the interpreter's last flush at exit, go there
+        try:
+            fd = self._stream.fileno()
+            null = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(null, fd)
+            finally:
+                os.close(null)
+        except (OSError, ValueError, AttributeError):  # no descriptor (a test's capture): nothing to redirect
+            pass
+
+    def write(self, text: str) -> int:
+        if not self.closed_pipe:
+            try:
+                return int(self._stream.write(text))
+            except BrokenPipeError:
+                self._closed()
+        return len(text)
+
+    def writelines(self, lines: Any) -> None:
+        for line in lines:
+            self.write(line)
+
+    def flush(self) -> None:
+        if self.closed_pipe:
+            return
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._closed()
+            self.flush_to_null()
+
+    def flush_to_null(self) -> None:
+        """The stream's pending bytes, now to the null device (no error)."""
+        try:
+            self._stream.flush()
+        except (BrokenPipeError, OSError, ValueError):
+            pass
+
+    def __getattr__(self, name: str) -> Any:  # isatty, fileno, encoding, buffer, ...
+        return getattr(self._stream, name)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``chatterlab`` command; returns the exit status."""
-    parser = build_parser()
     _ARGV[:] = list(sys.argv[1:] if argv is None else argv)
-    args, extra = parser.parse_known_args(argv)
+    parser = build_parser(_chosen(_ARGV))
+    args, extra = parser.parse_known_args(_ARGV)
     if extra:
         # an unknown option: the subcommand's usage and a suggestion, not the top level's
         sub = _subparser(parser, args.command) if args.command else parser
@@ -107,8 +225,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.command:
         parser.print_help()
         return 2
+    out, err = sys.stdout, sys.stderr
+    guards = _PipeGuard(out), _PipeGuard(err)
+    sys.stdout, sys.stderr = guards
+    try:
+        return _run(args)
+    finally:
+        for g in guards:
+            g.flush()
+        sys.stdout, sys.stderr = out, err
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ._common import WARNINGS, check_numbers, flush_warnings
+
     WARNINGS.clear()
     try:
+        from .._examples import resolve_args
+
+        resolve_args(args)  # example:NAME -> the bundled file, before any command opens it
         check_numbers(args)
         # one BLAS thread: chatterlab's work is many small dense problems, and
         # on a 2-core machine with any other load, threaded BLAS oversubscribes
@@ -133,8 +268,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         detail = str(exc).strip()
         print(f"chatterlab: interrupted{': ' + detail if detail else ''}", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # pragma: no cover - e.g. piping into head
-        return 0
+    except BrokenPipeError:  # pragma: no cover - a write past the guards (a descriptor written directly)
+        # standard output and error are guarded (_PipeGuard): a closed pipe costs no file; this is a
+        # write that went around them, and the command did not finish
+        print("chatterlab: error: the output pipe closed before the command finished", file=sys.stderr)
+        return 1
     except MemoryError:
         print(
             "chatterlab: error: out of memory; make the problem smaller (fewer points, positions or modes)",
@@ -146,8 +284,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"chatterlab: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: one line and status 3, the traceback on request
-        import os
-
         if os.environ.get("CHATTERLAB_DEBUG"):
             raise
         msg = str(exc).splitlines()[0][:300] if str(exc) else ""
