@@ -233,3 +233,57 @@ def test_an_absurdly_long_delay_is_an_input_error(capsys, turning, argv):
     by the delay check before any array is sized by it."""
     code = main(argv.format(m=turning).split())
     assert_clean_error(code, capsys.readouterr().err, "at most 1e+06 s")
+
+
+# --- issue 25: a stiffness or modulus of 1e300 or 1e-300 is named, not reported as rigid-body modes
+
+
+def _shaper_with(tmp_path: Path, old: str, new: str) -> str:
+    """A copy of the shipped shaper with the first line ``old`` replaced by ``new``."""
+    text = Path(SHAPER).read_text()
+    assert old in text
+    p = tmp_path / "shaper.toml"
+    p.write_text(text.replace(old, new, 1))
+    return str(p)
+
+
+@pytest.mark.parametrize("value", ["1e300", "1e-300"])
+@pytest.mark.parametrize(
+    "old, field, item, unit",
+    [
+        ("c1 = 7.0e9\n", "c1", '[[spring]] "leg3-foundation"', "N/m"),
+        ("c6 = 7.0e8\n", "c6", '[[spring]] "leg3-foundation"', "N m/rad"),
+        ("E = 2.1e11\n", "E", '[[beam]] "shear-1"', "Pa"),
+    ],
+)
+@pytest.mark.parametrize("command", ["modes {m}", "lobes {m} --speed 0.4 0.6 --points 3"])
+def test_an_absurd_stiffness_or_modulus_names_its_field(
+    capsys, tmp_path, value, old, field, item, unit, command
+):
+    m = _shaper_with(tmp_path, old, f"{old.split('=')[0]}= {value}\n")
+    code = main(command.format(m=m).split())
+    err = capsys.readouterr().err
+    shown = f"{float(value):g}"
+    assert_clean_error(
+        code, err, "shaper.toml", item, f"{field}: {shown} {unit}", "plausible range", "correct the value"
+    )
+    assert "rigid-body" not in err and "foundation:" not in err
+
+
+def test_an_absurd_value_given_by_set_is_named_too(capsys):
+    code = main(["modes", SHAPER, "--set", "spring.leg4-foundation.c2=1e-300"])
+    err = capsys.readouterr().err
+    assert_clean_error(
+        code, err, '[[spring]] "leg4-foundation": c2: 1e-300 N/m is outside the plausible range'
+    )
+
+
+def test_the_plausible_ranges_keep_the_real_and_the_idealised_values():
+    """Zero where a field allows it, real machines and the idealisations the tests use
+    (a shear modulus G = 1e8 E suppresses shear) stay within the ranges."""
+    from chatterlab.model._fields import PLAUSIBLE, plausible
+
+    for v, unit in [(0.0, "N/m"), (7e9, "N/m"), (50.0, "N m/rad"), (2.1e19, "Pa"), (700.0, "N/m^2"), (2e9, "N/m^2"), (0.04, "kg"), (1e-3, "kg m^2"), (4.17e-10, "m^4"), (4.0, "N m s/rad"), (1.0, "m")]:  # fmt: skip
+        assert plausible(v, unit) is None, (v, unit)
+    for unit, (lo, hi, _) in PLAUSIBLE.items():
+        assert plausible(lo / 10, unit) and plausible(hi * 10, unit) and plausible(-hi * 10, unit)

@@ -12,6 +12,39 @@ from typing import Any
 from ..errors import ModelError
 from ._items import GROUND
 
+#: the magnitudes a physical field of a model file may have, by unit: a
+#: nonzero value outside is refused, naming the field, before it reaches the
+#: matrices (1e300 overflows the eigen-solver; 1e-300 is a part held by
+#: nothing, reported as rigid-body modes).  The ranges reach about six
+#: decades beyond any machine on both sides (a shear modulus G = 1e8 E
+#: suppresses shear deformation); zero keeps its own meaning where allowed.
+PLAUSIBLE: dict[str, tuple[float, float, str]] = {
+    "N/m": (1e-3, 1e16, "a stiffness"),
+    "N m/rad": (1e-3, 1e16, "a rotational stiffness"),
+    "N s/m": (1e-9, 1e16, "a damping"),
+    "N m s/rad": (1e-9, 1e16, "a rotational damping"),
+    "Pa": (1e2, 1e24, "a modulus"),
+    "N/m^2": (1e-3, 1e18, "a cutting stiffness"),
+    "N s/m^2": (1e-9, 1e20, "a damping coefficient"),
+    "kg": (1e-9, 1e9, "a mass"),
+    "kg m^2": (1e-18, 1e9, "a rotary inertia"),
+    "kg/m^3": (1e-9, 1e6, "a density"),
+    "m^2": (1e-16, 1e4, "a cross-section area"),
+    "m^4": (1e-30, 1e8, "a second moment of area"),
+}
+
+
+def plausible(v: float, unit: str) -> str | None:
+    """Why the value ``v`` of a field in ``unit`` is implausible (None: it is not)."""
+    rng = PLAUSIBLE.get(unit)
+    if rng is None or v == 0 or rng[0] <= abs(v) <= rng[1]:
+        return None
+    lo, hi, what = rng
+    return (
+        f"{v:g} {unit} is outside the plausible range of {what}, {lo:g}..{hi:g} {unit}:"
+        f" correct the value (a model file is in SI units: {unit})"
+    )
+
 
 class _Item:
     """Typed access to one table of the file, with messages that name it."""
@@ -77,6 +110,9 @@ class _Item:
             raise self.err(key, f"must be > 0 (got {v:g}{u})")
         if nonneg and v < 0:
             raise self.err(key, f"must be >= 0 (got {v:g}{u})")
+        why = plausible(v, unit)
+        if why is not None:
+            raise self.err(key, why)
         return v
 
     def vec(
