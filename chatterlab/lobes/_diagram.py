@@ -250,7 +250,7 @@ def _diagram_of(
         position=frozen.position if frozen is not None else None,
         model=name or (frozen.model.source if frozen is not None else "plant"),
         elapsed=0.0,
-        n_frequencies=bd.ops.omega.size,
+        n_frequencies=bd.n_frequencies,
         band_hz=(bd.band.lo / (2 * np.pi), bd.band.hi / (2 * np.pi)),
         band_certified=bd.band.certified,
         band_note=bd.band.reason,

@@ -3,20 +3,41 @@ the branches of (beta, z) on the frequency grid followed around their folds
 (:func:`boundary`), :class:`Boundary` (computed once, evaluated at any
 delays), the regula-falsi refinement of the envelope on the phase condition,
 and the smallest width over all delays.
+
+Decoupled loops (:func:`decouple`).  When a constant invertible S makes
+S^-1 H(s) S, S^-1 D_P S, S^-1 D_V S and S^-1 D_O S block diagonal with the
+same blocks (a tool with identical, or identically oriented, modes in x and y
+under an isotropic cut: D_O = -K_f I), the characteristic determinant
+factors,
+
+    det(I + beta H (A + z O)) = prod_b det(I + beta H_b (A_b + z O_b)),
+
+and the boundary is the union of the blocks' boundaries.  S comes from a
+generic element of the commutant {X : X Y = Y X} of those matrices (H at
+sample frequencies): its eigenspaces are invariant under every Y.  Each
+block is a loop of lower rank (rank one: the exact polynomial Q of
+:mod:`chatterlab.lobes._boundary`), so a symmetric tool no longer gives the
+rank-two resultant its four-fold roots (where |nu_1| = |nu_2| = 1 together) or
+a nearly symmetric one its clusters of four; two blocks that are equal give
+the same lobes, and are computed once (the coincident families merged).
+The factorisation is checked on the pole-residue form (the off-block part
+of every residue, summed over coincident poles, and of the feedthrough is
+zero to round-off); where it does not hold, the loop is searched whole.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, replace
+from typing import Any, Literal
 
 import numpy as np
 
 from ..errors import InputError, check_width
+from ..frequency._bounds import Band, PoleResidue
 from ..process._cutting import feedback
 from ..structure._assembly import FrozenSystem
 from ._band import _band, _grid
-from ._boundary import Ops, link, refine_folds, static_width
+from ._boundary import Ops, delayed_factors, link, refine_folds, static_width
 from ._plant import Plant, _ops, _solve_beta, _widths_between, _z_at
 
 __all__ = ["Boundary", "boundary"]
@@ -252,16 +273,47 @@ class Boundary:
         if not np.any(plant.Dl_O):
             raise InputError("the coupling elements have no delayed term (DO = 0): there are no lobes")
         _check_damped(plant, frozen)
-        self.band = _band(plant, fmin, fmax, self.width_max)
-        if self.band.hi > self.band.lo:
-            self.omega = _grid(plant, self.band.lo, self.band.hi, n_base or 2000)
-            self.ops, self.segments, self.folds = boundary(plant, self.omega, self.width_max)
-        else:  # the gain bound excludes every frequency
-            self.omega = np.zeros(0)
-            self.ops, self.segments, self.folds = _ops(plant, self.omega), [], 0
+        blocks = decouple(plant)
+        #: the independent loops searched, each with how many equal blocks it stands for
+        self.parts: list[tuple[Boundary, int]] = []
+        if blocks is None:
+            self.band = _band(plant, fmin, fmax, self.width_max)
+            if self.band.hi > self.band.lo:
+                self.omega = _grid(plant, self.band.lo, self.band.hi, n_base or 2000)
+                self.ops, self.segments, self.folds = boundary(plant, self.omega, self.width_max)
+            else:  # the gain bound excludes every frequency
+                self.omega = np.zeros(0)
+                self.ops, self.segments, self.folds = _ops(plant, self.omega), [], 0
+            self.n_frequencies = int(self.ops.omega.size)
+        else:
+            self.parts = [
+                (Boundary(None, width_max=self.width_max, fmin=fmin, fmax=fmax, n_base=n_base, plant=bp), k)
+                for bp, k in blocks
+            ]
+            self._combine_parts()
         with np.errstate(all="ignore"):
             H0 = plant.H(np.array([0.0]))[0]
         self.static_width = static_width(H0, plant.Dl_P, plant.Dl_O, self.width_max)
+
+    def _combine_parts(self) -> None:
+        """Band, grid, branches and folds of the decoupled loops, as one boundary."""
+        parts = [bd for bd, _ in self.parts]
+        bands = [bd.band for bd in parts]
+        self.band = Band(
+            min(b.lo for b in bands),
+            max(b.hi for b in bands),
+            all(b.certified for b in bands),
+            bands[0].reason
+            + f" (each of {len(parts)} decoupled loop(s); {sum(k for _, k in self.parts)} blocks)",
+        )
+        self.omega = np.unique(np.concatenate([bd.omega for bd in parts]))
+        self.ops = parts[0].ops
+        self.n_frequencies = int(sum(bd.n_frequencies for bd in parts))
+        self.segments = []
+        for bd in parts:
+            off = len(self.segments) and (max(sg.branch for sg in self.segments) + 1)
+            self.segments += [replace(sg, branch=sg.branch + off) for sg in bd.segments]
+        self.folds = int(sum(bd.folds for bd in parts))
 
     def envelope(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """b_lim (m), chatter frequency (Hz) and lobe number at delays T (s).
@@ -276,6 +328,8 @@ class Boundary:
         be lost."""
         plant = self.plant
         T = np.atleast_1d(np.asarray(T, dtype=float))
+        if self.parts:
+            return self._envelope_of_parts(T)
         nT = T.size
         cand = [_interval_candidates(sg, T) for sg in self.segments]
         best = np.full(nT, np.inf)
@@ -319,8 +373,26 @@ class Boundary:
             b_lim[st], chatter[st], lobe_k[st] = self.static_width, 0.0, 0
         return b_lim, chatter, lobe_k
 
+    def _envelope_of_parts(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The lowest of the decoupled loops' envelopes (each refined on its own
+        loop), then the static width of the whole."""
+        b_lim = np.full(T.size, np.inf)
+        chatter = np.full(T.size, np.nan)
+        lobe_k = np.full(T.size, -1)
+        for bd, _ in self.parts:
+            b, c, k = bd.envelope(T)
+            low = b < b_lim
+            b_lim[low], chatter[low], lobe_k[low] = b[low], c[low], k[low]
+        if np.isfinite(self.static_width):
+            st = self.static_width < b_lim
+            b_lim[st], chatter[st], lobe_k[st] = self.static_width, 0.0, 0
+        return b_lim, chatter, lobe_k
+
     def absolute_minimum(self) -> dict[str, float]:
         """Smallest boundary width over all delays: ``width`` (m), ``chatter_hz``."""
+        if self.parts:
+            mins = [bd.absolute_minimum() for bd, _ in self.parts]
+            return min(mins, key=lambda m: m["width"])
         return _absolute_minimum(self.plant, self.segments, 1.0)
 
 
@@ -345,3 +417,190 @@ def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[
         if np.isfinite(res.fun) and res.fun <= bmin:
             return {"width": float(res.fun) * b_ref, "chatter_hz": float(res.x) / (2 * np.pi)}
     return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
+
+
+# ---------------------------------------------------------------------------- decoupled loops
+
+_COMMUTE_TOL = 1e-10  #: relative singular value below which X commutes with every matrix
+_BLOCK_TOL = 1e-9  #: relative size of an off-block part accepted as round-off
+
+
+def _sample_frequencies(plant: Plant) -> np.ndarray:
+    """Frequencies (rad/s) where H is sampled for the commutant: every
+    resonance, and points between and beyond them."""
+    wn = np.abs(plant.poles.imag)
+    top = max(float(wn.max()) if wn.size else 1.0, 1.0)
+    pts = np.concatenate([np.unique(wn[wn > 0]), top * np.array([0.013, 0.17, 0.61, 1.37, 2.9])])
+    if plant.grid is not None and plant.grid.size:
+        pts = np.concatenate([pts, plant.grid[:: max(1, plant.grid.size // 16)]])
+    return np.unique(pts[pts > 0])
+
+
+def _commutant(mats: list[np.ndarray]) -> np.ndarray:
+    """A basis (k, m, m) of the real matrices X with X Y = Y X for every Y."""
+    m = mats[0].shape[0]
+    eye = np.eye(m)
+    rows = []
+    for Y in mats:
+        sc = float(np.linalg.norm(Y))
+        if sc == 0.0:
+            continue
+        Yn = Y / sc
+        # vec(X Y - Y X) = (Y^T kron I - I kron Y) vec(X), column-major vec
+        Kx = np.kron(Yn.T, eye) - np.kron(eye, Yn)
+        rows += [Kx.real, Kx.imag] if np.iscomplexobj(Kx) else [Kx]
+    A = np.concatenate(rows)
+    _, sv, vt = np.linalg.svd(A)
+    sv = np.r_[sv, np.zeros(vt.shape[0] - sv.size)]
+    null = vt[sv <= _COMMUTE_TOL * max(sv[0], 1e-300)]
+    return null.reshape(-1, m, m).transpose(0, 2, 1)  # undo the column-major vec
+
+
+def _eigenspaces(X: np.ndarray) -> list[np.ndarray] | None:
+    """Real bases (m, k_b) of the eigenspaces of X (a complex pair's two
+    together), or None when X is defective or its eigenvectors ill-conditioned."""
+    lam, V = np.linalg.eig(X)
+    scale = max(float(np.max(np.abs(lam))), 1e-300)
+    groups: list[list[int]] = []
+    for i in np.argsort(lam.real + 1e-3 * np.abs(lam.imag)):
+        for g in groups:
+            j = g[0]
+            if (
+                abs(lam[i].real - lam[j].real) <= 1e-6 * scale
+                and abs(abs(lam[i].imag) - abs(lam[j].imag)) <= 1e-6 * scale
+            ):
+                g.append(int(i))
+                break
+        else:
+            groups.append([int(i)])
+    bases = []
+    for g in groups:
+        Vg = V[:, g]
+        B = np.concatenate([Vg.real, Vg.imag], axis=1)
+        u, sv, _ = np.linalg.svd(B, full_matrices=False)
+        k = int(np.sum(sv > 1e-8 * sv[0]))
+        if k != len(g):
+            return None
+        bases.append(u[:, :k])
+    S = np.concatenate(bases, axis=1)
+    if S.shape[1] != X.shape[0] or np.linalg.cond(S) > 1e8:
+        return None
+    return bases
+
+
+def _off_block(Y: np.ndarray, Tinv: np.ndarray, S: np.ndarray, sizes: list[int]) -> float:
+    """Size of the off-block part of S^-1 Y S relative to ||Y||."""
+    Z = Tinv @ Y @ S
+    mask = np.ones(Z.shape, bool)
+    o = 0
+    for k in sizes:
+        mask[o : o + k, o : o + k] = False
+        o += k
+    return float(np.linalg.norm(Z[mask])) / max(float(np.linalg.norm(Y)), 1e-300)
+
+
+def _residues_block_diagonal(pr: PoleResidue, Tinv: np.ndarray, S: np.ndarray, sizes: list[int]) -> bool:
+    """The off-block parts of the residues vanish, summed over coincident
+    poles (a degenerate pair may split its residue between any two modes),
+    and of the feedthrough: then S^-1 H(s) S is block diagonal for every s."""
+    p = pr.p
+    if not p.size:
+        return True
+    scale = float(np.max(pr.norms())) or 1.0
+    order = np.lexsort((p.imag, p.real))
+    ps = p[order]
+    tol = 1e-8 * max(float(np.max(np.abs(p))), 1e-300)
+    start = np.r_[0, np.nonzero(np.abs(np.diff(ps)) > tol)[0] + 1]
+    ends = np.r_[start[1:], ps.size]
+    for a, b in zip(start, ends, strict=True):
+        idx = order[a:b]
+        Rsum = pr.L[:, idx] @ pr.R[idx, :]
+        if _off_block(Rsum, Tinv, S, sizes) * max(float(np.linalg.norm(Rsum)), 1e-300) > _BLOCK_TOL * scale:
+            return False
+    if pr.D.size and np.any(pr.D):
+        return _off_block(pr.D, Tinv, S, sizes) <= _BLOCK_TOL
+    return True
+
+
+def decouple(plant: Plant) -> list[tuple[Plant, int]] | None:
+    """The independent loops of a plant whose delayed term has rank > 1, each
+    with the number of equal blocks it stands for; None when the loop does
+    not decouple (or has a rank-one delayed term: nothing to gain).
+
+    See the module docstring for the argument."""
+    _, Vt = delayed_factors(plant.Dl_O)
+    if Vt.shape[0] < 2 or plant.measured_band is not None:
+        return None
+    w = _sample_frequencies(plant)
+    with np.errstate(all="ignore"):
+        Hs = plant.H(w)
+    if not np.all(np.isfinite(Hs)):
+        return None
+    mats = [*Hs, plant.Dl_P, plant.Dl_V, plant.Dl_O]
+    basis = _commutant(mats)
+    if basis.shape[0] < 2:
+        return None  # only multiples of I commute: one block
+    rng = np.random.default_rng(20181)
+    best = None
+    for attempt in range(6):
+        X = np.tensordot(rng.standard_normal(basis.shape[0]), basis, axes=1)
+        if attempt == 0 and all(np.allclose(Y, Y.T, rtol=1e-12, atol=0) for Y in mats):
+            X = X + X.T  # the commutant of symmetric matrices is closed under transposition
+        bases = _eigenspaces(X)
+        if bases is not None and (best is None or len(bases) > len(best)):
+            best = bases
+    if best is None or len(best) < 2:
+        return None
+    S = np.concatenate(best, axis=1)
+    Tinv = np.linalg.inv(S)
+    sizes = [b.shape[1] for b in best]
+    if any(_off_block(Y, Tinv, S, sizes) > _BLOCK_TOL for Y in mats):
+        return None
+    if plant.residues is not None and not _residues_block_diagonal(plant.residues, Tinv, S, sizes):
+        return None
+    out: list[tuple[Plant, int]] = []
+    keys: list[tuple[np.ndarray, ...]] = []
+    o = 0
+    nO = float(np.linalg.norm(plant.Dl_O))
+    for k in sizes:
+        Sb, Tb = S[:, o : o + k], Tinv[o : o + k]
+        o += k
+        Ob = Tb @ plant.Dl_O @ Sb
+        if float(np.linalg.norm(Ob)) <= 1e-12 * nO:
+            continue  # no delayed term: no lobes from this block
+        bp = _block_plant(plant, Sb, Tb)
+        key = (Tb @ Hs @ Sb, bp.Dl_P, bp.Dl_V, bp.Dl_O)
+        for i, other in enumerate(keys):
+            if other[0].shape == key[0].shape and all(
+                np.allclose(x, y, rtol=1e-9, atol=1e-12 * max(float(np.max(np.abs(x))), 1e-300))
+                for x, y in zip(key, other, strict=True)
+            ):
+                out[i] = (out[i][0], out[i][1] + 1)
+                break
+        else:
+            keys.append(key)
+            out.append((bp, 1))
+    return out if out else None
+
+
+def _block_plant(plant: Plant, Sb: np.ndarray, Tb: np.ndarray) -> Plant:
+    """The loop of one block: H_b = T_b H S_b, its CE matrices and pole-residue
+    form, and only the poles it sees."""
+    H = plant.H
+
+    def Hb(omega: np.ndarray) -> np.ndarray:
+        return Tb @ H(omega) @ Sb
+
+    def real(x: np.ndarray) -> np.ndarray:
+        return np.real_if_close(Tb @ x @ Sb, tol=1e6).real
+
+    pr = plant.residues
+    poles = plant.poles
+    pb: Any = None
+    if pr is not None:
+        L, R = Tb @ pr.L, pr.R @ Sb
+        n = np.linalg.norm(L, axis=0) * np.linalg.norm(R, axis=1)
+        seen = n > 1e-12 * max(float(n.max(initial=0.0)), 1e-300)
+        pb = PoleResidue(pr.p[seen], L[:, seen], R[seen], Tb @ pr.D @ Sb)
+        poles = pr.p[seen]
+    return Plant(Hb, poles, real(plant.Dl_P), real(plant.Dl_V), real(plant.Dl_O), pb)
