@@ -40,7 +40,7 @@ def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
     head, body = rows[0], rows[1:]
     # SI, name [unit], no comment line: what every chatterlab CSV is (pandas reads it as it is)
     assert head == ["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]", "arg mu [rad]",
-                    "error [m]", "searched up to [m]", "scan step [m]"]  # fmt: skip
+                    "error [m]", "searched up to [m]", "scan step [m]", "basis", "certified to [m]"]  # fmt: skip
     assert {(float(r[7]), float(r[8])) for r in body} == {(ref.depth_max, ref.scan_step)}
     got = np.array([float(r[head.index("a_lim [m]")]) for r in body])
     # the same computation through the CLI: the CSV holds repr() of the floats, so exactly equal
