@@ -40,7 +40,8 @@ def add_parser(sub: Any) -> None:
         "--step",
         type=float,
         metavar="H",
-        help="time step, s (default: 1/20 of the highest period below 300 Hz)",
+        help="time step, s (default: 1/20 of the highest period below 300 Hz and, for a continuous cut, fine "
+        "enough for the chatter band of the characteristic roots)",
     )
     si.add_argument(
         "--width",
@@ -117,12 +118,17 @@ def run(args: argparse.Namespace) -> int:
         args, *((f, "--out", DATA_SUFFIXES) for f in files), (args.plot, "--plot", PLOT_SUFFIXES)
     ) as outs:
         simulate_case = _runner(args, model, q0, v0)
-        sims = []
+        sims, contradictions = [], []
         for fb in cases:
             sim = simulate_case(fb)
             sims.append(sim)
-            _summary(sim, fb)
-        return _report(args, outs, sims, files)
+            contradictions += _summary(sim, fb)
+        code = _report(args, outs, sims, files)
+    if contradictions:
+        # the time domain and the roots of the same frozen system cannot both be right
+        print(f"chatterlab: error: {contradictions[0]}", file=sys.stderr)
+        return max(code, 1)
+    return code
 
 
 def _milling(args: argparse.Namespace, model: Any) -> int:
@@ -200,6 +206,7 @@ def _runner(
     width = width_m(args) if args.width is not None else None
 
     def simulate_case(fb: Any) -> Any:
+        roots = _frozen_roots(sy, fb, width, args)
         return simulate(
             sy,
             feedback=fb,
@@ -215,24 +222,61 @@ def _runner(
             v0=v0,
             history="constant" if args.history == "constant" else None,
             progress=None if args.quiet else progress_bar(f"simulate ({fb})"),
+            roots=roots,
         )
 
     return simulate_case
 
 
-def _summary(sim: Any, fb: str) -> None:
-    """The printed summary of one run: its message, a line per output and,
-    when the run is too short for a spectrum or a growth rate, what could
-    not be estimated, the initial condition and how to ask for more."""
+#: characteristic roots computed for a continuous cut: enough to hold the
+#: relevant ones of a short run (the step rule says when they are all relevant)
+ROOTS_COUNT = 12
+
+
+def _frozen_roots(sy: Any, fb: str, width: float | None, args: argparse.Namespace) -> Any:
+    """The rightmost characteristic roots of the frozen system a continuous
+    cut integrates (the same matrices, :func:`chatterlab.time._simulate.constant_loop`),
+    in the band the loop's gain bound certifies; None for a moving slide."""
+    from ..frequency import characteristic_roots_system, make_system
+    from ..time._simulate import constant_loop
+
+    mats = constant_loop(
+        sy, feedback=fb, width=width, speed=args.speed, delay=args.delay, position=args.position
+    )
+    if mats is None:
+        return None
+    A, B, C, G, T = mats
+    try:
+        ds = make_system(A, B, C, DO=G, tau=T if G is not None else None)
+    except InputError:  # e.g. a mass matrix that is not symmetric: no roots to show
+        return None
+    return characteristic_roots_system(ds, count=ROOTS_COUNT)
+
+
+def _summary(sim: Any, fb: str) -> list[str]:
+    """The printed summary of one run: its message, a line per output, the
+    rightmost root of the same frozen system beside the time-domain rates
+    and, when the run is too short for a spectrum or a growth rate, what
+    could not be estimated, the initial condition and how to ask for more.
+    Returns the contradictions between the time domain and the roots."""
     import numpy as np
 
     print(f"feedback {fb}: {sim.message}")
     short: dict[str, str] = {}
+    contradictions: list[str] = []
     for name in sim.data:
-        line, missing = _history(sim, name)
+        line, missing = _history(sim, name, contradictions)
         print(line)
         for what, why in missing.items():
             short.setdefault(what, why)
+    if sim.in_cut.all():
+        print(f"  step: {sim.meta.get('step_rule', 'given')}")
+    if sim.roots is not None and sim.roots.size:
+        z = sim.roots[0]
+        print(
+            f"  roots of the frozen system: rightmost {z.real:+.4g} 1/s at {abs(z.imag) / (2 * np.pi):.2f} Hz"
+            + (" (every root right of it found: certified band)" if sim.roots_certain else " (not certified)")
+        )
     from ..time._initial import AT_REST
 
     if short or not any(np.any(x) for x in sim.data.values()) or _initial_condition(sim) != AT_REST:
@@ -245,6 +289,7 @@ def _summary(sim: Any, fb: str) -> None:
         )
     if sim.status != "ok":
         print(f"  status: {sim.status}", file=sys.stderr)
+    return contradictions
 
 
 def _report(args: argparse.Namespace, outs: Outputs, sims: list[Any], files: list[str]) -> int:
@@ -282,11 +327,14 @@ def _plot(sims: list[Any], path: str) -> None:
 SPECTRUM_PERIODS = 4
 
 
-def _history(sim: Any, name: str) -> tuple[str, dict[str, str]]:
+def _history(sim: Any, name: str, contradictions: list[str]) -> tuple[str, dict[str, str]]:
     """One printed line per recorded output: mean, peak-to-peak and spectral
-    peak of the last cut -- or, for a run that diverged, how large the
-    response grew and when (a mean of a blown-up history means nothing) --
-    and what a run too short could not estimate (estimate -> why)."""
+    peak of the last cut and, for a continuous cut, the verdict of its
+    envelope with its error bar (:meth:`Simulation.verdict`) -- or, for a
+    run that diverged, how large the response grew and when (a mean of a
+    blown-up history means nothing) -- and what a run too short could not
+    estimate (estimate -> why).  A verdict that contradicts the roots is
+    appended to ``contradictions``."""
     import numpy as np
 
     x = sim.data[name]
@@ -294,6 +342,10 @@ def _history(sim: Any, name: str) -> tuple[str, dict[str, str]]:
     if sim.status == "diverged" or not np.all(np.isfinite(x)):
         fin = np.abs(x[np.isfinite(x)])
         peak = f"largest |value| {fin.max() * scale:.3g} {unit}" if fin.size else "no finite value"
+        if sim.in_cut.all() and sim.status == "diverged":
+            v = sim.verdict(name)
+            if v.contradiction:
+                contradictions.append(v.contradiction)
         return f"  {name:10s} {peak} up to t = {sim.t[-1]:.6g} s (no mean or spectrum: the run diverged)", {}
     if not np.any(x):
         return f"  {name:10s} identically 0 (nothing excited it: no mean, spectrum or growth to show)", {}
@@ -310,13 +362,15 @@ def _history(sim: Any, name: str) -> tuple[str, dict[str, str]]:
         from ..errors import InputError
 
         try:
-            g = sim.growth(name, window="all", skip=min(sim.delay, 0.2 * sim.t[-1]))
+            v = sim.verdict(name)
         except InputError as exc:  # fewer samples than the estimator needs
             missing["envelope growth"] = str(exc)
             return line + "   envelope: not estimated", missing
-        line += f"   envelope: {g.classification} ({g.rate:+.4g} 1/s)"
-        if g.classification == "undetermined":
-            missing["envelope growth"] = g.message
+        line += f"   envelope: {v.summary()}"
+        if v.classification == "undetermined":
+            missing["envelope growth"] = v.message
+        if v.contradiction:
+            contradictions.append(v.contradiction)
     return line, missing
 
 

@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from chatterlab.errors import InputError
 
-__all__ = ["GrowthEstimate", "amplitude_spectrum", "growth_rate", "peaks"]
+__all__ = ["GrowthEstimate", "TimeVerdict", "amplitude_spectrum", "growth_rate", "peaks", "time_verdict"]
 
 FloatArray = NDArray[Any]
 
@@ -216,6 +216,11 @@ class GrowthEstimate:
         Time window actually fitted [s].
     n_points : int
         Envelope points fitted.
+    se : float
+        Standard error of ``rate`` [1/s] from the least-squares fit,
+        inflated by ``(1 + rho) / (1 - rho)`` for the lag-1 correlation
+        ``rho`` of the residuals (``inf`` when it cannot be estimated); the
+        classification uses ``rate +- 2 se``.
     """
 
     rate: float
@@ -224,6 +229,7 @@ class GrowthEstimate:
     message: str
     t_fit: tuple[float, float] = (math.nan, math.nan)
     n_points: int = 0
+    se: float = math.inf
 
 
 def _extrema(x: FloatArray) -> tuple[np.ndarray, FloatArray, np.ndarray]:
@@ -415,4 +421,239 @@ def growth_rate(
         msg += ": the fit does not decide between growing, steady and decaying (a beating or noisy envelope?)"
     if dropped:
         msg += f"; {dropped} points below 1e-10 of the maximum dropped"
-    return GrowthEstimate(rate, cls, r2, msg, (float(te[0]), float(te[-1])), int(env.size))
+    se_rate = se / span if span > 0 else math.inf
+    return GrowthEstimate(rate, cls, r2, msg, (float(te[0]), float(te[-1])), int(env.size), se_rate)
+
+
+# =========================================================================== the verdict of a run
+
+#: safety factor on Richardson's two-run error estimate (Roache's grid
+#: convergence index, for a scheme whose order, here 2, is known and observed)
+RICHARDSON_SAFETY = 1.25
+#: relative error of a characteristic root after Newton's refinement (the
+#: roots are exact to ~1e-13 relative; 1e-8 leaves room for ill-conditioning)
+ROOT_REL_ERROR = 1e-8
+
+
+@dataclass(frozen=True)
+class TimeVerdict:
+    """The time-domain verdict of one history of a continuous cut, with its
+    own error bar (:func:`time_verdict`, :meth:`Simulation.verdict
+    <chatterlab.time.Simulation.verdict>`).
+
+    Attributes
+    ----------
+    name : str
+        The history.
+    classification : str
+        ``"growing"``, ``"steady"``, ``"decaying"`` -- claimed only when the
+        whole interval ``rate +- error`` lies in the class (growth or decay
+        beyond ``tol`` over the fitted span) -- else ``"undetermined"``;
+        ``"diverged"`` when the run blew up.
+    rate : float
+        Envelope growth rate at the run's step, 1/s.
+    fit_error : float
+        Two (residual-correlation inflated) standard errors of the fitted rate, 1/s.
+    step_error : float
+        The integrator's error of ``rate``: Richardson's estimate for a
+        second-order method from the same run at ``check_step``,
+        ``1.25 |rate - check_rate| / |1 - (check_step/step)^2|`` (1.25: the
+        safety factor of Roache's grid convergence index), 1/s.
+    step, check_step : float
+        The two steps, s.
+    check_rate : float
+        The rate of the check run, 1/s.
+    frequency : float
+        Main spectral peak of the fitted window, Hz.
+    decide_step : float
+        For an undetermined verdict limited by the step: the step whose
+        error (scaled as h^2) would leave the fit's own error bar deciding,
+        s; NaN otherwise.
+    roots_rate, roots_hz : float
+        Real part (1/s) and frequency (Hz) of the rightmost characteristic
+        root of the same frozen system, NaN without roots.
+    roots_certain : bool
+        The root search converged and its band is proven to hold every root
+        right of its rightmost one (only then can the two disagree).
+    contradiction : str
+        Empty, or one line naming the time-domain verdict and the roots that
+        contradict each other.
+    message : str
+        How the verdict was reached.
+    t_fit : (float, float)
+        Fitted time window, s.
+    """
+
+    name: str
+    classification: str
+    rate: float
+    fit_error: float
+    step_error: float
+    step: float
+    check_step: float
+    check_rate: float
+    frequency: float
+    decide_step: float
+    roots_rate: float
+    roots_hz: float
+    roots_certain: bool
+    contradiction: str
+    message: str
+    t_fit: tuple[float, float] = (math.nan, math.nan)
+
+    @property
+    def error(self) -> float:
+        """Half-width of the error bar of ``rate``: ``fit_error + step_error``, 1/s."""
+        return self.fit_error + self.step_error
+
+    @property
+    def extrapolated(self) -> float:
+        """Richardson's extrapolation of the rate to a zero step, 1/s."""
+        r2 = (self.check_step / self.step) ** 2
+        return self.rate - (self.rate - self.check_rate) / (1.0 - r2)
+
+    def summary(self) -> str:
+        """``decaying (-2.05 +- 0.12 1/s)``, with the step that would decide an undetermined one."""
+        if self.classification == "diverged":
+            return "diverged"
+        if not math.isfinite(self.rate):
+            return "undetermined"
+        text = f"{self.classification} ({self.rate:+.4g} +- {self.error:.2g} 1/s)"
+        if self.classification == "undetermined" and math.isfinite(self.decide_step):
+            text += f", --step {self.decide_step:.3g} would decide it"
+        return text
+
+
+def time_verdict(
+    name: str,
+    main: GrowthEstimate,
+    check: GrowthEstimate | None,
+    step: float,
+    check_step: float,
+    *,
+    frequency: float = math.nan,
+    tol: float = 0.05,
+    roots: ArrayLike | None = None,
+    roots_certain: bool = False,
+    diverged: bool = False,
+) -> TimeVerdict:
+    """The verdict of one history from two runs of the same cut.
+
+    ``main`` and ``check`` are :func:`growth_rate` fits of the same history
+    over the same window, from runs at ``step`` and ``check_step`` (twice or
+    half of it).  Average-acceleration Newmark is second order, so the rate
+    at step h is ``sigma + c h^2 + O(h^4)`` and the error of ``main`` is
+    ``(main - check) / (1 - r^2)``, ``r = check_step / step`` (Richardson),
+    taken times ``RICHARDSON_SAFETY`` = 1.25.
+    The error bar is that plus two standard errors of the fit; a class is
+    claimed only when the whole bar lies in it (growth or decay beyond
+    ``log(1 + tol)`` over the fitted span, as for :func:`growth_rate`).
+
+    With ``roots`` (the characteristic roots of the same frozen system,
+    1/s, from :mod:`chatterlab.frequency`) the verdict is compared with the
+    rightmost one; when ``roots_certain`` (a converged search whose band is
+    proven complete) a contradiction is named in ``contradiction``:
+
+    * a certain class against a certain sign of the rightmost root
+      (growing or diverged while every root decays; decaying while a root grows);
+    * a rate above the rightmost root beyond both error bars (no linear
+      delay system grows faster than its rightmost root);
+    * at the rightmost root's frequency (within the spectral resolution of
+      the window and Newmark's period error), a rate differing from it
+      beyond both error bars.  At another frequency the history may show a
+      faster-decaying mode that the run excited more: no contradiction.
+    """
+    span = main.t_fit[1] - main.t_fit[0]
+    thr = math.log1p(tol)
+    rate, fit_err = float(main.rate), 2.0 * float(main.se)
+    ok = check is not None and math.isfinite(rate) and math.isfinite(float(check.rate)) and span > 0
+    check_rate = float(check.rate) if check is not None else math.nan
+    if ok:
+        r2 = (check_step / step) ** 2
+        e_signed = (rate - check_rate) / (1.0 - r2)
+        step_err = RICHARDSON_SAFETY * abs(e_signed)
+    else:
+        e_signed, step_err = math.nan, math.nan
+    decide = math.nan
+    if diverged:
+        cls, how = "diverged", "the run diverged"
+    elif not ok:
+        cls = "undetermined"
+        how = "no rate: " + (main.message if not math.isfinite(rate) else "the check run gave no rate")
+    else:
+        w = (fit_err + step_err) * span
+        change = rate * span
+        if change - w > thr:
+            cls = "growing"
+        elif change + w < -thr:
+            cls = "decaying"
+        elif abs(change) + w <= thr:
+            cls = "steady"
+        else:
+            cls = "undetermined"
+        how = (
+            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, {check_rate:+.6g} 1/s at h = {check_step:.4g} s:"
+            f" step error {step_err:.3g} 1/s (Richardson, order 2), fit error {fit_err:.3g} 1/s (2 se),"
+            f" over {span:.4g} s"
+        )
+        if cls == "undetermined":
+            best = abs(rate - e_signed)  # the extrapolated rate
+            margin = best - fit_err - thr / span
+            if margin > 0 and step_err > 0:
+                decide = step * math.sqrt(0.5 * margin / step_err)
+                how += f"; a step of {decide:.3g} s would bring the step error to {0.5 * margin:.3g} 1/s"
+            else:
+                how += "; the fit's own error decides nothing: a longer run is needed"
+    r_rate = r_hz = math.nan
+    contra = ""
+    lam = np.asarray(roots if roots is not None else [], dtype=complex).reshape(-1)
+    if lam.size:
+        k = int(np.argmax(lam.real))
+        r_rate, r_hz = float(lam[k].real), abs(float(lam[k].imag)) / (2.0 * math.pi)
+        r_err = ROOT_REL_ERROR * abs(lam[k]) + 1e-12
+        if roots_certain:
+            contra = _contradiction(
+                name, cls, rate, fit_err + step_err, frequency, span, step, r_rate, r_hz, r_err
+            )
+    msg = f"{name}: {cls}; " + how
+    if lam.size:
+        msg += f"; rightmost root {r_rate:+.6g} 1/s at {r_hz:.6g} Hz" + (
+            "" if roots_certain else " (not certified)"
+        )
+    if contra:
+        msg += "; CONTRADICTION: " + contra
+    return TimeVerdict(
+        name, cls, rate, fit_err, step_err, float(step), float(check_step), check_rate, float(frequency),
+        decide, r_rate, r_hz, bool(roots_certain), contra, msg, main.t_fit,
+    )  # fmt: skip
+
+
+def _contradiction(
+    name: str,
+    cls: str,
+    rate: float,
+    err: float,
+    f_hz: float,
+    span: float,
+    step: float,
+    r_rate: float,
+    r_hz: float,
+    r_err: float,
+) -> str:
+    """The reason a time-domain verdict contradicts certain roots, or ''."""
+    td = f"{name} {cls}" + (f" ({rate:+.4g} +- {err:.2g} 1/s" if math.isfinite(rate) else " (")
+    td += f" at {f_hz:.2f} Hz)" if math.isfinite(f_hz) else ")"
+    fd = f"the rightmost characteristic root is {r_rate:+.4g} 1/s at {r_hz:.2f} Hz"
+    if cls in ("growing", "diverged") and r_rate + r_err < 0:
+        return f"time domain {td}, but every root decays: {fd}"
+    if cls == "decaying" and r_rate - r_err > 0:
+        return f"time domain {td}, but {fd}"
+    if not (math.isfinite(rate) and math.isfinite(err)):
+        return ""
+    if rate - err > r_rate + r_err:
+        return f"time domain {td} grows faster than any root allows: {fd}"
+    w = 2.0 * math.pi * r_hz
+    f_tol = 2.0 / span + r_hz * ((w * step) ** 2 / 12.0 + 1e-3) if span > 0 else math.inf
+    if math.isfinite(f_hz) and abs(f_hz - r_hz) <= f_tol and abs(rate - r_rate) > err + r_err:
+        return f"time domain {td} at the rightmost root's frequency, but {fd}"
+    return ""

@@ -40,8 +40,22 @@ from ._history import TimeHistory
 from ._initial import initial_state
 from ._newmark import ConstantProblem, NewmarkOptions, TimeResponse, newmark
 from ._parametric import FEEDBACK_CASES, ParametricProblem, _ExtraForce, _output_map, _WithExtraForce
+from ._signals import GrowthEstimate, TimeVerdict, amplitude_spectrum, peaks, time_verdict
 
-__all__ = ["ParametricProblem", "Simulation", "simulate", "FEEDBACK_CASES"]
+__all__ = ["ParametricProblem", "Simulation", "simulate", "constant_loop", "FEEDBACK_CASES"]
+
+#: steps per period of every relevant characteristic root, at least: the
+#: period error (w h)^2 / 12 of average acceleration is then below 0.83 %
+MIN_STEPS_PER_PERIOD = 20
+#: the growth-rate error the default step aims at, as a fraction of what the
+#: verdict must resolve: max(|rightmost Re|, log(1 + tol) / fitted span)
+STEP_ERROR_FRACTION = 0.25
+#: roots whose envelope, relative to the rightmost one's, falls by less than
+#: this factor over the fitted span can still shape the fitted envelope
+RELEVANT_DECAY = 100.0
+#: the default step costs at most this many steps (the verdict then says
+#: which step would decide it)
+MAX_DEFAULT_STEPS = 2_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,8 +99,90 @@ class Simulation(TimeHistory):
     units: dict[str, str]
     model: str
     meta: dict[str, Any] = field(default_factory=dict)
+    roots: np.ndarray | None = None
+    roots_certain: bool = False
+    _rerun: Any = field(default=None, repr=False, compare=False)
+    _cache: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
 
     spectrum_window: ClassVar[Any] = "last-cut"
+
+    def verdict_skip(self) -> float:
+        """Seconds dropped before a verdict's fit: one delay, at most 20 % of
+        the run (:func:`growth_rate` then drops 20 % of the rest)."""
+        return float(min(self.delay, 0.2 * float(self.t[-1]))) if self.t.size else 0.0
+
+    def check_step(self) -> float:
+        """The step of the verdict's check run: twice the run's step, or
+        half of it when twice would exceed the delay (or a fifth of the run)."""
+        h, T = float(self.step), float(self.delay)
+        t_end = float(self.t[-1]) if self.t.size else 0.0
+        return (
+            2.0 * h
+            if (self.terms != "pdo" or 2.0 * h <= T * (1 + 1e-12)) and 2 * h <= 0.2 * t_end
+            else 0.5 * h
+        )
+
+    def verdict(self, name: str, *, tol: float = 0.05) -> TimeVerdict:
+        """The time-domain verdict of one history of a continuous cut, with
+        the integrator's own error.
+
+        The envelope growth rate is fitted after :meth:`verdict_skip` (as
+        :meth:`growth`); the same cut is run again at :meth:`check_step`
+        (once, shared by every history) and Richardson's estimate for the
+        second-order scheme gives the step error of the rate.  A class is
+        claimed only when the rate +- (2 fit standard errors + step error)
+        lies in it (:func:`chatterlab.time.time_verdict`).  The roots given
+        to :func:`simulate` are compared with it (``contradiction``).
+
+        Raises
+        ------
+        InputError
+            A moving slide (no single growth rate), an unknown history, or
+            a run too short for a fit.
+        """
+        if self._rerun is None or not np.asarray(self.in_cut, dtype=bool).all():
+            raise InputError(
+                "a time-domain verdict needs a continuous cut (simulate(..., delay=T) or position=s, or a"
+                " turning process): a moving slide has no single growth rate"
+            )
+        key = ("verdict", name, float(tol))
+        if key in self._cache:
+            return self._cache[key]  # type: ignore[no-any-return]
+        h2 = self.check_step()
+        common = dict(roots=self.roots, roots_certain=self.roots_certain, tol=tol)
+        if self.status == "diverged":
+            none = GrowthEstimate(math.nan, "undetermined", math.nan, "the run diverged")
+            v = time_verdict(name, none, None, self.step, h2, diverged=True, **common)  # type: ignore[arg-type]
+        else:
+            skip = self.verdict_skip()
+            main = self.growth(name, window="all", skip=skip, tol=tol)
+            check = None
+            if math.isfinite(main.rate):
+                chk = self._check_run(h2)
+                if chk.status == "ok":
+                    check = chk.growth(name, window="all", skip=skip, tol=tol)
+            v = time_verdict(
+                name, main, check, self.step, h2, frequency=self._main_frequency(name, main), **common
+            )  # type: ignore[arg-type]
+        self._cache[key] = v
+        return v
+
+    def _check_run(self, h2: float) -> Simulation:
+        run = self._cache.get(("check", h2))
+        if run is None:
+            run = self._rerun(h2)
+            self._cache[("check", h2)] = run
+        return run  # type: ignore[no-any-return]
+
+    def _main_frequency(self, name: str, g: GrowthEstimate) -> float:
+        """The main spectral peak (Hz) of a history over the fitted window."""
+        t0, t1 = g.t_fit
+        m = (self.t >= t0) & (self.t <= t1)
+        if np.count_nonzero(m) < 8 or not t1 > t0:
+            return math.nan
+        f, a = amplitude_spectrum(self.t[m], self.history(name)[m])
+        fp, _ = peaks(f, a, 1, fmin=2.0 / (t1 - t0))
+        return float(fp[0]) if fp.size else math.nan
 
     @property
     def status(self) -> str:
@@ -182,6 +278,7 @@ def simulate(
     method: Literal["auto", "polynomial", "direct"] = "auto",
     loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None = None,
     ground_motion: Mapping[str, Callable[[np.ndarray], Any]] | None = None,
+    roots: Any = None,
 ) -> Simulation:
     """Newmark simulation of the moving, delayed closed loop (Eq. 2.28).
 
@@ -207,9 +304,14 @@ def simulate(
         Simulated time, s.
     step : float, optional
         Time step h, s.  Default: a twentieth of the period of the highest
-        natural frequency below 300 Hz, and at most T/20, rounded down so
-        that the process events (cut entry and exit, reversal, one cycle)
-        fall on the step grid.
+        natural frequency below 300 Hz, and at most T/20; for a continuous
+        cut with ``roots`` given, also fine enough for the chatter band:
+        every relevant root (one whose envelope can still shape the fitted
+        window) resolved with at least 20 steps per period and its growth
+        rate within a quarter of what the verdict must resolve
+        (:func:`chatter_step`), within 2 000 000 steps; rounded down so that
+        the process events (cut entry and exit, reversal, one cycle) fall on
+        the step grid.
     outputs : str or list of str, optional
         ``"POINT.DIR"`` time histories to record (default: the first CE's
         points ``b`` along x and y — the paper's q1, q2 at RFE 5; when ``b``
@@ -255,6 +357,14 @@ def simulate(
     method : {"auto", "polynomial", "direct"}
         Coefficient evaluation (see :class:`ParametricProblem`); the results
         agree to rounding.
+    roots : RootsResult or array of complex, optional
+        The characteristic roots (1/s) of the same frozen system, e.g.
+        ``chatterlab.frequency.characteristic_roots_system`` on
+        :func:`constant_loop`'s matrices: they set the default step of a
+        continuous cut and are compared with :meth:`Simulation.verdict`.  A
+        ``RootsResult`` that converged with a band proven to hold every root
+        right of its rightmost one is *certain* (a contradiction can then be
+        named); a bare array is shown only.
 
     Returns
     -------
@@ -280,9 +390,10 @@ def simulate(
         outputs = [outputs]
     outs = list(outputs) if outputs is not None else _default_outputs(mdl)
     out_rows = [_output_map(system, name) for name in outs]  # refuse unknown outputs before the run
-    step = _time_step(system, kin, feedback, step, position, duration)
     prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces, method=method)
     prob._t_end = float(duration)
+    lam, certain = _roots_of(roots)
+    step, rule = _time_step(system, kin, feedback, step, position, duration, prob, lam)
     run_prob = _run_problem(prob, loads, ground_motion)
     q0v, v0v, hist, initial = initial_state(prob, kin, q0, v0, history)
     with _blas_limits():
@@ -299,6 +410,16 @@ def simulate(
         )
     data, units = _histories(prob, res, outs, out_rows)
     s, _, cut, cd = kin.state(res.t)
+    rerun = None
+    if isinstance(kin, SteadyKinematics):
+
+        def rerun(h2: float) -> Simulation:
+            return simulate(
+                system, feedback=feedback, width=width, speed=speed, delay=delay, position=position,
+                passes=passes, duration=duration, step=h2, outputs=outs, forces=forces, options=options,
+                q0=q0, v0=v0, history=history, method=method, loads=loads, ground_motion=ground_motion,
+            )  # fmt: skip
+
     return Simulation(
         t=res.t,
         data=data,
@@ -317,7 +438,11 @@ def simulate(
             "kinematics": type(kin).__name__,
             "coefficients": "+".join(sorted(prob.method_used)),
             "initial_condition": initial,
+            "step_rule": rule,
         },
+        roots=lam,
+        roots_certain=certain,
+        _rerun=rerun,
     )
 
 
@@ -379,18 +504,36 @@ def _time_step(
     step: float | None,
     position: float | None,
     duration: float,
-) -> float:
-    """The step h, s: the given one, or a twentieth of the period of the
-    highest natural frequency below 300 Hz and at most T/20, rounded down
-    so that the process events fall on the step grid; checked against the
-    delay and the duration."""
+    prob: ParametricProblem,
+    roots: np.ndarray | None,
+) -> tuple[float, str]:
+    """The step h, s, and how it was chosen: the given one, or a twentieth
+    of the period of the highest natural frequency below 300 Hz and at most
+    T/20 -- for a continuous cut with roots also :func:`chatter_step` --
+    rounded down so that the process events fall on the step grid; checked
+    against the delay and the duration."""
     T = float(kin.delay)
+    rule = "given"
     if step is None:
         from ..structure._modal import modes
 
         f = modes(system.at(position if isinstance(kin, SteadyKinematics) else None)).frequency_hz
         fmax = float(f[f < 300.0].max()) if np.any(f < 300.0) else float(f.min())
         step = min(1.0 / (20.0 * fmax), T / 20.0)
+        rule = f"1/20 of the period of {fmax:.6g} Hz (the highest mode below 300 Hz), at most T/20"
+        if isinstance(kin, SteadyKinematics) and roots is not None and roots.size:
+            A, B, C, G, _ = _constant_matrices(prob)
+            h_c, why = chatter_step(A, B, C, G, T, roots, fit_span(duration, T))
+            if h_c < step:
+                step, rule = h_c, why
+            else:
+                rule += f"; the chatter band needs no finer step ({why})"
+            if duration / step > MAX_DEFAULT_STEPS:
+                step = duration / MAX_DEFAULT_STEPS
+                rule += (
+                    f"; limited to {MAX_DEFAULT_STEPS} steps (h = {step:.4g} s): the verdict says the step"
+                    " that would decide it"
+                )
         # a whole number of steps between the process events (cut entry and
         # exit, reversal, one cycle) keeps them and the delayed samples on the grid
         unit = kin.grid_unit if isinstance(kin, ShapingKinematics) else T
@@ -405,7 +548,152 @@ def _time_step(
         )
     if step > duration * (1 + 1e-12):
         raise InputError(f"step {step:g} s is longer than the duration {duration:g} s")
-    return step
+    return step, rule
+
+
+def fit_span(duration: float, delay: float) -> float:
+    """The time a verdict's fit spans, s: the run after one delay (at most
+    20 % of the run), less :func:`growth_rate`'s 20 % of the rest."""
+    return 0.8 * (duration - min(delay, 0.2 * duration))
+
+
+def growth_error_coefficient(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, G: np.ndarray | None, T: float, lam: complex
+) -> complex:
+    """``c`` of Newmark's (average acceleration) root error ``c h^2`` at the
+    characteristic root ``lam`` of ``det(lam^2 A + lam B + C - G e^{-lam T}) = 0``.
+
+    The scheme is the trapezoidal rule: an undelayed term sees the discrete
+    root ``l`` through ``s = (2/h) tanh(l h/2) = l - l^3 h^2/12 + O(h^4)``
+    (no amplitude error for undamped free vibration, the period elongation
+    ``(w h)^2/12``), while the delayed sample ``q(t - T)`` is exact on the
+    grid, ``e^{-l T}``.  With ``u``, ``v`` the left and right null vectors of
+    ``Delta(lam)``, first-order perturbation of ``Delta(l) - P'(l) l^3 h^2/12 = 0``
+    gives ``l - lam = h^2 lam^3 (u* P' v) / (12 u* Delta' v)``, ``P' = 2 lam A
+    + B``, ``Delta' = P' + T G e^{-lam T}``.  Without a delay ``Delta' = P'``
+    and ``c = lam^3/12``: for ``lam = j w`` purely imaginary (the period
+    error only).  With a delay the period error shifts the phase of the
+    regeneration and so moves the growth rate: ``Re c``."""
+    P = lam * lam * A + lam * B + C
+    dP = 2.0 * lam * A + B
+    dD = dP.astype(complex)
+    if G is not None:
+        e = np.exp(-lam * T)
+        P = P - G * e
+        dD = dD + T * G * e
+    U, _, Vh = np.linalg.svd(P)
+    u, v = U[:, -1], Vh[-1].conj()
+    den = u.conj() @ dD @ v
+    if den == 0:
+        return complex(math.inf)
+    return complex(lam**3 * (u.conj() @ dP @ v) / (12.0 * den))
+
+
+def chatter_step(
+    A: np.ndarray,
+    B: np.ndarray,
+    C: np.ndarray,
+    G: np.ndarray | None,
+    T: float,
+    roots: np.ndarray,
+    span: float,
+    tol: float = 0.05,
+) -> tuple[float, str]:
+    """The step that resolves the chatter band, s, and why.
+
+    The relevant roots are those whose envelope, relative to the rightmost
+    root's ``exp(sigma0 t)``, falls by less than ``RELEVANT_DECAY`` over the
+    fitted ``span``.  Each gets at least ``MIN_STEPS_PER_PERIOD`` steps per
+    period and a growth-rate error ``|Re c| h^2`` (:func:`growth_error_coefficient`)
+    of at most ``eps + (sigma0 - Re lam)/2``, ``eps = STEP_ERROR_FRACTION *
+    max(|sigma0|, log(1 + tol)/span)``: the rightmost root within a quarter of
+    the rate the verdict must tell from zero (or of the smallest one the fit
+    can resolve), a root further left by half its distance from it, so that
+    its discrete image cannot overtake the rightmost.  The number of steps per period of the highest
+    relevant root follows."""
+    lam = np.asarray(roots, dtype=complex).reshape(-1)
+    lam = lam[np.isfinite(lam)]
+    if lam.size == 0 or not span > 0:
+        return math.inf, "no roots"
+    s0 = float(lam.real.max())
+    rel = lam[lam.real >= s0 - math.log(RELEVANT_DECAY) / span]
+    target = STEP_ERROR_FRACTION * max(abs(s0), math.log1p(tol) / span)
+    h, why = math.inf, ""
+    for z in rel:
+        w = abs(z.imag)
+        c = growth_error_coefficient(A, B, C, G, T, complex(z.real, w))
+        # a root left of the rightmost may move by half its distance from it:
+        # its discrete image then neither overtakes nor reaches the rightmost
+        allowed = target + 0.5 * (s0 - float(z.real))
+        h_err = math.sqrt(allowed / abs(c.real)) if c.real != 0 and math.isfinite(c.real) else math.inf
+        h_res = 2.0 * math.pi / (MIN_STEPS_PER_PERIOD * w) if w > 0 else math.inf
+        hz = min(h_err, h_res)
+        if hz < h:
+            h = hz
+            n = 2.0 * math.pi / (w * hz) if w > 0 else math.inf
+            why = (
+                f"{n:.3g} steps per period of the root {z.real:+.4g} 1/s at {w / 2 / math.pi:.6g} Hz"
+                f" ({len(rel)} relevant root(s)): growth-rate error {abs(c.real) * hz * hz:.3g} 1/s,"
+                f" allowed {allowed:.3g} 1/s"
+            )
+    if len(rel) == lam.size and lam.size > 1:
+        why += f"; all {lam.size} roots given are relevant: roots further left may need a finer step"
+    return h, why
+
+
+def _constant_matrices(
+    prob: ParametricProblem,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, float]:
+    """``(A, B, C, G, T)`` of a continuous cut at t = 0 (constant in time)."""
+    A, B, C, G = prob.matrices(np.array([0.0]))
+    return (
+        np.array(A[0]),
+        np.array(B[0]),
+        np.array(C[0]),
+        None if G is None else np.array(G[0]),
+        float(prob.kin.delay),
+    )
+
+
+def constant_loop(
+    system: System,
+    *,
+    feedback: Literal["none", "pd", "pdo"] = "pdo",
+    width: float | None = None,
+    speed: float | None = None,
+    delay: float | None = None,
+    position: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, float] | None:
+    """The matrices :func:`simulate` integrates for a continuous cut,
+    ``A q'' + B q' + C q = p + G q(t - T)``: ``(A, B, C, G, T)`` (``G`` None
+    without the delayed term), or None when the slide moves (no frozen
+    system).  Their characteristic roots (``chatterlab.frequency.make_system(A,
+    B, C, DO=G, tau=T)``) are those of the very system the run integrates."""
+    width, _, _, kin = _check_run(system, feedback, width, 1, None, None, speed, delay, position)
+    if not isinstance(kin, SteadyKinematics):
+        return None
+    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=False)  # type: ignore[arg-type]
+    return _constant_matrices(prob)
+
+
+def _roots_of(roots: Any) -> tuple[np.ndarray | None, bool]:
+    """The roots given to :func:`simulate` (upper half plane, 1/s) and
+    whether they are certain: a converged search whose band is proven to
+    hold every root right of the rightmost one found."""
+    if roots is None:
+        return None, False
+    arr = getattr(roots, "roots", roots)
+    lam = np.asarray(arr, dtype=complex).reshape(-1)
+    if lam.size and not np.all(np.isfinite(lam)):
+        raise InputError("roots must be finite complex numbers (1/s)")
+    lam = np.where(lam.imag < 0, lam.conj(), lam)
+    lam = lam[np.argsort(-lam.real, kind="stable")]
+    certain = bool(
+        lam.size
+        and getattr(roots, "converged", False)
+        and float(getattr(roots, "complete_above", math.nan)) < float(lam.real.max())
+    )
+    return lam, certain
 
 
 def _run_problem(
