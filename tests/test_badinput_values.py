@@ -6,6 +6,7 @@ chatterlab.errors.check_*; these tests go through each entry point."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -287,3 +288,68 @@ def test_the_plausible_ranges_keep_the_real_and_the_idealised_values():
         assert plausible(v, unit) is None, (v, unit)
     for unit, (lo, hi, _) in PLAUSIBLE.items():
         assert plausible(lo / 10, unit) and plausible(hi * 10, unit) and plausible(-hi * 10, unit)
+
+
+# --- issue 25: a delay so long that the argument-principle count fails is a failed count, not a contradiction
+
+
+def _with_checks(monkeypatch, edit):
+    """``lobes`` whose diagram's checks are rewritten by ``edit(checks)`` (the count that
+    fails is the one of a delay of ~1e5 s: minutes to reproduce, so it is injected here)."""
+    import dataclasses
+
+    from chatterlab.cli import _lobes
+
+    real = _lobes._diagram
+
+    def diagram(*a, **k):
+        d = real(*a, **k)
+        return dataclasses.replace(d, checks=tuple(edit([dict(c) for c in d.checks])))
+
+    monkeypatch.setattr(_lobes, "_diagram", diagram)
+
+
+def _failed_count(c):
+    return {**c, "verdict": "undetermined", "rhp_roots": -1, "agrees": False}
+
+
+@pytest.mark.parametrize("contradicted_too", [False, True])
+def test_a_failed_root_count_is_reported_as_failed(capsys, turning, tmp_path, monkeypatch, contradicted_too):
+    def edit(checks):
+        checks[0] = _failed_count(checks[0])
+        if contradicted_too:  # another speed's count disagrees: that one is a contradiction
+            k = next(i for i, c in enumerate(checks) if c["speed"] != checks[0]["speed"])
+            flip = "unstable" if checks[k]["expected"] == "stable" else "stable"
+            checks[k] = {
+                **checks[k],
+                "verdict": flip,
+                "rhp_roots": 2 if flip == "unstable" else 0,
+                "agrees": False,
+            }
+        return checks
+
+    _with_checks(monkeypatch, edit)
+    out = tmp_path / "l.csv"
+    code = main(["lobes", turning, "--speed", "3000", "9000", "--points", "12", "--quiet", "--out", str(out)])
+    txt, err = capsys.readouterr()
+    assert code == 1, err
+    assert not re.search(r"-\d+ right-half-plane", txt + err)  # never a negative number of roots
+    line = next(ln for ln in txt.splitlines() if "CHECK NOT COUNTED" in ln)
+    assert "the argument-principle count failed (its phase did not close" in line
+    assert "; 1 could not count the roots" in txt
+    assert "the argument-principle count failed at 1 check(s)" in err
+    status = [row.split(",")[5] for row in out.read_text().splitlines()[1:]]
+    if contradicted_too:
+        assert "CHECK FAILED" in txt and "contradicts the diagram" in err
+        assert status.count("contradicted by a check") == 1
+    else:
+        assert "CHECK FAILED" not in txt and "contradicts the diagram" not in err
+        assert "contradicted by a check" not in status  # the speed keeps the diagram's claim, unverified
+
+
+def test_a_failed_count_contradicts_nothing_in_the_library():
+    from chatterlab.lobes._result import count_failed
+
+    assert count_failed({"verdict": "undetermined", "rhp_roots": 0})
+    assert count_failed({"verdict": "unstable", "rhp_roots": -1})  # a negative count is no count
+    assert not count_failed({"verdict": "unstable", "rhp_roots": 2})

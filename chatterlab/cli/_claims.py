@@ -1,4 +1,5 @@
-"""What an ``inf`` b_lim in a sweep's summary means, in words.
+"""What an ``inf`` b_lim in a sweep's summary means, in words (and what a
+lobe diagram's failed argument-principle checks mean, :func:`check_verdict`).
 
 A b_lim of ``inf`` at a point whose task succeeded says only that no
 boundary point lies below the width ceiling (``--width-max``) in the
@@ -32,6 +33,28 @@ def ceiling_claim(band: Any, width_max: float) -> str:
     if band.certified:
         return f"no boundary below {ceiling} in the certified band"
     return f"undetermined (no boundary found below {ceiling} in a band not proven complete: {band.reason})"
+
+
+def check_verdict(checks: Any) -> str:
+    """The last line of a lobe diagram whose argument-principle checks did not
+    all agree: contradicted where a count disagrees, unverified where the
+    count itself failed (its phase did not close) -- never a negative count."""
+    from ..lobes._result import count_failed
+
+    failed = sum(count_failed(c) for c in checks)
+    contradicted = sum(not c["agrees"] and not count_failed(c) for c in checks)
+    parts = []
+    if contradicted:
+        parts.append(
+            "the argument principle contradicts the diagram at the checks marked CHECK FAILED:"
+            " treat the diagram as undetermined there"
+        )
+    if failed:
+        parts.append(
+            f"the argument-principle count failed at {failed} check(s) (marked CHECK NOT COUNTED: its phase"
+            " did not close): the diagram is unverified there, neither confirmed nor contradicted"
+        )
+    return "chatterlab: " + "; ".join(parts)
 
 
 def inf_note(claims: list[str], total: int, what: str = "points") -> str:

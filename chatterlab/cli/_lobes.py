@@ -21,7 +21,7 @@ from typing import Any
 
 from ..errors import InputError, check_count, check_position, check_speed
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
-from ._claims import ceiling_claim, inf_note, ok_infs
+from ._claims import ceiling_claim, check_verdict, inf_note, ok_infs
 from ._common import (
     CommandOutputs,
     drop_checkpoint_after,
@@ -191,11 +191,7 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
         title = f"{name} ({model.source}): stability lobes" if name else None
         savefig(d.plot(title=title), outs.path(args.plot))
     if getattr(d, "verified", None) is False:
-        print(
-            "chatterlab: the argument principle contradicts the diagram at the checks marked CHECK FAILED:"
-            " treat the diagram as undetermined there",
-            file=sys.stderr,
-        )
+        print(check_verdict(d.checks), file=sys.stderr)
         return 1
     return 0
 

@@ -11,7 +11,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["Lobe", "LobeDiagram"]
+__all__ = ["Lobe", "LobeDiagram", "count_failed"]
+
+
+def count_failed(check: dict[str, Any]) -> bool:
+    """True when a check's argument-principle count failed (its phase did not
+    close: verdict ``undetermined``, or no count at all, ``rhp_roots < 0``):
+    the check neither confirms nor contradicts the diagram."""
+    return check["verdict"] == "undetermined" or int(check["rhp_roots"]) < 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,6 +158,7 @@ class LobeDiagram:
             )
         if self.checks:
             ok = sum(c["agrees"] for c in self.checks)
+            n_failed = sum(count_failed(c) for c in self.checks)
             what = {
                 "below": "just below the envelope",
                 "above": "just above it",
@@ -161,13 +169,20 @@ class LobeDiagram:
             )
             lines.append(
                 f"  verified by the argument principle: {ok}/{len(self.checks)} checks agree ({kinds})"
+                + (f"; {n_failed} could not count the roots" if n_failed else "")
             )
             for c in self.checks:
-                if not c["agrees"]:
+                where = f"at {c['speed']:.6g} {self.speed_unit}, width {c['width'] * 1e3:.6g} mm"
+                if count_failed(c):
+                    why = c.get("reason") or c.get("message")
                     lines.append(
-                        f"  CHECK FAILED at {c['speed']:.6g} {self.speed_unit}, width {c['width'] * 1e3:.6g} mm:"
-                        f" expected {c['expected']}, the argument principle says {c['verdict']}"
-                        f" ({c['rhp_roots']} right-half-plane roots)"
+                        f"  CHECK NOT COUNTED {where} (expected {c['expected']}): the argument-principle count"
+                        f" failed (its phase did not close{f': {why}' if why else ''}); nothing is verified there"
+                    )
+                elif not c["agrees"]:
+                    lines.append(
+                        f"  CHECK FAILED {where}: expected {c['expected']}, the argument principle says"
+                        f" {c['verdict']} ({c['rhp_roots']} right-half-plane roots)"
                     )
         else:
             lines.append("  not verified (verify=0 or a plant without matrices)")
@@ -189,12 +204,14 @@ class LobeDiagram:
         ``width_max`` in a proven band, 2 no boundary found in a band that is
         not proven complete, 3 a check at this speed disagrees, 4 a boundary
         within a measured band (a lower one at a chatter frequency outside
-        the band is not excluded)."""
+        the band is not excluded).  A check whose count failed
+        (:func:`count_failed`) contradicts nothing: its speed keeps the
+        diagram's claim, unverified, like a speed that was not checked."""
         code = np.where(
             np.isfinite(self.b_lim), 4 if self.band_measured else 0, 1 if self.band_certified else 2
         )
         for c in self.checks:
-            if not c["agrees"]:
+            if not c["agrees"] and not count_failed(c):
                 code[np.nonzero(self.speed == c["speed"])[0]] = 3
         return code
 
