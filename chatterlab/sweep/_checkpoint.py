@@ -48,15 +48,15 @@ def _open_checkpoint(
     )
     where = f"checkpoint directory {str(directory)!r}"
     if existing and not resume:
-        if _is_complete(directory):
-            raise InputError(
-                f"{where} holds every chunk of a finished sweep whose results were not stored (the run"
-                " ended before writing them): pass resume=True (CLI: --resume) to write them without"
-                " computing anything, or delete the directory to start afresh"
-            )
+        done = (
+            " (it holds every chunk of a finished sweep, e.g. one killed before its output was written:"
+            " the resume computes nothing and gives its results)"
+            if _is_complete(directory)
+            else ""
+        )
         raise InputError(
             f"{where} is not empty: pass resume=True (CLI: --resume) to continue the sweep "
-            "saved there, or delete the directory to start afresh"
+            f"saved there{done}, or delete the directory to start afresh"
         )
     mpath = directory / _MANIFEST
     if not existing:
