@@ -19,15 +19,34 @@ def run(args: argparse.Namespace) -> int:
     from ..structure._assembly import assemble
 
     model = load(args)
-    sy = assemble(model)
-    summ = sy.summary()
+    if model.frf is not None:  # a measured FRF: no matrices to assemble, checked as lobes reads it
+        from ..lobes._measured import model_frf_summary
+
+        summ = model_frf_summary(model)
+        rows = _frf_rows(summ)
+    else:
+        summ = assemble(model).summary()
+        rows = _rows(model, summ)
     if args.format == "json":
         emit(json_text(summ), None)
         return 0
     print(f"{model.source}: OK  ({model.name}{', variant ' + model.variant if model.variant else ''})")
-    for k, v in _rows(model, summ):
+    for k, v in rows + _process_rows(model):
         print(f"  {k:<26} {v}")
     return 0
+
+
+def _frf_rows(summ: dict[str, Any]) -> list[tuple[str, Any]]:
+    lo, hi = summ["band [Hz]"]
+    cuts = "; ".join(f"{k} on {', '.join(v)}" for k, v in summ["couplings"].items()) or "none"
+    return [
+        ("structure", f"measured FRF {summ['file']} ({summ['format']}, {summ['units']}, {summ['quantity']})"),
+        ("frequencies", f"{summ['frequencies']}, {lo:g} .. {hi:g} Hz"),
+        ("outputs", ", ".join(summ["outputs"])),
+        ("inputs", ", ".join(summ["inputs"])),
+        ("coherence", "yes" if summ["coherence"] else "no"),
+        ("coupling elements (CE)", cuts),
+    ]
 
 
 def _rows(model: Any, summ: dict[str, Any]) -> list[tuple[str, Any]]:
@@ -48,9 +67,11 @@ def _rows(model: Any, summ: dict[str, Any]) -> list[tuple[str, Any]]:
         mv = model.movable
         rows.append(("movable bodies", ", ".join(mv.bodies)))
         rows.append(("position / range [m]", f"{mv.position:g} / [{mv.range[0]:g}, {mv.range[1]:g}]"))
-    if model.process is not None:
-        pr = model.process
-        rows.append(
-            ("process", f"{pr.kind}, {pr.speed_name} {pr.speed:g} {pr.speed_unit}, T = {pr.delay():.6g} s")
-        )
     return rows
+
+
+def _process_rows(model: Any) -> list[tuple[str, Any]]:
+    if model.process is None:
+        return []
+    pr = model.process
+    return [("process", f"{pr.kind}, {pr.speed_name} {pr.speed:g} {pr.speed_unit}, T = {pr.delay():.6g} s")]

@@ -84,7 +84,7 @@ def frf_model(args: argparse.Namespace) -> Any:
     from ._common import model_slips, warn
 
     model = loads_model(
-        text, source=f"lobes --frf {args.frf}", base_dir=frf.parent.resolve(), files_outside=False
+        text, source=f"lobes --frf {args.frf}", base_dir=frf.parent.resolve(), files_outside=True
     )
     warn(args, model_slips(model, args))
     return model

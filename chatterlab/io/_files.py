@@ -6,6 +6,14 @@
   temporary names in their own directories and moved into place together
   only when the command has succeeded, so a failed run leaves no file and
   never half a file.
+* :func:`check_not_input` -- the one output rule: an output is never an
+  input, whatever the spelling (relative, absolute, ``..``, a symbolic or
+  hard link): paths are compared after symbolic links are resolved
+  (``os.path.realpath``) and as files (``os.path.samefile``).
+  :func:`note_input` is how a reader tells the running command's
+  :class:`Outputs` what it reads (a measured FRF named by a model's
+  ``[frf]`` table is only known once the model is read): a file that is
+  also an output is refused then, before any work.
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import weakref
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -26,7 +35,9 @@ __all__ = [
     "TEXT_SUFFIXES",
     "CSV_SUFFIXES",
     "Outputs",
+    "check_not_input",
     "clean_stale",
+    "note_input",
     "json_text",
     "text_out",
 ]
@@ -117,6 +128,45 @@ def _probe(directory: Path) -> None:
     os.unlink(name)
 
 
+def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
+    """``a`` and ``b`` name one file: equal after symbolic links, ``..`` and
+    relative spellings are resolved, or the same file on disk (a hard link)."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):  # one of them does not exist (yet), or holds a NUL
+        return False
+
+
+def check_not_input(
+    out: str | os.PathLike[str], inputs: Iterable[str | os.PathLike[str]], option: str = "--out"
+) -> None:
+    """The output rule: :class:`InputError` when the output ``out`` (given to
+    ``option``) is one of ``inputs`` under any spelling -- relative or
+    absolute, through ``..``, a symbolic link (to the file or a folder on its
+    path) or a hard link.  An input is never overwritten."""
+    for inp in inputs:
+        if _same_file(out, inp):
+            raise InputError(
+                f"{option} {os.fspath(out)!r} is an input of this command ({os.fspath(inp)}); it is never overwritten:"
+                " give the output another name"
+            )
+
+
+#: the :class:`Outputs` of the running command(s): told by :func:`note_input` what is read
+_ACTIVE: weakref.WeakSet[Outputs] = weakref.WeakSet()
+
+
+def note_input(path: str | os.PathLike[str]) -> None:
+    """Tell the running command's outputs that ``path`` is read: an input
+    found only while the command runs (the measured FRF of a model's
+    ``[frf]`` table).  :class:`InputError` when it is one of the outputs
+    (:func:`check_not_input`); outside a command it does nothing."""
+    for outs in list(_ACTIVE):
+        outs.add_input(path)
+
+
 class Outputs:
     """The files one command writes.
 
@@ -127,12 +177,23 @@ class Outputs:
     temporary file onto its target (``os.replace``) once the command has
     succeeded, :meth:`discard` removes them after a failure.  An existing
     target is replaced (chatterlab's policy on outputs: docs/cli.md).
+    Until it commits or discards, every file a reader reports through
+    :func:`note_input` is an input too (:meth:`add_input`).
     """
 
     def __init__(self, inputs: Iterable[str | os.PathLike[str]] = ()) -> None:
         self._inputs = {os.path.realpath(p): os.fspath(p) for p in inputs}
         self._targets: dict[str, str] = {}  # real path -> option
+        self._given: dict[str, str] = {}  # real path -> the path as given
         self._staged: list[tuple[Path, Path, bool]] = []  # (tmp, final, announce)
+        _ACTIVE.add(self)
+
+    def add_input(self, path: str | os.PathLike[str]) -> None:
+        """One more input of the command (a file it reads): refused when it
+        is one of the outputs already checked (:func:`check_not_input`)."""
+        for real, option in self._targets.items():
+            check_not_input(self._given.get(real, real), [path], option)
+        self._inputs.setdefault(os.path.realpath(path), os.fspath(path))
 
     def add(self, path: str | None, option: str, suffixes: tuple[str, ...]) -> str | None:
         """Check one output path (None: the option was not given)."""
@@ -145,10 +206,7 @@ class Outputs:
                 f"{' (the suffix picks the format)' if len(suffixes) > 1 else ''}"
             )
         real = os.path.realpath(p)
-        if real in self._inputs:
-            raise InputError(
-                f"{option} {path!r} is an input of this command ({self._inputs[real]}); it is never overwritten"
-            )
+        check_not_input(path, self._inputs.values(), option)
         if real in self._targets:
             raise InputError(
                 f"{option} {path!r} is also given to {self._targets[real]}; give each output its own file"
@@ -169,6 +227,7 @@ class Outputs:
                 f"{option} {path!r}: cannot write in {str(parent)!r} ({exc.strerror or exc}); choose a writable directory"
             ) from None
         self._targets[real] = option
+        self._given[real] = path
         clean_stale(p)
         return path
 
@@ -182,7 +241,17 @@ class Outputs:
     def commit(self, note: Any = None) -> list[Path]:
         """Move every written temporary file onto its target; ``note(msg)``
         reports each (``wrote FILE``)."""
+        _ACTIVE.discard(self)
         done = []
+        try:  # the output rule once more, at the last moment: an input read since is never replaced
+            for _, final, _ in self._staged:
+                option = self._targets.get(os.path.realpath(final), "output")
+                check_not_input(
+                    self._given.get(os.path.realpath(final), final), self._inputs.values(), option
+                )
+        except InputError:
+            self.discard()
+            raise
         for tmp, final, announce in self._staged:
             if not tmp.exists():
                 continue
@@ -195,6 +264,7 @@ class Outputs:
 
     def discard(self) -> None:
         """Remove the temporary files of a failed command."""
+        _ACTIVE.discard(self)
         for tmp, _, _ in self._staged:
             with contextlib.suppress(OSError):
                 tmp.unlink()

@@ -22,6 +22,7 @@ from ._frf_table import (
     _resolve_units,
     _split,
     _to_receptance,
+    check_points,
     parse_frf_units,
 )
 
@@ -30,25 +31,43 @@ __all__ = ["read_frf_csv", "write_frf_csv"]
 
 # ============================================================================ CSV / TXT
 
-_FREQ = re.compile(r"^(f|freq|frequency)\s*(?:[\[(]\s*([^\])]*)\s*[\])]|_(hz))?$", re.I)
-_PART = re.compile(
-    r"^(?P<pair>.*?)(?:^|[\s_:]+)(?P<part>re|real|im|imag|mag|abs|amp|phase|coh|coherence)"
-    r"\s*(?:[\[(]\s*(?P<unit>[^\])]*)\s*[\])])?$",
-    re.I,
+_FREQ = re.compile(
+    r"^(?:f|freq|frequency)(?:\s*[\[(]\s*(?P<unit>[^\])]*?)\s*[\])]|[\s_]+(?P<bare>hz))?$", re.I
 )
-_PARTS = {
-    "re": "re",
-    "real": "re",
-    "im": "im",
-    "imag": "im",
-    "mag": "mag",
-    "abs": "mag",
-    "amp": "mag",
-    "phase": "phase",
-    "coh": "coh",
-    "coherence": "coh",
+#: the part words of a column (upper or lower case), by the part they name
+_PART_WORDS = {
+    "re": ("re", "real", "real part"),
+    "im": ("im", "imag", "imaginary", "imag part", "imaginary part"),
+    "mag": ("mag", "magnitude", "abs", "amp", "amplitude"),
+    "phase": ("phase", "phase angle", "arg", "angle"),
+    "coh": ("coh", "coherence"),
+}
+_PARTS = {w: part for part, words in _PART_WORDS.items() for w in words}
+_WORD = "|".join(sorted((w.replace(" ", r"[\s_]") for w in _PARTS), key=len, reverse=True))
+#: a bracketed unit after a name: ``[mm/N]``, ``(deg)``; or ``_deg``/`` rad`` after a phase
+_UNIT = r"(?:\s*[\[(]\s*(?P<unit>[^\])]*?)\s*[\])]|[\s_]+(?P<bare>deg|degrees?|rad|radians?))?"
+#: PAIR PART [unit] (``xx re``, ``tool.x/tool.y_imag``, ``re``); PART PAIR [unit] (``re tool.x/tool.x [m/N]``,
+#: as ``chatterlab frf`` writes); ``|PAIR| [unit]`` (a magnitude, as ``chatterlab frf`` writes)
+_PAIR_PART = re.compile(rf"^(?P<pair>.*?)(?:^|[\s_:]+)(?P<part>{_WORD}){_UNIT}$", re.I)
+_PART_PAIR = re.compile(rf"^(?P<part>{_WORD})[\s_:]+(?P<pair>[^\s\[(]+){_UNIT}$", re.I)
+_ABS_PAIR = re.compile(rf"^\|(?P<pair>[^|]+)\|{_UNIT}$", re.I)
+#: the simplest header, named in every refusal of a header
+SIMPLEST = (
+    "the simplest header is 'f, re, im' (or 'f, mag, phase [deg]'), with a line '# units: m/N' above it"
+)
+_PHASE_UNITS = {
+    "deg": False,
+    "degree": False,
+    "degrees": False,
+    "°": False,
+    "rad": True,
+    "radian": True,
+    "radians": True,
 }
 _DIRS = "xyz"
+#: the '# key:' lines the reader acts on (above the header row; below it they are refused, never ignored)
+_READ_KEYS = ("units", "unit", "quantity", "point")
+_KEY_VALUE = re.compile(r"^#\s*([A-Za-z][\w ]*?)\s*[:=]\s*(.*)$")
 
 
 def _pair_names(pair: str, point: str | None, where: str, column: str) -> tuple[str, str]:
@@ -81,36 +100,52 @@ class _Column:
     raw: str = ""
 
 
+def _column(c: str) -> tuple[str, str, str | None] | None:
+    """(pair, part, unit) of a column name, None when it is not one."""
+    for rx in (_PAIR_PART, _PART_PAIR, _ABS_PAIR):
+        m = rx.match(c.strip())
+        if m:
+            part = (
+                _PARTS[" ".join(m["part"].lower().replace("_", " ").split())]
+                if "part" in m.re.groupindex
+                else "mag"
+            )
+            return m["pair"], part, m["unit"] if m["unit"] is not None else m["bare"]
+    return None
+
+
 def _parse_header(cells: list[str], point: str | None, where: str, line: int) -> list[_Column]:
     m = _FREQ.match(cells[0])
     if not m:
         raise InputError(
             f"{where}, line {line}: the first column must be the frequency in Hz (named f, freq or"
-            f" frequency [Hz]); got {cells[0]!r}"
+            f" frequency [Hz]); got {cells[0]!r}; {SIMPLEST}"
         )
-    unit = (m[2] or m[3] or "hz").strip().lower()
+    unit = (m["unit"] or m["bare"] or "hz").strip().lower()
     if unit != "hz":
         raise InputError(
             f"{where}, line {line}: the frequency column must be in Hz (got {unit!r}); convert it"
         )
     cols = []
     for k, c in enumerate(cells[1:], 1):
-        pm = _PART.match(c)
-        if not pm:
+        got = _column(c)
+        if got is None:
             raise InputError(
-                f"{where}, line {line}, column {k + 1} {c!r}: not a known column; name it PAIR re, PAIR im"
-                " (or mag, phase [deg], coh), e.g. 'tool.x/tool.x re' or 'xx_re'"
+                f"{where}, line {line}, column {k + 1} {c!r}: not a known column; {SIMPLEST}; per pair:"
+                " 'tool.x/tool.x re', 'xx_imag', 'xy magnitude', 'phase [rad]', 'coh' (docs/measured-frf.md)"
             )
-        cols.append(
-            _Column(
-                k,
-                c,
-                _pair_names(pm["pair"], point, where, c),
-                _PARTS[pm["part"].lower()],
-                pm["unit"],
-                pm["pair"].strip(),
-            )
-        )
+        pair, part, cunit = got
+        if part == "phase":
+            u = (cunit or "").strip().lower()
+            if u not in _PHASE_UNITS:
+                raise InputError(
+                    f"{where}, line {line}, column {k + 1} {c!r}: "
+                    + (f"phase unit {cunit!r}; " if cunit else "the phase needs its unit: ")
+                    + "write 'phase [deg]' or 'phase [rad]'"
+                )
+        elif part == "coh" and cunit:
+            raise InputError(f"{where}, line {line}, column {k + 1} {c!r}: a coherence has no unit")
+        cols.append(_Column(k, c, _pair_names(pair, point, where, c), part, cunit, pair.strip()))
     return cols
 
 
@@ -142,9 +177,14 @@ def read_frf_csv(
         if not s:
             continue
         if s.startswith("#"):
-            key, sep, val = s[1:].partition(":")
-            if sep and cols is None:
-                header[key.strip().lower()] = val.strip()
+            kv = _KEY_VALUE.match(s)
+            if kv and cols is None:
+                header[kv[1].strip().lower()] = kv[2].strip()
+            elif kv and kv[1].strip().lower() in _READ_KEYS:
+                raise InputError(
+                    f"{where}, line {n}: '# {kv[1].strip()}' below the header row (line {header_line}) is not"
+                    " read; move it above the header row"
+                )
             continue
         if cols is None:
             delim = _delimiter(s)
@@ -170,12 +210,15 @@ def read_frf_csv(
         names = ["frequency"] + [c.name for c in cols]
         rows.append([_number(t, where, n, names[k]) for k, t in enumerate(cells)])
         lines.append(n)
+        check_points(len(rows), where, n)
     if cols is None or not rows:
         raise InputError(f"{where}: no data rows (f [Hz], Re, Im per line)")
     data = np.array(rows)
     f = data[:, 0]
     _check_increasing(f, lines, where)
     col_units = {c.unit for c in cols if c.part in ("re", "im", "mag") and c.unit}
+    if len({parse_frf_units(u, f"{where}, line {header_line}: a column's unit") for u in col_units}) == 1:
+        col_units = {min(col_units)}
     if len(col_units) > 1:
         raise InputError(
             f"{where}, line {header_line}: the columns give different units {sorted(col_units)}; use one"
@@ -189,7 +232,7 @@ def read_frf_csv(
             )
         file_units = file_units or cu
     scale, power, used = _resolve_units(units, quantity, file_units, header.get("quantity"), where, None)
-    A, coh, outs, ins = _assemble(cols, data, where, header_line)
+    A, coh, outs, ins = _assemble(cols, data, where, header_line, lines)
     H = _to_receptance(f, A, scale, power, where, lines)
     meta = {k: v for k, v in header.items()}
     meta.update({"units": used, "quantity": _QNAME[power], "format": "csv"})
@@ -197,21 +240,18 @@ def read_frf_csv(
 
 
 def _assemble(
-    cols: list[_Column], data: np.ndarray, where: str, line: int
+    cols: list[_Column], data: np.ndarray, where: str, line: int, lines: list[int]
 ) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...], tuple[str, ...]]:
-    """Complex matrix (n, n_out, n_in) from the columns of each pair."""
+    """Complex matrix (n, n_out, n_in) from the columns of each pair; a pair
+    given both as re/im and as mag/phase (``chatterlab frf`` writes both)
+    is read from re/im and the two must agree."""
     parts: dict[tuple[str, str], dict[str, int]] = {}
     phase_rad: dict[tuple[str, str], bool] = {}
     raw: dict[tuple[str, str], str] = {}
     for c in cols:
         raw.setdefault(c.pair, c.raw)
-        if c.part == "phase" and c.unit:
-            u = c.unit.strip().lower()
-            if u not in ("deg", "degree", "degrees", "°", "rad"):
-                raise InputError(
-                    f"{where}, line {line}, column {c.name!r}: phase unit {c.unit!r}; use deg or rad"
-                )
-            phase_rad[c.pair] = u == "rad"
+        if c.part == "phase":
+            phase_rad[c.pair] = _PHASE_UNITS[(c.unit or "").strip().lower()]
         d = parts.setdefault(c.pair, {})
         if c.part in d:
             raise InputError(
@@ -226,29 +266,46 @@ def _assemble(
     any_coh = False
     for (o, i), d in parts.items():
         pair = raw[(o, i)] or f"{o}/{i}"
-        if "re" in d or "im" in d:
-            for need in ("re", "im"):
-                if need not in d:
-                    raise InputError(
-                        f"{where}, line {line}: column '{pair} {need}' is missing (the pair has the other part)"
-                    )
-            if "mag" in d or "phase" in d:
-                raise InputError(
-                    f"{where}, line {line}: pair {pair} is given twice (re/im and mag/phase); keep one form"
-                )
-            z = data[:, d["re"]] + 1j * data[:, d["im"]]
-        elif "mag" in d or "phase" in d:
-            for need in ("mag", "phase"):
-                if need not in d:
-                    raise InputError(
-                        f"{where}, line {line}: column '{pair} {need}' is missing (the pair has the other part)"
-                    )
-            ph = data[:, d["phase"]]
-            z = data[:, d["mag"]] * np.exp(1j * (ph if phase_rad.get((o, i)) else np.radians(ph)))
-        else:
+        forms = [
+            f
+            for f, need in (("re/im", ("re", "im")), ("mag/phase", ("mag", "phase")))
+            if any(k in d for k in need)
+        ]
+        if not forms:
             raise InputError(
                 f"{where}, line {line}: pair {pair} has only a coherence; add its re and im columns"
             )
+        for form in forms:
+            for need in form.split("/"):
+                if need not in d:
+                    raise InputError(
+                        f"{where}, line {line}: column '{pair} {need}' is missing (the pair has the other part"
+                        f" of {form}); {SIMPLEST}"
+                    )
+        z_mp = None
+        if "mag/phase" in forms:
+            mag = data[:, d["mag"]]
+            neg = np.nonzero(mag < 0)[0]
+            if neg.size:
+                raise InputError(
+                    f"{where}, line {lines[int(neg[0])]}: magnitude {mag[neg[0]]:g} of {pair} is negative; a"
+                    " magnitude is |H| >= 0 (a signed value is a real part: name the column re)"
+                )
+            ph = data[:, d["phase"]]
+            z_mp = mag * np.exp(1j * (ph if phase_rad[(o, i)] else np.radians(ph)))
+        if "re/im" in forms:
+            z = data[:, d["re"]] + 1j * data[:, d["im"]]
+            if z_mp is not None:
+                off = np.abs(z - z_mp) > 1e-6 * np.maximum(np.abs(z), np.abs(z_mp)) + 1e-300
+                if off.any():
+                    k = int(np.nonzero(off)[0][0])
+                    raise InputError(
+                        f"{where}, line {lines[k]}: pair {pair} is given twice (re/im and mag/phase) and the two"
+                        " disagree there; keep one form"
+                    )
+        else:
+            assert z_mp is not None
+            z = z_mp
         A[:, outs.index(o), ins.index(i)] = z
         if "coh" in d:
             any_coh = True
@@ -259,8 +316,10 @@ def _assemble(
             f"{where}, line {line}: the pairs form a {len(outs)}x{len(ins)} matrix but {', '.join(missing)}"
             " is not given; add its columns (zeros if it is negligible)"
         )
-    if any_coh and not np.all((coh >= 0) & (coh <= 1 + 1e-9)):
-        raise InputError(f"{where}: a coherence outside [0, 1]")
+    if any_coh:
+        bad = np.nonzero(~np.all((coh >= 0) & (coh <= 1 + 1e-9), axis=(1, 2)))[0]
+        if bad.size:
+            raise InputError(f"{where}, line {lines[int(bad[0])]}: a coherence outside [0, 1]")
     return A, (coh if any_coh else None), outs, ins
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -161,22 +160,146 @@ def _to_receptance(
     return A * scale / (jw**power).reshape((-1,) + (1,) * (A.ndim - 1))
 
 
-# ============================================================================ text reading helpers
+# ============================================================================ the file itself
+# One reader contract (docs/measured-frf.md, "Bad input"): a reader reads the
+# whole file as documented or refuses it with the file, the line and the
+# reason.  Before a byte is parsed the path must be a regular file (a FIFO,
+# a device such as /dev/zero or a directory would block, never end or make
+# no sense) of at most MAX_FRF_FILE_BYTES; the file is an input of the
+# running command (never one of its outputs: chatterlab.io._files).
+
+#: the largest FRF file read, bytes: a tap test of 10^4 frequencies on a 2 x 2
+#: matrix with coherences is 2-5 MiB in any of the formats
+MAX_FRF_FILE_BYTES = 16 * 2**20
+
+#: the most frequencies an FRF file may hold: the lobe engine works on every
+#: measured frequency (10^5 frequencies: ~20 s and ~1 GB per diagram)
+MAX_FRF_POINTS = 100_000
+
+#: line ends read as such: LF, CRLF and CR (old Mac exports) -- nothing else
+#: (form feeds, vertical tabs, U+2028 are not line ends here, but refused)
+_EOL = re.compile(r"\r\n|\r|\n")
+#: control characters no FRF text file holds (tab is a delimiter)
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f\x85\u2028\u2029]")
 
 
-def _lines(path: Path) -> Iterator[tuple[int, str]]:
+def read_input(path: Path) -> bytes:
+    """The bytes of the FRF file ``path``: a regular file of at most
+    :data:`MAX_FRF_FILE_BYTES`, else :class:`InputError` naming it and the
+    limit.  The file is opened without blocking (a FIFO), checked on the
+    open descriptor, and noted as an input of the running command."""
+    import os
+    import stat
+
+    from ._files import note_input
+
+    where = str(path)
     try:
-        with open(path, encoding="utf-8-sig") as fh:
-            for n, line in enumerate(fh, 1):
-                yield n, line.rstrip("\r\n")
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except UnicodeDecodeError:
-        raise InputError(
-            f"{path}: not a text file (not UTF-8); a binary UFF file needs the suffix .uff or .unv"
-        ) from None
+        raise InputError(f"{where}: no such file") from None
     except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, not an FRF file") from None
+        raise InputError(f"{where}: is a directory, not an FRF file") from None
+    except (OSError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise InputError(f"{where}: cannot be read ({reason})") from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise InputError(f"{where}: is a directory, not an FRF file")
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
+            raise InputError(f"{where}: is {kind}, not a regular file; give the FRF file itself")
+        if st.st_size > MAX_FRF_FILE_BYTES:
+            raise InputError(
+                f"{where}: {st.st_size / 2**20:.1f} MiB; an FRF file may hold at most"
+                f" {MAX_FRF_FILE_BYTES // 2**20} MiB (and {MAX_FRF_POINTS} frequencies): resample or split it"
+            )
+        note_input(path)
+        with open(fd, "rb", closefd=False) as fh:
+            data = fh.read(MAX_FRF_FILE_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"{where}: cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_FRF_FILE_BYTES:  # it grew while being read
+        raise InputError(
+            f"{where}: more than {MAX_FRF_FILE_BYTES // 2**20} MiB; an FRF file may hold at most that"
+        )
+    return data
+
+
+def _line_of(data: bytes, offset: int) -> int:
+    """The line (1-based) of byte ``offset``, line ends LF, CRLF or CR."""
+    head = data[:offset]
+    return head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1
+
+
+def decode_text(data: bytes, where: str) -> str:
+    """The text of an FRF text file: UTF-8 (with or without a byte-order
+    mark) or UTF-16 with its byte-order mark; anything else is refused with
+    the line of the first byte that is not text."""
+    import codecs
+
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)) and not data.startswith(codecs.BOM_UTF8):
+        try:
+            return data.decode("utf-16")
+        except UnicodeDecodeError:
+            raise InputError(
+                f"{where}: starts with a UTF-16 byte-order mark but is not UTF-16 text (an odd number of bytes"
+                " or a broken character); save it again as UTF-8"
+            ) from None
+    if b"\x00" in data:
+        at = _line_of(data, data.index(b"\x00"))
+        raise InputError(
+            f"{where}, line {at}: a NUL byte: a binary file, or UTF-16 text without its byte-order mark; save it"
+            " as UTF-8 text (a binary UFF file needs the suffix .uff or .unv)"
+        )
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        bom = 3 if data.startswith(codecs.BOM_UTF8) else 0
+        at = _line_of(data, exc.start + bom)
+        raise InputError(
+            f"{where}, line {at}: byte 0x{data[exc.start + bom]:02x} is not UTF-8 text (Latin-1 or Windows"
+            " text?); save the file as UTF-8 (or UTF-16 with a byte-order mark)"
+        ) from None
+
+
+def text_lines(text: str, where: str) -> list[tuple[int, str]]:
+    """(line number, line) of ``text``, line ends LF, CRLF or CR; a control
+    character other than a tab is refused with its line."""
+    out = []
+    for n, line in enumerate(_EOL.split(text), 1):
+        m = _CONTROL.search(line)
+        if m:
+            raise InputError(
+                f"{where}, line {n}: control character U+{ord(m[0]):04X}; an FRF text file holds only text,"
+                " tabs and line ends (LF, CRLF or CR)"
+            )
+        out.append((n, line))
+    if out and not out[-1][1]:
+        out.pop()
+    return out
+
+
+def _lines(path: Path) -> list[tuple[int, str]]:
+    """The lines of the FRF text file ``path`` (:func:`read_input`,
+    :func:`decode_text`, :func:`text_lines`)."""
+    return text_lines(decode_text(read_input(path), str(path)), str(path))
+
+
+def check_points(count: int, where: str, line: int | None = None) -> None:
+    """At most :data:`MAX_FRF_POINTS` frequencies."""
+    if count > MAX_FRF_POINTS:
+        at = f", line {line}" if line is not None else ""
+        raise InputError(
+            f"{where}{at}: more than {MAX_FRF_POINTS} frequencies; an FRF file may hold at most"
+            f" {MAX_FRF_POINTS}: resample it (a few points per half-power width are enough, docs/measured-frf.md)"
+        )
+
+
+# ============================================================================ text reading helpers
 
 
 def _split(line: str, delim: str | None) -> list[str]:
@@ -214,6 +337,12 @@ def _number(tok: str, where: str, line: int, column: str) -> float:
 def _check_increasing(f: np.ndarray, lines: list[int], where: str) -> None:
     if f.size < 2:
         raise InputError(f"{where}: at least 2 frequencies are needed (got {f.size})")
+    bad_f = np.nonzero(~np.isfinite(f))[0]
+    if bad_f.size:
+        k = int(bad_f[0])
+        raise InputError(
+            f"{where}, line {lines[k]}: frequency {f[k]} is not a finite number; drop or repair it"
+        )
     if f[0] < 0:
         raise InputError(f"{where}, line {lines[0]}: frequency {f[0]:g} Hz is negative")
     d = np.diff(f)

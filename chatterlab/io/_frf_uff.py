@@ -10,7 +10,16 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ._frf_table import _QNAME, FRFTable, _check_increasing, _resolve_units, _to_receptance
+from ._frf_table import (
+    _QNAME,
+    FRFTable,
+    _check_increasing,
+    _line_of,
+    _resolve_units,
+    _to_receptance,
+    check_points,
+    read_input,
+)
 
 __all__ = ["read_frf_uff", "write_frf_uff"]
 
@@ -54,8 +63,7 @@ def read_frf_uff(
     pyuff = _pyuff()
     p = Path(os.fspath(path))
     where = str(p)
-    if not p.is_file():
-        raise InputError(f"{where}: no such file")
+    _uff_blocks(read_input(p), where)  # a regular file, within the cap, every dataset closed
     frfs, cohs = _uff_datasets(pyuff, p, where)
     x0, power0, entries, coh_entries = _uff_entries(frfs, cohs, quantity, where)
     A, coh, outs, ins = _uff_matrix(entries, coh_entries, x0.size, where)
@@ -64,6 +72,57 @@ def read_frf_uff(
     H = _to_receptance(x0, A, scale, power, where, None)
     meta = {"units": used, "quantity": _QNAME[power], "format": "uff58", "datasets": len(frfs)}
     return FRFTable(x0, H, outs, ins, coh, where, meta)
+
+
+def _uff_tags(data: bytes) -> list[int]:
+    """Offsets of the ``    -1`` lines that open and close the datasets,
+    found as pyuff finds them (so both see the same blocks)."""
+    tags = []
+    ind = -1
+    n = len(data)
+    while True:
+        ind = data.find(b"    -1", ind + 1)
+        if ind == -1:
+            return tags
+        end = ind + 6
+        if (
+            end == n
+            or (end < n and data[end] in (10, 13))
+            or (ind + 80 < n and data[end : ind + 80] == b" " * 74)
+        ):
+            tags.append(ind)
+
+
+def _uff_blocks(data: bytes, where: str) -> None:
+    """The file is datasets and nothing else: every ``    -1`` that opens a
+    dataset has its closing ``    -1`` (pyuff silently drops a last dataset
+    that has none: a truncated file would be read in part), and no text
+    lies between or around them."""
+    tags = _uff_tags(data)
+    if not tags:
+        if data.strip():
+            raise InputError(
+                f"{where}: not a UFF file (no '    -1' line opening a dataset); export the FRFs as UFF 58"
+            )
+        raise InputError(f"{where}: the file is empty; export the FRFs as UFF 58")
+    if len(tags) % 2:
+        raise InputError(
+            f"{where}, line {_line_of(data, tags[-1])}: the dataset opened here has no closing '    -1' line:"
+            " the file is truncated (or a dataset is damaged); export it again"
+        )
+    edges = [0, *tags, len(data)]
+    for k in range(0, len(edges), 2):  # outside the blocks: [start, first tag), [close + its line, next open)
+        lo, hi = edges[k], edges[k + 1]
+        if k:
+            nl = data.find(b"\n", lo)
+            lo = hi if nl == -1 or nl > hi else nl + 1
+        junk = data[lo:hi]
+        if junk.strip():
+            off = lo + len(junk) - len(junk.lstrip())
+            raise InputError(
+                f"{where}, line {_line_of(data, off)}: text outside any dataset (a dataset is the lines between two"
+                " '    -1' lines); the file is damaged or not UFF"
+            )
 
 
 #: datasets as (index in the file, pyuff's fields); FRFs or coherences per (output, input) pair
@@ -115,6 +174,14 @@ def _uff_entries(
             ds = f"{where}, dataset {k + 1} (58)"
             x = np.asarray(s["x"], dtype=float)
             y = np.asarray(s["data"])
+            declared = int(s.get("num_pts", x.size))
+            if not x.size == y.size == declared:
+                raise InputError(
+                    f"{ds}: declares {declared} points but holds {y.size} values"
+                    f"{'' if x.size == y.size else f' and {x.size} frequencies'}: the file is truncated or"
+                    " damaged; export it again"
+                )
+            check_points(x.size, ds)
             if target is entries and not np.iscomplexobj(y):
                 raise InputError(
                     f"{ds}: ordinate data type {s.get('ord_data_type')} is real; an FRF is complex (5 or 6)"

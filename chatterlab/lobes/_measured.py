@@ -65,6 +65,7 @@ __all__ = [
     "regenerative_matrices",
     "zoa_matrices",
     "model_frf",
+    "model_frf_summary",
     "lobes_model_frf",
 ]
 
@@ -292,6 +293,59 @@ def model_frf(model: Any) -> MeasuredFRF:
     return MeasuredFRF.from_table(src.table, source=src.file)
 
 
+def _frf_cut(model: Any, frf: MeasuredFRF, c: Any) -> tuple[list[str], tuple[np.ndarray, ...]]:
+    """The coordinates of the FRF that the coupling ``c`` acts on and its
+    (D_P, D_V, D_O) on them: the coupling must join a point on the FRF's
+    coordinates to the ground, with the measured directions as its axes."""
+    if c.b.kind != "ground" or c.a.kind != "coords" or c.a.weights:
+        raise InputError(
+            f'{model.source}: [[coupling]] "{c.id}" must join a point on the FRF\'s coordinates (a, coords ='
+            ' { x = "...", y = "..." }) to "ground": the measured FRF is the tool relative to the workpiece'
+        )
+    if c.angle != 0.0:
+        raise InputError(
+            f'{model.source}: [[coupling]] "{c.id}" has angle_deg = {np.degrees(c.angle):g}; with a measured FRF'
+            " the CE axes are the measured directions: rotate the FRF's coordinates instead (angle_deg = 0)"
+        )
+    axes = [k for k, name in enumerate(c.a.coords) if name]
+    coords = [c.a.coords[k] for k in axes]
+    missing = [n for n in coords if n not in frf.outputs or n not in frf.inputs]
+    if missing and not (len(coords) == 1 and frf.H.shape[1:] == (1, 1)):
+        raise InputError(
+            f"{frf.source}: the coupling's point names {', '.join(missing)}, which the FRF does not hold as both"
+            f" response and reference (outputs {list(frf.outputs)}, inputs {list(frf.inputs)})"
+        )
+    sel = np.ix_(axes, axes)
+    return coords, tuple(np.asarray(X, dtype=float)[sel] for X in (c.DP, c.DV, c.DO))
+
+
+def model_frf_summary(model: Any) -> dict[str, Any]:
+    """What ``chatterlab check`` says of a model whose structure is a
+    measured FRF (``[frf]``): the file, its units, band and coordinates, and
+    each ``[[coupling]]`` checked as :func:`lobes_model_frf` checks it."""
+    frf = model_frf(model)
+    src = model.frf
+    cuts = {c.id: _frf_cut(model, frf, c)[0] for c in model.couplings}
+    lo, hi = frf.band_hz
+    return {
+        "name": model.name,
+        "source": model.source,
+        "variant": model.variant,
+        "structure": "measured FRF",
+        "file": src.file,
+        "format": src.table.meta.get("format"),
+        "units": src.table.meta.get("units"),
+        "quantity": src.table.meta.get("quantity"),
+        "frequencies": int(frf.frequency.size),
+        "band [Hz]": [float(lo), float(hi)],
+        "outputs": list(frf.outputs),
+        "inputs": list(frf.inputs),
+        "coherence": frf.coherence is not None,
+        "couplings": {k: list(v) for k, v in cuts.items()},
+        "points": len(model.points),
+    }
+
+
 def lobes_model_frf(
     model: Any,
     speeds: np.ndarray,
@@ -320,26 +374,7 @@ def lobes_model_frf(
             f"{model.source}: lobes from a measured FRF take one [[coupling]] (known: {known}); name it with coupling="
         )
     c = cs[0]
-    if c.b.kind != "ground" or c.a.kind != "coords" or c.a.weights:
-        raise InputError(
-            f'{model.source}: [[coupling]] "{c.id}" must join a point on the FRF\'s coordinates (a, coords ='
-            ' { x = "...", y = "..." }) to "ground": the measured FRF is the tool relative to the workpiece'
-        )
-    if c.angle != 0.0:
-        raise InputError(
-            f'{model.source}: [[coupling]] "{c.id}" has angle_deg = {np.degrees(c.angle):g}; with a measured FRF'
-            " the CE axes are the measured directions: rotate the FRF's coordinates instead (angle_deg = 0)"
-        )
-    axes = [k for k, name in enumerate(c.a.coords) if name]
-    coords = [c.a.coords[k] for k in axes]
-    missing = [n for n in coords if n not in frf.outputs or n not in frf.inputs]
-    if missing and not (len(coords) == 1 and frf.H.shape[1:] == (1, 1)):
-        raise InputError(
-            f"{frf.source}: the coupling's point names {', '.join(missing)}, which the FRF does not hold as both"
-            f" response and reference (outputs {list(frf.outputs)}, inputs {list(frf.inputs)})"
-        )
-    sel = np.ix_(axes, axes)
-    DP, DV, DO = (np.asarray(X, dtype=float)[sel] for X in (c.DP, c.DV, c.DO))
+    coords, (DP, DV, DO) = _frf_cut(model, frf, c)
     return lobes_measured(
         frf,
         speeds,
