@@ -3,8 +3,8 @@
 The command line is parsed before anything heavy is imported, and only the
 chosen command's module is imported: ``--help`` and ``-h``, of the top level
 and of every command, load no numpy (let alone scipy, matplotlib, xarray).
-Each case runs in a fresh interpreter under ``-X importtime``, which names
-every module the run imported.  The timing itself is benchmarks/bench_help.py.
+Each case runs in a fresh interpreter, which names at exit every module the
+run loaded (``sys.modules``).  The timing itself is benchmarks/bench_help.py.
 """
 
 from __future__ import annotations
@@ -24,15 +24,19 @@ CASES = [[flag] for flag in ("--help", "-h")] + [
 ]
 
 
+#: the real entry point (``python -m chatterlab.cli``), and at exit the names of every loaded module
+_PROBE = (
+    "import atexit, runpy, sys\n"
+    "atexit.register(lambda: sys.stderr.write('\\nMODULES ' + ' '.join(sorted(sys.modules)) + '\\n'))\n"
+    "sys.argv = ['chatterlab', *sys.argv[1:]]\n"
+    "runpy.run_module('chatterlab.cli', run_name='__main__', alter_sys=True)\n"
+)
+
+
 def _imported(args: list[str]) -> tuple[set[str], subprocess.CompletedProcess]:
-    r = subprocess.run(
-        [sys.executable, "-X", "importtime", "-m", "chatterlab.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    mods = {ln.rsplit("|", 1)[1].strip() for ln in r.stderr.splitlines() if ln.startswith("import time:")}
-    return mods, r
+    r = subprocess.run([sys.executable, "-c", _PROBE, *args], capture_output=True, text=True, timeout=120)
+    line = next(ln for ln in r.stderr.splitlines() if ln.startswith("MODULES "))
+    return set(line.split()[1:]), r
 
 
 @pytest.mark.parametrize("args", CASES, ids=[" ".join(a) for a in CASES])

@@ -115,9 +115,16 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The parser of the ``chatterlab`` command and its subcommands; with
-    ``command``, only that subcommand's options are built (and only its
-    module imported), the others are listed by name and help line."""
+    """The parser of the ``chatterlab`` command and its subcommands (every
+    command's module imported); with ``command``, only that subcommand's
+    options are built and its module imported, the others are listed by
+    name and help line."""
+    return _build(list(_COMMAND_TABLE) if command is None else [command])
+
+
+def _build(full: Sequence[str]) -> argparse.ArgumentParser:
+    """The parser with the options of the commands ``full`` (their modules
+    imported) and the other commands as a name and a help line."""
     from .._version import __version__
 
     p = _Parser(
@@ -131,11 +138,21 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"chatterlab {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, (_, line) in _COMMAND_TABLE.items():
-        if command is None or name == command:
+        if name in full:
             _module(name).add_parser(sub)
+            cmd = sub.choices[name]
+            if cmd.epilog is None:
+                cmd.epilog = _EPILOG
         else:
             sub.add_parser(name, help=line, add_help=False)
     return p
+
+
+#: the end of every command's -h: where the examples and the model format are, installed or not
+_EPILOG = (
+    "A model or FRF file may be a bundled example: example:NAME (chatterlab example lists them and copies"
+    " one here). The model format: docs/model-format.md in the source tree."
+)
 
 
 def _chosen(argv: Sequence[str]) -> str | None:
@@ -216,7 +233,8 @@ class _PipeGuard:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``chatterlab`` command; returns the exit status."""
     _ARGV[:] = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(_chosen(_ARGV))
+    chosen = _chosen(_ARGV)
+    parser = _build([chosen] if chosen else [])
     args, extra = parser.parse_known_args(_ARGV)
     if extra:
         # an unknown option: the subcommand's usage and a suggestion, not the top level's
