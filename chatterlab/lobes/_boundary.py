@@ -242,30 +242,49 @@ def _sylvester_det(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.det(S)
 
 
-def _secant_on_nu(op1: Ops, beta_max: float, x: np.ndarray) -> np.ndarray:
-    """Refine candidate widths at one frequency on f(x) = log|nu_j(x beta_max)|
-    of the eigenvalue nearest the unit circle (secant, 8 steps); keep those
-    where |f| < 1e-9 (a resultant root whose common z is off the circle, or
-    a spurious one, fails this)."""
+def _secant_on_nu(ops: Ops, beta_max: float, xs: list[np.ndarray]) -> list[np.ndarray]:
+    """Refine candidate widths ``xs[k]`` at each frequency k of ``ops`` on
+    f(x) = log|nu_j(x beta_max)| of the eigenvalue nearest the unit circle
+    (secant, 8 steps); keep those where |f| < 1e-9 (a resultant root whose
+    common z is off the circle, or a spurious one, fails this).
 
-    def f(xx: np.ndarray) -> np.ndarray:
-        v = nu(op1, beta_max * xx[None, :])[0]
+    All frequencies at once: the candidates are packed in rows (padded with
+    x = 1, masked), and a frequency stops stepping once all its |f| < 1e-13,
+    as it did when each was refined alone (the arithmetic of every entry is
+    that of the one-frequency loop)."""
+    N = len(xs)
+    width = max((x.size for x in xs), default=0)
+    if width == 0:
+        return [np.zeros(0) for _ in range(N)]
+    valid = np.arange(width)[None, :] < np.array([x.size for x in xs])[:, None]
+    x1 = np.ones((N, width))
+    for k, x in enumerate(xs):
+        x1[k, : x.size] = x
+
+    def f(xx: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        v = nu(ops, beta_max * xx, rows)
         g = np.log(np.abs(v))
-        return g[np.arange(xx.size), np.argmin(np.abs(g), axis=-1)]
+        return np.take_along_axis(g, np.argmin(np.abs(g), axis=-1)[..., None], axis=-1)[..., 0]
 
-    x0, x1 = x * (1 - 1e-7), x.copy()
-    f0, f1 = f(x0), f(x1)
+    rows = np.nonzero([x.size > 0 for x in xs])[0]
+    x0 = x1 * (1 - 1e-7)
+    f0 = np.zeros((N, width))
+    f1 = np.zeros((N, width))
+    f0[rows], f1[rows] = f(x0[rows], rows), f(x1[rows], rows)
     for _ in range(8):
-        with np.errstate(all="ignore"):
-            step = np.where(f1 != f0, f1 * (x1 - x0) / (f1 - f0), 0.0)
-        step = np.clip(np.nan_to_num(step), -0.01 * x1, 0.01 * x1)
-        x0, f0 = x1, f1
-        x1 = x1 - step
-        f1 = f(x1)
-        if np.all(np.abs(f1) < 1e-13):
+        if rows.size == 0:
             break
-    keep = np.abs(f1) < 1e-9
-    return np.unique(x1[keep])
+        a0, a1, g0, g1 = x0[rows], x1[rows], f0[rows], f1[rows]
+        with np.errstate(all="ignore"):
+            step = np.where(g1 != g0, g1 * (a1 - a0) / (g1 - g0), 0.0)
+        step = np.clip(np.nan_to_num(step), -0.01 * a1, 0.01 * a1)
+        x0[rows], f0[rows] = a1, g1
+        x1[rows] = a1 - step
+        f1[rows] = f(x1[rows], rows)
+        done = np.all((np.abs(f1[rows]) < 1e-13) | ~valid[rows], axis=1)
+        rows = rows[~done]
+    keep = (np.abs(f1) < 1e-9) & valid
+    return [np.unique(x1[k][keep[k]]) for k in range(N)]
 
 
 def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.ndarray]:
@@ -302,16 +321,11 @@ def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.nd
             found[i].append(x[i, near_real[i] & inside[i]].real)
         if e == 0.0:
             prox = pr
+    cands = [np.sort(np.concatenate(found[k])) if found[k] else np.zeros(0) for k in range(N)]
     out = []
-    for k in range(N):
-        x = np.sort(np.concatenate(found[k])) if found[k] else np.zeros(0)
-        if x.size:
-            x = _secant_on_nu(
-                Ops(ops.omega[k : k + 1], ops.HA[k : k + 1], ops.HU[k : k + 1], ops.Vt), beta_max, x
-            )
-            # one width found from two circles: keep one
-            x = x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]] if x.size else x
-        out.append(x)
+    for x in _secant_on_nu(ops, beta_max, cands):
+        # one width found from two circles: keep one
+        out.append(x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]] if x.size else x)
     return out, prox
 
 
@@ -378,19 +392,19 @@ def refine_folds(
         cm = np.array([x.size for x in xm])
         new_w.append(M)
         new_x.extend(xm)
-        # keep the half (or halves) where the count changes; for proximity-only
-        # intervals keep the half with the nearer complex root
+        # keep the half (or halves) where the count changes; a proximity-only
+        # interval (the count the same at both ends and the midpoint) gets its
+        # midpoint, once: it used to be kept whole, and so re-evaluated at the
+        # same midpoint up to max_rounds times, adding nothing (the grid is the
+        # same), which made a loop with persistent near-real complex roots of
+        # the resultant (close or coincident eigenvalues of N) 48x slower
         goL = cm != cA
         goR = cm != cB
-        same = ~goL & ~goR
-        keepA = np.concatenate([A[goL], M[goR], A[same]])
-        keepB = np.concatenate([M[goL], B[goR], B[same]])
-        kcA = np.concatenate([cA[goL], cm[goR], cA[same]])
-        kcB = np.concatenate([cm[goL], cB[goR], cB[same]])
-        # proximity-only intervals: stop once no complex root is near the real axis
-        near = np.concatenate([np.ones(goL.sum() + goR.sum(), bool), pm[same] < 0.05])
-        wide = (keepB - keepA) > _FOLD_REL * keepB
-        sel = near & wide
+        keepA = np.concatenate([A[goL], M[goR]])
+        keepB = np.concatenate([M[goL], B[goR]])
+        kcA = np.concatenate([cA[goL], cm[goR]])
+        kcB = np.concatenate([cm[goL], cB[goR]])
+        sel = (keepB - keepA) > _FOLD_REL * keepB
         A, B, cA, cB = keepA[sel], keepB[sel], kcA[sel], kcB[sel]
     if new_w:
         w = np.concatenate([w, *new_w])
