@@ -350,22 +350,27 @@ class SpectralMonodromy:
         With X(a) = U(a)^-1 V(a) the monodromy, dX/da = U^-1 (V1 - U1 X)
         exactly, and for a simple eigenvalue d mu = y^H (dX/da) x / (y^H x)
         with x, y its right and left eigenvectors (first-order perturbation
-        theory, e.g. Golub & Van Loan, Matrix Computations, sec. 7.2.2).  At a
+        theory, e.g. Golub & Van Loan, Matrix Computations, sec. 7.2.2), here
+        as the diagonal of W^-1 (dX/da) W with W the right eigenvectors (the
+        rows of W^-1 are the left ones, normalised to y^H x = 1).  At a
         defective multiplier (two real multipliers meeting) y^H x = 0 and the
-        derivative is infinite: returned as inf, which a caller must read as
-        "moves arbitrarily fast here"."""
+        derivative is infinite: with cond(W) > 1e14 every derivative is
+        returned as inf, which a caller must read as "moves arbitrarily fast
+        here"."""
         if self.helix_depth is not None:
             raise InputError("tangent: with a helix the matrices are not affine in a_p")
         a = float(depth)
         cols = self.cols
         Xf = self._solve(a)
         X = Xf[cols]
-        mu, vl, vr = sla.eig(X, left=True, right=True, check_finite=False)
+        mu, vr = np.linalg.eig(X)
         dX = self._solve_rhs(a, self.V1[:, cols] - self.U1 @ Xf)[cols]
-        num = np.einsum("ik,ij,jk->k", vl.conj(), dX, vr)
-        den = np.einsum("ik,ik->k", vl.conj(), vr)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dmu = np.where(np.abs(den) > 1e3 * np.finfo(float).eps * np.abs(num), num / den, np.inf)
+        # the rows of vr^-1 are the left eigenvectors scaled so that y^H x = 1
+        cond = np.linalg.cond(vr)
+        if not np.isfinite(cond) or cond > 1e14:  # (nearly) defective: no first-order rate
+            dmu = np.full(mu.shape, np.inf + 0j)
+        else:
+            dmu = np.einsum("kj,jk->k", np.linalg.solve(vr, dX), vr)
         order = np.argsort(-np.abs(mu))
         return mu[order], dmu[order]
 

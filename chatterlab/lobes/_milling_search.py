@@ -100,9 +100,11 @@ class Certified:
     fold: tuple[float, ...]
 
 
-def _end_safe(mu: np.ndarray, dmu: np.ndarray, h: float, skip: float | None) -> bool:
+def _end_safe(
+    mu: np.ndarray, dmu: np.ndarray, h: float, skip: float | None, miss: np.ndarray | float = 0.0
+) -> bool:
     """One end of an interval of length h: see :func:`_interval_safe`."""
-    step = np.abs(dmu) * h
+    step = np.abs(dmu) * h + miss
     step = np.where(np.isnan(step), np.inf, step)
     ok = np.abs(mu) + step < 1.0
     if skip is not None:
@@ -126,13 +128,13 @@ def _simple_bracket(lo: tuple[np.ndarray, np.ndarray], hi: tuple[np.ndarray, np.
     differ by less than the smaller (d|mu|/da, linear between the ends,
     keeps its sign: |mu| is monotone on the interval to second order)."""
     s = []
-    for mu, dmu in (lo, hi):
+    for (mu, dmu), miss in ((lo, _miss(lo, hi, h)), (hi, _miss(hi, lo, -h))):
         top = np.abs(mu) >= np.abs(mu).max() * (1.0 - 1e-9)
         if np.sum(top) > 2 or (np.sum(top) == 2 and mu[top][0].imag == 0.0):
             return False
         m0 = mu[top][0]
         s.append(float(np.real(np.conj(m0) * dmu[top][0]) / abs(m0)))
-        if not _end_safe(mu[~top], dmu[~top], h, None):
+        if not _end_safe(mu[~top], dmu[~top], h, None, miss[~top]):
             return False
     return bool(np.isfinite(s).all() and min(s) > 0.0 and abs(s[1] - s[0]) < min(s))
 
@@ -151,8 +153,22 @@ def _interval_safe(
     stays further from every other real multiplier than both move,
     |mu_k - mu_j| > (|d mu_k| + |d mu_j|) h.  ``skip_hi``: the known
     multiplier (+-1) at a right end that is a flip/fold depth, left out
-    there."""
-    return _end_safe(*lo, h, None) and _end_safe(*hi, h, skip_hi)
+    there.
+
+    The first-order move is widened by how far the linear prediction from
+    one end misses the nearest multiplier at the other (an estimate of the
+    curvature term |mu''| h^2 / 2): a multiplier that bends out and back
+    within the interval shows there."""
+    return _end_safe(*lo, h, None, _miss(lo, hi, h)) and _end_safe(*hi, h, skip_hi, _miss(hi, lo, -h))
+
+
+def _miss(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], h: float) -> np.ndarray:
+    """|mu + d mu h - nearest multiplier at the other end| for every multiplier of end ``a``."""
+    mu, dmu = a
+    with np.errstate(invalid="ignore", over="ignore"):
+        pred = mu + dmu * h
+        d = np.min(np.abs(pred[:, None] - b[0][None, :]), axis=1)
+    return np.where(np.isfinite(d), d, np.inf)
 
 
 def certified_crossing(
@@ -250,7 +266,8 @@ def certified_crossing(
     mu, dmu = data(float(root))
     i = int(np.argmax(np.abs(mu)))
     slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
-    return Certified("crossing", float(root), "hopf", lo, count[0], slope, fl, fo)
+    # the bracket passed _simple_bracket (one crossing in it) or is MIN_WIDTH short: stable to the root
+    return Certified("crossing", float(root), "hopf", float(root), count[0], slope, fl, fo)
 
 
 def _helix_rho(
