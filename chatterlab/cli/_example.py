@@ -12,6 +12,7 @@ one line (status 2) and copies nothing.  Any command also takes
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -90,5 +91,5 @@ def run(args: argparse.Namespace) -> int:
                 f.write(src.read_bytes())
         except FileExistsError:
             raise InputError(f"{target}: exists; chatterlab example never overwrites a file") from None
-        print(f"wrote {target}  ({EXAMPLES[n][1]})")
+        print(f"wrote {target}: {EXAMPLES[n][1]}", file=sys.stderr)  # as every command says it
     return 0
