@@ -367,8 +367,8 @@ def _history(sim: Any, name: str, contradictions: list[str]) -> tuple[str, dict[
             missing["envelope growth"] = str(exc)
             return line + "   envelope: not estimated", missing
         line += f"   envelope: {v.summary()}"
-        if v.classification == "undetermined":
-            missing["envelope growth"] = v.message
+        if v.classification == "undetermined" and not math.isfinite(v.decide_step):
+            missing["envelope growth"] = v.message  # the fit decides nothing: a longer run
         if v.contradiction:
             contradictions.append(v.contradiction)
     return line, missing

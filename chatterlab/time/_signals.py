@@ -430,6 +430,10 @@ def growth_rate(
 #: safety factor on Richardson's two-run error estimate (Roache's grid
 #: convergence index, for a scheme whose order, here 2, is known and observed)
 RICHARDSON_SAFETY = 1.25
+#: steps per period of the main frequency the coarser of the two runs needs
+#: for Richardson's estimate: the h^4 term of the error is then about
+#: (w h)^2 / 10 = 4 % of the h^2 term
+ASYMPTOTIC_STEPS = 10
 #: relative error of a characteristic root after Newton's refinement (the
 #: roots are exact to ~1e-13 relative; 1e-8 leaves room for ill-conditioning)
 ROOT_REL_ERROR = 1e-8
@@ -513,14 +517,14 @@ class TimeVerdict:
         return self.rate - (self.rate - self.check_rate) / (1.0 - r2)
 
     def summary(self) -> str:
-        """``decaying (-2.05 +- 0.12 1/s)``, with the step that would decide an undetermined one."""
+        """``decaying (-2.05 +- 0.12 1/s)``, with the step to try for an undetermined one."""
         if self.classification == "diverged":
             return "diverged"
         if not math.isfinite(self.rate):
             return "undetermined"
         text = f"{self.classification} ({self.rate:+.4g} +- {self.error:.2g} 1/s)"
         if self.classification == "undetermined" and math.isfinite(self.decide_step):
-            text += f", --step {self.decide_step:.3g} would decide it"
+            text += f", try --step {self.decide_step:.3g}"
         return text
 
 
@@ -575,11 +579,23 @@ def time_verdict(
     else:
         e_signed, step_err = math.nan, math.nan
     decide = math.nan
+    coarse = max(step, check_step)
+    per_period = 1.0 / (frequency * coarse) if frequency > 0 else math.inf
     if diverged:
         cls, how = "diverged", "the run diverged"
     elif not ok:
         cls = "undetermined"
         how = "no rate: " + (main.message if not math.isfinite(rate) else "the check run gave no rate")
+    elif per_period < ASYMPTOTIC_STEPS:
+        # Richardson's estimate holds in the h^2 regime only
+        cls = "undetermined"
+        decide = min(step, check_step) * per_period / ASYMPTOTIC_STEPS
+        how = (
+            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, but the run at h = {coarse:.4g} s has"
+            f" {per_period:.3g} < {ASYMPTOTIC_STEPS} steps per period of {frequency:.6g} Hz: its error is not in"
+            f" the h^2 regime, so the step error is unknown; a step of {decide:.3g} s would make it known"
+        )
+        step_err = math.inf
     else:
         w = (fit_err + step_err) * span
         change = rate * span
