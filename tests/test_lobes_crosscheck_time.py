@@ -1,0 +1,63 @@
+"""The lobes cross-checked in the time domain (issue 18): at envelope points
+of the shaper and of random structures, Newmark runs at 0.98 and 1.02 b_lim
+(the default step from the chatter band, the verdict with its error bar)
+never contradict the rightmost characteristic root: the bar covers it, a
+claimed class has its sign, and where the rate is large enough to decide in
+the run (the random structures, |sigma| ~ 1 1/s) the class is the root's.
+
+The shaper's envelope at s = 0.85 m grows or decays by only ~0.005 1/s at
++-2 % of b_lim (its modes are damped at zeta ~ 2e-4): a 2 s run cannot
+decide that, and the verdict must say so (undetermined, or the root's
+class) instead of guessing.  About a minute and a half on one core.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_time_verdicts import assert_honest, frozen_roots, random_3dof
+
+import chatterlab as cl
+from chatterlab.lobes import lobes
+from chatterlab.time._simulate import simulate
+
+
+def _envelope_points(system, speeds, position=None):
+    d = lobes(system.at(position), np.asarray(speeds, dtype=float), width_max=0.02, verify=0)
+    assert d.band_certified
+    return [(float(T), float(b)) for T, b in zip(d.delay, d.b_lim, strict=True) if np.isfinite(b)]
+
+
+def _check(system, T, b, factor, output, duration, position=None, decided=True):
+    roots = frozen_roots(system, factor * b, T, position)
+    assert (roots.roots[0].real > 0) == (factor > 1)
+    sim = simulate(system, width=factor * b, delay=T, position=position, duration=duration, outputs=output,
+                   q0={output: 1e-6}, history="constant", forces=False, roots=roots)  # fmt: skip
+    v = sim.verdict(output)
+    assert_honest(v, roots)
+    if decided:
+        assert v.classification == ("growing" if factor > 1 else "decaying"), v.message
+    return v
+
+
+@pytest.fixture(scope="module")
+def shaper(shaper_path):
+    return cl.assemble(cl.load_model(shaper_path))
+
+
+@pytest.mark.parametrize("factor", [0.98, 1.02])
+def test_shaper_envelope_point_in_the_time_domain(shaper, factor):
+    """v = 10 m/s (T = 0.36 s, b_lim 0.667 mm, chatter at 76.2 Hz)."""
+    ((T, b),) = _envelope_points(shaper, [10.0], 0.85)
+    v = _check(shaper, T, b, factor, "rfe5.y", 2.0, 0.85, decided=False)
+    assert v.classification in ("undetermined", "steady", "growing" if factor > 1 else "decaying")
+
+
+@pytest.mark.parametrize("seed", [3, 7])
+@pytest.mark.parametrize("factor", [0.98, 1.02])
+def test_random_structure_envelope_points_in_the_time_domain(seed, factor):
+    sy = cl.assemble(cl.loads_model(random_3dof(seed)))
+    f1 = np.sqrt(np.min(np.linalg.eigvals(np.linalg.solve(sy.at().A, sy.at().C)).real)) / (2 * np.pi)
+    pts = _envelope_points(sy, [2.0 / f1, 7.0 / f1])
+    for T, b in pts:
+        _check(sy, T, b, factor, "tip.x", 1.5)
