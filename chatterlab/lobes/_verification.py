@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..process._cutting import feedback
+from ..process._cutting import feedback_unwarned
 from ..structure._assembly import FrozenSystem
 from ._result import LobeDiagram
 
@@ -71,7 +71,7 @@ def _verify(
         else:
             b = float(d.b_lim[j]) * (1 - VERIFY_OFFSET if kind == "below" else 1 + VERIFY_OFFSET)
             expect = "stable" if kind == "below" else "unstable"
-        fb = feedback(frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings)
+        fb = feedback_unwarned(frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings)
         sys_ = make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay)
         w = rhp_count_system(sys_)
         if w.status != "converged":

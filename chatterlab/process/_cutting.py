@@ -146,10 +146,28 @@ def feedback(
     -------
     Feedback
     """
+    width = check_width(width)
+    warn_width(width, [c.width_ref for c in frozen.model.couplings])
+    return feedback_unwarned(frozen, width=width, speed=speed, delay=delay, terms=terms, couplings=couplings)
+
+
+def feedback_unwarned(
+    frozen: FrozenSystem,
+    *,
+    width: float,
+    speed: float | None = None,
+    delay: float | None = None,
+    terms: Literal["none", "pd", "pdo", "o"] = "pdo",
+    couplings: list[str] | None = None,
+) -> Feedback:
+    """:func:`feedback` without its :class:`~chatterlab.errors.UnitWarning`:
+    for chatterlab's own calls at widths it chose (a lobe diagram's
+    argument-principle checks just above and below b_lim, at its width
+    ceiling), which no user typed.  The unit warning belongs at the user's
+    edge only: :func:`feedback` and the analyses that take a user's width."""
     if terms not in TERMS:
         raise InputError(f"terms must be one of {', '.join(TERMS)} (got {terms!r})")
     width = check_width(width)
-    warn_width(width, [c.width_ref for c in frozen.model.couplings])
     known = [c.id for c in frozen.model.couplings]
     if not known:
         raise InputError(
