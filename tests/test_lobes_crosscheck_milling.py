@@ -7,6 +7,8 @@ the cut): stable at (1 - 1e-3) a_lim and unstable at (1 + 1e-3) a_lim, each
 by more than three times the extrapolation's own change.  Why 1e-3 can be
 resolved: |mu| moves by a_lim |d|mu|/da| 1e-3, 1e-5..1e-3 on these limits,
 while the extrapolated SDM changes by < 1e-7 between (20, 40) and (40, 80).
+Below each limit, 200 uniform depths of the brute-force spectral radius
+(below) must all be stable: the limit is the first crossing.
 
 The 2-DOF benchmark and a 3-tooth variable-pitch cutter are checked by a
 brute-force depth scan of the spectral radius (no pencil, no derivatives, no
@@ -44,6 +46,10 @@ def test_one_dof_limits_against_the_semi_discretisation():
             if not top < 1.0 - 3 * bar:
                 bad.append((r, "inf", top))
             continue
+        # nothing unstable below: the brute-force scan of the spectral radius (200 depths)
+        sm = SpectralMonodromy(st, mill, r)
+        if any(sm.radius(x) >= 1.0 for x in a * np.arange(1, 200) / 200):
+            bad.append((r, a, k, "unstable below"))
         below, b1 = sdm_extrapolated(r, a * (1 - 1e-3))
         above, b2 = sdm_extrapolated(r, a * (1 + 1e-3))
         if not (below < 1.0 - 3 * b1 and above > 1.0 + 3 * b2):
