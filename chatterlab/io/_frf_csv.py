@@ -296,12 +296,12 @@ def _assemble(
         if "re/im" in forms:
             z = data[:, d["re"]] + 1j * data[:, d["im"]]
             if z_mp is not None:
-                off = np.abs(z - z_mp) > 1e-6 * np.maximum(np.abs(z), np.abs(z_mp)) + 1e-300
+                off = np.abs(z - z_mp) > 1e-3 * np.maximum(np.abs(z), np.abs(z_mp)) + 1e-300  # printed digits
                 if off.any():
                     k = int(np.nonzero(off)[0][0])
                     raise InputError(
                         f"{where}, line {lines[k]}: pair {pair} is given twice (re/im and mag/phase) and the two"
-                        " disagree there; keep one form"
+                        " disagree there by more than 0.1 %; keep one form"
                     )
         else:
             assert z_mp is not None

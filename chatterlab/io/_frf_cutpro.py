@@ -59,7 +59,7 @@ def _header_line(
         near = difflib.get_close_matches(key, _KEYS, n=1, cutoff=0.8)
         if key not in _KEYS and near:
             raise InputError(
-                f"{where}, line {n}: unknown header key {m[1].strip()!r}; did you mean {near[0]!r}?"
+                f"{where}, line {n}: unknown header key {m[1].strip()!r}; did you mean {('units' if near[0] == 'unit' else near[0])!r}?"
             )
         if key in header and header[key] != m[2].strip():
             raise InputError(f"{where}, line {n}: {m[1].strip()!r} is given twice, differently; keep one")

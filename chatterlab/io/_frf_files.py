@@ -36,7 +36,7 @@ from ..errors import InputError
 from ._frf_csv import read_frf_csv, write_frf_csv
 from ._frf_cutpro import read_frf_cutpro
 from ._frf_table import G0 as G0
-from ._frf_table import FRFTable, parse_frf_units
+from ._frf_table import FRFTable, check_regular, parse_frf_units
 from ._frf_uff import read_frf_uff, write_frf_uff
 
 __all__ = [
@@ -69,6 +69,12 @@ def read_frf(
     """Read any measured-FRF file; the format from ``format`` (``"csv"``,
     ``"frf"``, ``"uff"``) or the suffix (:data:`FRF_SUFFIXES`)."""
     p = Path(os.fspath(path))
+    try:  # a FIFO, a device or a folder is refused whatever its name (never opened here: a FIFO would block)
+        mode = os.stat(p).st_mode
+    except (OSError, ValueError):
+        mode = None  # missing or unreadable: the reader says so
+    if mode is not None:
+        check_regular(mode, str(p))
     fmt = format or FRF_SUFFIXES.get(p.suffix.lower())
     if fmt is None:
         raise InputError(

@@ -183,13 +183,23 @@ _EOL = re.compile(r"\r\n|\r|\n")
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f\x85\u2028\u2029]")
 
 
+def check_regular(mode: int, where: str) -> None:
+    """:class:`InputError` unless ``mode`` (``os.stat``) is a regular file's."""
+    import stat
+
+    if stat.S_ISDIR(mode):
+        raise InputError(f"{where}: is a directory, not an FRF file")
+    if not stat.S_ISREG(mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a device or socket"
+        raise InputError(f"{where}: is {kind}, not a regular file; give the FRF file itself")
+
+
 def read_input(path: Path) -> bytes:
     """The bytes of the FRF file ``path``: a regular file of at most
     :data:`MAX_FRF_FILE_BYTES`, else :class:`InputError` naming it and the
     limit.  The file is opened without blocking (a FIFO), checked on the
     open descriptor, and noted as an input of the running command."""
     import os
-    import stat
 
     from ._files import note_input
 
@@ -205,11 +215,7 @@ def read_input(path: Path) -> bytes:
         raise InputError(f"{where}: cannot be read ({reason})") from None
     try:
         st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            raise InputError(f"{where}: is a directory, not an FRF file")
-        if not stat.S_ISREG(st.st_mode):
-            kind = "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
-            raise InputError(f"{where}: is {kind}, not a regular file; give the FRF file itself")
+        check_regular(st.st_mode, where)
         if st.st_size > MAX_FRF_FILE_BYTES:
             raise InputError(
                 f"{where}: {st.st_size / 2**20:.1f} MiB; an FRF file may hold at most"
