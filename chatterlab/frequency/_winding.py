@@ -41,15 +41,36 @@ the delay-free poles are ill-conditioned or on the axis) samples
 :math:`\\det P_0` (or by :math:`\\det M (\\lambda + a)^{2n}` when ``P_0`` has
 roots on the axis).
 
-Sampling.  The phase is unwrapped between samples; an interval whose wrapped
+Sampling.  In factored form every phase increment is proven
+(:func:`chatterlab.frequency._phase_sampling.certified_phase`): between two
+samples either ``sup ||H|| < 1`` (bounded from the partial fractions
+:math:`H = \\sum_k h_k/(\\lambda - p_k)` by :math:`\\sum_k \\|h_k\\|/d_k`,
+:math:`d_k` the distance of :math:`p_k` from the segment), so that every factor
+:math:`1 - \\mu_k e^{-j\\omega\\tau}` keeps a positive real part and the
+eigenvalues at the ends give the increment exactly, or a Lipschitz bound on
+:math:`\\det(I - H e^{-j\\omega\\tau})` (from :math:`\\sum_k \\|h_k\\|
+(1/d_k^2 + \\tau/d_k)`) keeps ``g`` within ``|g(a)|`` of ``g(a)`` on the
+interval, so that it turns by less than :math:`\\pi/2` and the increment is the
+principal value; otherwise the interval is bisected.  The tail beyond the
+last sample is proven passive by a monotone bound.  So a :math:`2\\pi` turn of
+``g`` between two samples (a double root next to the axis, as a symmetric
+tool has) cannot be missed.  The first samples are the grid below; an
+interval still unproven at round-off width (1e-12 relative) is a root on
+the axis: ``status="marginal"``.  ``WindingResult.proven`` says whether the
+count rests on these bounds.
+
+The direct mode (and the fallback without partial fractions) samples as
+before: the phase is unwrapped between samples; an interval whose wrapped
 phase increment exceeds :math:`\\pi/4` is bisected until it does not.  The
 initial grid has the step :math:`\\pi/(8\\tau)` (one sixteenth of a turn of
 :math:`e^{-j\\omega\\tau}`; for :math:`\\tau = 1.5` s this is 0.26 rad/s),
 is refined near every pole and stops at :math:`\\omega_{max}`, beyond which
 :math:`|f - 1| < 10^{-3}` (so the remaining phase is below a milliradian).
-A root on (or within ~1e-10 relative of) the axis makes an increment that
-bisection cannot resolve, or a sample with :math:`|f|` ~0 relative to its
-neighbours; the result is then ``status="marginal"``.
+This is not a proof: a :math:`2\\pi` turn between two samples aliases away
+(``proven`` is False).  A root on (or within ~1e-10 relative of) the axis
+makes an increment that bisection cannot resolve, or a sample with
+:math:`|f|` ~0 relative to its neighbours; the result is then
+``status="marginal"``.
 
 References
 ----------
