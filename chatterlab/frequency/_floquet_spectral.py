@@ -354,8 +354,8 @@ class SpectralMonodromy:
         as the diagonal of W^-1 (dX/da) W with W the right eigenvectors (the
         rows of W^-1 are the left ones, normalised to y^H x = 1).  At a
         defective multiplier (two real multipliers meeting) y^H x = 0 and the
-        derivative is infinite: with cond(W) > 1e14 every derivative is
-        returned as inf, which a caller must read as "moves arbitrarily fast
+        derivative is infinite: a singular W gives inf, a nearly singular one
+        huge rates, which a caller must read as "moves arbitrarily fast
         here"."""
         if self.helix_depth is not None:
             raise InputError("tangent: with a helix the matrices are not affine in a_p")
@@ -366,11 +366,12 @@ class SpectralMonodromy:
         mu, vr = np.linalg.eig(X)
         dX = self._solve_rhs(a, self.V1[:, cols] - self.U1 @ Xf)[cols]
         # the rows of vr^-1 are the left eigenvectors scaled so that y^H x = 1
-        cond = np.linalg.cond(vr)
-        if not np.isfinite(cond) or cond > 1e14:  # (nearly) defective: no first-order rate
-            dmu = np.full(mu.shape, np.inf + 0j)
-        else:
+        try:
             dmu = np.einsum("kj,jk->k", np.linalg.solve(vr, dX), vr)
+        except np.linalg.LinAlgError:  # defective: no first-order rate
+            dmu = np.full(mu.shape, np.inf + 0j)
+        # nearly defective: the rates are huge (|W^-1| ~ 1/gap), which the search reads as fast
+        dmu = np.where(np.isfinite(dmu), dmu, np.inf)
         order = np.argsort(-np.abs(mu))
         return mu[order], dmu[order]
 
