@@ -315,7 +315,6 @@ TABS = ROWS.replace(",", "\t")
     [
         "f, real, imaginary",
         "frequency [Hz], Real, Imaginary",
-        "f, re, imag",
         "Freq (Hz), Real part, Imag part",
     ],
 )
@@ -389,11 +388,12 @@ def test_other_encodings_and_control_characters_are_refused_with_the_line(tmp_pa
 
 
 @pytest.mark.parametrize("eol", ["\r\n", "\r"])
-def test_crlf_and_cr_line_ends_are_read_and_counted(tmp_path, eol):
-    p = write(tmp_path, "t.csv", f"# units: m/N\nf,re,im\n{ROWS}100,x,1\n".replace("\n", eol))
+def test_windows_exports_utf16_crlf_and_cr_are_read_and_counted(tmp_path, eol):
+    """A Windows export: UTF-16 with its byte-order mark and CRLF (or CR) line ends; the line numbers hold."""
+    p = write(tmp_path, "t.csv", f"# units: m/N\nf,re,im\n{ROWS}100,x,1\n".replace("\n", eol), "utf-16")
     with pytest.raises(InputError, match="line 7, column 're': 'x' is not a number"):
         read_frf(p)
-    p = write(tmp_path, "t.frf", ("Units: m/N\n" + TABS).replace("\n", eol))
+    p = write(tmp_path, "t.frf", ("Units: m/N\n" + TABS).replace("\n", eol), "utf-16")
     assert read_frf(p).frequency_hz.size == 4
 
 
@@ -455,9 +455,12 @@ def test_text_around_uff_datasets_is_refused(tmp_path):
         read_frf(p)
 
 
-def test_an_empty_uff_says_it_is_empty(tmp_path):
+def test_an_empty_or_foreign_uff_says_what_it_is(tmp_path):
     p = write(tmp_path, "t.uff", b"")
-    with pytest.raises(InputError, match="empty"):
+    with pytest.raises(InputError, match="the file is empty"):
+        read_frf(p)
+    p = write(tmp_path, "t.uff", f"# units: m/N\nf,re,im\n{ROWS}")
+    with pytest.raises(InputError, match="not a UFF file"):
         read_frf(p)
 
 
