@@ -49,10 +49,61 @@ def milling_lobe_args(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _structure(model: Any, position: float | None) -> tuple[Any, Any, str]:
-    from ..lobes._milling_model import milling_of, reduce_structure, tool_structure
-    from ..structure._assembly import assemble
+def _typed(option: str) -> bool:
+    """Whether ``option`` (or an abbreviation argparse accepts) is on the
+    command line being run: an option left at its default is not."""
+    from ._main import _ARGV
 
+    for tok in _ARGV:
+        head = tok.split("=", 1)[0]
+        if len(head) > 2 and head.startswith("--") and option.startswith(head):
+            return True
+    return False
+
+
+def refuse_unused(args: argparse.Namespace, method: str) -> None:
+    """An option that the chosen milling route ignores is refused, not
+    accepted silently: ``--steps`` is semi-discretisation's (``--method
+    sdm``), ``--scan`` the Floquet depth scan's (spectral, sdm; the
+    zeroth-order approximation scans no depth)."""
+    if method != "sdm" and _typed("--steps"):
+        raise InputError(
+            f"--steps is the number of semi-discretisation steps (--method sdm); the {method} method"
+            " does not use it: drop --steps or add --method sdm"
+        )
+    if method == "zoa" and _typed("--scan"):
+        raise InputError(
+            "--scan is the depth scan of the Floquet methods (spectral, sdm); the zeroth-order"
+            " approximation (--method zoa) scans no depth: drop --scan"
+        )
+
+
+def _speeds(rpm: Any, option: str) -> None:
+    """Every spindle speed within the accepted range, named by its option."""
+    import numpy as np
+
+    from ..process._milling import check_spindle_speed
+
+    for v in np.atleast_1d(np.asarray(rpm, dtype=float)).tolist():
+        check_spindle_speed(v, option)
+
+
+def _helix_cost(mill: Any, depth: float) -> None:
+    """The helix's cost estimate at the deepest cut searched, before the work."""
+    if mill.helix > 0:
+        mill.lag_angle(depth)
+
+
+def _structure(
+    model: Any, position: float | None, args: argparse.Namespace | None = None
+) -> tuple[Any, Any, str]:
+    from ..lobes._milling_model import milling_of, reduce_structure, tool_structure
+    from ..model._modes import modal_slips
+    from ..structure._assembly import assemble
+    from ._common import warn
+
+    if args is not None and model.modes:
+        warn(args, modal_slips(model.modes))
     fz = assemble(model).at(position)
     S = tool_structure(fz)
     note = ""
@@ -75,10 +126,13 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -
             raise InputError(
                 f"{opt} is not available for milling models (the Floquet lobes are one configuration, all terms)"
             )
-    S, mill, note = _structure(model, args.position)
+    method: Any = args.method or "spectral"
+    refuse_unused(args, method)
+    _speeds(rpm, "--speed")
+    S, mill, note = _structure(model, args.position, args)
+    _helix_cost(mill, wmax)
     if note:
         print(note)
-    method: Any = args.method or "spectral"
     ml = compute(
         S, mill, rpm, method=method, depth_max=wmax, scan=check_count(args.scan, "--scan", 2),
         steps=check_count(args.steps, "--steps", 2),
@@ -155,9 +209,14 @@ def milling_verdict(args: argparse.Namespace, model: Any) -> Any:
         raise InputError(
             "milling: give the spindle speed with --speed RPM (the delays follow from the pitch)"
         )
+    method = args.method or "spectral"
+    refuse_unused(args, method)
     rpm = args.speed if args.speed is not None else model.process.speed
-    S, mill, note = _structure(model, args.position)
-    r = multipliers(S, mill, float(rpm), width_m(args), method=args.method or "spectral", steps=args.steps)
+    _speeds(rpm, "--speed" if args.speed is not None else f"{model.source}: [process] rpm")
+    a = width_m(args)
+    S, mill, note = _structure(model, args.position, args)
+    _helix_cost(mill, a)
+    r = multipliers(S, mill, float(rpm), a, method=method, steps=args.steps)
     return _MultiplierTable(r, args.count, note)
 
 

@@ -37,6 +37,15 @@ from ._items import MatrixBlock, Mode
 
 __all__ = ["read_modal_model", "modal_matrices"]
 
+#: natural frequencies accepted, Hz (a mode of 1e-300 Hz has an infinite mass;
+#: the plausible range :data:`MODE_HZ_PLAUSIBLE` is warned about by the CLI)
+FREQUENCY_RANGE = (1e-3, 1e7)
+#: modal stiffness accepted, N/m: the range of every stiffness of a model file
+STIFFNESS_RANGE = (1e-3, 1e16)
+#: the largest shape entry accepted (in size): an entry scales the mode's
+#: compliance by its square, so 1e300 overflows every matrix built from it
+SHAPE_MAX = 1e6
+
 _FIELDS = ("id", "frequency_hz", "damping_ratio", "stiffness", "mass", "shape", "direction", "description")
 
 
@@ -100,6 +109,12 @@ def read_modal_model(src: str, raw: dict[str, Any]) -> tuple[tuple[Mode, ...], M
 def _read_mode(src: str, iid: str, t: Any) -> Mode:
     it = _Item(src, f"mode.{iid}", t, _FIELDS)
     f_hz = it.num("frequency_hz", unit="Hz", positive=True)
+    if not FREQUENCY_RANGE[0] <= f_hz <= FREQUENCY_RANGE[1]:
+        raise it.err(
+            "frequency_hz",
+            f"must be within {FREQUENCY_RANGE[0]:g}..{FREQUENCY_RANGE[1]:g} Hz (got {f_hz:g} Hz);"
+            f" tap-tested modes lie in {MODE_HZ_PLAUSIBLE[0]:g}..{MODE_HZ_PLAUSIBLE[1]:g} Hz",
+        )
     zeta = it.num("damping_ratio", nonneg=True)
     if zeta >= 1.0:
         raise it.err("damping_ratio", f"must be < 1 (an underdamped mode; got {zeta:g})")
@@ -120,6 +135,13 @@ def _read_mode(src: str, iid: str, t: Any) -> Mode:
         if m <= 0:
             raise it.err("mass", f"must be > 0 kg (got {m:g})")
         k = m * omega**2
+        if not STIFFNESS_RANGE[0] <= k <= STIFFNESS_RANGE[1]:
+            raise it.err(
+                "mass",
+                f"mass {m:g} kg at {f_hz:g} Hz is a modal stiffness m (2 pi f)^2 = {k:g} N/m, outside"
+                f" {STIFFNESS_RANGE[0]:g}..{STIFFNESS_RANGE[1]:g} N/m; machine-tool modes have"
+                f" {MODE_STIFFNESS_PLAUSIBLE[0]:g}..{MODE_STIFFNESS_PLAUSIBLE[1]:g} N/m",
+            )
     if it.has("shape") == it.has("direction"):
         raise it.err(
             "shape",
@@ -137,6 +159,12 @@ def _read_mode(src: str, iid: str, t: Any) -> Mode:
         for c, v in s.items():
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise it.err("shape", f"'{c}' must be a finite number, got {v!r}")
+            if abs(v) > SHAPE_MAX:
+                raise it.err(
+                    "shape",
+                    f"'{c}' = {v:g} is above {SHAPE_MAX:g} in size: shape entries are the mode's"
+                    " displacements for the stiffness as written, about 1 (scale the stiffness instead)",
+                )
             entries.append((str(c), float(v)))
         if all(v == 0.0 for _, v in entries):
             raise it.err("shape", "all entries are zero: the mode would be seen nowhere")
@@ -151,3 +179,48 @@ def shape_coordinates(modes: tuple[Mode, ...]) -> dict[str, tuple[tuple[str, flo
         for c, v in m.shape:
             out.setdefault(c, []).append((m.id, v))
     return {c: tuple(v) for c, v in out.items()}
+
+
+#: the natural frequencies of a tap-tested mode, Hz: a table below it was most
+#: likely typed in kHz (0.922 for 922 Hz); above it, in rad/s or cpm
+MODE_HZ_PLAUSIBLE = (10.0, 5e4)
+#: the modal stiffnesses of machine-tool modes, N/m: below, most likely typed
+#: in N/um (1.3 for 1.3e6 N/m) or N/mm
+MODE_STIFFNESS_PLAUSIBLE = (1e3, 1e11)
+
+
+def modal_slips(modes: tuple[Mode, ...]) -> list[str]:
+    """Unit-slip warnings for a ``[[mode]]`` table, at most one line per
+    kind: natural frequencies below :data:`MODE_HZ_PLAUSIBLE` (kHz typed as
+    Hz) or above it (rad/s typed as Hz), and, for modes of plausible
+    frequency, modal stiffnesses below :data:`MODE_STIFFNESS_PLAUSIBLE`
+    (N/um typed as N/m)."""
+    lo, hi = MODE_HZ_PLAUSIBLE
+    klo = MODE_STIFFNESS_PLAUSIBLE[0]
+    f = {m.id: m.omega / (2.0 * math.pi) for m in modes}
+    low = [i for i, v in f.items() if v < lo]
+    high = [i for i, v in f.items() if v > hi]
+    soft = [m.id for m in modes if lo <= f[m.id] <= hi and m.stiffness < klo]
+
+    def listed(ids: list[str], fmt: Any) -> str:
+        shown = ", ".join(f"{i} ({fmt(i)})" for i in ids[:3])
+        return shown + (f" and {len(ids) - 3} more" if len(ids) > 3 else "")
+
+    out = []
+    if low:
+        out.append(
+            f"[[mode]] frequency_hz below {lo:g} Hz: {listed(low, lambda i: f'{f[i]:g} Hz')}: typed in kHz?"
+            " frequency_hz is in Hz"
+        )
+    if high:
+        out.append(
+            f"[[mode]] frequency_hz above {hi:g} Hz: {listed(high, lambda i: f'{f[i]:g} Hz')}: typed in rad/s?"
+            " frequency_hz is in Hz"
+        )
+    if soft:
+        k = {m.id: m.stiffness for m in modes}
+        out.append(
+            f"[[mode]] modal stiffness below {klo:g} N/m: {listed(soft, lambda i: f'{k[i]:g} N/m')}:"
+            " typed in N/um? stiffness is in N/m"
+        )
+    return out

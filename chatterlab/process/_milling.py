@@ -75,9 +75,37 @@ import numpy as np
 
 from ..errors import InputError, check_count, check_finite, check_nonneg, check_positive, check_speed
 
-__all__ = ["Milling"]
+__all__ = ["Milling", "check_spindle_speed"]
 
 TWO_PI = 2.0 * math.pi
+
+#: spindle speeds accepted, rpm: beyond them the tooth period over- or
+#: underflows the Floquet meshes (1e-300 rpm: a period of 1e301 s; 1e300 rpm:
+#: 1e-299 s).  Real spindles run 10..200000 rpm (the CLI warns outside that).
+SPEED_RANGE = (0.1, 1e7)
+#: the plausible spindle speeds, rpm, named in the messages
+SPEED_PLAUSIBLE = (10.0, 2e5)
+#: the largest helix angle accepted, deg: end mills have up to about 60 deg;
+#: near 90 deg the flute wraps the tool without bound (tan(beta) -> inf)
+HELIX_MAX_DEG = 85.0
+#: the largest lag angle psi_max = 2 a_p tan(beta) / D of a flute, rad: ten
+#: turns of the flute over the depth of cut.  The work of the helical
+#: coefficients grows with it (every turn is a window of the integral), and
+#: real cuts stay below one or two turns
+LAG_MAX = 10 * TWO_PI
+
+
+def check_spindle_speed(rpm: object, name: str = "spindle speed") -> float:
+    """A spindle speed, rpm: finite and within :data:`SPEED_RANGE`, else
+    :class:`InputError` naming the value, the accepted and the plausible range."""
+    n = check_speed(rpm, name, "rpm")
+    lo, hi = SPEED_RANGE
+    if not lo <= n <= hi:
+        raise InputError(
+            f"{name} must be within {lo:g}..{hi:g} rpm (got {n:g} rpm); spindles run"
+            f" {SPEED_PLAUSIBLE[0]:g}..{SPEED_PLAUSIBLE[1]:g} rpm"
+        )
+    return n
 
 
 def _primitive(phi: np.ndarray, Kt: float, Kn: float) -> np.ndarray:
@@ -166,7 +194,8 @@ class Milling:
         object.__setattr__(self, "Kn", check_finite(self.Kn, "milling Kn", "N/m^2"))
         object.__setattr__(self, "Kte", check_finite(self.Kte, "milling Kte", "N/m"))
         object.__setattr__(self, "Kne", check_finite(self.Kne, "milling Kne", "N/m"))
-        object.__setattr__(self, "rpm", check_nonneg(self.rpm, "milling rpm", "rpm"))
+        rpm = check_nonneg(self.rpm, "milling rpm", "rpm")
+        object.__setattr__(self, "rpm", check_spindle_speed(rpm, "milling rpm") if rpm else 0.0)
         a = check_finite(self.entry, "milling entry angle", "rad")
         b = check_finite(self.exit, "milling exit angle", "rad")
         tol = 1e-12
@@ -185,6 +214,12 @@ class Milling:
         beta = check_finite(self.helix, "milling helix angle", "rad")
         if not 0.0 <= beta < math.pi / 2:
             raise InputError(f"milling helix angle must be in [0, pi/2) rad (got {_show(beta)} rad)")
+        if beta > math.radians(HELIX_MAX_DEG) * (1 + 1e-12):
+            raise InputError(
+                f"milling helix angle (helix_deg) must be at most {HELIX_MAX_DEG:g} deg (got"
+                f" {math.degrees(beta):.6g} deg); end mills have up to about 60 deg, and towards 90 deg"
+                " the flute wraps the tool without bound"
+            )
         object.__setattr__(self, "helix", beta)
         if self.pitch is None or len(self.pitch) == 0:
             p = tuple([TWO_PI / n] * n)
@@ -263,15 +298,15 @@ class Milling:
     @staticmethod
     def omega(rpm: float) -> float:
         """Spindle speed in rad/s from rpm."""
-        return TWO_PI * check_speed(rpm, "spindle speed", "rpm") / 60.0
+        return TWO_PI * check_spindle_speed(rpm) / 60.0
 
     def tooth_period(self, rpm: float) -> float:
         """tau = 60 / (N n), s: the delay of a uniform-pitch cutter."""
-        return 60.0 / (self.teeth * check_speed(rpm, "spindle speed", "rpm"))
+        return 60.0 / (self.teeth * check_spindle_speed(rpm))
 
     def period(self, rpm: float) -> float:
         """Principal period of the coefficients, s: tau (uniform pitch) or 60/n."""
-        return self.tooth_period(rpm) if self.uniform else 60.0 / check_speed(rpm, "spindle speed", "rpm")
+        return self.tooth_period(rpm) if self.uniform else 60.0 / check_spindle_speed(rpm)
 
     def delays(self, rpm: float) -> np.ndarray:
         """tau_j = pitch_j / Omega, s, shape (N,)."""
@@ -324,7 +359,16 @@ class Milling:
         if depth is None:
             raise InputError("milling with a helix angle: give the axial depth of cut a_p (depth, m)")
         a = check_nonneg(depth, "depth of cut a_p", "m")
-        return 2.0 * a * math.tan(self.helix) / self.diameter
+        psi = 2.0 * a * math.tan(self.helix) / self.diameter
+        if not psi <= LAG_MAX:  # the cost estimate, before the work: a window per turn of the flute
+            hmax = math.degrees(math.atan(LAG_MAX * self.diameter / (2.0 * a)))
+            raise InputError(
+                f"milling helix: over a_p = {a * 1e3:.4g} mm the flute wraps the tool"
+                f" {psi / TWO_PI:.3g} times (2 a_p tan(helix) / D = {psi:.3g} rad, D = {self.diameter * 1e3:.4g}"
+                f" mm); at most {LAG_MAX / TWO_PI:g} turns are computed: helix_deg must be at most {hmax:.4g}"
+                " deg at this depth and diameter (check the diameter's unit: m)"
+            )
+        return psi
 
     def _windowed_integral(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """int_lo^hi g(phi) H(phi) dphi for lo <= hi (unwrapped angles), (..., 2, 2)."""
