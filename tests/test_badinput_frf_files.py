@@ -656,3 +656,11 @@ def test_reading_stops_on_a_blocked_path_within_the_bound(tmp_path):
             pass
         pytest.fail("reading a FIFO blocked")
     assert "FIFO" in str(result[0].value)
+
+
+def test_a_sweep_over_an_frf_model_is_refused_once_before_the_work(capsys, layout):
+    model = layout / "real" / "m.toml"
+    code, out, err, _ = run(capsys, "sweep", model, "--quantity", "b-lim", "--grid", "speed=3000:4000:2",
+                            "--backend", "serial", "--quiet")  # fmt: skip
+    assert_clean_error(code, err, str(model), "measured FRF", "chatterlab lobes")
+    assert "task" not in err and "sweep of" not in out

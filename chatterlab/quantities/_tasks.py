@@ -178,6 +178,12 @@ class QuantityTask:
     def __post_init__(self) -> None:
         if self.quantity not in QUANTITIES:
             raise InputError(f"unknown quantity '{self.quantity}' (known: {', '.join(QUANTITIES)})")
+        if getattr(self.model, "frf", None) is not None:  # refused once, before the work, not in every task
+            raise InputError(
+                f"{self.model.source}: its structure is a measured FRF ([frf]), which has no matrices for the sweep's"
+                " quantities; draw its lobes (chatterlab lobes), or fit modes to it"
+                " (chatterlab.structure.fit_modes(...).to_model(), docs/tap-test.md) and sweep that model"
+            )
         object.__setattr__(self, "width_max", check_width(self.width_max, "width_max"))
         unknown = set(self.fixed) - _BUILTIN_AXES
         if unknown:
