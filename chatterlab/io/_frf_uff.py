@@ -77,7 +77,7 @@ def read_frf_uff(
 def _uff_tags(data: bytes) -> list[int]:
     """Offsets of the ``    -1`` lines that open and close the datasets,
     found as pyuff finds them (so both see the same blocks)."""
-    tags = []
+    tags: list[int] = []
     ind = -1
     n = len(data)
     while True:
