@@ -15,7 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_time_verdicts import assert_honest, frozen_roots, random_3dof
+from test_time_verdicts import (
+    assert_honest,
+    assert_step_resolves_the_rightmost_root,
+    frozen_roots,
+    random_3dof,
+)
 
 import chatterlab as cl
 from chatterlab.lobes import lobes
@@ -33,8 +38,9 @@ def _check(system, T, b, factor, output, duration, position=None, decided=True):
     assert (roots.roots[0].real > 0) == (factor > 1)
     sim = simulate(system, width=factor * b, delay=T, position=position, duration=duration, outputs=output,
                    q0={output: 1e-6}, history="constant", forces=False, roots=roots)  # fmt: skip
+    assert_step_resolves_the_rightmost_root(system, sim, roots, position)
     v = sim.verdict(output)
-    assert_honest(v, roots)
+    assert_honest(v, roots, rightmost=decided)
     if decided:
         assert v.classification == ("growing" if factor > 1 else "decaying"), v.message
     return v

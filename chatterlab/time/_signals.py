@@ -434,6 +434,11 @@ RICHARDSON_SAFETY = 1.25
 #: for Richardson's estimate: the h^4 term of the error is then about
 #: (w h)^2 / 10 = 4 % of the h^2 term
 ASYMPTOTIC_STEPS = 10
+#: and at most this phase error (rad) of the regeneration over one delay,
+#: w T (w h)^2 / 12: the growth rate depends on that phase through the
+#: delayed term, smoothly but not linearly beyond a fraction of a radian
+#: (a long delay, w T of hundreds, leaves the h^2 regime at 40 steps per period)
+ASYMPTOTIC_PHASE = 0.25
 #: relative error of a characteristic root after Newton's refinement (the
 #: roots are exact to ~1e-13 relative; 1e-8 leaves room for ill-conditioning)
 ROOT_REL_ERROR = 1e-8
@@ -540,6 +545,7 @@ def time_verdict(
     roots: ArrayLike | None = None,
     roots_certain: bool = False,
     diverged: bool = False,
+    delay: float = 0.0,
 ) -> TimeVerdict:
     """The verdict of one history from two runs of the same cut.
 
@@ -552,6 +558,12 @@ def time_verdict(
     The error bar is that plus two standard errors of the fit; a class is
     claimed only when the whole bar lies in it (growth or decay beyond
     ``log(1 + tol)`` over the fitted span, as for :func:`growth_rate`).
+
+    Richardson's estimate is used only in the h^2 regime: at the coarser
+    step at least ``ASYMPTOTIC_STEPS`` steps per period of ``frequency`` and,
+    with ``delay`` T, a phase error ``w T (w h)^2/12`` of the regeneration of
+    at most ``ASYMPTOTIC_PHASE`` rad; otherwise the verdict is undetermined
+    with the step that would make the estimate valid.
 
     With ``roots`` (the characteristic roots of the same frozen system,
     1/s, from :mod:`chatterlab.frequency`) the verdict is compared with the
@@ -581,19 +593,30 @@ def time_verdict(
     decide = math.nan
     coarse = max(step, check_step)
     per_period = 1.0 / (frequency * coarse) if frequency > 0 else math.inf
+    w_main = 2.0 * math.pi * frequency if frequency > 0 else 0.0
+    # the phase error of the regeneration over one delay at the coarser step
+    phase = w_main * delay * (w_main * coarse) ** 2 / 12.0 if delay > 0 else 0.0
     if diverged:
         cls, how = "diverged", "the run diverged"
     elif not ok:
         cls = "undetermined"
         how = "no rate: " + (main.message if not math.isfinite(rate) else "the check run gave no rate")
-    elif per_period < ASYMPTOTIC_STEPS:
+    elif per_period < ASYMPTOTIC_STEPS or phase > ASYMPTOTIC_PHASE:
         # Richardson's estimate holds in the h^2 regime only
         cls = "undetermined"
-        decide = min(step, check_step) * per_period / ASYMPTOTIC_STEPS
+        scale = min(
+            per_period / ASYMPTOTIC_STEPS, math.sqrt(ASYMPTOTIC_PHASE / phase) if phase > 0 else math.inf
+        )
+        decide = min(step, check_step) * scale
+        why = (
+            f"{per_period:.3g} < {ASYMPTOTIC_STEPS} steps per period of {frequency:.6g} Hz"
+            if per_period < ASYMPTOTIC_STEPS
+            else f"a phase error of the regeneration (w h)^2/12 w T = {phase:.3g} > {ASYMPTOTIC_PHASE} rad per delay"
+        )
         how = (
-            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, but the run at h = {coarse:.4g} s has"
-            f" {per_period:.3g} < {ASYMPTOTIC_STEPS} steps per period of {frequency:.6g} Hz: its error is not in"
-            f" the h^2 regime, so the step error is unknown; a step of {decide:.3g} s would make it known"
+            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, but the run at h = {coarse:.4g} s has {why}: its"
+            f" error is not in the h^2 regime, so the step error is unknown; a step of {decide:.3g} s would"
+            " make it known"
         )
         step_err = math.inf
     else:

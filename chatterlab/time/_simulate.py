@@ -149,7 +149,12 @@ class Simulation(TimeHistory):
         if key in self._cache:
             return self._cache[key]  # type: ignore[no-any-return]
         h2 = self.check_step()
-        common = dict(roots=self.roots, roots_certain=self.roots_certain, tol=tol)
+        common = dict(
+            roots=self.roots,
+            roots_certain=self.roots_certain,
+            tol=tol,
+            delay=float(self.delay) if self.terms == "pdo" else 0.0,
+        )
         if self.status == "diverged":
             none = GrowthEstimate(math.nan, "undetermined", math.nan, "the run diverged")
             v = time_verdict(name, none, None, self.step, h2, diverged=True, **common)  # type: ignore[arg-type]
