@@ -145,3 +145,18 @@ def test_narrow_bands_near_lens_tips_on_2dof_and_variable_pitch(tool, rpm, band,
     if band is not None:  # the band's lower edge, to the 4 digits quoted
         assert band[0] - 1e-7 <= a <= band[0] + 1e-7 and a < band[1]
     _dense_check(st, mill, rpm, a, 200)
+
+
+def test_an_undecided_speed_is_undetermined_with_a_lower_bound(monkeypatch):
+    """With no evaluations allowed beyond the scan the search cannot decide: the speed says
+    'undetermined' and its a_lim is the depth up to which stability was established, below
+    the true limit (never above it), in the summary and the CSV."""
+    import chatterlab.lobes._milling_search as search
+
+    st, mill = one_dof()
+    full = milling_lobes(st, mill, [5000.0], depth_max=0.01, check=False)
+    monkeypatch.setattr(search, "MAX_TANGENTS", -40)  # the budget is MAX_TANGENTS + scan
+    ml = milling_lobes(st, mill, [5000.0], depth_max=0.01, check=False)
+    assert ml.basis[0] == "undetermined" and ml.kind[0] == "undetermined"
+    assert ml.a_lim[0] == ml.certified[0] and ml.a_lim[0] < full.a_lim[0]
+    assert "undetermined at 1 speed" in ml.summary()

@@ -197,7 +197,7 @@ class MillingLobes:
             j = int(np.argmin(np.where(und, self.a_lim, np.inf)))
             n = int(np.sum(und))
             lines.append(
-                f"  undetermined at {n} speed{'s' if n != 1 else ''}: stable proven only up to the a_lim shown"
+                f"  undetermined at {n} speed{'s' if n != 1 else ''}: stable established only up to the a_lim shown"
                 f" (a lower bound; {self.a_lim[j] * 1e3:.6g} mm at {self.rpm[j]:g} rpm)"
             )
         lines.append(f"  {self.evaluations} evaluations, {self.elapsed:.2f} s")
@@ -296,7 +296,7 @@ def _claim(ml: MillingLobes) -> str:
             "a_lim: the first depth with a Floquet multiplier on the unit circle; flip/fold depths exact"
             " (real eigenvalues of the affine monodromy pencil), complex pairs tracked with their derivatives"
             " between scan depths to first order; inf: no multiplier reaches the unit circle up to depth_max;"
-            " basis 'undetermined': stable proven only up to a_lim (a lower bound)"
+            " basis 'undetermined': stable established only up to a_lim (a lower bound)"
         )
     if basis == {"zoa"}:
         return "zeroth-order approximation (averaged coefficients); flip lobes are not modelled"

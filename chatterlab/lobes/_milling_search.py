@@ -172,7 +172,7 @@ def _miss(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], h:
 
 
 def certified_crossing(
-    sm: SpectralMonodromy, depth_max: float, scan: int, rtol: float, max_tangents: int = MAX_TANGENTS
+    sm: SpectralMonodromy, depth_max: float, scan: int, rtol: float, max_tangents: int | None = None
 ) -> Certified:
     """The first depth in (0, depth_max] at which a multiplier of ``sm``
     (spectral elements, no helix: affine in a_p) reaches the unit circle.
@@ -194,6 +194,7 @@ def certified_crossing(
     step 1 (exact) and the first-order test of step 2 on every interval."""
     from scipy.optimize import brentq  # here: import chatterlab stays light
 
+    budget = MAX_TANGENTS if max_tangents is None else max_tangents
     flips = sm.unit_depths(-1.0, depth_max)
     folds = sm.unit_depths(1.0, depth_max)
     reals = [(float(a), "flip", -1.0) for a in flips] + [(float(a), "fold", 1.0) for a in folds]
@@ -217,7 +218,7 @@ def certified_crossing(
         pass
 
     def refine(lo: float, hi: float) -> tuple[str, float] | None:
-        if count[0] > max_tangents + scan:
+        if count[0] > budget + scan:
             raise _Stop
         skip = z_real if hi == a_real else None
         if radius(hi) < 1.0 or skip is not None:
