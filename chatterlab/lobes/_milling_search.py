@@ -263,7 +263,8 @@ def certified_crossing(
         return Certified("undetermined", a, "undetermined", certified[0], count[0], np.nan, fl, fo)
     # a bracket [a (1 - MIN_WIDTH), a] with rho < 1 at the left end, >= 1 at the right: Brent
     lo = max(k for k in cache if k < a)
-    root = brentq(lambda x: sm.radius(x) - 1.0, lo, a, xtol=rtol * a, rtol=4 * np.finfo(float).eps)
+    f = lambda x: float(np.max(np.abs(sm.at(x)))) - 1.0  # noqa: E731  (dense, as the tracking)
+    root = brentq(f, lo, a, xtol=rtol * a, rtol=4 * np.finfo(float).eps) if f(lo) < 0.0 <= f(a) else a
     mu, dmu = data(float(root))
     i = int(np.argmax(np.abs(mu)))
     slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
