@@ -233,7 +233,7 @@ def _runner(
 ROOTS_COUNT = 12
 
 
-def _frozen_roots(sy: Any, fb: str, width: float | None, args: argparse.Namespace) -> Any:
+def _frozen_roots(sy: Any, fb: Any, width: float | None, args: argparse.Namespace) -> Any:
     """The rightmost characteristic roots of the frozen system a continuous
     cut integrates (the same matrices, :func:`chatterlab.time._simulate.constant_loop`),
     in the band the loop's gain bound certifies; None for a moving slide."""

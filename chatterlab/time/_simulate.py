@@ -147,17 +147,16 @@ class Simulation(TimeHistory):
             )
         key = ("verdict", name, float(tol))
         if key in self._cache:
-            return self._cache[key]  # type: ignore[no-any-return]
+            cached: TimeVerdict = self._cache[key]
+            return cached
         h2 = self.check_step()
-        common = dict(
-            roots=self.roots,
-            roots_certain=self.roots_certain,
-            tol=tol,
-            delay=float(self.delay) if self.terms == "pdo" else 0.0,
-        )
+        delay = float(self.delay) if self.terms == "pdo" else 0.0
         if self.status == "diverged":
             none = GrowthEstimate(math.nan, "undetermined", math.nan, "the run diverged")
-            v = time_verdict(name, none, None, self.step, h2, diverged=True, **common)  # type: ignore[arg-type]
+            v = time_verdict(
+                name, none, None, self.step, h2, tol=tol, roots=self.roots, roots_certain=self.roots_certain,
+                diverged=True, delay=delay,
+            )  # fmt: skip
         else:
             skip = self.verdict_skip()
             main = self.growth(name, window="all", skip=skip, tol=tol)
@@ -167,8 +166,9 @@ class Simulation(TimeHistory):
                 if chk.status == "ok":
                     check = chk.growth(name, window="all", skip=skip, tol=tol)
             v = time_verdict(
-                name, main, check, self.step, h2, frequency=self._main_frequency(name, main), **common
-            )  # type: ignore[arg-type]
+                name, main, check, self.step, h2, frequency=self._main_frequency(name, main), tol=tol,
+                roots=self.roots, roots_certain=self.roots_certain, delay=delay,
+            )  # fmt: skip
         self._cache[key] = v
         return v
 
@@ -177,7 +177,8 @@ class Simulation(TimeHistory):
         if run is None:
             run = self._rerun(h2)
             self._cache[("check", h2)] = run
-        return run  # type: ignore[no-any-return]
+        out: Simulation = run
+        return out
 
     def _main_frequency(self, name: str, g: GrowthEstimate) -> float:
         """The main spectral peak (Hz) of a history over the fitted window."""
@@ -677,7 +678,7 @@ def constant_loop(
     width, _, _, kin = _check_run(system, feedback, width, 1, None, None, speed, delay, position)
     if not isinstance(kin, SteadyKinematics):
         return None
-    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=False)  # type: ignore[arg-type]
+    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=False)
     return _constant_matrices(prob)
 
 
