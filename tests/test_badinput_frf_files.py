@@ -423,6 +423,12 @@ def test_cutpro_junk_headers_are_refused(tmp_path, capsys, head, words):
     assert_clean_error(code, err, str(p), *words)
 
 
+def test_a_decimal_comma_is_named(tmp_path):
+    p = write(tmp_path, "t.csv", "# units: m/N\nf;re;im\n100;1,5e-7;-2,1e-9\n110;1,6e-7;-2,2e-9\n")
+    with pytest.raises(InputError, match="line 3, column 're': '1,5e-7' is not a number; a decimal comma"):
+        read_frf(p)
+
+
 def test_a_cutpro_file_of_comma_rows_is_refused_with_the_line(tmp_path):
     p = write(tmp_path, "t.frf", "Units: m/N\n" + ROWS)
     with pytest.raises(InputError, match="line 2: .* is not a number .*separated by tabs"):

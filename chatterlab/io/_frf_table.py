@@ -332,7 +332,12 @@ def _number(tok: str, where: str, line: int, column: str) -> float:
     try:
         x = float(tok)
     except ValueError:
-        raise InputError(f"{where}, line {line}, column {column!r}: {tok!r} is not a number") from None
+        hint = (
+            "; a decimal comma? write numbers with a decimal point"
+            if re.fullmatch(r"[+-]?\d*,\d+.*", tok)
+            else ""
+        )
+        raise InputError(f"{where}, line {line}, column {column!r}: {tok!r} is not a number{hint}") from None
     if not math.isfinite(x):
         raise InputError(
             f"{where}, line {line}, column {column!r}: {tok} is not a finite number; drop or repair the line"
