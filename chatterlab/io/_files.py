@@ -196,9 +196,17 @@ class Outputs:
         self._inputs.setdefault(os.path.realpath(path), os.fspath(path))
 
     def add(self, path: str | None, option: str, suffixes: tuple[str, ...]) -> str | None:
-        """Check one output path (None: the option was not given)."""
+        """Check one output path (None: the option was not given).  A refused
+        output ends the command: these outputs then stop watching reads."""
         if path is None:
             return None
+        try:
+            return self._add(path, option, suffixes)
+        except InputError:
+            _ACTIVE.discard(self)
+            raise
+
+    def _add(self, path: str, option: str, suffixes: tuple[str, ...]) -> str:
         p = Path(path)
         if p.suffix.lower() not in suffixes:
             raise InputError(
