@@ -66,6 +66,7 @@ import numpy as np
 LOG_SPAN = 9.0  #: decades of width searched below the width ceiling
 _X_MAX = 1.0 + 1e-9  #: beta / beta_max accepted (the ceiling itself included)
 _FOLD_REL = 1e-13  #: folds are located to this relative frequency
+_CLUSTER = 1e-2  #: |Im x| / |Re x| of a resultant root treated as a scattered root of a cluster
 
 
 @dataclass(frozen=True)
@@ -242,11 +243,15 @@ def _sylvester_det(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.det(S)
 
 
-def _secant_on_nu(ops: Ops, beta_max: float, xs: list[np.ndarray]) -> list[np.ndarray]:
+def _secant_on_nu(
+    ops: Ops, beta_max: float, xs: list[np.ndarray], index: int | None = None
+) -> list[np.ndarray]:
     """Refine candidate widths ``xs[k]`` at each frequency k of ``ops`` on
     f(x) = log|nu_j(x beta_max)| of the eigenvalue nearest the unit circle
     (secant, 8 steps); keep those where |f| < 1e-9 (a resultant root whose
-    common z is off the circle, or a spurious one, fails this).
+    common z is off the circle, or a spurious one, fails this).  With
+    ``index`` = j: on the j-th smallest |nu| instead (a continuous function of
+    x, which two close eigenvalues do not make switch).
 
     All frequencies at once: the candidates are packed in rows (padded with
     x = 1, masked), and a frequency stops stepping once all its |f| < 1e-13,
@@ -264,6 +269,8 @@ def _secant_on_nu(ops: Ops, beta_max: float, xs: list[np.ndarray]) -> list[np.nd
     def f(xx: np.ndarray, rows: np.ndarray) -> np.ndarray:
         v = nu(ops, beta_max * xx, rows)
         g = np.log(np.abs(v))
+        if index is not None:
+            return g[..., index]
         return np.take_along_axis(g, np.argmin(np.abs(g), axis=-1)[..., None], axis=-1)[..., 0]
 
     rows = np.nonzero([x.size > 0 for x in xs])[0]
@@ -303,7 +310,9 @@ def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.nd
     of N has |nu| = 1 there (a common root off the circle, z0 and 1/conj z0,
     is dropped).  For r = 1 this is :func:`widths_rank1`'s Q."""
     N = ops.omega.size
+    r = ops.Vt.shape[0]
     found: list[list[np.ndarray]] = [[] for _ in range(N)]
+    loose: list[list[np.ndarray]] = [[] for _ in range(N)]
     prox = np.full(N, np.inf)
     # the coefficients interpolated on a circle of radius rho are accurate
     # relative to the polynomial's size on that circle: each radius serves the
@@ -317,13 +326,37 @@ def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.nd
         with np.errstate(invalid="ignore"):
             near_real = np.abs(x.imag) <= 1e-6 * np.abs(x.real)
             inside = (x.real > lo) & (x.real <= hi)
+            # a cluster of roots (two eigenvalues of N on the circle at nearly
+            # the same width: R vanishes to fourth order there) scatters its
+            # computed roots off the real axis by ~(round-off)^(1/4)
+            cluster = ~near_real & (np.abs(x.imag) <= _CLUSTER * np.abs(x.real)) & inside
         for i in np.nonzero(np.any(near_real & inside, axis=1))[0]:
             found[i].append(x[i, near_real[i] & inside[i]].real)
+        for i in np.nonzero(np.any(cluster, axis=1))[0]:
+            loose[i].append(x[i, cluster[i]].real)
         if e == 0.0:
             prox = pr
     cands = [np.sort(np.concatenate(found[k])) if found[k] else np.zeros(0) for k in range(N)]
+    main = _secant_on_nu(ops, beta_max, cands)
+    rows = [k for k in range(N) if loose[k]]
+    if rows:
+        # at a cluster: every candidate, the loose ones too, refined on each
+        # sorted |nu_j| in turn (the eigenvalue nearest the circle switches
+        # between two close ones); widths the main pass has are not added again
+        sub = Ops(ops.omega[rows], ops.HA[rows], ops.HU[rows], ops.Vt)
+        cl = [np.sort(np.concatenate([cands[k], *loose[k]])) for k in rows]
+        extra = [_secant_on_nu(sub, beta_max, cl, index=j) for j in range(r)]
+        for i, k in enumerate(rows):
+            x = np.unique(np.concatenate([e[i] for e in extra]))
+            have = main[k]
+            if have.size and x.size:
+                near = np.min(np.abs(x[:, None] - have[None, :]), axis=1) <= 1e-9 * x
+                x = x[~near]
+            if x.size:
+                x = x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]]
+                main[k] = np.sort(np.concatenate([have, x]))
     out = []
-    for x in _secant_on_nu(ops, beta_max, cands):
+    for x in main:
         # one width found from two circles: keep one
         out.append(x[np.r_[True, np.diff(x) > 1e-9 * x[1:]]] if x.size else x)
     return out, prox

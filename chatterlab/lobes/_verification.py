@@ -60,7 +60,10 @@ def _verify(
     independent of the boundary computation: the number of closed-loop roots
     in the right half plane (:func:`chatterlab.frequency._winding.rhp_count_system`) is
     0 just below the envelope (b = (1 - VERIFY_OFFSET) b_lim) and > 0 just
-    above it; where the diagram says ``inf``, 0 at the width ceiling."""
+    above it; where the diagram says ``inf``, 0 at the width ceiling.  Each
+    check says whether its count is ``proven`` (every phase increment bounded,
+    see :func:`chatterlab.frequency._phase_sampling.certified_phase`) or only
+    sampled."""
     from ..frequency._roots import make_system
     from ..frequency._winding import rhp_count_system
 
@@ -87,6 +90,8 @@ def _verify(
                 "expected": expect,
                 "verdict": verdict,
                 "rhp_roots": int(w.count),
+                # every phase increment bounded (factored form), not only sampled
+                "proven": bool(w.proven),
                 "agrees": verdict == expect,
             }
         )
