@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 import signal
 import warnings
+from pathlib import Path
 
 import pytest
 from conftest import assert_clean_error
@@ -17,6 +18,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from chatterlab.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: seconds one command may take on a random table (a shared 2-core machine)
 TIME_BOUND = 60
@@ -221,3 +224,13 @@ def test_a_modal_table_typed_in_khz_warns(capsys, tmp_path):
     assert "kHz" in lines[0] and "x1 (0.922 Hz), y1 (0.922 Hz)" in lines[0]
     code, _, err = run(capsys, tmp_path, milling_text(BENCH), ROOTS)
     assert code == 0 and err == ""
+
+
+@pytest.mark.parametrize("opt", [["--steps", "80"], ["--scan", "5"]])
+def test_floquet_options_on_a_measured_frf_are_refused(capsys, opt):
+    """lobes --frf (ZOA from the measurement) accepted --steps and --scan silently."""
+    frf = ROOT / "studies" / "tap_test" / "tool_point.csv"
+    argv = ["lobes", "--frf", str(frf), "--speed", "8000", "20000", "--points", "3", "--width-max", "5",
+            "--teeth", "2", "--kt", "6e8", "--kn", "2e8", "--immersion", "0.05", *opt]  # fmt: skip
+    code = main(argv)
+    assert_clean_error(code, capsys.readouterr().err, opt[0], "drop")

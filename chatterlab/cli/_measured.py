@@ -74,7 +74,15 @@ def frf_model(args: argparse.Namespace) -> Any:
     """The model of ``lobes --frf``: the model file with the FRF as its
     structure, or a model written from the command-line cut."""
     from ..model._reader import loads_model
+    from ._milling import _typed
 
+    for opt in ("--steps", "--scan"):
+        if _typed(opt):  # the Floquet methods' knobs: a measured FRF has no modes to run them on
+            raise InputError(
+                f"{opt} is for the Floquet lobes of a milling model with modes (--method sdm, spectral);"
+                " lobes --frf is computed from the measured FRF by the D-subdivision engine (the"
+                f" zeroth-order approximation for milling), which does not use it: drop {opt}"
+            )
     frf = Path(args.frf)
     if args.model is not None:
         return _with_frf(args, frf)
