@@ -194,7 +194,7 @@ def near_diagram(nearly):
 # ----------------------------------------------------------------------------- the count
 
 
-@pytest.mark.parametrize("factor", [0.999, 0.9999, 1.001, 0.5, 2.0])
+@pytest.mark.parametrize("factor", [0.999, 0.9999, 1.001, 1.01])
 def test_symmetric_count_is_twice_the_1dof_count(symmetric, factor):
     """det Delta = d(s)^2: the count is twice the 1-DOF count (0 below the
     limit, 4 just above it: a double pair), proven increment by increment."""
