@@ -370,6 +370,8 @@ def rhp_count(
     omega_max : float, optional
         Upper end of the sampled band in rad/s; default: 3x the largest
         delay-free eigenfrequency, doubled until :math:`|f - 1| < 10^{-3}`.
+        In factored form it is doubled further until the bound proves
+        :math:`\\|H\\| < 1/2` beyond it (the proven passive tail).
     n_points : int, optional
         Minimum number of initial samples (default from the step
         :math:`\\pi/(8\\tau)`).
