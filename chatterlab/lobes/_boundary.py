@@ -346,8 +346,8 @@ def widths_resultant(ops: Ops, beta_max: float) -> tuple[list[np.ndarray], np.nd
         sub = Ops(ops.omega[rows], ops.HA[rows], ops.HU[rows], ops.Vt)
         cl = [np.sort(np.concatenate([cands[k], *loose[k]])) for k in rows]
         extra = [_secant_on_nu(sub, beta_max, cl, index=j) for j in range(r)]
-        for i, k in enumerate(rows):
-            x = np.unique(np.concatenate([e[i] for e in extra]))
+        for pos, k in enumerate(rows):
+            x = np.unique(np.concatenate([e[pos] for e in extra]))
             have = main[k]
             if have.size and x.size:
                 near = np.min(np.abs(x[:, None] - have[None, :]), axis=1) <= 1e-9 * x

@@ -440,7 +440,7 @@ def _commutant(mats: list[np.ndarray]) -> np.ndarray:
     """A basis (k, m, m) of the real matrices X with X Y = Y X for every Y."""
     m = mats[0].shape[0]
     eye = np.eye(m)
-    rows = []
+    rows: list[np.ndarray] = []
     for Y in mats:
         sc = float(np.linalg.norm(Y))
         if sc == 0.0:
