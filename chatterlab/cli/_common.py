@@ -33,6 +33,11 @@ from ..io._files import CSV_SUFFIXES, JSON_SUFFIXES, TEXT_SUFFIXES, Outputs
 #: metres per millimetre: widths are typed and printed in mm
 MM = 1e-3
 
+#: the most speeds of a lobe diagram (``lobes --points``): the work grows with each
+MAX_POINTS = 100_000
+#: the most positions of an atlas (``lobes --positions A B N``): a boundary is computed at each
+MAX_POSITIONS = 10_000
+
 
 def mm_to_m(value_mm: Any) -> Any:
     """A width typed in mm (number or array), in m."""
@@ -181,6 +186,11 @@ def check_numbers(args: argparse.Namespace, unit: str = "") -> None:
     for name, least in (("points", 1), ("passes", 1), ("verify", 0), ("confirm", 0)):
         if getattr(args, name, None) is not None:
             check_count(getattr(args, name), f"--{name}", least)
+    if getattr(args, "points", None) is not None and args.points > MAX_POINTS:
+        raise InputError(
+            f"--points {args.points} is more than the largest accepted, {MAX_POINTS} speeds (more than a"
+            " diagram can show; the work grows with each): use fewer points, or several speed ranges"
+        )
     if getattr(args, "count", None) is not None:
         check_count(args.count, "--count", 1)
 

@@ -23,6 +23,7 @@ from ..errors import InputError, check_count, check_position, check_speed
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
 from ._claims import ceiling_claim, check_verdict, inf_note, ok_infs
 from ._common import (
+    MAX_POSITIONS,
     CommandOutputs,
     drop_checkpoint_after,
     engine_opts,
@@ -197,12 +198,25 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
 
 
 def _positions(args: argparse.Namespace, model: Any) -> Any:
-    """``--positions A B N`` as an array of positions, m."""
+    """``--positions A B N`` as an array of positions, m (at most
+    :data:`MAX_POSITIONS`, and a sweep of at most ``MAX_TASKS`` points)."""
     import numpy as np
+
+    from ..sweep._grid import MAX_TASKS
 
     a = check_position(args.positions[0], "--positions A")
     b = check_position(args.positions[1], "--positions B")
     n = check_count(args.positions[2], "--positions N")
+    if n > MAX_POSITIONS:
+        raise InputError(
+            f"--positions N = {args.positions[2]:g} is more than the largest accepted, {MAX_POSITIONS}"
+            " positions (a boundary is computed at each): use fewer positions"
+        )
+    if n * args.points > MAX_TASKS:
+        raise InputError(
+            f"--positions N x --points = {n} x {args.points} = {n * args.points} atlas points is more than"
+            f" the largest sweep accepted, {MAX_TASKS}: use fewer positions or points"
+        )
     if model.movable is not None:
         for x, nm in ((a, "--positions A"), (b, "--positions B")):
             check_position(x, nm, within=model.movable.range)

@@ -34,8 +34,17 @@ def parallel_args(p: argparse.ArgumentParser) -> None:
 
 def sweep_opts(args: argparse.Namespace) -> dict[str, Any]:
     """The keyword arguments of ``sweep()`` that come from these options."""
+    import os
+
+    from ..sweep._engine import max_jobs
+
     if args.jobs < 1 and args.jobs != -1:
         raise InputError(f"--jobs must be >= 1 (or -1 for all cores), got {args.jobs}")
+    if args.jobs > max_jobs():
+        raise InputError(
+            f"--jobs {args.jobs} is more than the largest accepted here, {max_jobs()} (4 per core of this"
+            f" machine's {os.cpu_count() or 1}; -1 is one per core): more workers only share the cores"
+        )
     if args.scheduler and args.backend != "dask":
         raise InputError("--scheduler is for --backend dask")
     return {
@@ -91,14 +100,49 @@ def fingerprint(model_hash: str, args: argparse.Namespace, options: tuple[str, .
 
 @contextlib.contextmanager
 def resume_refusal(args: argparse.Namespace) -> Iterator[None]:
-    """A checkpoint that ``--resume`` refuses because it was written for
-    another model, grid or options: its one line ends with how to start
-    afresh in this command's options."""
+    """The sweep engine's words in this command's options, around a
+    ``sweep()`` call: a checkpoint that ``--resume`` refuses (written for
+    another model, grid or options, or damaged) ends with how to start
+    afresh; an interrupted sweep says "resume with --resume"; the engine's
+    warning about damaged chunk files (recomputed) is one chatterlab warning
+    line, not a raw Python warning."""
+    import warnings
+
+    from ..sweep._checkpoint import DAMAGED_FIX, CheckpointWarning
+    from ..sweep._result import SweepInterrupted
+    from ._common import WARNINGS
+
+    shown = warnings.showwarning
+
+    def show(message: Any, category: Any, *rest: Any, **kw: Any) -> None:
+        if issubclass(category, CheckpointWarning):  # printed with the command's other warnings
+            line = f"chatterlab: warning: {message}"
+            if line not in WARNINGS:
+                WARNINGS.append(line)  # even with --quiet: it says that work is redone
+            return
+        shown(message, category, *rest, **kw)
+
     try:
-        yield
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", CheckpointWarning)
+            warnings.showwarning = show
+            yield
+    except SweepInterrupted as exc:
+        text = str(exc).removeprefix("sweep interrupted: ")
+        text = text.replace(
+            "run again with resume=True (CLI: --resume)", "resume with --resume (the same command)"
+        )
+        raise SweepInterrupted(text, done=exc.done, total=exc.total, checkpoint=exc.checkpoint) from None
     except InputError as exc:
         ck = checkpoint(args)
         text = str(exc)
+        if ck and text.endswith(DAMAGED_FIX):
+            raise InputError(
+                text.removesuffix(DAMAGED_FIX)
+                + f"; the checkpoint is damaged and cannot be resumed: remove the"
+                f" folder {ck!r} (its saved chunks are lost), or run without --resume (and another"
+                " --checkpoint DIR)"
+            ) from None
         where = f"checkpoint directory {str(Path(ck))!r}" if ck else None
         if not (args.resume and where and text.startswith(where) and " written " in text):
             raise

@@ -80,6 +80,7 @@ def _grid(args: argparse.Namespace, model: Any) -> tuple[Any, dict[str, str]]:
 
     from ..quantities._tasks import axis_name
     from ..sweep._engine import Axis, Grid
+    from ..sweep._grid import MAX_TASKS, shown_spec
 
     if not args.grid:
         raise InputError("give at least one --grid PARAM=MIN:MAX:N")
@@ -95,7 +96,12 @@ def _grid(args: argparse.Namespace, model: Any) -> tuple[Any, dict[str, str]]:
         if "=" not in spec:
             raise InputError(f"--grid {spec!r}: write PARAM=MIN:MAX:N, e.g. width=0.5:3:11 (mm)")
         name, rng = (x.strip() for x in spec.split("=", 1))
-        g = Grid.from_spec(f"{axis_name(name)}={rng}")
+        tok = f"{axis_name(name)}={rng}"
+        try:
+            g = Grid.from_spec(tok)
+        except InputError as exc:  # in the option's own words
+            text = str(exc).replace(f"grid spec {shown_spec(tok)!r}", f"--grid {shown_spec(spec)!r}", 1)
+            raise InputError(text) from None
         vals = np.asarray(g.axes[0].values, float)
         check_axis_values(name, vals, "mm" if name == "width" else units.get(name, ""))
         if name == "width":
@@ -104,7 +110,13 @@ def _grid(args: argparse.Namespace, model: Any) -> tuple[Any, dict[str, str]]:
         if "." in name:
             aliases[ax_name] = name
         axes.append(Axis(ax_name, vals, units.get(name, "")))
-    return Grid(axes), aliases
+    grid = Grid(axes)
+    if grid.size > MAX_TASKS:
+        raise InputError(
+            f"--grid: {' x '.join(str(n) for n in grid.shape)} = {grid.size} points is more than the largest"
+            f" sweep accepted, {MAX_TASKS} points (a task costs milliseconds to seconds): use fewer points"
+        )
+    return grid, aliases
 
 
 def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:

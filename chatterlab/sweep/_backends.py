@@ -3,6 +3,7 @@ serial, loky and dask runners."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import threading
@@ -199,14 +200,7 @@ def _dask_runner(
     if scheduler is None:
         cluster, client = _local_cluster(jobs)
     elif isinstance(scheduler, str):
-        try:
-            client = Client(scheduler, timeout=timeout, set_as_default=False, security=security)
-        except (OSError, TimeoutError) as exc:
-            raise SweepError(
-                f"cannot reach the dask scheduler at {scheduler!r} within {timeout:g} s "
-                f"({type(exc).__name__}: {exc}); check the address, or start one with "
-                "`dask scheduler` and workers with `dask worker ADDRESS`"
-            ) from None
+        client = _connect(Client, scheduler, timeout, security)
     else:  # an existing distributed.Client
         client = scheduler
         own_client = False
@@ -253,6 +247,75 @@ def _dask_runner(
             client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _connect(client_class: Any, scheduler: str, timeout: float, security: Any) -> Any:
+    """A client of the dask scheduler at ``scheduler``, within ``timeout``
+    seconds, or one :class:`SweepError` line: nothing listens, it does not
+    answer, or what answers does not speak dask's protocol (a garbage
+    answer raised MemoryError or a decoding error, then the half-made
+    client waited 20 s at exit to close and printed a traceback).  The
+    half-made client is closed here, at once."""
+    made: list[Any] = []
+
+    class _Client(client_class):  # type: ignore[misc, valid-type]
+        def start(self, **kwargs: Any) -> Any:
+            made.append(self)
+            return super().start(**kwargs)
+
+    fix = "check the address, or start one with `dask scheduler` and workers with `dask worker ADDRESS`"
+    try:
+        _probe(scheduler, timeout, security)  # bounded: a silent or garbage peer kept Client() waiting
+        return _Client(scheduler, timeout=timeout, set_as_default=False, security=security)
+    except (OSError, TimeoutError) as exc:
+        why, what = (
+            f"{type(exc).__name__}: {_short(exc, 200)}",
+            f"cannot reach the dask scheduler at {scheduler!r}",
+        )
+        raise SweepError(f"{what} within {timeout:g} s ({why}); {fix}") from None
+    except Exception as exc:  # noqa: BLE001 - whatever the garbage makes the protocol raise
+        why = f"{type(exc).__name__}: {_short(exc, 120)}"
+        raise SweepError(
+            f"the address {scheduler!r} answered, but not as a dask scheduler ({why}); {fix}"
+        ) from None
+    finally:
+        for c in made:
+            if c.status != "running":
+                with contextlib.suppress(Exception):
+                    c.close(timeout=min(timeout, 2.0))
+
+
+def _probe(address: str, timeout: float, security: Any) -> None:
+    """Ask ``address`` who it is (dask's ``identity`` call), all within
+    ``timeout`` seconds in a thread of its own: TimeoutError if it says
+    nothing in time, OSError if it cannot be reached, ValueError if what
+    answers is not a dask scheduler."""
+    import asyncio
+    import concurrent.futures
+
+    async def ask() -> Any:
+        from distributed.comm import connect
+
+        kw = security.get_connection_args("client") if security is not None else {}
+        comm = await connect(address, timeout=timeout, **kw)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    async def bounded() -> Any:
+        return await asyncio.wait_for(ask(), timeout)
+
+    pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="chatterlab-dask-probe")
+    try:
+        who = pool.submit(asyncio.run, bounded()).result(timeout + 5.0)
+    except TimeoutError:
+        raise TimeoutError(f"no answer within {timeout:g} s") from None
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+    if not (isinstance(who, dict) and who.get("type") == "Scheduler"):
+        raise ValueError(f"its identity is {str(who)[:60]!r}, not a scheduler's")
 
 
 @contextmanager

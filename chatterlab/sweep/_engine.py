@@ -93,7 +93,7 @@ from ._checkpoint import (
     _open_checkpoint,
     _save_chunk,
 )
-from ._grid import Axis, Grid
+from ._grid import MAX_TASKS, Axis, Grid
 from ._progress import _Progress
 from ._result import STATUS_VARIABLE, SweepInterrupted, SweepResult, TaskFailure
 from ._store import _Store
@@ -144,6 +144,11 @@ def _normalise_outputs(
     if not names:
         raise InputError("outputs is empty: declare at least one output, e.g. {'freq': 'Hz'}")
     return tuple(names), units, longs
+
+
+def max_jobs() -> int:
+    """The most worker processes a sweep starts: 4 per core (at least 4)."""
+    return max(4, 4 * (os.cpu_count() or 1))
 
 
 def _default_chunk_size(size: int, jobs: int) -> int:
@@ -266,6 +271,12 @@ def sweep(
         raise InputError(f"func must be callable (got {type(func).__name__})")
     if not isinstance(grid, Grid):
         grid = Grid(grid)
+    if grid.size > MAX_TASKS:
+        dims = " x ".join(str(n) for n in grid.shape)
+        raise InputError(
+            f"the grid has {dims} = {grid.size} points, more than the largest sweep accepted, {MAX_TASKS}"
+            " points (a task costs milliseconds to seconds): sweep a coarser grid, or in parts"
+        )
     out_names, units, long_names = _normalise_outputs(outputs, grid)
     if backend not in ("loky", "serial", "dask"):
         raise InputError(f"backend must be 'loky', 'serial' or 'dask' (got {backend!r})")
@@ -273,6 +284,11 @@ def sweep(
         raise InputError(f"jobs must be a positive integer or -1 for all CPUs (got {jobs!r})")
     if jobs == -1:
         jobs = os.cpu_count() or 1
+    if jobs > max_jobs():
+        raise InputError(
+            f"jobs={jobs} is more than the largest accepted here, {max_jobs()} (4 per core of this machine's"
+            f" {os.cpu_count() or 1}): more workers only share the cores, each with its own memory"
+        )
     if on_error not in ("nan", "raise"):
         raise InputError(f"on_error must be 'nan' or 'raise' (got {on_error!r})")
     if chunk_size is not None and (

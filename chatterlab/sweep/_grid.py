@@ -13,6 +13,11 @@ from numpy.typing import ArrayLike
 
 from chatterlab.errors import InputError
 
+#: the largest number of points of a sweep (and of one axis): a task costs milliseconds to
+#: seconds, so 1e7 of them are hours to weeks of work, and the results 80 MB per output in
+#: memory; a larger grid is refused before the work (a 400-digit count was an internal error)
+MAX_TASKS = 10_000_000
+
 # =========================================================================== grid
 
 
@@ -169,7 +174,7 @@ class Grid:
         for tok in tokens:
             ax = _parse_axis_spec(tok, units)
             if ax.name in seen:
-                raise InputError(f"grid spec {tok!r}: axis {ax.name!r} is given twice")
+                raise InputError(f"grid spec {shown_spec(tok)!r}: axis {ax.name!r} is given twice")
             seen.add(ax.name)
             axes.append(ax)
         unknown = set(units) - seen
@@ -260,41 +265,54 @@ _NUM = r"[^:=\[\]]+"
 _SPEC_RE = re.compile(r"^(?P<name>[^=\[\]]+)(?:\[(?P<unit>[^\]]*)\])?=(?P<rhs>.*)$")
 
 
+def shown_spec(tok: str) -> str:
+    """A grid spec as messages show it (a 5000-digit one shortened)."""
+    return tok if len(tok) <= 60 else f"{tok[:48]}... ({len(tok)} characters)"
+
+
 def _parse_axis_spec(tok: str, units: Mapping[str, str]) -> Axis:
+    shown = shown_spec(tok)
     hint = "expected NAME=MIN:MAX:N (e.g. k=1e6:1e7:10) or NAME=VALUE"
     m = _SPEC_RE.match(tok)
     if not m:
-        raise InputError(f"grid spec {tok!r}: {hint}")
+        raise InputError(f"grid spec {shown!r}: {hint}")
     name = m["name"].strip()
     if not (name.isidentifier() and name.isascii()):
-        raise InputError(f"grid spec {tok!r}: {name!r} is not a valid axis name (an identifier)")
+        raise InputError(f"grid spec {shown!r}: {name!r} is not a valid axis name (an identifier)")
     unit = m["unit"] if m["unit"] is not None else units.get(name, "")
     parts = m["rhs"].split(":")
     if len(parts) not in (1, 3):
-        raise InputError(f"grid spec {tok!r}: {hint}")
+        raise InputError(f"grid spec {shown!r}: {hint}")
 
     def number(text: str, what: str) -> float:
         try:
             x = float(text)
         except ValueError:
-            raise InputError(f"grid spec {tok!r}: {what} {text!r} is not a number; {hint}") from None
+            raise InputError(f"grid spec {shown!r}: {what} {text!r} is not a number; {hint}") from None
         if not math.isfinite(x):
-            raise InputError(f"grid spec {tok!r}: {what} must be finite (got {text!r})")
+            raise InputError(f"grid spec {shown!r}: {what} must be finite (got {text!r})")
         return x
 
     if len(parts) == 1:
         return Axis(name, np.array([number(parts[0], "VALUE")]), unit)
     lo, hi = number(parts[0], "MIN"), number(parts[1], "MAX")
     if not re.fullmatch(r"\s*[+]?\d+\s*", parts[2]):
-        raise InputError(f"grid spec {tok!r}: N {parts[2]!r} must be a whole number of points >= 1; {hint}")
-    n = int(parts[2])
+        raise InputError(f"grid spec {shown!r}: N {parts[2]!r} must be a whole number of points >= 1; {hint}")
+    digits = parts[2].strip().lstrip("+").lstrip("0") or "0"
+    if len(digits) > len(str(MAX_TASKS)) or int(digits) > MAX_TASKS:
+        count = digits if len(digits) <= 12 else f"a {len(digits)}-digit number"
+        raise InputError(
+            f"grid spec {shown!r}: N = {count} points is more than the largest accepted, {MAX_TASKS} points"
+            " (a sweep's tasks cost milliseconds to seconds each)"
+        )
+    n = int(digits)
     if n < 1:
-        raise InputError(f"grid spec {tok!r}: N must be >= 1 (got {n}): the axis would be empty")
+        raise InputError(f"grid spec {shown!r}: N must be >= 1 (got {n}): the axis would be empty")
     if n > 1 and lo >= hi:
         what = "empty" if lo == hi else "reversed"
-        raise InputError(f"grid spec {tok!r}: {what} range: MIN ({lo:g}) must be < MAX ({hi:g}) when N > 1")
+        raise InputError(f"grid spec {shown!r}: {what} range: MIN ({lo:g}) must be < MAX ({hi:g}) when N > 1")
     if n == 1 and lo != hi:
         raise InputError(
-            f"grid spec {tok!r}: N=1 with MIN != MAX is ambiguous; write {name}={lo:g} for a single point"
+            f"grid spec {shown!r}: N=1 with MIN != MAX is ambiguous; write {name}={lo:g} for a single point"
         )
     return Axis(name, np.linspace(lo, hi, n), unit)
