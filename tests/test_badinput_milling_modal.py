@@ -63,7 +63,7 @@ def run(capsys, tmp_path, text: str, argv: list[str]) -> tuple[int, str, str]:
     old = signal.signal(signal.SIGALRM, stop)
     signal.alarm(TIME_BOUND)
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(record=True) as raw:
             warnings.simplefilter("always")
             code = main([argv[0], str(p), *argv[1:]])
     except _Timeout:
@@ -72,38 +72,48 @@ def run(capsys, tmp_path, text: str, argv: list[str]) -> tuple[int, str, str]:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
     out, err = capsys.readouterr()
+    # what escapes chatterlab's own channel would reach a user's terminal as a raw Python warning
+    err += "".join(f"{w.filename}:{w.lineno}: {w.category.__name__}: {w.message}\n" for w in raw)
     return code, out, err
 
 
-def assert_tidy(code: int, out: str, err: str, what: object) -> None:
+def assert_tidy(code: int, out: str, err: str, what: tuple[list[str], str]) -> None:
     assert code in (0, 1, 2), (code, err, what)
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert all(ln.startswith("chatterlab: ") for ln in lines), (err, what)  # no raw warning, no traceback
     assert "internal error" not in err and "Traceback" not in err, (err, what)
     if code == 2:
         assert len(lines) == 1, (err, what)
-    if code == 0:
-        assert not re.search(r"\b(nan|inf)\b", out.split("critical:")[0]), (out, what)
+    if code == 0 and what[0][0] == "modes":
+        assert not re.search(r"\b(nan|inf)\b", out), (out, what)
 
 
 # ----------------------------------------------------------------------------- random tables
 
-magnitudes = st.sampled_from(
-    [5e-324, 1e-300, 1e-30, 1e-9, 1e-3, 0.5, 1.0, 30.0, 1e3, 1e6, 1e9, 1e16, 1e30, 1e300]
-)
-frequencies = st.one_of(st.sampled_from([5e-324, 1e-300, 1e-6, 1e-3, 0.922, 922.0, 1e5, 1e7, 1e9, 1e300]),
-                        st.floats(1.0, 5e4))  # fmt: skip
-dampings = st.sampled_from([0.0, 5e-324, 1e-3, 0.011, 0.5, 0.999])
-modal_field = st.sampled_from(["stiffness", "mass"])
+EXTREMES = [5e-324, 1e-300, 1e-30, 1e-9, 1e-3, 1e16, 1e30, 1e300]
+
+
+def decades(lo: float, hi: float) -> st.SearchStrategy[float]:
+    """Mostly plausible values (log-uniform between 10^lo and 10^hi), sometimes an extreme."""
+    plausible = st.floats(lo, hi).map(lambda e: float(f"{10.0**e:.4g}"))
+    return st.one_of(*[plausible] * 8, st.sampled_from(EXTREMES))
+
+
+stiffnesses = decades(4.0, 9.0).map(lambda v: f"stiffness = {v!r}")
+masses = decades(-3.0, 1.0).map(lambda v: f"mass = {v!r}")
+frequencies = st.one_of(*[decades(1.5, 4.0)] * 4, st.sampled_from([0.922, 1e7, 1e9]))
+dampings = st.sampled_from([0.0, 5e-324, 1e-3, 0.011, 0.05, 0.5, 0.999])
+shapes = st.one_of(*[st.none()] * 4, st.floats(0.1, 3.0), st.sampled_from(EXTREMES))
 process = st.fixed_dictionaries(
     {},
     optional={
-        "rpm": st.sampled_from([1e-300, 1e-3, 0.1, 10.0, 1e4, 2e5, 1e7, 1e9, 1e300]),
-        "diameter": st.sampled_from([1e-300, 1e-9, 1e-3, 0.02, 50.0, 1e300]),
-        "Kt": st.sampled_from([1e-300, 1.0, 6e8, 1e14, 1e300]),
-        "Kn": st.sampled_from([0.0, 1e-300, 2e8, 1e300]),
-        "helix_deg": st.sampled_from([0.0, 30.0, 60.0, 84.0, 85.0, 89.9, 89.9999]),
+        "rpm": st.one_of(decades(3.0, 5.0), st.sampled_from([0.01, 0.1, 1e7, 1e9])),
+        "diameter": st.one_of(st.floats(0.002, 0.05), st.sampled_from([1e-300, 1e-9, 50.0, 1e300])),
+        "Kt": st.one_of(decades(8.0, 9.0), st.sampled_from([1.0, 1e14, 1e300])),
+        "Kn": st.one_of(st.just(0.0), decades(7.0, 9.0)),
+        "helix_deg": st.one_of(st.floats(0.0, 60.0), st.sampled_from([84.0, 85.0, 89.9, 89.9999])),
         "teeth": st.sampled_from([1, 2, 4, 7]),
+        "radial_immersion": st.sampled_from([1e-300, 0.05, 0.5, 1.0]),
     },
 )
 
@@ -112,9 +122,8 @@ process = st.fixed_dictionaries(
 def tables(draw):
     modes = ""
     for mid, coord in (("x1", "tool.x"), ("y1", "tool.y")):
-        km = f"{draw(modal_field)} = {draw(magnitudes)!r}"
-        shape = draw(st.one_of(st.none(), magnitudes))
-        modes += mode_text(mid, draw(frequencies), draw(dampings), km, coord, shape) + "\n"
+        km = draw(st.one_of(stiffnesses, masses))
+        modes += mode_text(mid, draw(frequencies), draw(dampings), km, coord, draw(shapes)) + "\n"
     return milling_text(modes, **draw(process))
 
 
