@@ -101,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     from ..structure._assembly import assemble
 
+    if args.positions is None:
+        _engine_options_unused(args)
     model = frf_model(args) if uses_frf(args) else load(args)
     if model.process is None:
         raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
@@ -123,6 +125,31 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     if args.positions is not None:
         return _atlas(args, model, v, wmax, outs)
     return _report(args, model, _diagram(args, sy, v, wmax), outs)
+
+
+def _engine_options_unused(args: argparse.Namespace) -> None:
+    """The sweep engine's options are for an atlas: a single diagram runs in
+    this process, with no checkpoint, so they are refused, not ignored (a
+    --resume after an interrupted diagram would silently compute it all)."""
+    given = [
+        opt
+        for opt, val in (
+            ("--resume", args.resume),
+            ("--checkpoint", args.checkpoint),
+            ("--backend", args.backend != "loky"),
+            ("--scheduler", args.scheduler),
+            ("--jobs", args.jobs != 2),
+            ("--tls-ca-file", args.tls_ca_file),
+            ("--tls-cert", args.tls_cert),
+            ("--tls-key", args.tls_key),
+        )
+        if val
+    ]
+    if given:
+        raise InputError(
+            f"{', '.join(given)}: for an atlas (--positions A B N) only; a single diagram runs in this process"
+            " with no checkpoint (an interrupted one is run again)"
+        )
 
 
 def speeds(args: argparse.Namespace, proc: Any) -> Any:

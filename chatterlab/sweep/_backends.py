@@ -121,7 +121,14 @@ def _watch_parent(parent: int) -> None:
     """Worker initializer: a daemon thread ends this worker process as soon
     as ``parent`` (the process that runs the sweep) is gone -- killed with
     SIGKILL, it cannot tell its workers, and loky would keep them for its
-    idle timeout (5 minutes), holding the caller's stdout and stderr open."""
+    idle timeout (5 minutes), holding the caller's stdout and stderr open.
+
+    The worker also ignores SIGINT: Ctrl-C at a terminal reaches the whole
+    foreground group, and a worker's own KeyboardInterrupt printed a
+    traceback on the command's standard error; the sweep process handles
+    the interrupt (saves, says how to resume) and stops its workers."""
+    with contextlib.suppress(ValueError):  # not the main thread of the worker: leave it
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def watch() -> None:
         while True:
@@ -147,6 +154,12 @@ def _loky_runner(
 ) -> Generator[_ChunkOut, None, None]:
     from joblib import Parallel, delayed, parallel_config
 
+    # an interrupted or failed sweep stops the generator early on purpose: joblib's warning about the
+    # tasks it cancels (raised from a thread of its own, after this runner is gone) would be a raw
+    # Python warning on the command's standard error; what is kept is said by the sweep itself
+    warnings.filterwarnings(
+        "ignore", message=r".*You could benefit from adjusting the input task iterator", module=r"joblib\b"
+    )
     # inner_max_num_threads=1: loky starts its workers with OMP/OPENBLAS/MKL/...
     # _NUM_THREADS=1 so that BLAS does not oversubscribe the cores.  Each
     # worker watches this process and exits when it dies (_watch_parent).
