@@ -70,7 +70,7 @@ import numpy as np
 
 from ..errors import InputError, check_nonneg
 from ..process import Milling
-from ._floquet_sdm import sdm_monodromy
+from ._floquet_sdm import sdm_monodromy, sdm_multipliers
 from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, SpectralMonodromy
 from ._floquet_structure import ToolStructure
 
@@ -223,13 +223,7 @@ def multipliers(
         res = f"degree {degree} x {sm.n_sub} elements"
         T = sm.period
     elif method == "sdm":
-        Phi = sdm_monodromy(structure, milling, rpm, a, steps)
-        mu = np.linalg.eigvals(Phi)
-        mu = mu[np.argsort(-np.abs(mu))]
-        err = float("nan")
-        if check:
-            mu2 = np.linalg.eigvals(sdm_monodromy(structure, milling, rpm, a, 2 * steps))
-            err = float(abs(mu2[np.argmax(np.abs(mu2))] - mu[0]))
+        mu, err = sdm_multipliers(structure, milling, rpm, a, steps, check)
         res = f"{steps} steps"
         T = milling.period(rpm)
         f_hz = chatter_frequency(complex(mu[0]), T, structure)
