@@ -47,6 +47,19 @@ def test_sdm_error_of_a_complex_critical_pair_is_not_twice_its_imaginary_part(be
     assert err < 1e-3, err
 
 
+def test_multipliers_sdm_reports_the_matched_error(bench):
+    """The public route (``multipliers(method="sdm")``, what ``roots --method sdm``
+    prints): the issue's point at 40 steps said 'undetermined ... error 1.6e+00'.
+    Its error must be the matched change of :func:`sdm_multipliers`, and of the
+    size of the true error against the spectral reference (0.5..1.5 of it, as
+    derived below for p = 1..2)."""
+    S, mill = bench
+    m = multipliers(S, mill, 20000.0, 2e-3, method="sdm", steps=40)
+    ref = multipliers(S, mill, 20000.0, 2e-3, degree=24).mu
+    true = matched_change(complex(m.mu[0]), ref)
+    assert 0.5 <= m.error / true <= 1.5, (m.error, true)
+
+
 @pytest.mark.parametrize("rpm, depth", [(10000.0, 1e-3), (7000.0, 1e-3), (15000.0, 3e-3)])
 def test_sdm_error_is_the_size_of_its_true_error(bench, rpm, depth):
     """Against the spectral reference (degree 24, exact to ~1e-12).  With e(m) ~ C m^-p,
