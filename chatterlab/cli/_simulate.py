@@ -308,11 +308,16 @@ def _report(args: argparse.Namespace, outs: Outputs, sims: list[Any], files: lis
 
 
 def _plot(sims: list[Any], path: str) -> None:
+    """One run: histories of the first two outputs over the spectrum of the
+    first; several (``--feedback all``): one column per case, shared y axes."""
     import matplotlib.pyplot as plt
 
-    from ..plot import plot_histories, plot_spectra
+    from ..plot import plot_cases, plot_histories, plot_spectra, savefig
 
     names = list(sims[0].data)[:2]
+    if len(sims) > 1:
+        savefig(plot_cases(sims, names), path)
+        return
     fig, axs = plt.subplots(len(names) + 1, 1, figsize=(8.5, 2.6 * (len(names) + 1) + 0.5))
     plot_histories(sims, names, ax=axs[: len(names)], against="time")
     plot_spectra(sims, names[0], ax=axs[-1])

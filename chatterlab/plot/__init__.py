@@ -19,7 +19,7 @@ from ._milling import plot_milling_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
-from ._time import plot_histories, plot_outputs, plot_spectra, plot_time_response
+from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
 
 __all__ = [
     "plot_frf",
@@ -31,6 +31,7 @@ __all__ = [
     "plot_milling_lobes",
     "plot_atlas",
     "plot_histories",
+    "plot_cases",
     "plot_spectra",
     "plot_time_response",
     "plot_outputs",

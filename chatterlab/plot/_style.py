@@ -48,7 +48,7 @@ def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
     ``LAID_OUT``)."""
     import matplotlib.pyplot as plt
 
-    ax = ax_or_axes[0] if isinstance(ax_or_axes, list | tuple | np.ndarray) else ax_or_axes
+    ax = np.ravel(ax_or_axes)[0] if isinstance(ax_or_axes, list | tuple | np.ndarray) else ax_or_axes
     fig = ax.figure
     if fig.get_gid() != LAID_OUT:
         fig.tight_layout()
@@ -56,7 +56,6 @@ def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
     extra = {"pil_kwargs": {"compress_level": 1}} if str(path).lower().endswith(".png") else {}
     fig.savefig(path, dpi=dpi, **extra)
     plt.close(fig)
-
 
 
 def model_of(result: Any) -> str:

@@ -23,15 +23,16 @@ from ._style import axes_arg
 RUN_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange")
 
 
-def run_title(sim: Any) -> str:
-    """Model, width, delay (and speed when recorded) and feedback of a run."""
+def run_title(sim: Any, feedbacks: Sequence[str] | None = None) -> str:
+    """Model, width, delay (and speed when recorded) and feedback of a run
+    (``feedbacks``: the cases of several runs drawn together, all named)."""
     parts = [f"b = {sim.width * 1e3:.4g} mm"]
     if getattr(sim, "delay", None):
         parts.append(f"T = {sim.delay:.4g} s")
     speed = (getattr(sim, "meta", None) or {}).get("speed")
     if speed is not None:
         parts.append(f"speed {speed:g}")
-    parts.append(f"feedback {sim.terms}")
+    parts.append("feedback " + (" / ".join(feedbacks) if feedbacks else str(sim.terms)))
     model = str(getattr(sim, "model", "") or "model not named")
     if "/" in model:  # a model file: its folder and name are enough
         from pathlib import PurePath
@@ -48,7 +49,7 @@ def plot_histories(
     labels: Sequence[str] | None = None,
     ax: Any = None,
     scale: float = 1e6,
-    unit: str = "um",
+    unit: str = "µm",
     title: str | None = None,
     axes: Any = None,
 ) -> Any:
@@ -92,13 +93,18 @@ def plot_histories(
             handles.append(Patch(color="0.85", alpha=0.5, label="in the cut"))
     axes[0].legend(handles=handles, fontsize=8, loc="upper right")
     if sims and (title is None or title):
-        axes[0].set_title(title or run_title(sims[0]), fontsize=9)
+        cases = list(dict.fromkeys(str(s.terms) for s in sims)) if labels is None else None
+        axes[0].set_title(
+            title or run_title(sims[0], cases if cases and len(cases) > 1 else None), fontsize=9
+        )
     return axes
 
 
 def _shade_cut(ax: Any, t: np.ndarray, in_cut: np.ndarray) -> None:
     lo, hi = ax.get_ylim()
-    ax.fill_between(t, lo, hi, where=np.asarray(in_cut) > 0, color="0.85", alpha=0.5, lw=0, zorder=0, gid="in-cut")
+    ax.fill_between(
+        t, lo, hi, where=np.asarray(in_cut) > 0, color="0.85", alpha=0.5, lw=0, zorder=0, gid="in-cut"
+    )
     ax.set_ylim(lo, hi)
 
 
@@ -111,7 +117,7 @@ def plot_spectra(
     fmax: float = 300.0,
     window: Any = "last-cut",
     scale: float = 1e6,
-    unit: str = "um",
+    unit: str = "µm",
 ) -> Any:
     """Amplitude spectra of one output for several runs overlaid (the
     paper's Figs. 10-11), with the main peak of each run marked.  Returns
@@ -180,7 +186,7 @@ def plot_time_response(
     t = np.asarray(sim.t, float)
     col = RUN_COLORS[0]
     axd.plot(t, np.asarray(sim.data[output]) * 1e6, lw=0.8, color=col, gid="displacement", label=output)
-    axd.set_ylabel(f"{output} [um]")
+    axd.set_ylabel(f"{output} [µm]")
     axd.set_xlabel("time [s]")
     cut = Patch(color="0.85", alpha=0.5, label="in the cut")
     if force is not None:
@@ -224,7 +230,14 @@ def _spectrum_panel(
     m = f <= top
     ax.plot(f[m], a[m], color=col, lw=1, gid="spectrum", label=f"{output}, window {window}")
     if chatter_hz:
-        ax.axvline(chatter_hz, color="tab:red", ls="--", lw=1, gid="chatter", label=f"chatter {chatter_hz:.2f} Hz{how}")
+        ax.axvline(
+            chatter_hz,
+            color="tab:red",
+            ls="--",
+            lw=1,
+            gid="chatter",
+            label=f"chatter {chatter_hz:.2f} Hz{how}",
+        )
     if tooth_hz:
         n = int(top // tooth_hz)
         if 1 <= n <= 40:
@@ -239,9 +252,72 @@ def _spectrum_panel(
                     transform=ax.transAxes, ha="right", va="top", fontsize=7, gid="tooth")  # fmt: skip
     ax.set_xlim(0, top)
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(f"amplitude of {output} [um]")
+    ax.set_ylabel(f"amplitude of {output} [µm]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="center right")
+
+
+def plot_cases(
+    sims: Sequence[Any],
+    names: Sequence[str],
+    *,
+    fmax: float = 300.0,
+    window: Any = "last-cut",
+    title: str | None = None,
+) -> Any:
+    """Several runs (the feedback cases of ``simulate --feedback all``) side
+    by side, one column per run: the histories of ``names`` (µm, one row
+    each, the in-cut intervals shaded) and the spectrum of the first output
+    with its main peak labelled.  Panels of one row share their y axis, so
+    the cases compare at a glance and no case hides another.  The figure's
+    title names the model, the width, the delay and every case; each column
+    is headed by its case.  Returns the Axes, an array (rows, columns)."""
+    import matplotlib.pyplot as plt
+
+    nr, nc = len(names) + 1, len(sims)
+    fig, grid = plt.subplots(
+        nr, nc, figsize=(4.2 * nc + 1.2, 2.3 * nr + 0.8), squeeze=False, sharey="row", layout="constrained"
+    )
+    for j, sim in enumerate(sims):
+        col = RUN_COLORS[j % len(RUN_COLORS)]
+        lab = f"feedback {sim.terms}"
+        for i, n in enumerate(names):
+            a = grid[i, j]
+            a.plot(sim.t, np.asarray(sim.data[n]) * 1e6, lw=0.7, color=col, label=lab, gid="history")
+            a.grid(alpha=0.3)
+            a.set_xlabel("time [s]")
+            if j == 0:
+                a.set_ylabel(f"{n} [µm]")
+        a = grid[-1, j]
+        f, amp = sim.spectrum(names[0], window=window)
+        m = f <= fmax
+        a.plot(f[m], amp[m] * 1e6, color=col, lw=1, label=lab, gid="spectrum")
+        if np.any(m):
+            k = int(np.argmax(amp[m]))
+            a.annotate(f"{f[m][k]:.1f} Hz", (f[m][k], amp[m][k] * 1e6), textcoords="offset points",
+                       xytext=(5, -4), va="top", fontsize=8, color=col, gid="peak-label")  # fmt: skip
+        a.set_xlim(0, fmax)
+        a.set_xlabel("frequency [Hz]")
+        a.grid(alpha=0.3)
+        if j == 0:
+            a.set_ylabel(f"amplitude of {names[0]} [µm]")
+        grid[0, j].set_title(lab, fontsize=10, color=col)
+    from matplotlib.patches import Patch
+
+    for j, sim in enumerate(sims):  # shade once the shared y limits are final
+        for i in range(len(names)):
+            _shade_cut(grid[i, j], np.asarray(sim.t), sim.in_cut)
+    if np.any(sims[0].in_cut):
+        grid[0, 0].legend(
+            handles=[Patch(color="0.85", alpha=0.5, label="in the cut")], fontsize=7, loc="lower right"
+        )
+    cases = [str(s.terms) for s in sims]
+    fig.suptitle(title or run_title(sims[0], cases), fontsize=10)
+    fig.get_layout_engine().set(h_pad=0.06, w_pad=0.06)
+    from ._style import LAID_OUT
+
+    fig.set_gid(LAID_OUT)
+    return grid
 
 
 def plot_outputs(
