@@ -17,7 +17,11 @@ def add_parser(sub: Any) -> None:
     m.add_argument("--count", type=int, metavar="N", help="number of lowest modes (default: all)")
     m.add_argument("--format", choices=["table", "json", "csv"], default="table")
     m.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")
-    m.add_argument("--plot", metavar="FILE.png", help="bar chart of the frequencies")
+    m.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="the mode shapes on the structure (a bar chart of the frequencies for a model without geometry)",
+    )
     m.add_argument(
         "--allow-rigid", action="store_true", help="report rigid-body modes instead of refusing them"
     )
@@ -43,7 +47,19 @@ def run(args: argparse.Namespace) -> int:
             pos = "" if md.position is None else f" at position s = {md.position:g} m"
             emit(f"{sy.model.name}: natural frequencies{pos}\n" + md.table(), out)
         if args.plot:
-            from ..plot import savefig
-
-            savefig(md.plot(), outs.path(args.plot))
+            _plot(sy.model, md, outs.path(args.plot))
     return 0
+
+
+def _plot(model: Any, md: Any, path: str) -> None:
+    """Every mode listed (the --count lowest) drawn on the structure; a model
+    without geometry (a matrix or modal table): its frequencies as labelled bars."""
+    from ..plot import plot_frequencies, plot_mode_shapes, savefig
+
+    if model.is_matrix_model:
+        pos = "" if md.position is None else f", s = {md.position:g} m"
+        title = f"{model.name}: natural frequencies of the {len(md)} mode{'s' * (len(md) != 1)}{pos}"
+        ax = plot_frequencies(md.frequency_hz, damping_ratio=md.damping_ratio, title=title)
+    else:
+        ax = plot_mode_shapes(md.drawing(), modes=range(len(md)))
+    savefig(ax, path)

@@ -50,7 +50,7 @@ def plot_mode_shapes(
     title: str | None = None,
 ) -> Any:
     """The mode shapes on the structure: for each mode (0-based indices
-    ``modes``, default the first six) one panel with the undeformed
+    ``modes``, default every mode of the drawing) one panel with the undeformed
     structure in grey and the deformed one in colour (xy + scale * shape,
     the scale of :func:`mode_scale`, said in the legend with the frequency).
     Beams are lines, springs dashed lines with their ends crossed (a spring
@@ -65,9 +65,9 @@ def plot_mode_shapes(
     from matplotlib.lines import Line2D
 
     f = np.asarray(_get(drawing, "frequency_hz"), float)
-    idx = list(range(min(f.size, 6))) if modes is None else [int(k) for k in modes]
+    idx = list(range(f.size)) if modes is None else [int(k) for k in modes]
     if ax is None:
-        nc = min(len(idx), 3)
+        nc = min(len(idx), 3 if len(idx) <= 9 else 4)
         nr = int(np.ceil(len(idx) / nc))
         fig, grid = plt.subplots(nr, nc, figsize=(4.2 * nc, 3.6 * nr + 0.5), squeeze=False)
         for a in grid.ravel()[len(idx) :]:
@@ -111,24 +111,42 @@ def plot_frequencies(
     *,
     reference: np.ndarray | None = None,
     ax: Any = None,
-    label: str = "chatterlab",
+    label: str | None = None,
+    damping_ratio: np.ndarray | None = None,
+    title: str | None = None,
 ) -> Any:
-    """Bar chart of the natural frequencies (Hz), optionally against
-    reference values.  Returns the Axes."""
+    """Bar chart of the natural frequencies (Hz), one bar per mode with its
+    frequency (and damping ratio ``damping_ratio``, when given) written on
+    it; against ``reference`` values a second bar per mode and a legend
+    (``label`` names the computed bars, default "computed").  Without a
+    reference there is one kind of bar and no legend.  Returns the Axes."""
     import matplotlib.pyplot as plt
 
     if ax is None:
-        _, ax = plt.subplots(figsize=(7, 3.8))
+        _, ax = plt.subplots(figsize=(max(5.0, 1.0 + 0.9 * np.size(frequency_hz)), 3.8))
     fr = np.asarray(frequency_hz, float)
     k = np.arange(1, fr.size + 1)
-    w = 0.38 if reference is not None else 0.7
-    ax.bar(k - (w / 2 if reference is not None else 0), fr, w, label=label)
+    w = 0.38 if reference is not None else 0.6
+    bars = ax.bar(
+        k - (w / 2 if reference is not None else 0), fr, w, label=label or "computed", gid="computed"
+    )
+    zeta = None if damping_ratio is None else np.asarray(damping_ratio, float)
+    for j, b in enumerate(bars):
+        txt = f"{fr[j]:.4g} Hz" + ("" if zeta is None else f"\nζ = {zeta[j]:.3g}")
+        ax.annotate(txt, (b.get_x() + b.get_width() / 2, b.get_height()), textcoords="offset points",
+                    xytext=(0, 3), ha="center", va="bottom", fontsize=8, gid="frequency-label")  # fmt: skip
     if reference is not None:
         ref = np.asarray(reference)[: fr.size]
-        ax.bar(np.arange(1, ref.size + 1) + w / 2, ref, w, label="reference")
+        ax.bar(np.arange(1, ref.size + 1) + w / 2, ref, w, label="reference", gid="reference")
+        ax.legend(fontsize=8, loc="upper left")
+    top = max(
+        float(np.max(fr)) if fr.size else 1.0, float(np.max(reference)) if reference is not None else 0.0
+    )
+    ax.set_ylim(0, top * 1.25)  # room for the labels
     ax.set_xlabel("mode")
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_xticks(k)
-    ax.legend()
     ax.grid(axis="y", alpha=0.3)
+    if title:
+        ax.set_title(title, fontsize=10)
     return ax
