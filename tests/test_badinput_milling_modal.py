@@ -161,7 +161,7 @@ def test_absurd_spindle_speeds_are_refused(capsys, tmp_path, speed):
 
 def test_a_model_speed_out_of_range_is_named_with_the_field(capsys, tmp_path):
     code, _, err = run(capsys, tmp_path, milling_text(BENCH, rpm=1e300), ["roots", "--width", "1"])
-    assert_clean_error(code, err, "[process] rpm", "1e+300")
+    assert_clean_error(code, err, "[process]: rpm", "1e+300")
 
 
 @pytest.mark.parametrize(
@@ -246,3 +246,19 @@ def test_floquet_options_on_a_measured_frf_are_refused(capsys, opt):
             "--teeth", "2", "--kt", "6e8", "--kn", "2e8", "--immersion", "0.05", *opt]  # fmt: skip
     code = main(argv)
     assert_clean_error(code, capsys.readouterr().err, opt[0], "drop")
+
+
+@pytest.mark.parametrize(
+    "proc, words",
+    [
+        ({"helix_deg": 89.9}, ("[process]", "helix_deg", "85 deg")),
+        ({"rpm": 1.7e308}, ("[process]", "rpm", "0.1..1e+07 rpm")),
+        ({"rpm": 1e-300}, ("[process]", "rpm", "0.1..1e+07 rpm")),
+    ],
+)
+def test_check_refuses_a_milling_process_out_of_range_when_reading(capsys, tmp_path, proc, words):
+    """``check`` reads the model and builds no cutter: the helix and spindle-speed
+    limits of :mod:`chatterlab.process` hold at read time too (0.2.0's ``check``
+    accepted 89.9 deg and printed a raw overflow warning at 1.7e308 rpm)."""
+    code, out, err = run(capsys, tmp_path, milling_text(BENCH, **proc), ["check"])
+    assert_clean_error(code, err, *words)

@@ -42,6 +42,17 @@ __all__ = [
 
 #: Names of the three plane coordinates of a body, node or point.
 DIRECTIONS: tuple[str, str, str] = ("x", "y", "rz")
+
+#: spindle speeds accepted, rpm: beyond them the tooth period over- or
+#: underflows the Floquet meshes (1e-300 rpm: a period of 1e301 s; 1e300 rpm:
+#: 1e-299 s).  Real spindles run 10..200000 rpm (the CLI warns outside that); the model reader and
+#: :func:`chatterlab.process.check_spindle_speed` refuse outside SPEED_RANGE.
+SPEED_RANGE = (0.1, 1e7)
+#: the plausible spindle speeds, rpm, named in the messages
+SPEED_PLAUSIBLE = (10.0, 2e5)
+#: the largest helix angle accepted, deg: end mills have up to about 60 deg;
+#: near 90 deg the flute wraps the tool without bound (tan(beta) -> inf)
+HELIX_MAX_DEG = 85.0
 #: Id of the immovable foundation (its coordinates are given, q_g = 0).
 GROUND = "ground"
 

@@ -13,7 +13,20 @@ import numpy as np
 
 from ..errors import ModelError
 from ._fields import _id_of, _Ids, _Item
-from ._items import DIRECTIONS, GROUND, Coupling, MillingCut, Movable, Point, PointRef, Process, Spring
+from ._items import (
+    DIRECTIONS,
+    GROUND,
+    HELIX_MAX_DEG,
+    SPEED_PLAUSIBLE,
+    SPEED_RANGE,
+    Coupling,
+    MillingCut,
+    Movable,
+    Point,
+    PointRef,
+    Process,
+    Spring,
+)
 
 
 class _RefContext:
@@ -326,7 +339,7 @@ def _read_process(src: str, t: Any) -> Process:
     if kind == "turning":
         return Process("turning", speed=it.num("rpm", unit="rpm", positive=True))
     if kind == "milling":
-        return Process("milling", speed=it.num("rpm", unit="rpm", positive=True), milling=_read_milling(it))
+        return Process("milling", speed=_spindle_rpm(it), milling=_read_milling(it))
     return Process(
         "delay",
         speed=it.num("delay", unit="s", positive=True),
@@ -353,6 +366,20 @@ _MILLING_FIELDS = (
     "feed_per_tooth",
     "description",
 )
+
+
+def _spindle_rpm(it: _Item) -> float:
+    """A milling process's spindle speed, rpm, within :data:`SPEED_RANGE` (as
+    :func:`chatterlab.process.check_spindle_speed` asks of every speed)."""
+    rpm = it.num("rpm", unit="rpm", positive=True)
+    lo, hi = SPEED_RANGE
+    if not lo <= rpm <= hi:
+        raise it.err(
+            "rpm",
+            f"must be within {lo:g}..{hi:g} rpm (got {rpm:g} rpm); spindles run"
+            f" {SPEED_PLAUSIBLE[0]:g}..{SPEED_PLAUSIBLE[1]:g} rpm",
+        )
+    return rpm
 
 
 def _read_milling(it: _Item) -> MillingCut:
@@ -405,8 +432,12 @@ def _read_milling(it: _Item) -> MillingCut:
             raise it.err("pitch_deg", f"the pitch angles sum to {sum(p):.10g} deg; they must sum to 360 deg")
         pitch = tuple(math.radians(x) for x in p)
     helix = it.num("helix_deg", 0.0, unit="deg")
-    if not 0.0 <= helix < 90.0:
-        raise it.err("helix_deg", f"must be in [0, 90) deg (got {helix:g})")
+    if not 0.0 <= helix <= HELIX_MAX_DEG:
+        raise it.err(
+            "helix_deg",
+            f"must be from 0 to at most {HELIX_MAX_DEG:g} deg (got {helix:g}): near 90 deg the flute wraps"
+            " the tool without bound; end mills have up to about 60 deg",
+        )
     runout = it.vec("runout", teeth, (), unit="m")
     return MillingCut(
         teeth=teeth,

@@ -74,20 +74,12 @@ from typing import Literal
 import numpy as np
 
 from ..errors import InputError, check_count, check_finite, check_nonneg, check_positive, check_speed
+from ..model._items import HELIX_MAX_DEG, SPEED_PLAUSIBLE, SPEED_RANGE
 
 __all__ = ["Milling", "check_spindle_speed"]
 
 TWO_PI = 2.0 * math.pi
 
-#: spindle speeds accepted, rpm: beyond them the tooth period over- or
-#: underflows the Floquet meshes (1e-300 rpm: a period of 1e301 s; 1e300 rpm:
-#: 1e-299 s).  Real spindles run 10..200000 rpm (the CLI warns outside that).
-SPEED_RANGE = (0.1, 1e7)
-#: the plausible spindle speeds, rpm, named in the messages
-SPEED_PLAUSIBLE = (10.0, 2e5)
-#: the largest helix angle accepted, deg: end mills have up to about 60 deg;
-#: near 90 deg the flute wraps the tool without bound (tan(beta) -> inf)
-HELIX_MAX_DEG = 85.0
 #: the largest lag angle psi_max = 2 a_p tan(beta) / D of a flute, rad: ten
 #: turns of the flute over the depth of cut.  The work of the helical
 #: coefficients grows with it (every turn is a window of the integral), and
