@@ -216,7 +216,7 @@ def milling_verdict(args: argparse.Namespace, model: Any) -> Any:
     a = width_m(args)
     S, mill, note = _structure(model, args.position, args)
     _helix_cost(mill, a)
-    r = multipliers(S, mill, float(rpm), a, method=method, steps=args.steps)
+    r = multipliers(S, mill, float(rpm), a, method="sdm" if method == "sdm" else "spectral", steps=args.steps)
     return _MultiplierTable(r, args.count, note)
 
 
