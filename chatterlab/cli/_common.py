@@ -356,32 +356,6 @@ def outputs(
         action()
 
 
-# ----------------------------------------------------------------------------- sweep engine runs
-
-
-def engine_opts(args: argparse.Namespace) -> dict[str, Any]:
-    """The ``sweep()`` keywords of the engine's options (``_parallel.sweep_opts``),
-    with the checkpoint always kept by the engine: the command removes its
-    default checkpoint itself, after its outputs are in place
-    (:func:`drop_checkpoint_after`)."""
-    from ._parallel import sweep_opts
-
-    return {**sweep_opts(args), "keep_checkpoint": True}
-
-
-def drop_checkpoint_after(args: argparse.Namespace, outs: CommandOutputs, res: Any) -> None:
-    """Remove the checkpoint of a complete sweep ``res`` once the outputs are
-    moved into place -- only the default ``OUT.ckpt`` (a ``--checkpoint DIR``
-    is the user's; a partial run keeps it for a ``--resume`` that retries).
-    Never before: a run killed between its last chunk and its files leaves
-    the complete checkpoint, from which ``--resume`` writes the files
-    without computing anything."""
-    from ._parallel import sweep_opts
-
-    if res.status == "ok" and res.checkpoint is not None and not sweep_opts(args)["keep_checkpoint"]:
-        outs.then(res.discard_checkpoint)
-
-
 def progress_bar(label: str) -> Callable[[float], None] | None:
     """A one-line progress bar on a terminal's standard error (None elsewhere)."""
     if not sys.stderr.isatty():

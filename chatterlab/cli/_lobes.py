@@ -25,8 +25,6 @@ from ._claims import ceiling_claim, check_verdict, inf_note, ok_infs
 from ._common import (
     MAX_POSITIONS,
     CommandOutputs,
-    drop_checkpoint_after,
-    engine_opts,
     load,
     m_to_mm,
     model_args,
@@ -37,7 +35,15 @@ from ._common import (
 )
 from ._measured import frf_args, frf_model, uses_frf
 from ._milling import milling_lobe_args, milling_lobes
-from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal
+from ._parallel import (
+    check_checkpoint,
+    checkpoint,
+    drop_checkpoint_after,
+    engine_opts,
+    fingerprint,
+    parallel_args,
+    resume_refusal,
+)
 
 
 def add_parser(sub: Any) -> None:

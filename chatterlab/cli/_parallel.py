@@ -189,3 +189,23 @@ def checkpoint(args: argparse.Namespace) -> str | None:
     if args.resume:
         raise InputError("--resume needs --out FILE (the checkpoint is FILE.ckpt) or --checkpoint DIR")
     return None
+
+
+def engine_opts(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``sweep()`` keywords of the engine's options (:func:`sweep_opts`),
+    with the checkpoint always kept by the engine: the command removes its
+    default checkpoint itself, after its outputs are in place
+    (:func:`drop_checkpoint_after`)."""
+    return {**sweep_opts(args), "keep_checkpoint": True}
+
+
+def drop_checkpoint_after(args: argparse.Namespace, outs: Any, res: Any) -> None:
+    """Remove the checkpoint of a complete sweep ``res`` once the outputs are
+    moved into place (``outs``: the command's
+    ``CommandOutputs``) -- only the default ``OUT.ckpt`` (a ``--checkpoint DIR``
+    is the user's; a partial run keeps it for a ``--resume`` that retries).
+    Never before: a run killed between its last chunk and its files leaves
+    the complete checkpoint, from which ``--resume`` writes the files
+    without computing anything."""
+    if res.status == "ok" and res.checkpoint is not None and not sweep_opts(args)["keep_checkpoint"]:
+        outs.then(res.discard_checkpoint)

@@ -15,8 +15,6 @@ from ._claims import inf_note, ok_infs, sweep_inf_claims
 from ._common import (
     CommandOutputs,
     cut_args,
-    drop_checkpoint_after,
-    engine_opts,
     load,
     mm_to_m,
     model_args,
@@ -24,7 +22,15 @@ from ._common import (
     width_m,
     width_max_m,
 )
-from ._parallel import check_checkpoint, checkpoint, fingerprint, parallel_args, resume_refusal
+from ._parallel import (
+    check_checkpoint,
+    checkpoint,
+    drop_checkpoint_after,
+    engine_opts,
+    fingerprint,
+    parallel_args,
+    resume_refusal,
+)
 
 #: depths scanned by the a-lim quantity before a crossing is refined (chatterlab.lobes.milling_lobes)
 MILLING_SCAN = 40

@@ -313,7 +313,8 @@ def plot_cases(
         )
     cases = [str(s.terms) for s in sims]
     fig.suptitle(title or run_title(sims[0], cases), fontsize=10)
-    fig.get_layout_engine().set(h_pad=0.06, w_pad=0.06)
+    engine: Any = fig.get_layout_engine()  # constrained: set in plt.subplots above
+    engine.set(h_pad=0.06, w_pad=0.06)
     from ._style import LAID_OUT
 
     fig.set_gid(LAID_OUT)

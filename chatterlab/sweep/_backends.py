@@ -271,7 +271,7 @@ def _connect(client_class: Any, scheduler: str, timeout: float, security: Any) -
     half-made client is closed here, at once."""
     made: list[Any] = []
 
-    class _Client(client_class):  # type: ignore[misc, valid-type]
+    class _Client(client_class):  # type: ignore[misc, valid-type, unused-ignore]
         def start(self, **kwargs: Any) -> Any:
             made.append(self)
             return super().start(**kwargs)

@@ -449,6 +449,7 @@ def _save_chunk(directory: Path, out: _ChunkOut, stop: int) -> None:
     ident = _IDENTITY.get(str(directory))
     with atomic_write(_chunk_path(directory, out.chunk)) as tmp:
         with open(tmp, "xb") as fh:
+            extra: dict[str, Any] = {"sweep": np.str_(ident)} if ident is not None else {}
             np.savez(
                 fh,
                 start=np.int64(out.start),
@@ -457,7 +458,7 @@ def _save_chunk(directory: Path, out: _ChunkOut, stop: int) -> None:
                 failed_index=np.asarray(out.failed_index, dtype=np.int64),
                 failed_type=np.asarray(out.failed_type, dtype=np.str_).reshape(-1),
                 failed_message=np.asarray(out.failed_message, dtype=np.str_).reshape(-1),
-                **({"sweep": np.str_(ident)} if ident is not None else {}),
+                **extra,
             )
 
 
