@@ -241,10 +241,13 @@ def width_slips(b: float, option: str) -> list[str]:
 
 
 def model_slips(model: Any, args: argparse.Namespace) -> list[str]:
-    """Cutting stiffness, structure size and speeds outside what machines have."""
+    """Cutting stiffness, structure size, speeds and a ``[[mode]]`` table's
+    frequencies and stiffnesses outside what machines have."""
     import numpy as np
 
-    out = []
+    from ..model._modes import modal_slips
+
+    out = modal_slips(model.modes) if getattr(model, "modes", None) else []
     proc = model.process
     cut = getattr(proc, "milling", None)
     if cut is not None:  # the coefficients as the user typed them, not the ZOA matrix made of them

@@ -98,12 +98,8 @@ def _structure(
     model: Any, position: float | None, args: argparse.Namespace | None = None
 ) -> tuple[Any, Any, str]:
     from ..lobes._milling_model import milling_of, reduce_structure, tool_structure
-    from ..model._modes import modal_slips
     from ..structure._assembly import assemble
-    from ._common import warn
 
-    if args is not None and model.modes:
-        warn(args, modal_slips(model.modes))
     fz = assemble(model).at(position)
     S = tool_structure(fz)
     note = ""
