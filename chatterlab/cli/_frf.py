@@ -62,14 +62,21 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
             "--nyquist draws det(I - G D) of the cutting loop, which is zero here: check --terms"
         )
     res = frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, feedback=fb, method=args.method)
-    if args.format == "json":
-        emit(res.to_json(), outs.path(args.out) if args.out else None)
-    else:
-        res.to_csv(outs.path(args.out) if args.out else sys.stdout)
+    if args.out or not (args.plot or args.nyquist):
+        if args.format == "json":
+            emit(res.to_json(), outs.path(args.out) if args.out else None)
+        else:
+            res.to_csv(outs.path(args.out) if args.out else sys.stdout)
+    else:  # a picture was asked for: a line, not the whole table on the terminal
+        print(
+            f"frf: {len(res.frequency_hz)} frequencies, {res.data.shape[0]} output(s) x {res.data.shape[1]}"
+            " input(s); add --out FILE to keep the table"
+        )
     if args.nyquist and fb is not None:
         _nyquist(args, outs, fz, w, fb)
     if args.plot:
-        from ..plot import plot_frf, savefig
+        from ..plot import savefig
+        from ..plot._frf import plot_frf_pairs
 
         curves = [res]
         if fb is not None:
@@ -77,10 +84,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
                 frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, method=args.method),
                 res,
             ]
-        savefig(
-            plot_frf(curves, title=f"{fz.model.name}: {args.output[0]} / {args.input[0]}", peaks=2),
-            outs.path(args.plot),
-        )
+        savefig(plot_frf_pairs(curves, title=fz.model.name, peaks=2), outs.path(args.plot))
     return 0
 
 

@@ -65,13 +65,18 @@ def plot_frf(
         fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
     ax_m, ax_p = axes
     marks: list[tuple[float, float, Any]] = []
+    wrapped = part == "bode" and not all(
+        _unwrappable(f.data[index_of(f.outputs, output), index_of(f.inputs, input)]) for f in frfs
+    )
     for k, f in enumerate(frfs):
         o, i = index_of(f.outputs, output), index_of(f.inputs, input)
         z = f.data[o, i]
         lab = labels[k] if labels is not None else _frf_label(f)
         if part == "bode":
             (line,) = ax_m.semilogy(f.frequency_hz, np.abs(z), label=lab, gid="magnitude")
-            ax_p.plot(f.frequency_hz, np.degrees(np.unwrap(np.angle(z))), color=line.get_color(), gid="phase")
+            ph = np.angle(z) if wrapped else np.unwrap(np.angle(z))
+            style = {"ls": "none", "marker": ".", "ms": 1.5} if wrapped else {}  # no vertical jumps at ±180
+            ax_p.plot(f.frequency_hz, np.degrees(ph), color=line.get_color(), gid="phase", **style)
         else:
             (line,) = ax_m.plot(f.frequency_hz, z.real, label=lab, gid="real")
             ax_p.plot(f.frequency_hz, z.imag, color=line.get_color(), gid="imag")
@@ -84,9 +89,16 @@ def plot_frf(
     pair = f"{f0.outputs[o]} / {f0.inputs[i]}"
     if part == "bode":
         ax_m.set_ylabel(f"|{pair}|  [{f0.unit}]")
-        ax_p.set_ylabel("phase [deg] (unwrapped)")
-        lo, hi = ax_p.get_ylim()
-        ax_p.yaxis.set_major_locator(MultipleLocator(90 if hi - lo <= 720 else 180 * np.ceil((hi - lo) / 1440)))
+        if wrapped:  # too few points per turn of the phase to follow it: the principal value
+            ax_p.set_ylabel("phase [deg], in ±180°")
+            ax_p.set_ylim(-190, 190)
+            ax_p.yaxis.set_major_locator(MultipleLocator(90))
+        else:
+            ax_p.set_ylabel("phase [deg] (unwrapped)")
+            lo, hi = ax_p.get_ylim()
+            ax_p.yaxis.set_major_locator(
+                MultipleLocator(90 if hi - lo <= 720 else 180 * np.ceil((hi - lo) / 1440))
+            )
     else:
         ax_m.set_ylabel(f"Re {pair}  [{f0.unit}]")
         ax_p.set_ylabel(f"Im {pair}  [{f0.unit}]")
@@ -107,6 +119,47 @@ def plot_frf(
     return axes
 
 
+#: an unwrapped phase is trusted when no step between neighbouring frequencies exceeds this (deg)
+UNWRAP_STEP_DEG = 60.0
+
+
+def _unwrappable(z: np.ndarray) -> bool:
+    """Whether the frequency grid follows the phase of z closely enough to
+    unwrap it: every step of the unwrapped phase below UNWRAP_STEP_DEG.  A
+    delayed loop on a coarse grid (e^{-j w T} turning once per 1/T Hz over a
+    few points) is not, and np.unwrap there adds spurious whole turns (the
+    +1440 deg of issue 20)."""
+    ph = np.degrees(np.unwrap(np.angle(np.asarray(z))))
+    return ph.size < 2 or float(np.max(np.abs(np.diff(ph)))) < UNWRAP_STEP_DEG
+
+
+def plot_frf_pairs(frfs: Sequence[Any], *, title: str | None = None, peaks: int = 0) -> Any:
+    """Every (output, input) pair of the FRFs, one magnitude/phase pair of
+    panels each (outputs outer, inputs inner), the curves of ``frfs``
+    overlaid as in :func:`plot_frf`; each pair's title is ``title`` with the
+    pair.  Returns the Axes, an array (2 * pairs,)."""
+    import matplotlib.pyplot as plt
+
+    f0 = frfs[0]
+    pairs = [(o, i) for o in f0.outputs for i in f0.inputs]
+    fig = plt.figure(figsize=(8, 5.4 * len(pairs)), layout="constrained")
+    subs = np.atleast_1d(fig.subfigures(len(pairs), 1, hspace=0.04))
+    axs = []
+    for sf, (o, i) in zip(subs, pairs, strict=True):
+        pair = sf.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+        plot_frf(
+            frfs,
+            output=o,
+            input=i,
+            ax=pair,
+            title=f"{title}: {o} / {i}" if title else f"{o} / {i}",
+            peaks=peaks,
+        )
+        axs.extend(pair)
+    fig.set_gid(LAID_OUT)
+    return np.array(axs, dtype=object)
+
+
 def _label_peaks(ax: Any, marks: list[tuple[float, float, Any]]) -> None:
     """Write each peak's frequency next to it, moving a label up in steps of
     one text line while it would overlap a label already placed."""
@@ -123,7 +176,9 @@ def _label_peaks(ax: Any, marks: list[tuple[float, float, Any]]) -> None:
         dy = 4.0
         for _ in range(8):
             box = (x + 4 * pt, x + 4 * pt + w, y + dy * pt, y + dy * pt + h)
-            if not any(not (box[1] < p[0] or box[0] > p[1] or box[3] < p[2] or box[2] > p[3]) for p in placed):
+            if not any(
+                not (box[1] < p[0] or box[0] > p[1] or box[3] < p[2] or box[2] > p[3]) for p in placed
+            ):
                 break
             dy += 11
         placed.append(box)
@@ -312,7 +367,15 @@ def plot_loop_nyquist(
         ax.plot(L[:, c].real, L[:, c].imag, lw=1, label=lab, gid="locus")
         ax.plot(L[:, c].real, -L[:, c].imag, lw=0.6, ls="--", color="0.6")
     crit = -1.0 / width
-    ax.plot([crit], [0], "r+", ms=12, mew=2, label=f"critical point -1/b, b = {width * 1e3:.4g} mm", gid="critical")
+    ax.plot(
+        [crit],
+        [0],
+        "r+",
+        ms=12,
+        mew=2,
+        label=f"critical point -1/b, b = {width * 1e3:.4g} mm",
+        gid="critical",
+    )
     bstar, fstar = touching_width(omega, L)
     f0, f1 = omega[0] / (2 * np.pi), omega[-1] / (2 * np.pi)
     if np.isfinite(bstar):

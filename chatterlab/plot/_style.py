@@ -50,6 +50,8 @@ def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
 
     ax = np.ravel(ax_or_axes)[0] if isinstance(ax_or_axes, list | tuple | np.ndarray) else ax_or_axes
     fig = ax.figure
+    while getattr(fig, "figure", fig) is not fig:  # a subfigure: the figure holding it
+        fig = fig.figure
     if fig.get_gid() != LAID_OUT:
         fig.tight_layout()
     # zlib level 1: several times faster than the default 6 on a dense figure, a little larger file
