@@ -143,7 +143,8 @@ def plot_frf_pairs(frfs: Sequence[Any], *, title: str | None = None, peaks: int 
     f0 = frfs[0]
     pairs = [(o, i) for o in f0.outputs for i in f0.inputs]
     fig = plt.figure(figsize=(8, 5.4 * len(pairs)), layout="constrained")
-    subs = np.atleast_1d(fig.subfigures(len(pairs), 1, hspace=0.04))
+    made: Any = fig.subfigures(len(pairs), 1, hspace=0.04)  # one SubFigure, or an array of them
+    subs = np.atleast_1d(made)
     axs = []
     for sf, (o, i) in zip(subs, pairs, strict=True):
         pair = sf.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
