@@ -28,7 +28,12 @@ def add_parser(sub: Any) -> None:
     cut_args(f)
     f.add_argument("--kind", choices=["receptance", "mobility", "accelerance"], default="receptance")
     f.add_argument("--method", choices=["direct", "modal"], default="direct")
-    f.add_argument("--format", choices=["csv", "json"], default="csv")
+    f.add_argument(
+        "--format",
+        choices=["csv", "json"],
+        default=None,
+        help="table format (default csv); with --plot and no --out the table is printed only when asked for",
+    )
     f.add_argument("--out", metavar="FILE")
     f.add_argument("--plot", metavar="FILE.png", help="magnitude/phase plot (open vs closed loop)")
     f.add_argument("--nyquist", metavar="FILE.png", help="Nyquist plot of the loop determinant det(I - G D)")
@@ -41,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--nyquist draws det(I - G D) of the cutting loop: add --closed-loop --width ...")
     with outputs(
         args,
-        (args.out, "--out", FORMAT_SUFFIXES[args.format]),
+        (args.out, "--out", FORMAT_SUFFIXES[args.format or "csv"]),
         (args.plot, "--plot", PLOT_SUFFIXES),
         (args.nyquist, "--nyquist", PLOT_SUFFIXES),
     ) as outs:
@@ -62,7 +67,7 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
             "--nyquist draws det(I - G D) of the cutting loop, which is zero here: check --terms"
         )
     res = frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, feedback=fb, method=args.method)
-    if args.out or not (args.plot or args.nyquist):
+    if args.out or args.format or not (args.plot or args.nyquist):
         if args.format == "json":
             emit(res.to_json(), outs.path(args.out) if args.out else None)
         else:
