@@ -7,10 +7,18 @@ use them without importing from ``conftest``.
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+
+# A shell starts a background job with SIGINT ignored, and a child process
+# inherits the ignoring: the tests that send Ctrl-C (SIGINT) to chatterlab
+# then see it ignored.  A handler of our own is reset to the default in the
+# children at exec, so they get Python's KeyboardInterrupt as from a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 ROOT = Path(__file__).resolve().parents[1]
 

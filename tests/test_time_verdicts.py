@@ -342,7 +342,10 @@ def newmark_root(A, B, C, G, T, h, lam0):
         st = 2.0 / h * np.tanh(lam * h / 2.0)
         F = P(st) - G * np.exp(-lam * T)
         dF = (2.0 * st * A + B) / np.cosh(lam * h / 2.0) ** 2 + T * G * np.exp(-lam * T)
-        d = 1.0 / np.trace(np.linalg.solve(F, dF))
+        try:
+            d = 1.0 / np.trace(np.linalg.solve(F, dF))
+        except np.linalg.LinAlgError:  # F exactly singular: lam is a root to round-off
+            return lam
         lam -= d
         if abs(d) < 1e-13 * abs(lam):
             return lam

@@ -17,6 +17,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import zipfile
 from pathlib import Path
 
@@ -61,9 +62,17 @@ def installed(tmp_path_factory) -> tuple[Path, dict[str, str]]:
     assert {f"chatterlab/examples/{rel}" for rel, _ in EXAMPLES.values()} <= shipped
     assert not any(n.startswith(("studies/", "tests/")) for n in shipped)
     venv = base / "venv"
-    # no pip of its own: the system site-packages' pip installs into it
-    _run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], base, env)
+    # no pip and no dependencies of its own: the test environment's
+    # site-packages (a venv's or the system's) are put on its path by a .pth
+    # file, after its own site-packages, so the wheel's chatterlab comes first
+    _run([sys.executable, "-m", "venv", "--without-pip", str(venv)], base, env)
     py = venv / "bin" / "python"
+    ours = subprocess.run(
+        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        capture_output=True, text=True, check=True,
+    ).stdout.strip()  # fmt: skip
+    here = {sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]}
+    (Path(ours) / "_test_env.pth").write_text("".join(f"{p}\n" for p in sorted(here)))
     _run([str(py), "-m", "pip", "install", "--no-deps", "--no-index", str(wheel)], base, env)
     return venv / "bin", env
 
