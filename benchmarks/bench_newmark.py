@@ -90,15 +90,28 @@ def stats(walls: list[float]) -> dict[str, Any]:
 
 def throughput(system: cl.System, reps: int) -> list[dict[str, Any]]:
     print("\n1. throughput: simulate(shaper, feedback='pdo', passes=2), steps/s of the integration")
-    print(f"   {'step h [s]':>12} {'coefficients':>12} {'workers':>7} {'steps':>7} {'best':>8} {'median':>8}  (steps/s from the min and median wall)")
-    cases = [(None, "auto", 2), (None, "auto", 0), (None, "direct", 2), (1.4e-3, "auto", 2), (1e-4, "auto", 2)]
+    print(
+        f"   {'step h [s]':>12} {'coefficients':>12} {'workers':>7} {'steps':>7} {'best':>8} {'median':>8}  (steps/s from the min and median wall)"
+    )
+    cases = [
+        (None, "auto", 2),
+        (None, "auto", 0),
+        (None, "direct", 2),
+        (1.4e-3, "auto", 2),
+        (1e-4, "auto", 2),
+    ]
     rows = []
     for step, method, workers in cases:
         walls, n, h = [], 0, 0.0
         la = load()
         for _ in range(reps):
             sim = simulate(
-                system, feedback="pdo", passes=2, step=step, method=method, options=NewmarkOptions(workers=workers)
+                system,
+                feedback="pdo",
+                passes=2,
+                step=step,
+                method=method,
+                options=NewmarkOptions(workers=workers),
             )
             walls.append(sim.response.wall_time)
             n, h = sim.response.n_steps, sim.step
@@ -132,7 +145,9 @@ class SecondPass:
         self.t_a, self.t_b = self.T, self.T + 0.3
         self.pieces = [self.t_a, self.T + kin.events()[0], self.t_b]  # the coefficients jump at the cut entry
         # atol scaled to the state, as a user would: rtol x the largest |q| and |v| (of the first pass)
-        self.atol_scale = np.r_[np.full(self.n, np.abs(first.q).max()), np.full(self.n, np.abs(first.v).max())]
+        self.atol_scale = np.r_[
+            np.full(self.n, np.abs(first.q).max()), np.full(self.n, np.abs(first.v).max())
+        ]
 
     def outs(self, t: np.ndarray, q: np.ndarray) -> np.ndarray:
         return np.einsum("mkn,nm->km", self.prob.maps(t, self.rows), q)
@@ -250,7 +265,9 @@ def equal_accuracy(system: cl.System, quick: bool, reps: int) -> dict[str, Any]:
             }  # fmt: skip
             for key in ("newmark_2_workers", "newmark_0_workers"):
                 case[f"ratio_min_vs_{key}"] = min(w_iv) / min(case[key]["runs_s"])
-                case[f"ratio_median_vs_{key}"] = statistics.median(w_iv) / statistics.median(case[key]["runs_s"])
+                case[f"ratio_median_vs_{key}"] = statistics.median(w_iv) / statistics.median(
+                    case[key]["runs_s"]
+                )
             out["cases"].append(case)
             print(
                 f"      wall min/median: Newmark {min(w_nm2):.3f}/{statistics.median(w_nm2):.3f} s (2 workers), "
@@ -351,7 +368,10 @@ def main() -> None:
     # the load before the benchmark starts: the later ones include its own one or two busy threads
     result["loaded"] = bool(load0[0] > LOADED * (os.cpu_count() or 1))
     result["note_on_loads"] = "loads after the start include this benchmark's own 1-2 busy threads"
-    print(f"\nafter: load average {result['load_average_end'][0]:.2f}" + (" (LOADED machine)" if result["loaded"] else ""))
+    print(
+        f"\nafter: load average {result['load_average_end'][0]:.2f}"
+        + (" (LOADED machine)" if result["loaded"] else "")
+    )
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {args.out}")

@@ -190,7 +190,9 @@ def report(r: dict[str, object]) -> None:
         m = r[key]
         assert isinstance(m, dict)
         if m["exit_status"]:
-            print(f"  {key:18s} FAILED (exit {m['exit_status']}): no timing reported\n      {m['output_tail']}")
+            print(
+                f"  {key:18s} FAILED (exit {m['exit_status']}): no timing reported\n      {m['output_tail']}"
+            )
             continue
         print(
             f"  {key:18s} wall min {m['wall_min_s']:.2f} s, median {m['wall_median_s']:.2f} s"

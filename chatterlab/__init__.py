@@ -50,7 +50,19 @@ _HOME = {
 #: the subpackages, reachable as attributes (``chatterlab.frequency.frf``) as
 #: when the top level imported them all
 _SUBPACKAGES = frozenset(
-    ("model", "structure", "process", "frequency", "time", "lobes", "sweep", "quantities", "io", "plot", "cli")
+    (
+        "model",
+        "structure",
+        "process",
+        "frequency",
+        "time",
+        "lobes",
+        "sweep",
+        "quantities",
+        "io",
+        "plot",
+        "cli",
+    )
 )
 
 

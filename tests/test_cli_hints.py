@@ -58,8 +58,22 @@ def test_shipped_model_raises_no_warning(capsys):
         ([*FRF, "--width", "0.0002", "--speed", "0.5"], "typed in m"),
         # the review's case: 2 mm typed in m gave "stable", exit 0 and no warning
         (["roots", SHAPER, "--width", "0.002", "--speed", "0.5", "--no-winding"], "typed in m"),
-        (["lobes", SHAPER, "--speed", "0.5", "0.6", "--points", "3", "--width-max", "0.001", "--verify", "0"],
-         "typed in m"),  # fmt: skip
+        (
+            [
+                "lobes",
+                SHAPER,
+                "--speed",
+                "0.5",
+                "0.6",
+                "--points",
+                "3",
+                "--width-max",
+                "0.001",
+                "--verify",
+                "0",
+            ],
+            "typed in m",
+        ),  # fmt: skip
         (["roots", SHAPER, "--width", "0.2", "--speed", "500", "--no-winding"], "outside 0.001..10 m/s"),
         (["roots", SHAPER, "--width", "0.2", "--terms", "pd", "--delay", "1.5"], "--delay has no effect"),
     ],
@@ -121,7 +135,9 @@ def test_python_api_warns_for_a_width_in_mm_and_the_cli_shows_only_its_own(capsy
     with warnings.catch_warnings():
         warnings.simplefilter("error", UnitWarning)
         cl.feedback(fz, width=2e-3, speed=0.5)  # 2 mm in m: no warning
-    code, _, err = run(capsys, "roots", SHAPER, "--width", "200", "--speed", "0.5", "--no-winding", "--count", "1")
+    code, _, err = run(
+        capsys, "roots", SHAPER, "--width", "200", "--speed", "0.5", "--no-winding", "--count", "1"
+    )
     assert "UnitWarning" not in err and err.count("warning:") == 1 and "above 100 mm" in err
 
 

@@ -52,7 +52,9 @@ def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
 def test_roots_json_is_the_floquet_result(bench, tmp_path, capsys):
     m, S, mill = bench
     out = tmp_path / "r.json"
-    code = main(["roots", str(ONE), "--width", "2", "--speed", "18000", "--format", "json", "--out", str(out)])
+    code = main(
+        ["roots", str(ONE), "--width", "2", "--speed", "18000", "--format", "json", "--out", str(out)]
+    )
     assert code == 0, capsys.readouterr().err
     d = json.loads(out.read_text())
     ref = multipliers(S, mill, 18000.0, 2e-3)
@@ -83,11 +85,24 @@ def test_simulate_above_and_below_the_limit(bench, capsys):
 @pytest.mark.parametrize(
     ("argv", "words"),
     [
-        (["lobes", str(ONE), "--speed", "8000", "9000", "--positions", "0", "1", "3"], ["--positions", "milling"]),
+        (
+            ["lobes", str(ONE), "--speed", "8000", "9000", "--positions", "0", "1", "3"],
+            ["--positions", "milling"],
+        ),
         (["roots", str(ONE), "--width", "1", "--delay", "0.003"], ["--speed"]),
         (["simulate", str(ONE), "--speed", "9000"], ["--width"]),
-        (["lobes", str(ROOT / "studies" / "traverse_shaper" / "model.toml"), "--speed", "0.1", "1", "--method",
-          "sdm"], ["--method sdm", "milling"]),  # fmt: skip
+        (
+            [
+                "lobes",
+                str(ROOT / "studies" / "traverse_shaper" / "model.toml"),
+                "--speed",
+                "0.1",
+                "1",
+                "--method",
+                "sdm",
+            ],
+            ["--method sdm", "milling"],
+        ),  # fmt: skip
     ],
 )
 def test_bad_milling_options_are_one_line(argv, words, capsys):

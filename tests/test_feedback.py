@@ -116,7 +116,11 @@ def test_global_feedback_is_minus_Jt_Dl_J(shaper):
     np.testing.assert_allclose(fb.DO, -J.T @ DO_PAPER @ J, rtol=0, atol=1e-12 * scale)
     T = fb.delay
     for s in (0.0, 2j * np.pi * 76.3, 3.0 + 500j, np.array([1j, 10j, 100j])):
-        Dl = DP_PAPER + np.multiply.outer(s, DV_PAPER) + np.multiply.outer(np.exp(-np.asarray(s) * T), DO_PAPER)
+        Dl = (
+            DP_PAPER
+            + np.multiply.outer(s, DV_PAPER)
+            + np.multiply.outer(np.exp(-np.asarray(s) * T), DO_PAPER)
+        )
         ref = -np.swapaxes(J, 0, 1) @ Dl @ J
         np.testing.assert_allclose(fb(s), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
         np.testing.assert_allclose(fb(s), -fb.J.T @ fb.Dl(s) @ fb.J, rtol=0, atol=1e-12 * np.abs(ref).max())
@@ -250,7 +254,9 @@ def test_bad_width(shaper, width):
         feedback(shaper, width=width, speed=0.5)
 
 
-@pytest.mark.parametrize("kw", [{"delay": 0.0}, {"delay": -1.0}, {"delay": float("nan")}, {"speed": 0.0}, {"speed": -0.5}])
+@pytest.mark.parametrize(
+    "kw", [{"delay": 0.0}, {"delay": -1.0}, {"delay": float("nan")}, {"speed": 0.0}, {"speed": -0.5}]
+)
 def test_bad_delay_or_speed(shaper, kw):
     with pytest.raises(cl.InputError, match="delay|speed"):
         feedback(shaper, width=0.002, **kw)

@@ -295,7 +295,9 @@ def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
     assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "lobe [-]", "status",
                        "searched below [m]", "band low [Hz]", "band high [Hz]"]  # fmt: skip
     # what was searched, on every row: an inf there means nothing beyond it
-    assert {tuple(r[6:]) for r in rows[1:]} == {(f"{d.width_max:.9g}", f"{d.band_hz[0]:.9g}", f"{d.band_hz[1]:.9g}")}
+    assert {tuple(r[6:]) for r in rows[1:]} == {
+        (f"{d.width_max:.9g}", f"{d.band_hz[0]:.9g}", f"{d.band_hz[1]:.9g}")
+    }
     assert {r[5] for r in rows[1:]} == {"boundary"}
     tab = np.array([[float(x) for x in r[:5]] for r in rows[1:]])
     assert tab.shape == (d.speed.size, 5)

@@ -90,6 +90,8 @@ def test_milling_coupling_needs_a_milling_process():
 
 
 def test_variable_pitch_is_read_in_radians():
-    text = ONE.read_text().replace("radial_immersion = 0.05\n", "radial_immersion = 0.05\npitch_deg = [160.0, 200.0]\n")
+    text = ONE.read_text().replace(
+        "radial_immersion = 0.05\n", "radial_immersion = 0.05\npitch_deg = [160.0, 200.0]\n"
+    )
     c = cl.loads_model(text).process.milling
     np.testing.assert_allclose(c.pitch, np.radians([160.0, 200.0]), rtol=1e-15)

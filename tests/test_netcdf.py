@@ -192,7 +192,9 @@ def _hdf5_contents(path: Path) -> list[tuple[Any, ...]]:
 
     def attr(f: Any, k: str, v: Any) -> Any:
         if k in ("DIMENSION_LIST", "REFERENCE_LIST"):
-            return k, repr([[f[r].name for r in np.atleast_1d(row)] for row in v]) if k == "DIMENSION_LIST" else k
+            return k, repr(
+                [[f[r].name for r in np.atleast_1d(row)] for row in v]
+            ) if k == "DIMENSION_LIST" else k
         return k, repr(v)
 
     out: list[tuple[Any, ...]] = []

@@ -271,7 +271,9 @@ def test_branches_are_named_by_their_mode(shaper_diagram):
     minimum's) and the 76.2 Hz one."""
     axes = plot_lobes(shaper_diagram)
     legend = " ".join(" ".join(t.get_text() for t in axes[1].get_legend().get_texts()).split())
-    found = {int(b): float(f) for b, f in re.findall(r"branch (\d+): chatter at ([\d.]+) Hz at its lowest", legend)}
+    found = {
+        int(b): float(f) for b, f in re.findall(r"branch (\d+): chatter at ([\d.]+) Hz at its lowest", legend)
+    }
     assert len(found) == 2, legend
     low = min(found, key=lambda b: abs(found[b] - shaper_diagram.absolute_minimum["chatter_hz"]))
     assert found[low] == pytest.approx(shaper_diagram.absolute_minimum["chatter_hz"], abs=0.01)

@@ -222,9 +222,13 @@ def test_loop_eigenvalues_are_the_loop_per_unit_width(turning, tb):
     one = lam[np.arange(w.size), np.argmax(np.abs(lam), axis=1)]
     rest = np.sort(np.abs(lam), axis=1)[:, :-1]
     assert rest.max() <= 1e-12 * np.abs(one).max()
-    np.testing.assert_allclose(one, tb.KF * tb.G(w) * (1 - np.exp(-1j * w * T)), rtol=1e-9, atol=1e-12 * np.abs(one).max())
+    np.testing.assert_allclose(
+        one, tb.KF * tb.G(w) * (1 - np.exp(-1j * w * T)), rtol=1e-9, atol=1e-12 * np.abs(one).max()
+    )
     fb2 = cl.feedback(turning, width=2.5e-3, speed=4700.0, terms="pdo")
-    np.testing.assert_allclose(np.prod(1 + 2.5e-3 * lam, axis=1), loop_determinant(turning, w, fb2), rtol=1e-9)
+    np.testing.assert_allclose(
+        np.prod(1 + 2.5e-3 * lam, axis=1), loop_determinant(turning, w, fb2), rtol=1e-9
+    )
     ax = P.plot_loop_nyquist(w, one, width=1e-3)
     assert "b* =" in _by_gid(ax, "touching")[0].get_label()
 
@@ -268,7 +272,10 @@ def test_loci_are_tracked_through_shuffled_eigenvalues():
 
 def test_touching_width_without_a_crossing_is_inf():
     w = np.linspace(1.0, 10.0, 50)
-    assert P.touching_width(w, 1.0 / (1.0 + 1j * w)) == (float("inf"), pytest.approx(float("nan"), nan_ok=True))
+    assert P.touching_width(w, 1.0 / (1.0 + 1j * w)) == (
+        float("inf"),
+        pytest.approx(float("nan"), nan_ok=True),
+    )
 
 
 # ------------------------------------------------------------------ time
@@ -326,7 +333,9 @@ def stable_sweep(tb):
     def point(width, speed):
         return {"stable": float(width < tb.tlusty(np.array([speed]))[0]), "b": width}
 
-    g = Grid({"width": (np.linspace(0.2e-3, 3e-3, 8), "m"), "speed": (np.linspace(2000.0, 12000.0, 9), "rpm")})
+    g = Grid(
+        {"width": (np.linspace(0.2e-3, 3e-3, 8), "m"), "speed": (np.linspace(2000.0, 12000.0, 9), "rpm")}
+    )
     return sweep(point, g, outputs={"stable": "1", "b": "m"}, jobs=1, backend="serial", progress=False)
 
 
@@ -339,7 +348,12 @@ def test_stability_map_cells_are_the_verdicts():
         (pc,) = [p for p in ax.collections if p.get_gid() == f"status-{c}"]
         assert np.array_equal(~np.ma.getmaskarray(pc.get_array()).reshape(3, 4), code == c)
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert legend == ["stable (proven) (3 cells)", "chatter (3 cells)", "undetermined (3 cells)", "not computed (3 cells)"]
+    assert legend == [
+        "stable (proven) (3 cells)",
+        "chatter (3 cells)",
+        "undetermined (3 cells)",
+        "not computed (3 cells)",
+    ]
     with pytest.raises(cl.InputError, match="unknown status 'stabel'"):
         P.plot_stability_map(x, y, np.full((3, 4), "stabel"))
 

@@ -158,7 +158,7 @@ def _tlusty_point(w: float, lobe: int) -> tuple[float, float]:
     G = _G(np.array(w))
     b_lim = -1.0 / (2.0 * KF * G.real)
     # 1 - exp(-j w tau) = -1/(K_f b G)  =>  exp(-j w tau) = -conj(G)^2/|G|^2
-    phase = np.angle(-np.conj(G) ** 2 / abs(G) ** 2)
+    phase = np.angle(-(np.conj(G) ** 2) / abs(G) ** 2)
     tau = (np.mod(-phase, 2 * np.pi) + 2 * np.pi * lobe) / w
     return float(b_lim), float(tau)
 

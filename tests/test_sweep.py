@@ -808,7 +808,9 @@ def test_plot_and_dataset(tmp_path: Path) -> None:
     mpl.use("Agg")
     r = sweep(flaky_fixed, small_grid(), outputs=OUTS, backend="serial", progress=False)
     ax = r.plot("freq")
-    assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "width [mm]"  # lengths shown in mm (plot_sweep)
+    assert (
+        ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "width [mm]"
+    )  # lengths shown in mm (plot_sweep)
     assert ax.figure.axes[-1].get_ylabel() == "freq [Hz]"  # the colour bar
     ax = r.plot("freq", at={"width": 2e-3})
     assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "freq [Hz]"
@@ -844,6 +846,8 @@ def test_stable_quantity_never_counts_undetermined_with_either(verdict, code, mo
 
     m = tmp_path / "t.toml"
     m.write_text(turning_text())
-    monkeypatch.setattr(st, "stability", lambda *a, **k: types.SimpleNamespace(verdict=verdict, abscissa=-1.0))
+    monkeypatch.setattr(
+        st, "stability", lambda *a, **k: types.SimpleNamespace(verdict=verdict, abscissa=-1.0)
+    )
     out = QuantityTask(cl.load_model(m), "stable")(width=1e-3, speed=3000.0)
     assert (np.isnan(out["stable"]) if code is None else out["stable"] == code) and out["abscissa"] == -1.0

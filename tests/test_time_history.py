@@ -211,7 +211,6 @@ def test_deprecated_growth_rate_warns_and_keeps_its_meaning(runs):
         (lambda tr, sim: tr.spectrum("nope"), "not one of the output names"),
         (lambda tr, sim: sim.growth("tip.x", window="first-cut"), "window must be"),
         (lambda tr, sim: tr.growth(0, window="cut"), "window must be 'all' or"),
-
         (lambda tr, sim: tr.growth(0, skip=-1.0), "skip must be a time >= 0"),
         (lambda tr, sim: sim.to_csv("x.csv", names=["tip.y"]), "no history 'tip.y'"),
         (lambda tr, sim: tr.to_csv("x.csv", fields=("u",)), "field must be 'q', 'v' or 'a'"),

@@ -464,7 +464,11 @@ def loop_eigenvalues(
     omega = np.asarray(omega, float)
     s = 1j * omega
     J = fb.J
-    G = _pole_residue(frozen.complex_modes, J, J.T, s) if method == "modal" else _direct(frozen, J, J.T, s, None)
+    G = (
+        _pole_residue(frozen.complex_modes, J, J.T, s)
+        if method == "modal"
+        else _direct(frozen, J, J.T, s, None)
+    )
     return np.linalg.eigvals(np.transpose(G, (2, 0, 1)) @ fb.Dl(s)) / fb.width
 
 

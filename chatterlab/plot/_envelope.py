@@ -381,4 +381,3 @@ def envelope_line(
             o = np.argsort(vv, kind="stable")
             vv, ee, ff = vv[o], np.concatenate([ee, e3])[o], np.concatenate([ff, f3])[o]
     return vv, ee, ff
-

@@ -142,7 +142,11 @@ def draw_lobe_panel(
         v = np.asarray(d.speed, float)
         o = np.argsort(v)
         keep = (v[o] >= lo) & (v[o] <= hi)
-        vx, env, fq = v[o][keep], np.asarray(d.b_lim, float)[o][keep], np.asarray(d.chatter_hz, float)[o][keep]
+        vx, env, fq = (
+            v[o][keep],
+            np.asarray(d.b_lim, float)[o][keep],
+            np.asarray(d.chatter_hz, float)[o][keep],
+        )
         dense = False
     else:
         vg = _speed_grid(ax, lo, hi, np.asarray(d.speed, float))
@@ -202,9 +206,7 @@ def _draw_lobes_and_envelope(
         ax.add_collection(lc)
         handles.append(lc)
         lc.set_label(
-            "lobes through the measured samples"
-            if measured
-            else "lobes (each an exact boundary curve)"
+            "lobes through the measured samples" if measured else "lobes (each an exact boundary curve)"
         )
     ax.fill_between(vx, np.where(fin, em, np.nan), ytop * 2, color="tab:red", alpha=0.15, lw=0, zorder=0)
     handles.append(Patch(color="tab:red", alpha=0.15, label="unstable (chatter)"))
@@ -233,9 +235,7 @@ def _draw_lobes_and_envelope(
     return handles
 
 
-def _draw_limits(
-    ax: Any, d: Any, lo: float, hi: float, references: Mapping[str, Any] | None
-) -> list[Any]:
+def _draw_limits(ax: Any, d: Any, lo: float, hi: float, references: Mapping[str, Any] | None) -> list[Any]:
     """The unconditional limit, the minimum of the range and the reference
     widths.  Returns the legend handles."""
     handles: list[Any] = []
@@ -379,5 +379,3 @@ def _label_lobes(
         if len(out) >= most:
             break
     return out
-
-

@@ -292,4 +292,3 @@ def _subtitle(d: Any) -> str:
     return (
         f"{pos}; feedback {terms}; width ceiling {d.width_max * 1e3:g} mm\n{band}; {ver} (argument principle)"
     )
-

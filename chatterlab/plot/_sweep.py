@@ -39,7 +39,9 @@ def status_codes(status: Any) -> np.ndarray:
     if a.dtype.kind in "USO":
         bad = sorted({str(w) for w in a.ravel()} - set(_WORDS))
         if bad:
-            raise InputError(f"stability map: unknown status {bad[0]!r}; use one of {', '.join(map(repr, _WORDS))}")
+            raise InputError(
+                f"stability map: unknown status {bad[0]!r}; use one of {', '.join(map(repr, _WORDS))}"
+            )
         return np.vectorize(lambda w: _WORDS[str(w)], otypes=[int])(a)
     if a.dtype.kind in "iu":
         return a.astype(int)
@@ -107,8 +109,6 @@ def _display(name: str, unit: str) -> tuple[float, str]:
     return (1e3, "mm") if unit == "m" and name not in ("position",) else (1.0, unit)
 
 
-
-
 def plot_sweep(
     result: Any,
     output: str,
@@ -133,7 +133,9 @@ def plot_sweep(
     names = [a.name for a in result.grid.axes]
     for name in at:
         if name not in names:
-            raise InputError(f"plot_sweep: at={{{name!r}: ...}} names no grid axis (axes: {', '.join(names)})")
+            raise InputError(
+                f"plot_sweep: at={{{name!r}: ...}} names no grid axis (axes: {', '.join(names)})"
+            )
     sel: list[Any] = []
     free: list[Any] = []
     for a in result.grid.axes:

@@ -174,7 +174,9 @@ class Modes:
         for b in mdl.beams:
             L = beam_axes(mdl, b)[2]
             n = max(samples, 2 * b.elements + 1)
-            members.append(member("beam", b.id, [PointRef("beam", b.id, distance=d) for d in np.linspace(0, L, n)]))
+            members.append(
+                member("beam", b.id, [PointRef("beam", b.id, distance=d) for d in np.linspace(0, L, n)])
+            )
         for bd in mdl.bodies:
             members.append(member("body", bd.id, [PointRef("body", bd.id, label=bd.id)]))
         for sp in mdl.springs:
