@@ -43,6 +43,7 @@ R = TypeVar("R")
 
 __all__ = [
     "DelaySystem",
+    "loop_system",
     "make_system",
     "make_first_order_system",
     "char_matrix",
@@ -364,6 +365,16 @@ def make_system(
     Cz = np.zeros((r, 2 * n))
     Cz[:, :n] = V.T
     return DelaySystem(coeffs=(Kt, Ct, Mm), U=U, V=V, tau=t, A=A, B=B, Cz=Cz, open_coeffs=(Km, Cm, Mm))
+
+
+def loop_system(loop: Any) -> DelaySystem:
+    """The delay system of a :class:`chatterlab.process.ClosedLoop`: the one
+    place where a closed loop's matrices become the characteristic equation
+    Delta(s) = s^2 M + s (C - D_V) + K - D_P - U V^T e^{-sT} (Eq. 2.1, 2.23)."""
+    DO = (loop.U, loop.V) if loop.U.shape[1] else None
+    return make_system(
+        loop.M, loop.C, loop.K, DP=loop.DP, DV=loop.DV, DO=DO, tau=loop.delay if DO is not None else None
+    )
 
 
 def make_first_order_system(

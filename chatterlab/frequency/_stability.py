@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..process._cutting import feedback
+from ..process._loop import ClosedLoop, closed_loop
 from ..structure._assembly import FrozenSystem
 
 __all__ = ["Stability", "stability", "loop_band", "MARGINAL_TOL"]
@@ -150,14 +150,12 @@ def stability(
     -------
     Stability
     """
-    from ._roots import characteristic_roots_system, make_system
+    from ._delay_system import loop_system
+    from ._roots import characteristic_roots_system
 
-    fb = feedback(frozen, width=width, speed=speed, delay=delay, terms=terms, couplings=couplings)
-    DO = (fb.U, fb.V) if fb.U.shape[1] else None
+    fb = closed_loop(frozen, width=width, speed=speed, delay=delay, terms=terms, couplings=couplings)
     # one delay system for both routes: they share its partial fractions and bands
-    sys_ = make_system(
-        frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=DO, tau=fb.delay if DO is not None else None
-    )
+    sys_ = loop_system(fb)
     r = characteristic_roots_system(sys_, count=count)
     absc = float(r.abscissa)
     if not np.isfinite(absc) or not r.converged:
@@ -183,7 +181,7 @@ def stability(
     if winding:
         from ._winding import rhp_count_system
 
-        w = rhp_count_system(sys_, omega_max=loop_band(frozen, fb))
+        w = rhp_count_system(sys_, omega_max=loop_band(fb))
         if verdict in ("stable", "unstable") and w.status == "converged":
             agree = (w.count == 0) == (verdict == "stable")
             how = "every phase increment proven" if w.proven else "phase sampled, not proven"
@@ -207,7 +205,7 @@ def stability(
     return Stability(verdict, absc, r, w, agree, msg, float(width), fb.delay, terms, frozen.position)
 
 
-def loop_band(frozen: FrozenSystem, fb: Any, tol: float = 1e-4) -> float:
+def loop_band(fb: ClosedLoop, tol: float = 1e-4) -> float:
     """Upper end (rad/s) of the band where the cutting loop matters: twice
     the highest frequency at which the loop gain ||H(jw) Dl(jw)|| (all terms,
     |e^{-jwT}| = 1) exceeds ``tol``.  Above it det(I - G D) stays within
@@ -215,7 +213,7 @@ def loop_band(frozen: FrozenSystem, fb: Any, tol: float = 1e-4) -> float:
     needs no samples there."""
     from ..structure._complex import modal_response
 
-    cm = frozen.complex_modes
+    cm = fb.frozen.complex_modes
     wn = np.abs(cm.lam)
     wmax = 3.0 * float(wn.max())
     w = np.geomspace(max(1e-3 * float(wn.min()), 1e-3), wmax, 400)

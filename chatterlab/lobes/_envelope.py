@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import InputError, check_width
 from ..frequency._bounds import Band, PoleResidue
-from ..process._cutting import feedback
+from ..process._loop import closed_loop_unwarned
 from ..structure._assembly import FrozenSystem
 from ._band import _band, _grid
 from ._boundary import Ops, delayed_factors, link, refine_folds, static_width
@@ -258,15 +258,10 @@ class Boundary:
         if plant is None:
             if frozen is None:
                 raise InputError("give a frozen system or a plant")
-            # feedback at b = 1 m: beta is the width in m
-            import warnings
-
-            from ..errors import UnitWarning
-
-            with warnings.catch_warnings():  # 1 m is a reference, not a user's width
-                warnings.simplefilter("ignore", UnitWarning)
-                fb_ref = feedback(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
-            plant = Plant.from_frozen(frozen, fb_ref)
+            # the loop at b = 1 m (a reference, not a user's width): beta is the width in m
+            plant = Plant.from_loop(
+                closed_loop_unwarned(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+            )
         elif terms == "o":
             plant = plant.with_terms_o()
         self.plant = plant

@@ -11,8 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..frequency._bounds import Band, PoleResidue
-from ..process._cutting import Feedback
-from ..structure._assembly import FrozenSystem
+from ..process._loop import ClosedLoop
 from ..structure._complex import modal_response
 from ._boundary import Ops, make_ops, nu, widths_rank1
 
@@ -26,7 +25,7 @@ class Plant:
     matrices at width b = 1 m (so that beta is the width in m), and, when
     known, its pole-residue form (which proves the searched band complete).
 
-    Built from a frozen RDFEM system (:meth:`from_frozen`), from a
+    Built from a closed loop (:meth:`from_loop`), from a
     python-control LTI system (:func:`chatterlab.lobes._control.lti_plant`)
     or from a measured FRF (:func:`chatterlab.lobes._measured.measured_plant`).
 
@@ -57,18 +56,22 @@ class Plant:
         self.grid = None if grid is None else np.asarray(grid, dtype=float)
 
     @classmethod
-    def from_frozen(cls, frozen: FrozenSystem, fb_ref: Feedback) -> Plant:
-        cm = frozen.complex_modes
+    def from_loop(cls, loop: ClosedLoop) -> Plant:
+        """The plant of a closed loop: its structure's FRF between the CE
+        coordinates in pole-residue form, and its CE matrices (at the loop's
+        width: a loop at b = 1 m makes beta the width in m)."""
+        cm = loop.frozen.complex_modes
         keep = np.arange(cm.lam.size)
+        J = loop.J
 
         def H(omega: np.ndarray) -> np.ndarray:
-            G = modal_response(cm, fb_ref.J, fb_ref.J.T, 1j * np.asarray(omega, float), keep, False)
+            G = modal_response(cm, J, J.T, 1j * np.asarray(omega, float), keep, False)
             return np.transpose(G, (2, 0, 1))
 
-        Jphi = fb_ref.J @ cm.phi
-        m = fb_ref.J.shape[0]
+        Jphi = J @ cm.phi
+        m = J.shape[0]
         pr = PoleResidue(cm.lam, Jphi, Jphi.T, np.zeros((m, m)))
-        return cls(H, cm.lam, fb_ref.Dl_P, fb_ref.Dl_V, fb_ref.Dl_O, pr)
+        return cls(H, cm.lam, loop.Dl_P, loop.Dl_V, loop.Dl_O, pr)
 
     def with_terms_o(self) -> Plant:
         """The same structure with only the delayed term of the process."""

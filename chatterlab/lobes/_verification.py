@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..process._cutting import feedback_unwarned
+from ..process._loop import closed_loop_unwarned
 from ..structure._assembly import FrozenSystem
 from ._result import LobeDiagram
 
@@ -64,7 +64,7 @@ def _verify(
     check says whether its count is ``proven`` (every phase increment bounded,
     see :func:`chatterlab.frequency._phase_sampling.certified_phase`) or only
     sampled."""
-    from ..frequency._roots import make_system
+    from ..frequency._delay_system import loop_system
     from ..frequency._winding import rhp_count_system
 
     out = []
@@ -74,9 +74,10 @@ def _verify(
         else:
             b = float(d.b_lim[j]) * (1 - VERIFY_OFFSET if kind == "below" else 1 + VERIFY_OFFSET)
             expect = "stable" if kind == "below" else "unstable"
-        fb = feedback_unwarned(frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings)
-        sys_ = make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay)
-        w = rhp_count_system(sys_)
+        loop = closed_loop_unwarned(
+            frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings
+        )
+        w = rhp_count_system(loop_system(loop))
         if w.status != "converged":
             verdict = "undetermined"
         else:

@@ -1,14 +1,19 @@
-"""The cutting process as feedback D(s) = D_P + s D_V + D_O e^{-sT}: the
-coupling matrices in reduced coordinates and the kinematics (speed <-> delay,
-the slide's motion)."""
+"""The cutting process as feedback D(s) = D_P + s D_V + D_O e^{-sT} and the
+closed loop it makes with the structure (:class:`ClosedLoop`, the value every
+engine consumes); the kinematics (speed <-> delay, the slide's motion) and
+milling (the rotating cutter's periodic directional matrices)."""
 
 from __future__ import annotations
 
-from ._cutting import TERMS, Feedback, ce_maps, delay_for, feedback
+from ._cutting import Feedback, ce_maps, feedback
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
+from ._loop import TERMS, ClosedLoop, closed_loop, coupling_matrix, delay_for
 from ._milling import Milling
 
 __all__ = [
+    "ClosedLoop",
+    "closed_loop",
+    "coupling_matrix",
     "Feedback",
     "feedback",
     "delay_for",
