@@ -7,11 +7,20 @@ use them without importing from ``conftest``.
 
 from __future__ import annotations
 
+import os
 import signal
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# CI runs the property tests on the same examples every time (a failure is
+# reproducible, never a coin toss between two runs of one commit); locally
+# hypothesis explores new examples on each run.
+settings.register_profile("ci", derandomize=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 # A shell starts a background job with SIGINT ignored, and a child process
 # inherits the ignoring: the tests that send Ctrl-C (SIGINT) to chatterlab

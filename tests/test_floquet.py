@@ -252,7 +252,7 @@ def test_helix_at_one_helical_pitch_is_the_constant_coefficient_delay_equation()
     # over one pitch of the N teeth = H0 at every t (any immersion): the Floquet multipliers are
     # then exp(lambda tau) of the characteristic roots of the autonomous delay equation, which
     # chatterlab's roots solver finds independently
-    from chatterlab.frequency import characteristic_roots
+    from chatterlab.frequency import characteristic_roots, make_system
 
     st = one_dof()
     m = Milling.from_immersion(4, 0.01, KT, KN, 0.5, "down", helix=np.radians(45.0))
@@ -261,7 +261,9 @@ def test_helix_at_one_helical_pitch_is_the_constant_coefficient_delay_equation()
     r = multipliers(st, m, rpm, a_star)
     B = st.J.T @ m.zoa() @ st.J
     tau = m.tooth_period(rpm)
-    roots = characteristic_roots(st.M, st.C, st.K, DP=-a_star * B, DO=a_star * B, tau=tau, count=4)
+    roots = characteristic_roots(
+        make_system(st.M, st.C, st.K, DP=-a_star * B, DO=a_star * B, tau=tau), count=4
+    )
     rho = np.exp(np.max(roots.roots.real) * tau)
     # both converged far below 1e-9 (the spectral check says r.error; the roots are Newton-refined)
     assert r.error < 1e-9

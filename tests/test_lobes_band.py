@@ -17,7 +17,7 @@ from conftest import turning_text
 from scipy.optimize import brentq
 
 import chatterlab as cl
-from chatterlab.frequency._roots import AXIS_GRID_MAX, characteristic_roots
+from chatterlab.frequency._roots import AXIS_GRID_MAX, characteristic_roots, make_system
 from chatterlab.frequency._stability import stability
 from chatterlab.lobes._diagram import lobes
 
@@ -157,14 +157,13 @@ def test_root_band_is_the_loops_not_twice_the_highest_pole(shaper_path):
     structural pole, and the roots found in it are those found with the old
     wide band (the same 6 roots, 1e-9)."""
     fz = cl.assemble(cl.load_model(shaper_path)).at(0.85)
-    from chatterlab.process._cutting import feedback
+    from chatterlab.process import closed_loop
 
-    fb = feedback(fz, width=2e-3, speed=0.5)
-    args = dict(DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay, count=6)
-    r = characteristic_roots(fz.A, fz.B, fz.C, **args)
+    loop = closed_loop(fz, width=2e-3, speed=0.5)
+    r = characteristic_roots(loop, count=6)
     pmax = float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(fz.A, fz.C))))) ** 0.5
     assert r.converged and r.band_top < 0.5 * pmax
-    wide = characteristic_roots(fz.A, fz.B, fz.C, omega_max=2 * pmax, **args)
+    wide = characteristic_roots(loop, count=6, omega_max=2 * pmax)
     np.testing.assert_allclose(r.roots, wide.roots, rtol=1e-9)
 
 
@@ -175,7 +174,7 @@ def test_too_dense_roots_are_a_status_not_a_memory_error():
     DO = -0.3 * Km
     tracemalloc.start()
     try:
-        r = characteristic_roots(Mm, Cm, Km, DP=-DO, DO=DO, tau=5000.0)
+        r = characteristic_roots(make_system(Mm, Cm, Km, DP=-DO, DO=DO, tau=5000.0))
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -207,7 +206,7 @@ def test_unstable_delay_free_loop_with_long_delay_is_answered_fast(shaper_path):
     from chatterlab.frequency import newton_refine
 
     p = sys_.delay_free_poles()
-    lam, ok = newton_refine(p[np.argsort(-p.real)][:2], fz.A, fz.B, fz.C, system=sys_)
+    lam, ok = newton_refine(p[np.argsort(-p.real)][:2], sys_)
     best = lam[ok][np.argmax(lam[ok].real)]
     assert best.real == pytest.approx(st.abscissa, rel=1e-9)
     sv = np.linalg.svd(sys_.delta(np.array([best]))[0], compute_uv=False)

@@ -28,7 +28,7 @@ from scipy.linalg import eigh
 import chatterlab as cl
 from chatterlab.frequency._roots import make_system
 from chatterlab.frequency._stability import stability
-from chatterlab.frequency._winding import rhp_count_system
+from chatterlab.frequency._winding import rhp_count
 from chatterlab.lobes._diagram import lobes
 from chatterlab.process._cutting import feedback
 
@@ -45,9 +45,7 @@ def _abscissa(frozen, b: float, T: float) -> float:
 
 def _rhp(frozen, b: float, T: float, terms: str = "pdo") -> int:
     fb = feedback(frozen, width=b, delay=T, terms=terms)
-    w = rhp_count_system(
-        make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T)
-    )
+    w = rhp_count(make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T))
     assert w.status == "converged", w.message
     return w.count
 

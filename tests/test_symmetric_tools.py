@@ -41,7 +41,7 @@ import chatterlab as cl
 from chatterlab.cli._main import main
 from chatterlab.frequency._roots import make_system
 from chatterlab.frequency._stability import stability
-from chatterlab.frequency._winding import rhp_count_system
+from chatterlab.frequency._winding import rhp_count
 from chatterlab.lobes._diagram import lobes
 from chatterlab.process._cutting import feedback
 
@@ -168,7 +168,7 @@ def _frozen(text: str) -> cl.FrozenSystem:
 
 def _rhp(fz: cl.FrozenSystem, b: float, T: float):
     fb = feedback(fz, width=b, delay=T)
-    return rhp_count_system(make_system(fz.A, fz.B, fz.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T))
+    return rhp_count(make_system(fz.A, fz.B, fz.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T))
 
 
 @pytest.fixture(scope="module")

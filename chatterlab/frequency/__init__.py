@@ -33,18 +33,16 @@ from ._roots import (
     DelaySystem,
     RootsResult,
     certified_top,
-    char_matrix,
-    char_matrix_derivative,
     characteristic_roots,
-    characteristic_roots_first_order,
     characteristic_roots_system,
     chebyshev_nodes,
+    loop_system,
     make_first_order_system,
     make_system,
     newton_refine,
 )
 from ._stability import MARGINAL_TOL, Stability, loop_band, stability
-from ._winding import WindingResult, rhp_count, rhp_count_system
+from ._winding import WindingResult, rhp_count
 
 __all__ = [
     "Band",
@@ -62,16 +60,13 @@ __all__ = [
     "DelaySystem",
     "make_system",
     "make_first_order_system",
+    "loop_system",
     "characteristic_roots",
-    "characteristic_roots_first_order",
     "characteristic_roots_system",
-    "char_matrix",
-    "char_matrix_derivative",
     "newton_refine",
     "chebyshev_nodes",
     "WindingResult",
     "rhp_count",
-    "rhp_count_system",
     "Stability",
     "stability",
     "loop_band",

@@ -13,9 +13,11 @@ cutting process acts through a few coordinates of a coupling element).
 :class:`DelaySystem` holds it once, validated, with its first-order
 linearisation; :func:`make_system` builds it from the seven matrices
 ``M, C, K, DP, DV, DO, tau`` (the only place they are read),
-:func:`make_first_order_system` from :math:`\\dot x = A_0 x + A_1 x(t-\\tau)`.
-:func:`char_matrix` and :func:`char_matrix_derivative` are thin wrappers
-that take the seven matrices.
+:func:`make_first_order_system` from :math:`\\dot x = A_0 x + A_1 x(t-\\tau)`,
+:func:`loop_system` from a :class:`chatterlab.process.ClosedLoop`.  Every
+root method (:func:`chatterlab.frequency.characteristic_roots`,
+:func:`chatterlab.frequency.rhp_count`, :func:`chatterlab.frequency.newton_refine`)
+takes one such value (:func:`as_delay_system`), never loose matrices.
 
 References
 ----------
@@ -46,8 +48,7 @@ __all__ = [
     "loop_system",
     "make_system",
     "make_first_order_system",
-    "char_matrix",
-    "char_matrix_derivative",
+    "as_delay_system",
 ]
 
 ComplexArray = NDArray[np.complex128]
@@ -420,55 +421,18 @@ def make_first_order_system(
     )
 
 
-def char_matrix(
-    lam: ArrayLike,
-    M: ArrayLike,
-    C: ArrayLike,
-    K: ArrayLike,
-    *,
-    DP: ArrayLike | None = None,
-    DV: ArrayLike | None = None,
-    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
-    tau: float | None = None,
-) -> ComplexArray:
-    """Characteristic matrix :math:`\\Delta(\\lambda)` of Eq. 2.1 with Eq. 2.23.
+def as_delay_system(system: Any, what: str = "system") -> DelaySystem:
+    """A :class:`DelaySystem` as given, or the one of a
+    :class:`chatterlab.process.ClosedLoop` (:func:`loop_system`); anything
+    else is an :class:`~chatterlab.errors.InputError` that says how to build one."""
+    if isinstance(system, DelaySystem):
+        return system
+    from ..process._loop import ClosedLoop
 
-    Parameters
-    ----------
-    lam : complex or array_like of complex, shape (...)
-        Laplace variable(s) in rad/s.
-    M, C, K, DP, DV, DO, tau
-        As in :func:`make_system`.
-
-    Returns
-    -------
-    ndarray of complex, shape ``(...) + (n, n)``
-        :math:`\\lambda^2 M + \\lambda (C - D_V) + K - D_P - D_O e^{-\\lambda\\tau}`.
-
-    References
-    ----------
-    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
-    """
-    return make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau).delta(lam)
-
-
-def char_matrix_derivative(
-    lam: ArrayLike,
-    M: ArrayLike,
-    C: ArrayLike,
-    K: ArrayLike,
-    *,
-    DP: ArrayLike | None = None,
-    DV: ArrayLike | None = None,
-    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
-    tau: float | None = None,
-) -> ComplexArray:
-    """Derivative :math:`\\Delta'(\\lambda) = 2\\lambda M + C - D_V + \\tau D_O e^{-\\lambda\\tau}`.
-
-    Same parameters and shapes as :func:`char_matrix`.
-
-    References
-    ----------
-    .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
-    """
-    return make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau).ddelta(lam)
+    if isinstance(system, ClosedLoop):
+        return loop_system(system)
+    raise InputError(
+        f"{what} must be a DelaySystem (make_system(M, C, K, DP=..., DV=..., DO=..., tau=...) or"
+        f" make_first_order_system(A0, A1, tau)) or a ClosedLoop (closed_loop(frozen, width=..., speed=...));"
+        f" got {type(system).__name__}"
+    )

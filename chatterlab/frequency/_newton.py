@@ -15,10 +15,12 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._delay_system import DelaySystem, batched_solve, make_system
+from ._delay_system import DelaySystem, as_delay_system, batched_solve
 
 __all__ = [
     "newton_refine",
@@ -110,17 +112,10 @@ def root_scale(sys: DelaySystem) -> float:
 
 def newton_refine(
     lam0: ArrayLike,
-    M: ArrayLike,
-    C: ArrayLike,
-    K: ArrayLike,
+    system: Any,
     *,
-    DP: ArrayLike | None = None,
-    DV: ArrayLike | None = None,
-    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
-    tau: float | None = None,
     tol: float = 1e-13,
     maxiter: int = 40,
-    system: DelaySystem | None = None,
 ) -> tuple[ComplexArray, NDArray[np.bool_]]:
     """Refine approximate characteristic roots by Newton's method on det Delta.
 
@@ -132,15 +127,14 @@ def newton_refine(
     ----------
     lam0 : complex or array_like of complex, shape (k,)
         Starting values in rad/s.
-    M, C, K, DP, DV, DO, tau
-        As in :func:`make_system` (ignored when ``system`` is given).
+    system : DelaySystem or ClosedLoop
+        The delay equation (:func:`make_system`,
+        :func:`make_first_order_system`, or a
+        :class:`chatterlab.process.ClosedLoop`).
     tol : float
         Relative step size at which an iterate counts as converged.
     maxiter : int
         Maximum number of Newton steps.
-    system : DelaySystem, optional
-        A prepared system (skips validation); e.g. from
-        :func:`make_first_order_system`.
 
     Returns
     -------
@@ -153,8 +147,7 @@ def newton_refine(
     ----------
     .. [1] P. Lancaster, *Lambda-matrices and Vibrating Systems*, 1966.
     """
-    sys = system if system is not None else make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
-    return newton(sys, lam0, tol=tol, maxiter=maxiter)
+    return newton(as_delay_system(system), lam0, tol=tol, maxiter=maxiter)
 
 
 def canonical(lam: ComplexArray, scale: float) -> ComplexArray:

@@ -1,6 +1,6 @@
 """Sampling the phase of :math:`f(j\\omega)` along the imaginary axis, for the argument principle.
 
-The steps of :func:`chatterlab.frequency._winding.rhp_count_system`, in the
+The steps of :func:`chatterlab.frequency.rhp_count`, in the
 order it takes them:
 
 * :class:`Sampler` evaluates the sampled factor: :math:`g = \\det(I_r - H

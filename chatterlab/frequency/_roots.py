@@ -86,18 +86,18 @@ import time
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from chatterlab.errors import InputError
 
+from ..process._loop import ClosedLoop
 from ._band import SIGMA_TAU, band_top, certified_top
 from ._branches import AXIS_GRID_MAX, branch_roots
 from ._checks import check_count, check_integer, check_omega_max
 from ._collocation import WINDOW_MAX, chebyshev_nodes
 from ._delay_system import (
     DelaySystem,
-    char_matrix,
-    char_matrix_derivative,
+    as_delay_system,
+    loop_system,
     make_first_order_system,
     make_system,
     single_threaded_blas,
@@ -111,11 +111,9 @@ __all__ = [
     "DelaySystem",
     "make_system",
     "make_first_order_system",
+    "loop_system",
     "characteristic_roots",
-    "characteristic_roots_first_order",
     "characteristic_roots_system",
-    "char_matrix",
-    "char_matrix_derivative",
     "newton_refine",
     "chebyshev_nodes",
     "certified_top",
@@ -236,14 +234,8 @@ def _search_certified(
 
 
 def characteristic_roots(
-    M: ArrayLike,
-    C: ArrayLike,
-    K: ArrayLike,
+    system: DelaySystem | ClosedLoop,
     *,
-    DP: ArrayLike | None = None,
-    DV: ArrayLike | None = None,
-    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
-    tau: float | None = None,
     count: int = 6,
     method: str = "auto",
     omega_max: float | None = None,
@@ -258,11 +250,14 @@ def characteristic_roots(
 
     Parameters
     ----------
-    M, C, K, DP, DV, DO, tau
-        The closed loop, as in :func:`make_system`, which builds the
-        :class:`DelaySystem` searched (:func:`characteristic_roots_system`
-        takes one directly).  ``DO`` None or zero: no delay, the quadratic
-        eigenvalue problem is solved.
+    system : DelaySystem or ClosedLoop
+        The delay equation: a :class:`chatterlab.process.ClosedLoop`, or a
+        :class:`DelaySystem` from :func:`make_system` (``M, C, K, DP, DV,
+        DO, tau``: no delayed term, the quadratic eigenvalue problem is
+        solved) or :func:`make_first_order_system` (:math:`\\det(\\lambda I
+        - A_0 - A_1 e^{-\\lambda\\tau}) = 0`, e.g. the scalar test equation
+        :math:`\\dot x = a x + b x(t-\\tau)`).  A prepared system shares its
+        partial fractions and band with :func:`chatterlab.frequency.rhp_count`.
     count : int
         Number of rightmost roots wanted (upper half plane and real axis;
         conjugates omitted).
@@ -296,7 +291,7 @@ def characteristic_roots(
     Raises
     ------
     InputError
-        Invalid input (see :func:`make_system`), ``count < 1``, unknown method.
+        Not a system, ``count < 1``, unknown method.
 
     Notes
     -----
@@ -320,63 +315,9 @@ def characteristic_roots(
        482-495, 2005.
     .. [3] L. N. Trefethen, *Spectral Methods in MATLAB*, SIAM 2000.
     """
-    sys = make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
+    sys = as_delay_system(system)
     return _dispatch(sys, count, method, omega_max, n_nodes, match_tol, max_windows)
 
 
-def characteristic_roots_system(
-    sys: DelaySystem,
-    *,
-    count: int = 6,
-    method: str = "auto",
-    omega_max: float | None = None,
-    n_nodes: int | None = None,
-    match_tol: float = 1e-6,
-    max_windows: int = 60,
-) -> RootsResult:
-    """:func:`characteristic_roots` for a prepared :class:`DelaySystem` (its
-    partial fractions and band are then shared with, e.g.,
-    :func:`chatterlab.frequency.rhp_count_system`)."""
-    return _dispatch(sys, count, method, omega_max, n_nodes, match_tol, max_windows)
-
-
-def characteristic_roots_first_order(
-    A0: ArrayLike,
-    A1: ArrayLike | tuple[ArrayLike, ArrayLike] | None,
-    tau: float | None,
-    *,
-    count: int = 6,
-    method: str = "auto",
-    omega_max: float | None = None,
-    n_nodes: int | None = None,
-    match_tol: float = 1e-6,
-    max_windows: int = 60,
-) -> RootsResult:
-    """Rightmost roots of :math:`\\det(\\lambda I - A_0 - A_1 e^{-\\lambda\\tau}) = 0`.
-
-    First-order entry point (e.g. the scalar test equation
-    :math:`\\dot x = a x + b x(t-\\tau)`), same algorithms and result object
-    as :func:`characteristic_roots`.
-
-    Parameters
-    ----------
-    A0 : array_like, shape (n, n)
-        Undelayed state matrix (1/s).
-    A1 : array_like, shape (n, n), or tuple ``(U, V)``, or None
-        Delayed state matrix (1/s), dense or factored ``A1 = U @ V.T``.
-    tau : float or None
-        Delay in s.
-    count, method, omega_max, n_nodes, match_tol, max_windows
-        As in :func:`characteristic_roots`.
-
-    Returns
-    -------
-    RootsResult
-
-    References
-    ----------
-    .. [1] D. Breda, S. Maset, R. Vermiglio, SIAM J. Sci. Comput. 27(2),
-       482-495, 2005.
-    """
-    sys = make_first_order_system(A0, A1, tau)
-    return _dispatch(sys, count, method, omega_max, n_nodes, match_tol, max_windows)
+#: the 0.2 name of :func:`characteristic_roots` (which now takes the system itself)
+characteristic_roots_system = characteristic_roots

@@ -151,12 +151,12 @@ def stability(
     Stability
     """
     from ._delay_system import loop_system
-    from ._roots import characteristic_roots_system
+    from ._roots import characteristic_roots
 
     fb = closed_loop(frozen, width=width, speed=speed, delay=delay, terms=terms, couplings=couplings)
     # one delay system for both routes: they share its partial fractions and bands
     sys_ = loop_system(fb)
-    r = characteristic_roots_system(sys_, count=count)
+    r = characteristic_roots(sys_, count=count)
     absc = float(r.abscissa)
     if not np.isfinite(absc) or not r.converged:
         verdict = "undetermined"
@@ -179,9 +179,9 @@ def stability(
     w = None
     agree = None
     if winding:
-        from ._winding import rhp_count_system
+        from ._winding import rhp_count
 
-        w = rhp_count_system(sys_, omega_max=loop_band(fb))
+        w = rhp_count(sys_, omega_max=loop_band(fb))
         if verdict in ("stable", "unstable") and w.status == "converged":
             agree = (w.count == 0) == (verdict == "stable")
             how = "every phase increment proven" if w.proven else "phase sampled, not proven"

@@ -89,10 +89,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
+from ..process._loop import ClosedLoop
 from ._checks import check_integer, check_omega_max
-from ._delay_system import DelaySystem, make_system, single_threaded_blas
+from ._delay_system import DelaySystem, as_delay_system, single_threaded_blas
 from ._phase_sampling import (
     MAX_SAMPLES,
     Sampler,
@@ -103,7 +104,7 @@ from ._phase_sampling import (
     refine,
 )
 
-__all__ = ["WindingResult", "rhp_count", "rhp_count_system"]
+__all__ = ["WindingResult", "rhp_count"]
 
 
 @dataclass(frozen=True)
@@ -242,31 +243,24 @@ def _status(
     if unresolved or dip or (val.size and abs(val[0]) <= 1e-12 * max(1.0, float(np.median(absf)))):
         status = "marginal"
         msg.append("a root lies on (or within ~1e-10 relative of) the imaginary axis")
-    if abs(count_f - count) > 0.05 or abs(tail) > math.pi / 4 or w.size > MAX_SAMPLES:
+    if abs(count_f - count) > 0.05 or abs(tail) > math.pi / 4:
         status = "not_converged"
         msg.append(
             f"winding {winding:.4g} is not an integer (tail phase {tail:.3g} rad); "
             "raise omega_max or n_points"
         )
+    elif w.size > MAX_SAMPLES:
+        status = "not_converged"
+        msg.append(f"the phase needed more than {MAX_SAMPLES} samples (a very lightly damped pole)")
     if not np.all(finite):
         status = "not_converged" if status == "converged" else status
         msg.append(f"{int(np.sum(~finite))} non-finite samples")
     return status, msg
 
 
-def rhp_count_system(
-    sys: DelaySystem,
-    *,
-    omega_max: float | None = None,
-    n_points: int | None = None,
-    direct: bool = False,
-) -> WindingResult:
-    """Right-half-plane root count for a prepared :class:`~chatterlab.frequency.DelaySystem`.
-
-    See :func:`rhp_count` for the parameters and the method; the steps
-    (reference, band, grid, bisection, phase) are in
-    :mod:`chatterlab.frequency._phase_sampling`.
-    """
+def _count(sys: DelaySystem, omega_max: float | None, n_points: int | None, direct: bool) -> WindingResult:
+    """:func:`rhp_count` on a validated system (the steps -- reference, band,
+    grid, bisection, phase -- are in :mod:`chatterlab.frequency._phase_sampling`)."""
     p0 = sys.open_loop_poles()
     p = sys.delay_free_poles()
     scale = max(
@@ -343,14 +337,8 @@ def rhp_count_system(
 
 
 def rhp_count(
-    M: ArrayLike,
-    C: ArrayLike,
-    K: ArrayLike,
+    system: DelaySystem | ClosedLoop,
     *,
-    DP: ArrayLike | None = None,
-    DV: ArrayLike | None = None,
-    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
-    tau: float | None = None,
     omega_max: float | None = None,
     n_points: int | None = None,
     direct: bool = False,
@@ -363,10 +351,10 @@ def rhp_count(
 
     Parameters
     ----------
-    M, C, K, DP, DV, DO, tau
-        The closed loop, as in :func:`chatterlab.frequency.make_system`
-        (the :class:`~chatterlab.frequency.DelaySystem` they build is what
-        :func:`rhp_count_system` counts on).
+    system : DelaySystem or ClosedLoop
+        The delay equation (:func:`chatterlab.frequency.make_system` builds
+        one from ``M, C, K, DP, DV, DO, tau``), or a
+        :class:`chatterlab.process.ClosedLoop`.
     omega_max : float, optional
         Upper end of the sampled band in rad/s; default: 3x the largest
         delay-free eigenfrequency, doubled until :math:`|f - 1| < 10^{-3}`.
@@ -389,8 +377,7 @@ def rhp_count(
     Raises
     ------
     InputError
-        Invalid input (as :func:`chatterlab.frequency._roots.make_system`) or a
-        non-positive ``omega_max`` / ``n_points``.
+        Not a system, or a non-positive ``omega_max`` / ``n_points``.
 
     References
     ----------
@@ -398,8 +385,8 @@ def rhp_count(
     .. [2] C. A. Desoer, Y.-T. Wang, IEEE Trans. Autom. Control 25(2),
        187-196, 1980.
     """
-    sys = make_system(M, C, K, DP=DP, DV=DV, DO=DO, tau=tau)
+    sys = as_delay_system(system)
     check_omega_max(omega_max)
     check_integer(n_points, "n_points", 2)
     with single_threaded_blas():
-        return rhp_count_system(sys, omega_max=omega_max, n_points=n_points, direct=direct)
+        return _count(sys, omega_max, n_points, direct)

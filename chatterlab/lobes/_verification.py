@@ -58,14 +58,13 @@ def _verify(
 ) -> tuple[dict[str, Any], ...]:
     """Check the diagram's claims by the argument principle, a route
     independent of the boundary computation: the number of closed-loop roots
-    in the right half plane (:func:`chatterlab.frequency._winding.rhp_count_system`) is
+    in the right half plane (:func:`chatterlab.frequency.rhp_count`) is
     0 just below the envelope (b = (1 - VERIFY_OFFSET) b_lim) and > 0 just
     above it; where the diagram says ``inf``, 0 at the width ceiling.  Each
     check says whether its count is ``proven`` (every phase increment bounded,
     see :func:`chatterlab.frequency._phase_sampling.certified_phase`) or only
     sampled."""
-    from ..frequency._delay_system import loop_system
-    from ..frequency._winding import rhp_count_system
+    from ..frequency._winding import rhp_count
 
     out = []
     for j, kind in _check_speeds(d, count):
@@ -77,7 +76,7 @@ def _verify(
         loop = closed_loop_unwarned(
             frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings
         )
-        w = rhp_count_system(loop_system(loop))
+        w = rhp_count(loop)
         if w.status != "converged":
             verdict = "undetermined"
         else:
