@@ -1,47 +1,46 @@
-"""Benchmark of the stability lobe diagram of the traverse shaper, measured.
+"""The lobe engine against the FRF it is built on (issue 26, rows 3 and 4), measured.
 
 Run from the repository root::
 
-    python benchmarks/bench_lobes.py                     # ~1.5 minutes on 2 idle cores
-    python benchmarks/bench_lobes.py --compare-speeds 10 # the 10-speed comparison (~3 min)
-    python benchmarks/bench_lobes.py --quick             # 3 speeds compared
+    python benchmarks/bench_lobes.py                  # label "current", 7 interleaved repeats
+    python benchmarks/bench_lobes.py --label before   # e.g. with PYTHONPATH at an older checkout
 
-Paper's CE with all terms (case c), width_max 5 mm.  Everything below is
-measured in this run; nothing is extrapolated.
+What is timed, in one run, interleaved (route a, b, c, a, b, c, ...), every
+route with one BLAS thread (threadpoolctl) and cold (the structure's complex
+modes are dropped before each ``lobes()`` call, so the engine pays for its
+own eigendecomposition, as the competitor does):
 
-1. ``lobes()`` on 300 work speeds 0.1-1 m/s, cold (complex modes
-   recomputed), ``verify=0`` and with its default argument-principle checks;
-   ``--repeat`` interleaved repeats, min and median.
-2. The comparison at equal accuracy on ``--compare-speeds`` speeds spread
-   over 0.1-1 m/s (default 6):
+a. ``chatterlab.lobes.lobes(frozen, speeds, width_max=1e-3, verify=0)`` on the
+   traverse shaper (``studies/traverse_shaper/model.toml`` at s = 0.85 m), 300
+   work speeds 0.1 .. 1 m/s, as in the README;
+b. the same with ``verify=16`` (the argument-principle checks);
+c. the competitor, what a competent numpy user writes to get the structure's
+   FRF between the coupling coordinates, H(jw) = J (K - w^2 M + jw C)^-1 J^T,
+   at the very frequency grid the engine searches (its size is recorded): one
+   eigendecomposition of the 2n x 2n first-order matrix and a vectorised
+   pole-residue sum (one matrix product over the poles).  Its H agrees with the
+   engine's (from the complex modes) to the recorded relative difference.
 
-   * ``lobes()`` on exactly those speeds (``verify=0`` and default), repeated;
-   * brute-force bisection on the width at each speed, deciding on the sign
-     of the rightmost characteristic root (``stability(..., winding=False)
-     .abscissa``) at every step, from [0, width_max] until the bracket is
-     below ``--tol`` (1e-6) of its upper end -- run for real, once per speed
-     (one run of the whole set takes most of the minute);
-   * what a competent user would do instead of bisection: Brent's method
-     (``scipy.optimize.brentq``) on the abscissa as a continuous function of
-     the width, same bracket and relative tolerance -- also run for real.
-
-   Each reports its root computations, wall time, and b_lim relative to
-   ``lobes()`` (equal accuracy: both agree to the tolerance).  The ratio
-   printed is (brute-force time on those speeds) / (``lobes()`` time on
-   those speeds): no extrapolation to 300 speeds.
-
-Load averages (``os.getloadavg``) are recorded with every timing; a 1-minute
-load above 0.5 is flagged LOADED (2 cores).  Numbers go to
-``benchmarks/results/bench_lobes.json``.
+Row 3 of issue 26 is a / c (goal <= 10), row 4 is (b - a) / a (goal <= 1),
+both from the min and from the median of the repeats of this run.  The load
+(``/proc/loadavg``) is read before and after the timed loop, the peak RSS
+(``resource.getrusage``) at the end.  The run is stored in
+``benchmarks/results/lobes.json`` under ``runs[<label>]`` (other labels are
+kept), with the diagram's results (b_lim, chatter frequency, lobe numbers at
+every speed, minima, folds, checks), so that two runs (``before`` on an older
+checkout, ``after``) can be compared number for number; the Markdown table
+``benchmarks/results/lobes.md`` is generated from that JSON (``--table-only``
+regenerates it without timing).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
+import resource
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -49,7 +48,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 try:
     import chatterlab as cl
@@ -57,253 +55,285 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import chatterlab as cl
 
-from chatterlab.frequency._stability import stability
-from chatterlab.lobes._diagram import lobes
-
 ROOT = Path(__file__).resolve().parents[1]
-LOADED = 0.5
+MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"
+OUT = ROOT / "benchmarks" / "results" / "lobes.json"
+GOAL_LOBES = 10.0  #: issue 26 row 3: lobes(verify=0) / FRF, at most
+GOAL_VERIFY = 1.0  #: issue 26 row 4: extra time of verify=16 / lobes(verify=0), at most
 
 
-def load() -> float:
-    return float(os.getloadavg()[0]) if hasattr(os, "getloadavg") else float("nan")
+def loadavg() -> str:
+    try:
+        return Path("/proc/loadavg").read_text().strip()
+    except OSError:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def stats(times: list[float], l0: float, l1: float) -> dict[str, Any]:
+def source_commit() -> str:
+    """The commit of the chatterlab actually imported (PYTHONPATH may point
+    at another checkout), with '+dirty' when its tracked files differ."""
+    src = Path(cl.__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no", "chatterlab"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        return head + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def competitor(M: np.ndarray, C: np.ndarray, K: np.ndarray, J: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """H(jw) = J (K - w^2 M + jw C)^-1 J^T, shape (N, m, m), by one
+    eigendecomposition of the first-order matrix and a pole-residue sum.
+
+    x = (q, qdot): xdot = A x + B f with A = [[0, I], [-M^-1 K, -M^-1 C]],
+    B = [0; M^-1 J^T]; A = S diag(lam) S^-1 gives
+    H(s) = (J S_q) diag(1/(s - lam)) (S^-1 B), one GEMM over the 2n poles."""
+    n = M.shape[0]
+    m = J.shape[0]
+    Minv_K = np.linalg.solve(M, K)
+    Minv_C = np.linalg.solve(M, C)
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -Minv_K
+    A[n:, n:] = -Minv_C
+    lam, S = np.linalg.eig(A)
+    B = np.zeros((2 * n, m))
+    B[n:] = np.linalg.solve(M, J.T)
+    L = J @ S[:n]  # (m, 2n)
+    R = np.linalg.solve(S, B)  # (2n, m)
+    LR = (L.T[:, :, None] * R[:, None, :]).reshape(2 * n, m * m)  # residue of each pole
+    g = 1.0 / (1j * omega[:, None] - lam[None, :])  # (N, 2n)
+    return (g @ LR).reshape(omega.size, m, m)
+
+
+def stats(times: list[float]) -> dict[str, Any]:
+    return {"min_s": min(times), "median_s": float(np.median(times)), "times_s": times}
+
+
+def summary(d: Any) -> dict[str, Any]:
+    """The diagram's results that must not change between versions."""
     return {
-        "min_s": min(times),
-        "median_s": float(np.median(times)),
-        "times_s": times,
-        "load_before": l0,
-        "load_after": l1,
-        "loaded": bool(max(l0, l1) > LOADED),
+        "b_lim_m": [float(x) for x in d.b_lim],
+        "chatter_hz": [float(x) for x in d.chatter_hz],
+        "lobe": [int(x) for x in d.lobe],
+        "minimum": {k: float(v) for k, v in d.minimum.items()},
+        "absolute_minimum": {k: float(v) for k, v in d.absolute_minimum.items()},
+        "folds": int(d.folds),
+        "n_frequencies": int(d.n_frequencies),
+        "n_lobes_listed": len(d.lobes),
+        "band_hz": [float(x) for x in d.band_hz],
+        "checks": [
+            {k: c[k] for k in ("speed", "width", "kind", "verdict", "rhp_roots", "proven", "agrees")}
+            for c in d.checks
+        ],
     }
 
 
-def timed(routes: dict[str, Callable[[], Any]], repeat: int) -> dict[str, tuple[dict[str, Any], Any]]:
-    """Interleaved repeats (a burst of outside load hits every route alike)."""
-    times: dict[str, list[float]] = {k: [] for k in routes}
-    out: dict[str, Any] = {}
-    l0 = load()
-    for _ in range(repeat):
-        for k, fn in routes.items():
-            t = time.perf_counter()
-            out[k] = fn()
-            times[k].append(time.perf_counter() - t)
-    l1 = load()
-    return {k: (stats(v, l0, l1), out[k]) for k, v in times.items()}
+def measure(label: str, repeat: int, n_speeds: int, width_max: float, verify: int) -> dict[str, Any]:
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from chatterlab.lobes import Boundary, lobes
+    from chatterlab.process._loop import closed_loop_unwarned
+
+    fz = cl.assemble(cl.load_model(MODEL)).at(0.85)
+    speeds = np.linspace(0.1, 1.0, n_speeds)
+    J = closed_loop_unwarned(fz, width=1.0, delay=1.0, terms="pdo").J
+    M, C, K = fz.A, fz.B, fz.C
+    with threadpool_limits(limits=1, user_api="blas"):
+        import scipy.linalg  # noqa: F401  (its OpenBLAS loaded before the limit is read back)
+
+        blas = [{k: x.get(k) for k in ("internal_api", "num_threads", "version")} for x in threadpool_info()]
+        omega = Boundary(fz, width_max=width_max).ops.omega  # the engine's grid (6169 for 0.2.0)
+
+        def cold() -> None:
+            fz.__dict__.pop("complex_modes", None)
+
+        def run_a() -> Any:
+            cold()
+            return lobes(fz, speeds, width_max=width_max, verify=0)
+
+        def run_b() -> Any:
+            cold()
+            return lobes(fz, speeds, width_max=width_max, verify=verify)
+
+        def run_c() -> Any:
+            return competitor(M, C, K, J, omega)
+
+        routes: dict[str, Callable[[], Any]] = {"lobes_verify0": run_a, "lobes_verify": run_b, "frf": run_c}
+        out = {k: f() for k, f in routes.items()}  # warm-up: imports, caches of numpy/scipy
+        times: dict[str, list[float]] = {k: [] for k in routes}
+        load_before = loadavg()
+        for _ in range(repeat):
+            for k, f in routes.items():
+                t = time.perf_counter()
+                out[k] = f()
+                times[k].append(time.perf_counter() - t)
+        load_after = loadavg()
+    rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    Href = Boundary(fz, width_max=width_max).plant.H(omega)
+    Hc = out["frf"]
+    rel = float(np.max(np.abs(Hc - Href)) / np.max(np.abs(Href)))
+    a, b, c = (stats(times[k]) for k in ("lobes_verify0", "lobes_verify", "frf"))
+    ratios = {
+        "lobes_over_frf_min": a["min_s"] / c["min_s"],
+        "lobes_over_frf_median": a["median_s"] / c["median_s"],
+        "verify_extra_over_lobes_min": (b["min_s"] - a["min_s"]) / a["min_s"],
+        "verify_extra_over_lobes_median": (b["median_s"] - a["median_s"]) / a["median_s"],
+    }
+    d0, dv = out["lobes_verify0"], out["lobes_verify"]
+    return {
+        "label": label,
+        "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "chatterlab": cl.__version__,
+        "commit": source_commit(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "cpu_count": os.cpu_count(),
+        "blas": blas,
+        "model": "studies/traverse_shaper/model.toml at 0.85 m",
+        "speeds": [0.1, 1.0, n_speeds],
+        "width_max_m": width_max,
+        "verify": verify,
+        "repeats": repeat,
+        "grid_size": int(omega.size),
+        "n_poles": int(2 * M.shape[0]),
+        "frf_rel_diff_vs_engine": rel,
+        "load_before": load_before,
+        "load_after": load_after,
+        "peak_rss_mb": rss_kb / 1024.0,
+        "lobes_verify0": a,
+        "lobes_verify": b,
+        "frf": c,
+        "ratios": ratios,
+        "result_verify0": summary(d0),
+        "result_verify": summary(dv),
+    }
 
 
-def fmt(rec: dict[str, Any]) -> str:
-    return (
-        f"min {rec['min_s']:7.3f} s, median {rec['median_s']:7.3f} s"
-        f"  (load {rec['load_before']:.2f}->{rec['load_after']:.2f}{' LOADED' if rec['loaded'] else ''})"
-    )
+def _agreement(ref: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
+    """How far two runs' diagrams are apart (relative, finite entries)."""
+    r0, r1 = ref["result_verify"], new["result_verify"]
+    b0, b1 = np.array(r0["b_lim_m"]), np.array(r1["b_lim_m"])
+    f0, f1 = np.array(r0["chatter_hz"]), np.array(r1["chatter_hz"])
+    fin = np.isfinite(b0) & np.isfinite(b1)
+    same_inf = bool(np.array_equal(np.isfinite(b0), np.isfinite(b1)))
+    key = ("kind", "verdict", "rhp_roots", "proven", "agrees")
+    return {
+        "b_lim_max_rel": float(np.max(np.abs(b1[fin] / b0[fin] - 1))) if fin.any() else 0.0,
+        "chatter_max_rel": float(np.max(np.abs(f1[fin] / f0[fin] - 1))) if fin.any() else 0.0,
+        "same_inf": same_inf,
+        "same_lobes": r0["lobe"] == r1["lobe"],
+        "same_folds": r0["folds"] == r1["folds"],
+        "same_grid": r0["n_frequencies"] == r1["n_frequencies"],
+        "minimum_rel": abs(r1["minimum"]["width"] / r0["minimum"]["width"] - 1),
+        "absolute_minimum_rel": abs(r1["absolute_minimum"]["width"] / r0["absolute_minimum"]["width"] - 1),
+        "same_checks": [{k: c[k] for k in key} for c in r0["checks"]]
+        == [{k: c[k] for k in key} for c in r1["checks"]],
+    }
 
 
-class Counted:
-    """abscissa(width) at one delay, counting root computations."""
-
-    def __init__(self, fz: cl.FrozenSystem, delay: float) -> None:
-        self.fz, self.delay, self.n = fz, delay, 0
-
-    def __call__(self, width: float) -> float:
-        self.n += 1
-        return float(stability(self.fz, width=width, delay=self.delay, terms="pdo", winding=False).abscissa)
-
-
-def bisect(f: Counted, width_max: float, tol: float) -> float:
-    """Brute force: bisection on the sign of the rightmost root.  Decides on
-    the sign of Re lambda, not on the verdict: stability() calls |Re lambda|
-    <= MARGINAL_TOL |lambda| "marginal", a band of about +-5e-5 relative in
-    width around the shaper's b_lim, too wide for a 1e-6 bisection."""
-    if f(width_max) < 0:
-        return math.inf
-    lo, hi = 0.0, width_max
-    while hi - lo > tol * hi:
-        mid = 0.5 * (lo + hi)
-        if f(mid) < 0:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
-def brent(f: Counted, width_max: float, tol: float, a0: float) -> float:
-    """Brent's method on abscissa(width) in [0, width_max]; abscissa(0) is
-    the structure's own (from its complex modes, no root computation)."""
-    fb = f(width_max)
-    if fb < 0:
-        return math.inf
-    return float(brentq(lambda b: a0 if b == 0.0 else f(b), 0.0, width_max, xtol=1e-15, rtol=tol))
+def table(data: dict[str, Any]) -> str:
+    """benchmarks/results/lobes.md from the JSON (never typed by hand)."""
+    runs = data["runs"]
+    lines = [
+        "# Lobe engine against the FRF it is built on (issue 26, rows 3 and 4)",
+        "",
+        "Generated by `python benchmarks/bench_lobes.py` from `benchmarks/results/lobes.json`; do not edit.",
+        "",
+        "Traverse shaper at s = 0.85 m, 300 work speeds 0.1 .. 1 m/s, width ceiling 1 mm, one BLAS thread,"
+        " interleaved repeats. *FRF* is the competitor: the structure's FRF between the coupling coordinates"
+        " at the engine's own frequency grid by one eigendecomposition and a vectorised pole-residue sum."
+        " Row 3 is `lobes(verify=0)` / FRF (goal <= 10); row 4 is the extra time of `verify=16` over"
+        " `lobes(verify=0)` (goal <= 1). Ratios are taken within one run (min / min and median / median).",
+        "",
+        "| run | commit | grid | repeats | FRF min / median ms | lobes verify=0 min / median ms"
+        " | verify=16 min / median ms | row 3: lobes / FRF (min, median) | row 4: verify extra / lobes"
+        " (min, median) | load before -> after | peak RSS MB |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for label, r in runs.items():
+        q = r["ratios"]
+        lines.append(
+            f"| {label} | {r['commit']} | {r['grid_size']} | {r['repeats']}"
+            f" | {r['frf']['min_s'] * 1e3:.1f} / {r['frf']['median_s'] * 1e3:.1f}"
+            f" | {r['lobes_verify0']['min_s'] * 1e3:.0f} / {r['lobes_verify0']['median_s'] * 1e3:.0f}"
+            f" | {r['lobes_verify']['min_s'] * 1e3:.0f} / {r['lobes_verify']['median_s'] * 1e3:.0f}"
+            f" | {q['lobes_over_frf_min']:.1f}x, {q['lobes_over_frf_median']:.1f}x"
+            f" | {q['verify_extra_over_lobes_min']:.2f}x, {q['verify_extra_over_lobes_median']:.2f}x"
+            f" | {r['load_before'].split()[0]} -> {r['load_after'].split()[0]}"
+            f" | {r['peak_rss_mb']:.0f} |"
+        )
+    lines += ["", "Load: 1-minute /proc/loadavg on a 2-core machine shared with other work.", ""]
+    for label, r in runs.items():
+        res = r["result_verify"]
+        agree = sum(c["agrees"] for c in res["checks"])
+        lines.append(
+            f"- {label}: minimum b_lim {res['minimum']['width'] * 1e3:.6f} mm at"
+            f" {res['minimum']['speed']:.5f} m/s, {res['minimum']['chatter_hz']:.4f} Hz;"
+            f" {res['folds']} folds, {res['n_frequencies']} frequencies; {agree}/{len(res['checks'])}"
+            f" checks agree; FRF of the competitor vs the engine's: {r['frf_rel_diff_vs_engine']:.1e} relative"
+        )
+    labels = list(runs)
+    if "before" in runs:
+        for label in labels:
+            if label == "before":
+                continue
+            g = _agreement(runs["before"], runs[label])
+            lines.append(
+                f"- {label} vs before: b_lim within {g['b_lim_max_rel']:.1e} relative, chatter frequency within"
+                f" {g['chatter_max_rel']:.1e}; same inf: {g['same_inf']}, same lobe numbers: {g['same_lobes']},"
+                f" same folds: {g['same_folds']}, same grid: {g['same_grid']}; minimum within"
+                f" {g['minimum_rel']:.1e}, absolute minimum within {g['absolute_minimum_rel']:.1e};"
+                f" same check verdicts and counts: {g['same_checks']}"
+            )
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="3 speeds compared")
-    ap.add_argument("--repeat", type=int, default=5, help="lobes() timing repeats (>= 5)")
-    ap.add_argument("--speeds", type=int, default=300, help="speeds of the full diagram")
-    ap.add_argument(
-        "--compare-speeds", type=int, default=None, help="speeds of the measured comparison (default 6)"
-    )
-    ap.add_argument("--tol", type=float, default=1e-6, help="relative b_lim tolerance of the root searches")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "bench_lobes.json"))
+    ap.add_argument("--label", default="current", help="name of this run in the JSON (e.g. before, after)")
+    ap.add_argument("--repeat", type=int, default=7, help="interleaved repeats (>= 5)")
+    ap.add_argument("--speeds", type=int, default=300)
+    ap.add_argument("--width-max", type=float, default=1e-3, help="width ceiling, m")
+    ap.add_argument("--verify", type=int, default=16)
+    ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--table-only", action="store_true", help="regenerate the Markdown table from the JSON")
     args = ap.parse_args()
-    rep = max(5, args.repeat)
-    ncmp = args.compare_speeds or (3 if args.quick else 6)
-
-    load0 = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    print(
-        f"chatterlab {cl.__version__}, {os.cpu_count()} CPUs, load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}"
-        + ("  (LOADED: timings inflated by other processes)" if load0[0] > LOADED else "")
-    )
-    fz = cl.assemble(cl.load_model(ROOT / "studies" / "traverse_shaper" / "model.toml")).at()
-    width_max = 0.005
-    cold = lambda: fz.__dict__.pop("complex_modes", None)  # noqa: E731
-
-    def run(sp: np.ndarray, verify: int | None) -> Any:
-        cold()
-        kw = {} if verify is None else {"verify": verify}
-        return lobes(fz, sp, width_max=width_max, terms="pdo", **kw)
-
-    result: dict[str, Any] = {
-        "benchmark": "bench_lobes",
-        "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "chatterlab": cl.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-        "cpu_count": os.cpu_count(),
-        "load_average_start": list(load0),
-        "loaded_threshold": LOADED,
-        "model": "studies/traverse_shaper/model.toml",
-        "terms": "pdo",
-        "width_max_m": width_max,
-        "tol": args.tol,
-        "repeats": rep,
-    }
-
-    # ------------------------------------------------------------------ 1. lobes() on 300 speeds
-    speeds = np.linspace(0.1, 1.0, args.speeds)
-    run(speeds[:2], 0)  # warm-up: imports
-    res = timed({"verify=0": lambda: run(speeds, 0), "default verify": lambda: run(speeds, None)}, rep)
-    (r0, d), (rv, dv) = res["verify=0"], res["default verify"]
-    print(
-        f"\n1. lobes(): {speeds.size} speeds {speeds[0]:g}-{speeds[-1]:g} m/s, width_max {width_max * 1e3:g} mm,"
-        f" {d.n_frequencies} grid frequencies, {len(d.lobes)} lobes, cold, {rep} interleaved repeats"
-    )
-    print(f"   verify=0:          {fmt(r0)}")
-    print(
-        f"   default verify:    {fmt(rv)}  ({len(dv.checks)} argument-principle checks,"
-        f" {sum(c['agrees'] for c in dv.checks)} agree)"
-    )
-    print(
-        f"   min b_lim {d.minimum['width'] * 1e3:.4f} mm at {d.minimum['speed']:.4f} m/s,"
-        f" {d.minimum['chatter_hz']:.2f} Hz"
-    )
-    result["lobes_300"] = {
-        "n_speeds": int(speeds.size),
-        "n_frequencies": int(d.n_frequencies),
-        "n_lobes": len(d.lobes),
-        "verify0": r0,
-        "default_verify": {**rv, "checks": len(dv.checks), "agree": int(sum(c["agrees"] for c in dv.checks))},
-        "min_b_lim_m": float(d.minimum["width"]),
-    }
-
-    # ------------------------------------------------------------------ 2. measured comparison
-    sp = np.linspace(0.1, 1.0, ncmp)
-    res = timed({"verify=0": lambda: run(sp, 0), "default verify": lambda: run(sp, None)}, rep)
-    (c0, dc), (cv, dcv) = res["verify=0"], res["default verify"]
-    print(
-        f"\n2. the same computation on {ncmp} speeds {', '.join(f'{v:.2f}' for v in sp)} m/s, tolerance {args.tol:g}"
-    )
-    print(f"   lobes() verify=0:        {fmt(c0)}")
-    print(f"   lobes() default verify:  {fmt(cv)}  ({len(dcv.checks)} checks)")
-    a0 = float(fz.complex_modes.lam.real.max())  # abscissa of the structure alone (< 0)
-    rows = []
-    tot = {"bisection": [0.0, 0], "brent": [0.0, 0]}
-    l0 = load()
-    print(
-        f"   {'v m/s':>6s} {'T s':>5s} {'lobes() b_lim mm':>16s}"
-        f" {'bisection: roots':>16s} {'s':>6s} {'rel. diff':>9s} {'Brent: roots':>12s} {'s':>6s} {'rel. diff':>9s}"
-    )
-    for j, v in enumerate(sp):
-        T, ref = float(dc.delay[j]), float(dc.b_lim[j])
-        row: dict[str, Any] = {"speed": float(v), "delay_s": T, "lobes_b_lim_m": ref}
-        line = f"   {v:6.3f} {T:5.2f} {ref * 1e3:16.7f}"
-        for name, search in (
-            ("bisection", lambda f: bisect(f, width_max, args.tol)),
-            ("brent", lambda f: brent(f, width_max, args.tol, a0)),
-        ):
-            f = Counted(fz, T)
-            t = time.perf_counter()
-            b = search(f)
-            dt = time.perf_counter() - t
-            rel = (
-                abs(b / ref - 1)
-                if math.isfinite(b) and math.isfinite(ref)
-                else (0.0 if b == ref else math.inf)
-            )
-            row[name] = {"b_lim_m": b, "root_computations": f.n, "wall_s": dt, "rel_diff_vs_lobes": rel}
-            tot[name][0] += dt
-            tot[name][1] += f.n
-            line += (
-                f" {f.n:16d} {dt:6.1f} {rel:9.1e}"
-                if name == "bisection"
-                else f" {f.n:12d} {dt:6.1f} {rel:9.1e}"
-            )
-        rows.append(row)
-        print(line, flush=True)
-    l1 = load()
-    t_bis, t_br = tot["bisection"][0], tot["brent"][0]
-    ratios = {
-        "bisection_over_lobes_verify0": t_bis / c0["min_s"],
-        "bisection_over_lobes_default": t_bis / cv["min_s"],
-        "brent_over_lobes_verify0": t_br / c0["min_s"],
-        "brent_over_lobes_default": t_br / cv["min_s"],
-    }
-    flag = " LOADED" if max(l0, l1) > LOADED else ""
-    print(
-        f"   total: bisection {t_bis:.1f} s ({tot['bisection'][1]} root computations),"
-        f" Brent {t_br:.1f} s ({tot['brent'][1]}), measured once each (load {l0:.2f}->{l1:.2f}{flag})"
-    )
-    print(
-        f"\n   measured on these {ncmp} speeds (lobes() min time):"
-        f" bisection / lobes() = {ratios['bisection_over_lobes_verify0']:.0f}x (verify=0),"
-        f" {ratios['bisection_over_lobes_default']:.0f}x (default verify);"
-        f" Brent / lobes() = {ratios['brent_over_lobes_verify0']:.0f}x, {ratios['brent_over_lobes_default']:.0f}x"
-    )
-    worst = max(
-        (r[k]["rel_diff_vs_lobes"] for r in rows for k in ("bisection", "brent")),
-        default=0.0,
-    )
-    print(
-        f"   equal accuracy: the root searches agree with lobes() to {worst:.1e} relative (tolerance {args.tol:g})"
-    )
-    result["comparison"] = {
-        "n_speeds": ncmp,
-        "speeds": sp.tolist(),
-        "lobes_verify0": c0,
-        "lobes_default_verify": {**cv, "checks": len(dcv.checks)},
-        "per_speed": rows,
-        "bisection_total_s": t_bis,
-        "bisection_root_computations": tot["bisection"][1],
-        "brent_total_s": t_br,
-        "brent_root_computations": tot["brent"][1],
-        "root_searches_load": [l0, l1],
-        "root_searches_loaded": bool(max(l0, l1) > LOADED),
-        "worst_rel_diff_vs_lobes": worst,
-        "ratios": ratios,
-    }
-    result["load_average_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
-    result["loaded"] = bool(
-        load0[0] > LOADED or r0["loaded"] or rv["loaded"] or c0["loaded"] or max(l0, l1) > LOADED
-    )
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
-    print(
-        f"\nload average at the end {result['load_average_end'][0]:.2f}"
-        + (" -- LOADED machine" if result["loaded"] else "")
-        + f"; wrote {args.out}"
-    )
+    out = Path(args.out)
+    data: dict[str, Any] = json.loads(out.read_text()) if out.exists() else {}
+    data.setdefault("benchmark", "lobes (issue 26, rows 3 and 4)")
+    data.setdefault("runs", {})
+    if not args.table_only:
+        rec = measure(args.label, max(5, args.repeat), args.speeds, args.width_max, args.verify)
+        data["runs"][args.label] = rec
+        q = rec["ratios"]
+        print(
+            f"chatterlab {rec['chatterlab']} ({rec['commit']}), grid {rec['grid_size']} frequencies,"
+            f" {rec['repeats']} interleaved repeats, load {rec['load_before']} -> {rec['load_after']}"
+        )
+        for k in ("frf", "lobes_verify0", "lobes_verify"):
+            print(f"  {k:14s} min {rec[k]['min_s'] * 1e3:8.1f} ms  median {rec[k]['median_s'] * 1e3:8.1f} ms")
+        print(
+            f"  row 3 lobes/FRF: {q['lobes_over_frf_min']:.1f}x (min), {q['lobes_over_frf_median']:.1f}x (median)"
+            f" [goal <= {GOAL_LOBES:g}]; row 4 verify extra/lobes: {q['verify_extra_over_lobes_min']:.2f}x (min),"
+            f" {q['verify_extra_over_lobes_median']:.2f}x (median) [goal <= {GOAL_VERIFY:g}];"
+            f" peak RSS {rec['peak_rss_mb']:.0f} MB"
+        )
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(data, indent=1) + "\n")
+    md = out.with_suffix(".md")
+    md.write_text(table(data))
+    print(f"wrote {out} and {md}")
 
 
 if __name__ == "__main__":
