@@ -23,11 +23,11 @@ from .errors import ChatterlabError, InputError, ModelError, SweepError
 
 if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, below
     from . import lobes, sweep
-    from .frequency import FRF, Stability, frequencies, frf, loop_determinant, stability
+    from .frequency import Stability, frequencies, frf, loop_determinant, stability
     from .lobes import LobeDiagram
     from .model import Model, load_model, loads_model
     from .process import Feedback, feedback
-    from .structure import CouplingMatrices, FrozenSystem, Modes, System, assemble, modes
+    from .structure import FRF, CouplingMatrices, FrozenSystem, Modes, System, assemble, modes
     from .sweep import Grid, SweepResult
     from .time import Simulation, simulate
 
@@ -35,12 +35,12 @@ if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, 
 #: ``import chatterlab`` loads numpy and nothing heavier, scipy included
 _HOME = {
     **dict.fromkeys(("lobes", "sweep"), ""),
-    **dict.fromkeys(("FRF", "Stability", "frequencies", "frf", "loop_determinant", "stability"), "frequency"),
+    **dict.fromkeys(("Stability", "frequencies", "frf", "loop_determinant", "stability"), "frequency"),
     "LobeDiagram": "lobes",
     **dict.fromkeys(("Model", "load_model", "loads_model"), "model"),
     **dict.fromkeys(("Feedback", "feedback"), "process"),
     **dict.fromkeys(
-        ("CouplingMatrices", "FrozenSystem", "Modes", "System", "assemble", "modes"), "structure"
+        ("FRF", "CouplingMatrices", "FrozenSystem", "Modes", "System", "assemble", "modes"), "structure"
     ),
     **dict.fromkeys(("Grid", "SweepResult"), "sweep"),
     **dict.fromkeys(("Simulation", "simulate"), "time"),

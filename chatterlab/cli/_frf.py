@@ -71,7 +71,8 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
         if args.format == "json":
             emit(res.to_json(), outs.path(args.out) if args.out else None)
         else:
-            res.to_csv(outs.path(args.out) if args.out else sys.stdout)
+            # magnitude, phase, real and imaginary part per pair, 17 digits; no comment lines (a plain table)
+            res.to_csv(outs.path(args.out) if args.out else sys.stdout, form="both", comments=False)
     else:  # a picture was asked for: a line, not the whole table on the terminal
         print(
             f"frf: {len(res.frequency_hz)} frequencies, {res.data.shape[0]} output(s) x {res.data.shape[1]}"

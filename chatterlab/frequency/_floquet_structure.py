@@ -122,9 +122,10 @@ class ToolStructure:
 
     def frf(self, omega: np.ndarray) -> np.ndarray:
         """H(j w) = J (K - w^2 M + j w C)^-1 J^T, m/N, shape (len(w), 2, 2)."""
+        from ..structure import dynamic_receptance
+
         w = np.atleast_1d(np.asarray(omega, dtype=float))
-        Z = self.K[None] - w[:, None, None] ** 2 * self.M[None] + 1j * w[:, None, None] * self.C[None]
-        return self.J[None] @ np.linalg.solve(Z, np.broadcast_to(self.J.T, (w.size,) + self.J.T.shape))
+        return dynamic_receptance(self.M, self.C, self.K, w, self.J)
 
     def stable(self) -> bool:
         return bool(np.all(np.linalg.eigvals(self.A).real < 0))

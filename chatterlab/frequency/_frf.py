@@ -9,12 +9,14 @@ and closed loop (the cutting process in the loop, Eq. 2.1)::
     G_cl(jw) = (-w^2 A* + jw B* + C* - D(jw))^-1,   D(s) = D_P + s D_V + D_O e^{-sT}
 
 between named inputs and outputs ``"POINT.DIR"`` (DIR one of x, y, rz).
-Data are shaped ``(n_out, n_in, n_freq)``; angular frequency in rad/s
-inside, Hz only for display and files.
+The result is the structure's :class:`~chatterlab.structure.FRF` (data
+shaped ``(n_out, n_in, n_freq)``); angular frequency in rad/s inside, Hz
+only for display and files.
 
 Two routes that must agree:
 
-* ``method="direct"``: one linear solve per frequency (exact);
+* ``method="direct"``: one linear solve per frequency (exact;
+  :func:`chatterlab.structure.dynamic_receptance`);
 * ``method="modal"``: the pole-residue sum over all 2n complex modes of the
   damped structure (exact for non-proportional damping; no truncation, so no
   residual), G(s) = sum_r (C phi_r)(phi_r^T B) / (s - lambda_r), evaluated
@@ -40,15 +42,15 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
 from ..errors import InputError
 from ..process._cutting import Feedback
 from ..structure._assembly import FrozenSystem
-from ..structure._complex import ComplexModes, complex_modes, modal_response
+from ..structure._complex import ComplexModes, complex_modes, dynamic_receptance, modal_response
+from ..structure._frf import FRF
 
 __all__ = [
     "FRF",
@@ -60,8 +62,6 @@ __all__ = [
     "ComplexModes",
     "complex_modes",
 ]
-
-_KINDS = {"receptance": (0, "m/N"), "mobility": (1, "m/(N s)"), "accelerance": (2, "m/(N s^2)")}
 
 
 def frequencies(fmin: float, fmax: float, points: int, *, spacing: str = "linear") -> np.ndarray:
@@ -96,163 +96,6 @@ def resonance_grid(poles: np.ndarray, lo: float, hi: float, n_base: int = 2000) 
             parts.append(wr + sg * np.tan(th))
     w = np.unique(np.concatenate(parts))
     return w[(w >= lo) & (w <= hi)]
-
-
-@dataclass(frozen=True, eq=False)
-class FRF:
-    """A frequency response: ``data[o, i, k]`` is output o per unit input i
-    at ``omega[k]``.
-
-    Attributes
-    ----------
-    omega : ndarray, shape (n_freq,)
-        Angular frequency, rad/s.
-    data : ndarray, shape (n_out, n_in, n_freq), complex
-        Receptance (m/N), mobility (m/(N s)) or accelerance (m/(N s^2)).
-    """
-
-    omega: np.ndarray
-    data: np.ndarray
-    outputs: tuple[str, ...]
-    inputs: tuple[str, ...]
-    kind: str = "receptance"
-    closed_loop: bool = False
-    method: str = "direct"
-    position: float | None = None
-    width: float | None = None
-    delay: float | None = None
-    terms: str = "none"
-    meta: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def frequency_hz(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
-
-    @property
-    def unit(self) -> str:
-        """Unit of ``data``: m/N (and /s, /s^2) for translations; with a
-        rotation (``.rz``) among the inputs or outputs the entries mix m, rad,
-        N and N m, and the label says so."""
-        if any(x.endswith(".rz") for x in self.outputs + self.inputs):
-            p = _KINDS[self.kind][0]
-            return "(m or rad)/(N or N m)" + ("" if p == 0 else "/s" if p == 1 else "/s^2")
-        return _KINDS[self.kind][1]
-
-    @property
-    def label(self) -> str:
-        if not self.closed_loop:
-            return "open loop"
-        return {"pd": "closed loop P+D", "pdo": "closed loop P+D+delay", "o": "closed loop delay"}.get(
-            self.terms, "closed loop"
-        )
-
-    def as_kind(self, kind: Literal["receptance", "mobility", "accelerance"]) -> FRF:
-        """Convert between receptance, mobility and accelerance."""
-        if kind not in _KINDS:
-            raise InputError(f"kind must be one of {', '.join(_KINDS)} (got {kind!r})")
-        p = _KINDS[kind][0] - _KINDS[self.kind][0]
-        return replace(self, data=self.data * (1j * self.omega) ** p, kind=kind)
-
-    def __getitem__(self, key: tuple[str, str]) -> np.ndarray:
-        """``frf["tool.x", "tool.x"]`` -> (n_freq,) complex (output, input)."""
-        o, i = key
-        return self.data[self.outputs.index(o), self.inputs.index(i)]
-
-    def peaks(self, output: int | str = 0, input: int | str = 0, n: int = 3) -> list[tuple[float, float]]:
-        """The n largest local maxima of |data| as (frequency Hz, magnitude);
-        ``output`` and ``input`` by index or by name (``"rfe5.x"``), as in :meth:`plot`."""
-        mag = np.abs(self.data[_pick(self.outputs, output, "output"), _pick(self.inputs, input, "input")])
-        k = np.nonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:]))[0] + 1
-        k = k[np.argsort(-mag[k])][:n]
-        out = []
-        for j in sorted(k, key=lambda j: -mag[j]):
-            # parabolic refinement of the peak on the sampled grid
-            y0, y1, y2 = np.log(mag[j - 1 : j + 2])
-            den = y0 - 2 * y1 + y2
-            dx = 0.5 * (y0 - y2) / den if den != 0 else 0.0
-            f = self.frequency_hz[j] + dx * (self.frequency_hz[j + 1] - self.frequency_hz[j])
-            out.append((float(f), float(np.exp(y1 - 0.25 * (y0 - y2) * dx))))
-        return out
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON form of ``chatterlab frf --format json``."""
-        from .._version import __version__
-
-        return {
-            "chatterlab": __version__,
-            "kind": "frf",
-            "quantity": self.kind,
-            "unit": self.unit,
-            "closed_loop": self.closed_loop,
-            "terms": self.terms,
-            "method": self.method,
-            "position_m": self.position,
-            "width_m": self.width,
-            "delay_s": self.delay,
-            "outputs": list(self.outputs),
-            "inputs": list(self.inputs),
-            "frequency_hz": self.frequency_hz.tolist(),
-            "real": self.data.real.tolist(),
-            "imag": self.data.imag.tolist(),
-            **({"meta": self.meta} if self.meta else {}),
-        }
-
-    def to_json(self, path: Any = None, *, indent: int | None = None) -> str:
-        """Strict JSON of :meth:`to_dict` (non-finite numbers as null),
-        returned, and written to ``path`` (atomically) when one is given."""
-        from ..io._files import json_text, text_out
-
-        s = json_text(self.to_dict(), indent)
-        if path is not None:
-            with text_out(path) as fh:
-                fh.write(s)
-        return s
-
-    def to_csv(self, path: Any) -> None:
-        """One row per frequency: ``frequency [Hz]`` then, per (output, input)
-        pair, magnitude, phase (deg), real and imaginary part."""
-        import csv
-
-        from ..io._files import text_out
-
-        with text_out(path) as fh:
-            w = csv.writer(fh, lineterminator="\n")
-            head = ["frequency [Hz]"]
-            for o in self.outputs:
-                for i in self.inputs:
-                    head += [
-                        f"|{o}/{i}| [{self.unit}]",
-                        f"phase {o}/{i} [deg]",
-                        f"re {o}/{i} [{self.unit}]",
-                        f"im {o}/{i} [{self.unit}]",
-                    ]
-            w.writerow(head)
-            for k, f in enumerate(self.frequency_hz):
-                row = [f"{f:.9g}"]
-                for a in range(len(self.outputs)):
-                    for b in range(len(self.inputs)):
-                        z = self.data[a, b, k]
-                        row += [
-                            f"{abs(z):.9g}",
-                            f"{np.degrees(np.angle(z)):.6g}",
-                            f"{z.real:.9g}",
-                            f"{z.imag:.9g}",
-                        ]
-                w.writerow(row)
-
-    def to_control(self) -> Any:
-        """A ``control.FrequencyResponseData`` (python-control, imported here)."""
-        import control
-
-        return control.FrequencyResponseData(self.data, self.omega)
-
-    def plot(self, output: int | str = 0, input: int | str = 0, ax: Any = None, **kw: Any) -> Any:
-        """Magnitude (log) and phase against frequency (Hz), or ``part="reim"``;
-        keywords of :func:`chatterlab.plot.plot_frf`.  Returns the two Axes.
-        Imports matplotlib."""
-        from ..plot import plot_frf
-
-        return plot_frf([self], output=output, input=input, ax=ax, **kw)
 
 
 # --------------------------------------------------------------------------- FRF
@@ -313,8 +156,8 @@ def frf(
         raise InputError("omega must be a non-empty 1-D array of angular frequencies (rad/s)")
     if not np.all(np.isfinite(omega)) or np.any(omega < 0):
         raise InputError("omega must hold finite frequencies >= 0 rad/s")
-    if kind not in _KINDS:
-        raise InputError(f"kind must be one of {', '.join(_KINDS)} (got {kind!r})")
+    if kind not in FRF.KINDS:
+        raise InputError(f"kind must be one of {', '.join(FRF.KINDS)} (got {kind!r})")
     if method not in ("direct", "modal"):
         raise InputError(f"method must be 'direct' or 'modal' (got {method!r})")
     if modes_above is not None and (
@@ -357,16 +200,16 @@ def frf(
 def _direct(
     frozen: FrozenSystem, Co: np.ndarray, Bi: np.ndarray, s: np.ndarray, fb: Feedback | None
 ) -> np.ndarray:
+    """Co (s^2 A + s B + C - D(s))^-1 Bi on s = j w, (n_out, n_in, n_s): the
+    one direct solve, in chunks of <= 20 MB of dynamic stiffness."""
     A, B, C = frozen.A, frozen.B, frozen.C
     out = np.empty((Co.shape[0], Bi.shape[1], s.size), dtype=complex)
     chunk = max(1, int(2e7 // (16 * A.size)))
     for k0 in range(0, s.size, chunk):
         sk = s[k0 : k0 + chunk]
-        Z = sk[:, None, None] ** 2 * A + sk[:, None, None] * B + C
-        if fb is not None:
-            Z = Z - fb(sk)
-        X = np.linalg.solve(Z, np.broadcast_to(Bi.astype(complex), (sk.size,) + Bi.shape))
-        out[:, :, k0 : k0 + chunk] = np.transpose(Co @ X, (1, 2, 0))
+        D = fb(sk) if fb is not None else None
+        X = dynamic_receptance(A, B, C, sk.imag, Co, Bi.astype(complex), minus=D)
+        out[:, :, k0 : k0 + chunk] = np.transpose(X, (1, 2, 0))
     return out
 
 
@@ -470,13 +313,3 @@ def loop_eigenvalues(
         else _direct(frozen, J, J.T, s, None)
     )
     return np.linalg.eigvals(np.transpose(G, (2, 0, 1)) @ fb.Dl(s)) / fb.width
-
-
-def _pick(names: Any, key: int | str, what: str) -> int:
-    """The index of an output or input given by index or by name."""
-    names = list(names)
-    if isinstance(key, str):
-        if key not in names:
-            raise InputError(f"{what} {key!r} is not one of the FRF's {what}s {names}")
-        return names.index(key)
-    return int(key)

@@ -7,13 +7,15 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 
 from ..errors import InputError
 from ._frf_table import (
     _QNAME,
-    FRFTable,
+    SI_UNITS,
+    FRFRecord,
     _check_increasing,
     _delimiter,
     _is_number,
@@ -21,9 +23,9 @@ from ._frf_table import (
     _number,
     _resolve_units,
     _split,
-    _to_receptance,
     check_points,
     parse_frf_units,
+    to_si,
 )
 
 __all__ = ["read_frf_csv", "write_frf_csv"]
@@ -155,7 +157,7 @@ def read_frf_csv(
     units: str | None = None,
     quantity: str | None = None,
     point: str | None = None,
-) -> FRFTable:
+) -> FRFRecord:
     """Read a CSV/TXT FRF file (docs/measured-frf.md, "CSV and TXT").
 
     ``# key: value`` comment lines (``units``, ``quantity``, ``point``, any
@@ -233,16 +235,15 @@ def read_frf_csv(
         file_units = file_units or cu
     scale, power, used = _resolve_units(units, quantity, file_units, header.get("quantity"), where, None)
     A, coh, outs, ins = _assemble(cols, data, where, header_line, lines)
-    H = _to_receptance(f, A, scale, power, where, lines)
     meta = {k: v for k, v in header.items()}
     meta.update({"units": used, "quantity": _QNAME[power], "format": "csv"})
-    return FRFTable(f, H, outs, ins, coh, where, meta)
+    return FRFRecord(f, to_si(f, A, scale, power, where, lines), outs, ins, _QNAME[power], coh, where, meta)
 
 
 def _assemble(
     cols: list[_Column], data: np.ndarray, where: str, line: int, lines: list[int]
 ) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...], tuple[str, ...]]:
-    """Complex matrix (n, n_out, n_in) from the columns of each pair; a pair
+    """Complex matrix (n_out, n_in, n) from the columns of each pair; a pair
     given both as re/im and as mag/phase (``chatterlab frf`` writes both)
     is read from re/im and the two must agree."""
     parts: dict[tuple[str, str], dict[str, int]] = {}
@@ -261,8 +262,8 @@ def _assemble(
     outs = tuple(dict.fromkeys(o for o, _ in parts))
     ins = tuple(dict.fromkeys(i for _, i in parts))
     n = data.shape[0]
-    A = np.zeros((n, len(outs), len(ins)), dtype=complex)
-    coh = np.ones((n, len(outs), len(ins)))
+    A = np.zeros((len(outs), len(ins), n), dtype=complex)
+    coh = np.ones((len(outs), len(ins), n))
     any_coh = False
     for (o, i), d in parts.items():
         pair = raw[(o, i)] or f"{o}/{i}"
@@ -306,10 +307,10 @@ def _assemble(
         else:
             assert z_mp is not None
             z = z_mp
-        A[:, outs.index(o), ins.index(i)] = z
+        A[outs.index(o), ins.index(i)] = z
         if "coh" in d:
             any_coh = True
-            coh[:, outs.index(o), ins.index(i)] = data[:, d["coh"]]
+            coh[outs.index(o), ins.index(i)] = data[:, d["coh"]]
     missing = [f"{o}/{i}" for o in outs for i in ins if (o, i) not in parts]
     if missing:
         raise InputError(
@@ -317,50 +318,103 @@ def _assemble(
             " is not given; add its columns (zeros if it is negligible)"
         )
     if any_coh:
-        bad = np.nonzero(~np.all((coh >= 0) & (coh <= 1 + 1e-9), axis=(1, 2)))[0]
+        bad = np.nonzero(~np.all((coh >= 0) & (coh <= 1 + 1e-9), axis=(0, 1)))[0]
         if bad.size:
             raise InputError(f"{where}, line {lines[int(bad[0])]}: a coherence outside [0, 1]")
     return A, (coh if any_coh else None), outs, ins
 
 
+def _text(value: Any) -> str:
+    """A header value as written: floats exactly (repr), booleans as true/false."""
+    if isinstance(value, bool | np.bool_):
+        return "true" if value else "false"
+    if isinstance(value, float | np.floating):
+        return repr(float(value))
+    return " ".join(str(value).split())  # one line
+
+
+#: the columns of each pair, by form: (part, name pattern) in order
+_FORMS = {
+    "reim": ("re", "im"),
+    "magphase": ("mag", "phase"),
+    "both": ("mag", "phase", "re", "im"),
+}
+
+
 def write_frf_csv(
-    path: str | os.PathLike[str], table: FRFTable, *, units: str = "m/N", form: str = "reim"
-) -> None:
-    """Write a CSV file that :func:`read_frf_csv` reads back: ``# units``,
-    ``# quantity: receptance`` and ``# source`` lines, a header row
-    (``frequency [Hz]``, then per pair ``OUT/IN re``, ``OUT/IN im`` or
-    ``mag``, ``phase`` [deg], and ``coh`` when known), values with 17
-    significant digits (re/im: exact round trip).  Atomic."""
+    path: str | os.PathLike[str] | IO[str],
+    record: FRFRecord,
+    *,
+    units: str | None = None,
+    form: str = "reim",
+    comments: bool = True,
+) -> Path | None:
+    """Write a CSV file that :func:`read_frf_csv` reads back
+    (docs/measured-frf.md, "CSV and TXT").
+
+    With ``comments``: a ``# chatterlab FRF`` line, ``# units``, ``#
+    quantity`` and ``# source``, and one ``# key: value`` line per entry of
+    ``record.meta`` (floats as ``repr``: exact).  Then a header row
+    (``frequency [Hz]``, then per pair, outputs outer and inputs inner,
+    ``re OUT/IN [unit]``, ``im OUT/IN [unit]``; ``form="magphase"``:
+    ``|OUT/IN| [unit]``, ``phase OUT/IN [deg]``; ``"both"``: magnitude,
+    phase, real and imaginary part; ``coh OUT/IN`` when the coherence is
+    known) and one row per frequency, every value with 17 significant digits
+    (re/im: an exact round trip).  ``units`` (default: SI, ``m/N``,
+    ``m/s/N``, ``m/s^2/N``) must be a unit of the record's quantity
+    (``mm/N`` for a receptance).  Written atomically; a text stream is
+    written to as it is (returns None), a path is returned."""
     from ._files import text_out
 
-    scale, power = parse_frf_units(units, "units")
-    if power != 0:
-        raise InputError(f"units {units!r}: the CSV writer writes receptance (m/N, mm/N, um/N)")
-    if form not in ("reim", "magphase"):
-        raise InputError(f"form must be 'reim' or 'magphase' (got {form!r})")
+    power = _QNAME.index(record.quantity)
+    units = SI_UNITS[power] if units is None else units
+    scale, p = parse_frf_units(units, "units")
+    if p != power:
+        raise InputError(
+            f"units {units!r} are a {_QNAME[p]}, the FRF is a {record.quantity}: give a unit of a"
+            f" {record.quantity} ({SI_UNITS[power]} scaled, e.g. m{SI_UNITS[power][1:]} -> mm{SI_UNITS[power][1:]})"
+        )
+    if form not in _FORMS:
+        raise InputError(f"form must be 'reim', 'magphase' or 'both' (got {form!r})")
+    for name in record.outputs + record.inputs:
+        bad = [c for c in ",|/" if c in name]
+        if bad or name != name.strip():
+            raise InputError(
+                f"coordinate name {name!r} holds {bad[0] if bad else 'blanks at an end'!r}; rename it"
+            )
     head = ["frequency [Hz]"]
-    cols: list[np.ndarray] = [np.asarray(table.frequency_hz, dtype=float)]
-    for o, on in enumerate(table.outputs):
-        for i, inn in enumerate(table.inputs):
-            z = table.H[:, o, i] / scale
-            if form == "reim":
-                head += [f"{on}/{inn} re", f"{on}/{inn} im"]
-                cols += [z.real, z.imag]
-            else:
-                head += [f"{on}/{inn} mag", f"{on}/{inn} phase [deg]"]
-                cols += [np.abs(z), np.degrees(np.angle(z))]
-            if table.coherence is not None:
-                head.append(f"{on}/{inn} coh")
-                cols.append(table.coherence[:, o, i])
-    for name in head[1:]:
-        if "," in name:
-            raise InputError(f"coordinate name in {name!r} holds a comma; rename it")
+    cols: list[np.ndarray] = [np.asarray(record.frequency_hz, dtype=float)]
+    for o, on in enumerate(record.outputs):
+        for i, inn in enumerate(record.inputs):
+            z = record.data[o, i] / scale
+            pair = f"{on}/{inn}"
+            for part in _FORMS[form]:
+                if part == "re":
+                    head.append(f"re {pair} [{units}]")
+                    cols.append(z.real)
+                elif part == "im":
+                    head.append(f"im {pair} [{units}]")
+                    cols.append(z.imag)
+                elif part == "mag":
+                    head.append(f"|{pair}| [{units}]")
+                    cols.append(np.abs(z))
+                else:
+                    head.append(f"phase {pair} [deg]")
+                    cols.append(np.degrees(np.angle(z)))
+            if record.coherence is not None:
+                head.append(f"coh {pair}")
+                cols.append(record.coherence[o, i])
     data = np.column_stack(cols)
     with text_out(path) as fh:
-        fh.write("# chatterlab measured FRF\n")
-        fh.write(f"# units: {units}\n# quantity: receptance\n")
-        if table.source:
-            fh.write(f"# source: {table.source}\n")
+        if comments:
+            fh.write("# chatterlab FRF\n")
+            fh.write(f"# units: {units}\n# quantity: {record.quantity}\n")
+            if record.source:
+                fh.write(f"# source: {_text(record.source)}\n")
+            for key, val in record.meta.items():
+                if val is not None and key not in ("units", "quantity", "source"):
+                    fh.write(f"# {key}: {_text(val)}\n")
         fh.write(",".join(head) + "\n")
         for row in data:
             fh.write(",".join(f"{v:.17g}" for v in row) + "\n")
+    return None if hasattr(path, "write") else Path(os.fspath(path))

@@ -13,15 +13,15 @@ import numpy as np
 from ..errors import InputError
 from ._frf_table import (
     _QNAME,
-    FRFTable,
+    FRFRecord,
     _check_increasing,
     _is_number,
     _lines,
     _number,
     _resolve_units,
-    _to_receptance,
     check_points,
     parse_frf_units,
+    to_si,
 )
 
 __all__ = ["read_frf_cutpro"]
@@ -90,7 +90,7 @@ def read_frf_cutpro(
     units: str | None = None,
     quantity: str | None = None,
     point: str | None = None,
-) -> FRFTable:
+) -> FRFRecord:
     """Read a CutPro-style ``.frf`` text file (docs/measured-frf.md).
 
     Header lines (any line before the first numeric row): ``key: value`` or
@@ -146,9 +146,9 @@ def read_frf_cutpro(
     scale, power, used = _resolve_units(units, quantity, file_units, header.get("quantity"), where, "m/N")
     pt = point if point is not None else header.get("point")
     name = pt if pt else "response"
-    H = _to_receptance(f, (data[:, 1] + 1j * data[:, 2])[:, None, None], scale, power, where, lines)
+    A = to_si(f, (data[:, 1] + 1j * data[:, 2])[None, None, :], scale, power, where, lines)
     meta: dict[str, Any] = dict(header)
     meta.update({"units": used, "quantity": _QNAME[power], "format": "frf"})
     if captions:
         meta["captions"] = captions
-    return FRFTable(f, H, (name,), (name if pt else "reference",), None, where, meta)
+    return FRFRecord(f, A, (name,), (name if pt else "reference",), _QNAME[power], None, where, meta)

@@ -1,7 +1,7 @@
-"""The measured FRF as io hands it on (:class:`FRFTable`), the conversion
-of a file's units and quantity to receptance in m/N, and the line and number
-helpers the text readers share (the units are described in the docstring of
-:mod:`chatterlab.io._frf_files`)."""
+"""The FRF as io hands it on and takes it (:class:`FRFRecord`, plain
+arrays: no analysis type), the scale of a file's units to SI, and the line
+and number helpers the text readers share (the units are described in the
+docstring of :mod:`chatterlab.io._frf_files`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["FRFTable", "G0", "parse_frf_units"]
+__all__ = ["FRFRecord", "G0", "QUANTITIES", "SI_UNITS", "parse_frf_units"]
 
 #: standard gravity, m/s^2 (the unit g of an accelerometer)
 G0 = 9.80665
@@ -33,24 +33,37 @@ _QUANTITIES = {
     "inertance": 2,
     "acceleration": 2,
 }
-_QNAME = ("receptance", "mobility", "accelerance")
+#: the three quantities, by the power p of j w that turns a receptance into them
+QUANTITIES = ("receptance", "mobility", "accelerance")
+_QNAME = QUANTITIES
+#: the SI unit of each quantity as the writers write it (and parse_frf_units reads it)
+SI_UNITS = ("m/N", "m/s/N", "m/s^2/N")
 
 
 @dataclass(frozen=True, eq=False)
-class FRFTable:
-    """A measured FRF as read from (or to be written to) a file.
+class FRFRecord:
+    """An FRF as a file holds it, in plain arrays (what the readers return
+    and the writers take; :class:`chatterlab.structure.FRF` is the object
+    built from it).
 
-    ``frequency_hz`` (n,), Hz, strictly increasing; ``H`` (n, n_out, n_in)
-    receptance in m/N; ``coherence`` like ``H`` (real) or None; ``meta``:
-    what the file said (``units``, ``quantity`` as found, header keys)."""
+    ``frequency_hz`` (n,), Hz, strictly increasing; ``data`` (n_out, n_in,
+    n) complex, the file's ``quantity`` (receptance, mobility or
+    accelerance) in SI (m/N, m/s/N, m/s^2/N); ``coherence`` like ``data``
+    (real) or None; ``meta``: what the file says besides (its ``units`` and
+    ``quantity`` as found, ``format``, other header keys); ``omega`` the
+    exact angular frequencies (rad/s) when the file holds them (netCDF),
+    else None (2 pi ``frequency_hz``).  A private type: io's half of the
+    exchange, not a second FRF container (not exported)."""
 
     frequency_hz: np.ndarray
-    H: np.ndarray
+    data: np.ndarray
     outputs: tuple[str, ...]
     inputs: tuple[str, ...]
+    quantity: str = "receptance"
     coherence: np.ndarray | None = None
     source: str = ""
     meta: dict[str, Any] = field(default_factory=dict)
+    omega: np.ndarray | None = None
 
 
 # ============================================================================ units
@@ -144,20 +157,20 @@ def _resolve_units(
     return 1.0, power, ("m/N", "m/s/N", "m/s^2/N")[power]
 
 
-def _to_receptance(
+def to_si(
     f_hz: np.ndarray, A: np.ndarray, scale: float, power: int, where: str, lines: list[int] | None
 ) -> np.ndarray:
-    """Receptance (m/N) from the file's quantity: scale * A / (j w)^power."""
-    if power == 0:
-        return A * scale
+    """The file's values ``A`` (n_out, n_in, n) in SI of their quantity,
+    ``scale * A``.  A mobility or accelerance at 0 Hz is refused (with its
+    line): it has no receptance (H = A / (j w)^p, Ewins, *Modal Testing*, sec. 2.7), and a
+    file is read to be used as one."""
     zero = np.nonzero(f_hz == 0)[0]
-    if zero.size:
+    if power and zero.size:
         at = f", line {lines[zero[0]]}" if lines else ""
         raise InputError(
             f"{where}{at}: a {_QNAME[power]} at 0 Hz cannot be converted to receptance; drop that line"
         )
-    jw = 1j * 2 * np.pi * f_hz
-    return A * scale / (jw**power).reshape((-1,) + (1,) * (A.ndim - 1))
+    return A * scale
 
 
 # ============================================================================ the file itself

@@ -12,13 +12,13 @@ import numpy as np
 from ..errors import InputError
 from ._frf_table import (
     _QNAME,
-    FRFTable,
+    FRFRecord,
     _check_increasing,
     _line_of,
     _resolve_units,
-    _to_receptance,
     check_points,
     read_input,
+    to_si,
 )
 
 __all__ = ["read_frf_uff", "write_frf_uff"]
@@ -48,7 +48,7 @@ def read_frf_uff(
     units: str | None = None,
     quantity: str | None = None,
     point: str | None = None,
-) -> FRFTable:
+) -> FRFRecord:
     """Read the FRFs (function type 4) of a UFF file, datasets 58 and 58b.
 
     Each dataset is one (response node+direction, reference node+direction)
@@ -69,9 +69,8 @@ def read_frf_uff(
     A, coh, outs, ins = _uff_matrix(entries, coh_entries, x0.size, where)
     qname = None if power0 is None else _QNAME[power0]
     scale, power, used = _resolve_units(units, quantity, None, qname, where, "m/N" if qname is None else None)
-    H = _to_receptance(x0, A, scale, power, where, None)
     meta = {"units": used, "quantity": _QNAME[power], "format": "uff58", "datasets": len(frfs)}
-    return FRFTable(x0, H, outs, ins, coh, where, meta)
+    return FRFRecord(x0, to_si(x0, A, scale, power, where, None), outs, ins, _QNAME[power], coh, where, meta)
 
 
 def _uff_tags(data: bytes) -> list[int]:
@@ -223,7 +222,7 @@ def _uff_entries(
 def _uff_matrix(
     entries: _Pairs, coh_entries: _Pairs, n: int, where: str
 ) -> tuple[np.ndarray, np.ndarray | None, tuple[str, ...], tuple[str, ...]]:
-    """(A (n, n_out, n_in), coherence like A or None, outputs, inputs) from
+    """(A (n_out, n_in, n), coherence like A or None, outputs, inputs) from
     the pairs; InputError when a pair of the matrix is missing.  A coherence
     of a pair that is not an FRF's is ignored; one not given is 1."""
     outs = tuple(dict.fromkeys(o for o, _ in entries))
@@ -234,15 +233,15 @@ def _uff_matrix(
             f"{where}: the FRFs form a {len(outs)}x{len(ins)} matrix but {', '.join(missing)} is not in the file;"
             " add its dataset 58"
         )
-    A = np.empty((n, len(outs), len(ins)), dtype=complex)
+    A = np.empty((len(outs), len(ins), n), dtype=complex)
     for (o, i), v in entries.items():
-        A[:, outs.index(o), ins.index(i)] = v
+        A[outs.index(o), ins.index(i)] = v
     coh = None
     if coh_entries:
         coh = np.ones(A.shape)
         for (o, i), v in coh_entries.items():
             if o in outs and i in ins:
-                coh[:, outs.index(o), ins.index(i)] = v
+                coh[outs.index(o), ins.index(i)] = v
     return A, coh, outs, ins
 
 
@@ -276,10 +275,10 @@ def _uff_coord(s: dict[str, Any], side: str, ent: dict[int, str] | None, ds: str
     return f"{name}.{_UFF_DIRS[abs(d)]}", (1.0 if d > 0 else -1.0)
 
 
-def write_frf_uff(path: str | os.PathLike[str], table: FRFTable, *, binary: bool = False) -> None:
+def write_frf_uff(path: str | os.PathLike[str], record: FRFRecord, *, binary: bool = False) -> Path:
     """Write one UFF dataset 58 (58b with ``binary``) per (output, input)
-    pair: function type 4 (FRF), displacement over force (ordinate types 8 /
-    13), SI, frequencies as explicit abscissa values (uneven spacing, so an
+    pair: function type 4 (FRF), the record's quantity over force (ordinate
+    types 8 displacement, 11 velocity or 12 acceleration / 13 force), SI, frequencies as explicit abscissa values (uneven spacing, so an
     uneven grid is kept), complex double ordinates.  A coordinate named
     ``NODE.DIR`` with an integer node keeps its node; other point names get
     nodes 1, 2, ... in order and are written as the entity name (at most 10
@@ -292,7 +291,7 @@ def write_frf_uff(path: str | os.PathLike[str], table: FRFTable, *, binary: bool
     from ._files import _tmp_name
 
     pyuff = _pyuff()
-    coords = list(dict.fromkeys(table.outputs + table.inputs))
+    coords = list(dict.fromkeys(record.outputs + record.inputs))
     points = list(dict.fromkeys(c.rpartition(".")[0] for c in coords))
     node_of: dict[str, int] = {}
     numeric = all(pt.isdigit() for pt in points)
@@ -311,13 +310,14 @@ def write_frf_uff(path: str | os.PathLike[str], table: FRFTable, *, binary: bool
             )
         return node_of[pt], _UFF_DIR_CODES[d], ("NONE" if numeric else pt)
 
-    x = np.asarray(table.frequency_hz, dtype=float)
+    x = np.asarray(record.frequency_hz, dtype=float)
+    ordinate = {p: code for code, p in _UFF_ORDINATE.items()}[_QNAME.index(record.quantity)]
     sets = []
-    for func, arr in ((4, table.H), (6, table.coherence)):
+    for func, arr in ((4, record.data), (6, record.coherence)):
         if arr is None:
             continue
-        for o, on in enumerate(table.outputs):
-            for i, inn in enumerate(table.inputs):
+        for o, on in enumerate(record.outputs):
+            for i, inn in enumerate(record.inputs):
                 rn, rd, re_ = split(on)
                 fn, fd, fe = split(inn)
                 sets.append(
@@ -335,9 +335,9 @@ def write_frf_uff(path: str | os.PathLike[str], table: FRFTable, *, binary: bool
                         ord_data_type=6,
                         abscissa_spacing=0,
                         abscissa_spec_data_type=18,
-                        ordinate_spec_data_type=8 if func == 4 else 0,
+                        ordinate_spec_data_type=ordinate if func == 4 else 0,
                         orddenom_spec_data_type=13 if func == 4 else 0,
-                        data=np.asarray(arr[:, o, i], dtype=complex),
+                        data=np.asarray(arr[o, i], dtype=complex),
                         x=x,
                     )
                 )
@@ -348,6 +348,7 @@ def write_frf_uff(path: str | os.PathLike[str], table: FRFTable, *, binary: bool
         # mode "add": pyuff's binary writer reopens the file by name and would truncate it in "overwrite"
         pyuff.UFF(str(tmp)).write_sets(sets, mode="add")
         os.replace(tmp, final)
+        return final
     except BaseException:
         import contextlib
 

@@ -1,7 +1,10 @@
 """Interoperability with python-control.
 
-* :func:`frf_to_control` -- an :class:`~chatterlab.frequency._frf.FRF` as a
-  ``control.FrequencyResponseData``;
+The one way in each direction is the FRF's: :meth:`FRF.to_control
+<chatterlab.structure.FRF.to_control>` and :meth:`FRF.from_control
+<chatterlab.structure.FRF.from_control>`; here
+
+* :func:`frf_to_control` -- ``frf.to_control()`` under its 0.2 name;
 * :func:`lti_plant` -- a python-control LTI system (``StateSpace`` or
   ``TransferFunction``) standing in for the structure: its inputs are the
   forces at the coupling element (on point a, in CE axes) and its outputs
@@ -21,15 +24,17 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, check_delay, check_width
-from ..frequency._frf import FRF
 from ..model._items import Coupling, Process
+from ..structure import FRF
 from ._diagram import LobeDiagram, Plant, lobes
 
 __all__ = ["frf_to_control", "lti_plant", "lobes_lti", "closed_loop_lti", "coupling_matrices"]
 
 
 def frf_to_control(frf: FRF) -> Any:
-    """``control.FrequencyResponseData`` of an FRF (omega in rad/s)."""
+    """``control.FrequencyResponseData`` of an FRF (omega in rad/s):
+    :meth:`FRF.to_control <chatterlab.structure.FRF.to_control>`, the one
+    route (this name is kept for the scripts of 0.2)."""
     return frf.to_control()
 
 
@@ -90,9 +95,8 @@ def lti_plant(lti: Any, *, DP: Any = None, DV: Any = None, DO: Any, width_ref: f
     P, V, O = _matrices(m, DP, DV, DO)
 
     def H(omega: np.ndarray) -> np.ndarray:
-        w = np.atleast_1d(np.asarray(omega, dtype=float))
-        r = np.asarray(lti(1j * w, squeeze=False), dtype=complex)  # (m, m, n)
-        return np.transpose(r.reshape(m, m, w.size), (2, 0, 1))
+        # the system at j w through the one route in (FRF.from_control), one matrix per frequency
+        return np.moveaxis(FRF.from_control(lti, omega).data, -1, 0)
 
     return Plant(
         H, np.asarray(lti.poles()), P / width_ref, V / width_ref, O / width_ref, _pole_residue(lti, m)

@@ -1,11 +1,11 @@
 """Stability lobes straight from a measured FRF (no modal fit).
 
-:func:`measured_plant` turns a :class:`~chatterlab.structure.MeasuredFRF`
+:func:`measured_plant` turns a measured :class:`~chatterlab.structure.FRF`
 into the lobe engine's :class:`~chatterlab.lobes._diagram.Plant`:
 
 * **H(jw)** between the cut's coordinates is the measured receptance,
   interpolated between the measured frequencies by the FRF's cubic spline
-  on Re H and Im H (:meth:`MeasuredFRF.interpolate`); NaN outside the band,
+  on Re H and Im H (:meth:`FRF.interpolate`); NaN outside the band,
   which the engine never asks for.
 * **The process** is the same as a model's ``[[coupling]]``: the
   regenerative model (D_P = K_f f n^T, D_O = -D_P, D_V = K_v f n^T per unit
@@ -55,7 +55,7 @@ from ..errors import InputError, check_finite, check_nonneg, check_positive, che
 from ..frequency._bounds import Band
 from ..model._items import Process
 from ..process._milling import Milling
-from ..structure._measured import MeasuredFRF
+from ..structure import FRF
 from ._control import _matrices
 from ._diagram import LobeDiagram, Plant, lobes
 
@@ -113,7 +113,7 @@ def zoa_matrices(milling: Milling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def measured_plant(
-    frf: MeasuredFRF,
+    frf: FRF,
     *,
     coordinates: Sequence[str] | None = None,
     milling: Milling | None = None,
@@ -130,8 +130,9 @@ def measured_plant(
 
     Parameters
     ----------
-    frf : MeasuredFRF
-        Receptance (m/N) of the tool relative to the workpiece at the cut.
+    frf : FRF
+        Receptance (m/N) of the tool relative to the workpiece at the cut
+        (an FRF of another kind is converted).
     coordinates : sequence of str, optional
         The coordinates of the cut, in the order of the process matrices'
         axes (default: the FRF's outputs).  The FRF must hold every
@@ -160,10 +161,10 @@ def measured_plant(
         For :func:`chatterlab.lobes.lobes` ``(None, speeds, plant=...,
         process=...)``; its band is the measured band, not certified.
     """
-    if not isinstance(frf, MeasuredFRF):
-        raise InputError(f"expected a MeasuredFRF, got {type(frf).__name__}")
-    sub = _driving_point(frf, coordinates)
-    m = sub.H.shape[1]
+    if not isinstance(frf, FRF):
+        raise InputError(f"expected an FRF (chatterlab.structure.FRF), got {type(frf).__name__}")
+    sub = _driving_point(frf.as_kind("receptance"), coordinates)
+    m = sub.data.shape[0]
     if milling is not None:
         if Kf is not None or DP is not None or DV is not None or DO is not None or width_ref is not None:
             raise InputError("give one process: milling=, Kf= (regenerative cut) or DP/DV/DO with width_ref")
@@ -192,14 +193,16 @@ def measured_plant(
     )
 
     def H(omega: np.ndarray) -> np.ndarray:
-        return sub.interpolate(np.atleast_1d(np.asarray(omega, dtype=float)), outside="nan")
+        # the engine's layout: one matrix per frequency
+        h = sub.interpolate(np.atleast_1d(np.asarray(omega, dtype=float)), outside="nan")
+        return np.ascontiguousarray(np.moveaxis(h, -1, 0))
 
-    return Plant(H, np.zeros(0, complex), P, V, O, None, measured_band=band, grid=sub.frequency)
+    return Plant(H, np.zeros(0, complex), P, V, O, None, measured_band=band, grid=np.asarray(sub.omega))
 
 
-def _driving_point(frf: MeasuredFRF, coordinates: Sequence[str] | None) -> MeasuredFRF:
+def _driving_point(frf: FRF, coordinates: Sequence[str] | None) -> FRF:
     if coordinates is None:
-        if frf.H.shape[1:] == (1, 1):
+        if frf.data.shape[:2] == (1, 1):
             return frf
         if set(frf.outputs) != set(frf.inputs):
             raise InputError(
@@ -208,13 +211,13 @@ def _driving_point(frf: MeasuredFRF, coordinates: Sequence[str] | None) -> Measu
             )
         coordinates = frf.outputs
     coords = [coordinates] if isinstance(coordinates, str) else list(coordinates)
-    if len(coords) == 1 and frf.H.shape[1:] == (1, 1) and coords[0] in frf.outputs + frf.inputs:
+    if len(coords) == 1 and frf.data.shape[:2] == (1, 1) and coords[0] in frf.outputs + frf.inputs:
         return frf
     return frf.select(coords, coords)
 
 
 def lobes_measured(
-    frf: MeasuredFRF,
+    frf: FRF,
     speeds: np.ndarray,
     *,
     process: Process | None = None,
@@ -258,12 +261,11 @@ def lobes_measured(
     rpm = np.asarray(speeds, dtype=float)
     if rpm.ndim != 1 or rpm.size == 0:
         raise InputError("speeds must be a non-empty 1-D array of spindle speeds (rpm)")
-    tau = np.array([milling.tooth_period(float(n)) for n in rpm])
     d = lobes(
         None,
-        tau,
+        rpm,
         width_max=width_max,
-        process=Process(kind="delay"),
+        process=milling,
         fmin=fmin,
         fmax=fmax,
         n_frequencies=n_frequencies,
@@ -271,29 +273,18 @@ def lobes_measured(
         plant=plant,
         name=label + f" (milling, ZOA, {milling.teeth} teeth)",
     )
-    to_rpm = 60.0 / milling.teeth
-    mn = dict(d.minimum)
-    if np.isfinite(mn.get("speed", np.nan)):
-        mn["speed"] = to_rpm / mn["speed"]
-    return replace(
-        d,
-        speed=rpm,
-        speed_unit="rpm",
-        speed_name="spindle speed",
-        minimum=mn,
-        lobes=tuple(replace(lb, speed=to_rpm / lb.delay) for lb in d.lobes),
-    )
+    return replace(d, method="zoa", resolution=f"D-subdivision on {d.n_frequencies} measured frequencies")
 
 
-def model_frf(model: Any) -> MeasuredFRF:
-    """The measured FRF of a model's ``[frf]`` table as a :class:`MeasuredFRF`."""
+def model_frf(model: Any) -> FRF:
+    """The measured FRF of a model's ``[frf]`` table (receptance)."""
     src = getattr(model, "frf", None)
     if src is None:
         raise InputError(f"{model.source} has no [frf] table: its structure is not a measured FRF")
-    return MeasuredFRF.from_table(src.table, source=src.file)
+    return FRF.from_record(src.table, source=src.file)
 
 
-def _frf_cut(model: Any, frf: MeasuredFRF, c: Any) -> tuple[list[str], tuple[np.ndarray, ...]]:
+def _frf_cut(model: Any, frf: FRF, c: Any) -> tuple[list[str], tuple[np.ndarray, ...]]:
     """The coordinates of the FRF that the coupling ``c`` acts on and its
     (D_P, D_V, D_O) on them: the coupling must join a point on the FRF's
     coordinates to the ground, with the measured directions as its axes."""
@@ -310,7 +301,7 @@ def _frf_cut(model: Any, frf: MeasuredFRF, c: Any) -> tuple[list[str], tuple[np.
     axes = [k for k, name in enumerate(c.a.coords) if name]
     coords = [c.a.coords[k] for k in axes]
     missing = [n for n in coords if n not in frf.outputs or n not in frf.inputs]
-    if missing and not (len(coords) == 1 and frf.H.shape[1:] == (1, 1)):
+    if missing and not (len(coords) == 1 and frf.data.shape[:2] == (1, 1)):
         raise InputError(
             f"{frf.source}: the coupling's point names {', '.join(missing)}, which the FRF does not hold as both"
             f" response and reference (outputs {list(frf.outputs)}, inputs {list(frf.inputs)})"
@@ -336,7 +327,7 @@ def model_frf_summary(model: Any) -> dict[str, Any]:
         "format": src.table.meta.get("format"),
         "units": src.table.meta.get("units"),
         "quantity": src.table.meta.get("quantity"),
-        "frequencies": int(frf.frequency.size),
+        "frequencies": int(frf.omega.size),
         "band [Hz]": [float(lo), float(hi)],
         "outputs": list(frf.outputs),
         "inputs": list(frf.inputs),
@@ -350,7 +341,7 @@ def lobes_model_frf(
     model: Any,
     speeds: np.ndarray,
     *,
-    frf: MeasuredFRF | None = None,
+    frf: FRF | None = None,
     coupling: str | None = None,
     width_max: float = 0.02,
     fmin: float | None = None,

@@ -330,9 +330,9 @@ def zoa_plant(structure: ToolStructure, milling: Milling) -> Plant:
     Z = structure
 
     def H(omega: np.ndarray) -> np.ndarray:
-        w = np.atleast_1d(np.asarray(omega, dtype=float))
-        D = Z.K[None] - w[:, None, None] ** 2 * Z.M[None] + 1j * w[:, None, None] * Z.C[None]
-        return Jr[None] @ np.linalg.solve(D, np.broadcast_to(Jr.T, (w.size,) + Jr.T.shape))
+        from ..structure import dynamic_receptance
+
+        return dynamic_receptance(Z.M, Z.C, Z.K, np.atleast_1d(np.asarray(omega, dtype=float)), Jr)
 
     return Plant(H, p, H0, np.zeros((rho, rho)), -H0, pr)
 

@@ -6,7 +6,10 @@ bodies, beams or matrices.  The table names the file (CSV/TXT, CutPro-style
 coordinates become the coordinates that ``[[point]]`` coords name, so the
 ``[[coupling]]`` and ``[process]`` of the file are written exactly as for a
 matrix-level model.  The file is read when the model is read: a bad file is
-a one-line error naming the model, the table and the field.
+a one-line error naming the model, the table and the field.  The model
+keeps what io read (plain arrays: :func:`chatterlab.io.read_frf`); the
+structure layer makes the :class:`~chatterlab.structure.FRF` of it
+(:func:`chatterlab.lobes.model_frf`).
 """
 
 from __future__ import annotations

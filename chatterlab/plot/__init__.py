@@ -5,7 +5,7 @@ inside the functions, so importing this package is light.
 
 One module per subject: ``_lobes`` (with ``_lobe_panel`` and the geometry in
 ``_envelope``), ``_atlas``, ``_frf`` (FRF, Nyquist of the determinant and
-of the loop), ``_time`` (histories, spectra, one run's response), ``_modes``
+of the loop), ``_fit`` (a modal fit, its stabilisation diagram), ``_time`` (histories, spectra, one run's response), ``_modes``
 (mode shapes on the structure, frequencies), ``_milling`` (milling
 lobes, Hopf and flip), ``_sweep`` (any output, the
 stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
@@ -13,6 +13,7 @@ stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 from __future__ import annotations
 
 from ._atlas import plot_atlas
+from ._fit import plot_modal_fit, plot_stabilisation
 from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
 from ._milling import plot_milling_lobes
@@ -23,6 +24,8 @@ from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_
 
 __all__ = [
     "plot_frf",
+    "plot_modal_fit",
+    "plot_stabilisation",
     "plot_nyquist",
     "plot_loop_nyquist",
     "touching_width",

@@ -1,8 +1,9 @@
 """Frequency response functions and the Nyquist plots of the cutting loop.
 
 * :func:`plot_frf` -- magnitude and phase (or real and imaginary part) of one
-  or more FRFs against frequency in Hz, open and closed loop overlaid, the
-  resonances labelled without overlap;
+  or more FRFs against frequency in Hz (one entry, or every entry), open and
+  closed loop overlaid, the resonances labelled without overlap (what
+  ``FRF.plot`` draws);
 * :func:`plot_nyquist` -- the loop determinant det(I - G D) about its
   critical point, the origin, with the region around it zoomed;
 * :func:`plot_loop_nyquist` -- the eigenvalue loci of the loop per unit width,
@@ -35,8 +36,8 @@ def _frf_label(f: Any) -> str:
 def plot_frf(
     frfs: Sequence[Any],
     *,
-    output: int | str = 0,
-    input: int | str = 0,
+    output: int | str | None = 0,
+    input: int | str | None = 0,
     labels: Sequence[str] | None = None,
     ax: Any = None,
     title: str | None = None,
@@ -47,14 +48,17 @@ def plot_frf(
     """One or more FRFs against frequency in Hz, overlaid: the open- vs
     closed-loop comparison of the paper's Figs. 10-11.
 
-    ``part="bode"``: magnitude (log scale) above the phase in degrees,
-    unwrapped along frequency (a delayed loop's phase does not wrap at
-    +-180 deg); ``part="reim"``: real above imaginary part.  ``peaks`` > 0
-    labels that many resonances of each curve (refined peak frequencies, in
-    the curve's colour, stacked where they would overlap).  A closed-loop
-    curve's legend entry says its width and delay, a ``title`` gets the slide
-    position when the FRF has one.  ``ax`` is a pair of Axes
-    (``axes=`` a deprecated alias).  Returns the Axes (ax_top, ax_bottom)."""
+    ``output`` / ``input`` (index or name) pick the entry of each FRF; both
+    None draw every entry of every FRF (outputs outer, inputs inner; the
+    legend names each ``OUT / IN``).  ``part="bode"``: magnitude (log scale)
+    above the phase in degrees, unwrapped along frequency (a delayed loop's
+    phase does not wrap at +-180 deg) where the grid follows it;
+    ``part="reim"``: real above imaginary part.  ``peaks`` > 0 labels that
+    many resonances of each curve (refined peak frequencies, in the curve's
+    colour, stacked where they would overlap).  A closed-loop curve's legend
+    entry says its width and delay, a ``title`` gets the slide position when
+    the FRF has one.  ``ax`` is a pair of Axes (``axes=`` a deprecated
+    alias).  Returns the Axes (ax_top, ax_bottom)."""
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MultipleLocator
 
@@ -64,14 +68,21 @@ def plot_frf(
     if axes is None:
         fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
     ax_m, ax_p = axes
-    marks: list[tuple[float, float, Any]] = []
-    wrapped = part == "bode" and not all(
-        _unwrappable(f.data[index_of(f.outputs, output), index_of(f.inputs, input)]) for f in frfs
-    )
+    every = output is None and input is None
+    curves = []  # (frf, output index, input index, legend)
     for k, f in enumerate(frfs):
-        o, i = index_of(f.outputs, output), index_of(f.inputs, input)
+        if every:
+            for o, on in enumerate(f.outputs):
+                for i, inn in enumerate(f.inputs):
+                    pre = f"{labels[k]}: " if labels is not None else ""
+                    curves.append((f, o, i, f"{pre}{on} / {inn}"))
+        else:
+            o, i = index_of(f.outputs, output or 0), index_of(f.inputs, input or 0)
+            curves.append((f, o, i, labels[k] if labels is not None else _frf_label(f)))
+    marks: list[tuple[float, float, Any]] = []
+    wrapped = part == "bode" and not all(_unwrappable(f.data[o, i]) for f, o, i, _ in curves)
+    for f, o, i, lab in curves:
         z = f.data[o, i]
-        lab = labels[k] if labels is not None else _frf_label(f)
         if part == "bode":
             (line,) = ax_m.semilogy(f.frequency_hz, np.abs(z), label=lab, gid="magnitude")
             ph = np.angle(z) if wrapped else np.unwrap(np.angle(z))
@@ -84,9 +95,8 @@ def plot_frf(
             for fp, mp in f.peaks(o, i, peaks):
                 zp = np.interp(fp, f.frequency_hz, z.real) if part == "reim" else mp
                 marks.append((fp, float(zp), line.get_color()))
-    f0 = frfs[0]
-    o, i = index_of(f0.outputs, output), index_of(f0.inputs, input)
-    pair = f"{f0.outputs[o]} / {f0.inputs[i]}"
+    f0, o, i, _ = curves[0]
+    pair = "H" if every else f"{f0.outputs[o]} / {f0.inputs[i]}"
     if part == "bode":
         ax_m.set_ylabel(f"|{pair}|  [{f0.unit}]")
         if wrapped:  # too few points per turn of the phase to follow it: the principal value
@@ -110,7 +120,7 @@ def plot_frf(
         ax_m.set_ylim(lo, hi * (hi / lo) ** 0.15)  # headroom for the peak labels
     _label_peaks(ax_m, marks)
     # the legend above the frame, where no curve or peak label can be under it
-    rows = int(np.ceil(len(frfs) / 2))
+    rows = int(np.ceil(len(curves) / 2))
     ax_m.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     pos = getattr(f0, "position", None)
     if title:

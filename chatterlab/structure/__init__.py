@@ -1,10 +1,12 @@
 """Model -> System: RDFEM elements, assembly, the constraints W(s) of the
-moving slide, the frozen configuration, real and complex modes."""
+moving slide, the frozen configuration, real and complex modes; the
+structure's response (:class:`FRF`, modelled or measured), its modal fit
+and receptance coupling."""
 
 from __future__ import annotations
 
 from ._assembly import CouplingMatrices, FrozenSystem, System, assemble
-from ._complex import ComplexModes, complex_modes, modal_response, taylor_terms
+from ._complex import ComplexModes, complex_modes, dynamic_receptance, modal_response, taylor_terms
 from ._elements import (
     beam_local_mass,
     beam_local_stiffness,
@@ -16,7 +18,7 @@ from ._elements import (
     rotation3,
 )
 from ._fit import FitQuality, ModalFit, Stabilisation, fit_modes
-from ._measured import MeasuredFRF
+from ._frf import FRF
 from ._modal import Modes, modes, rigid_body_description
 from ._rcsa import (
     Joint,
@@ -40,6 +42,7 @@ __all__ = [
     "rotation3",
     "ComplexModes",
     "complex_modes",
+    "dynamic_receptance",
     "modal_response",
     "taylor_terms",
     "System",
@@ -61,5 +64,5 @@ __all__ = [
     "receptance",
     "rotations_from_translations",
     "tool_model",
-    "MeasuredFRF",
+    "FRF",
 ]

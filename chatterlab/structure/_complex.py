@@ -1,7 +1,12 @@
-"""Complex modes of the damped structure and modal superposition.
+"""The structure's response: complex modes of the damped structure and
+modal superposition, and the receptance by a linear solve per frequency.
 
-Used by the FRFs, the lobe engine and the loop band; cached on the frozen
-system (:attr:`chatterlab.structure.FrozenSystem.complex_modes`).
+The modes are used by the FRFs, the lobe engine and the loop band, and
+cached on the frozen system
+(:attr:`chatterlab.structure.FrozenSystem.complex_modes`);
+:func:`dynamic_receptance` is the one direct solve of
+J (K - w^2 M + j w C)^-1 J^T (the FRF engine, receptance coupling, the
+milling structure and its zeroth-order plant call it).
 """
 
 from __future__ import annotations
@@ -11,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-__all__ = ["ComplexModes", "complex_modes", "modal_response", "taylor_terms"]
+__all__ = ["ComplexModes", "complex_modes", "dynamic_receptance", "modal_response", "taylor_terms"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,3 +96,33 @@ def modal_response(
             Rk = T[k] + kept
             out = out + Rk[:, :, None] * s[None, None, :] ** k
     return out
+
+
+def dynamic_receptance(
+    M: np.ndarray,
+    C: np.ndarray,
+    K: np.ndarray,
+    omega: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray | None = None,
+    *,
+    minus: np.ndarray | None = None,
+) -> np.ndarray:
+    """rows (K - w^2 M + j w C - D)^-1 cols at the angular frequencies
+    ``omega`` (rad/s), one linear solve per frequency (exact to the solve's
+    backward error; valid for a free-free structure at w > 0, where the
+    complex modes are not).
+
+    ``rows`` (n_rows, n) and ``cols`` (n, n_cols, default ``rows.T``) pick
+    or combine the coordinates (J and J^T: the receptance between them);
+    ``minus`` (n_freq, n, n), optional, is a dynamic stiffness D(j w)
+    subtracted before the solve (the cutting process of a closed loop).
+    Returns the stack (n_freq, n_rows, n_cols), one matrix per frequency
+    (the layout of batched linear algebra; an FRF stores
+    ``np.moveaxis(..., 0, -1)``)."""
+    w = np.asarray(omega, dtype=float)
+    Z = K[None] - w[:, None, None] ** 2 * M[None] + 1j * w[:, None, None] * C[None]
+    if minus is not None:
+        Z = Z - minus
+    B = rows.T if cols is None else cols
+    return rows[None] @ np.linalg.solve(Z, np.broadcast_to(B, (w.size,) + B.shape))

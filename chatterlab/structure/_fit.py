@@ -3,7 +3,9 @@ least-squares complex frequency-domain estimator with a stabilisation
 diagram, residues by least squares in the frequency domain with lower and
 upper residual terms, and a maximum-likelihood refinement of the poles.
 
-The model fitted to ``H[k, o, i]`` (receptance, m/N) at ``s = j w_k``::
+The model fitted to the receptance ``H[k, o, i]`` (m/N; ``FRF.matrices``,
+one matrix per frequency: the layout of the fit's batched least squares)
+at ``s = j w_k``::
 
     H(s) = sum_r [ R_r / (s - lam_r) + conj(R_r) / (s - conj(lam_r)) ] + LR / s^2 + UR
 
@@ -79,12 +81,14 @@ References
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import InputError
 from ._fit_result import FitQuality, ModalFit
+from ._frf import FRF
 from ._lscf import NEW as NEW
 from ._lscf import STABLE as STABLE
 from ._lscf import STABLE_FREQUENCY as STABLE_FREQUENCY
@@ -105,36 +109,30 @@ def one_blas_thread() -> Any:
     return limit()
 
 
-def _as_arrays(
-    frf: Any, band: tuple[float, float] | None
-) -> tuple[np.ndarray, np.ndarray, tuple, tuple, str]:
-    """(omega, H (n_freq, n_out, n_in), outputs, inputs, source) from a
-    MeasuredFRF (duck-typed: frequency, H, outputs, inputs) or a tuple
-    (omega rad/s, H), restricted to ``band`` (rad/s)."""
+def _as_frf(frf: Any, band: tuple[float, float] | None) -> tuple[FRF, np.ndarray, np.ndarray]:
+    """(the receptance restricted to ``band`` (rad/s), its omega, its
+    matrices (n_freq, n_out, n_in)) from an FRF or a tuple (omega rad/s,
+    data (n_out, n_in, n_freq) or (n_freq,))."""
     if isinstance(frf, tuple) and len(frf) == 2:
-        w = np.asarray(frf[0], dtype=float)
-        H = np.asarray(frf[1], dtype=complex)
-        if H.ndim == 1:
-            H = H[:, None, None]
-        # the MeasuredFRF default: coordinate k is output k and input k (a driving-point matrix)
-        outs = tuple(f"{k + 1}" for k in range(H.shape[1])) if H.ndim == 3 else ()
-        ins = tuple(f"{k + 1}" for k in range(H.shape[2])) if H.ndim == 3 else ()
-        src = "arrays"
-    elif all(hasattr(frf, a) for a in ("frequency", "H", "outputs", "inputs")):
-        w = np.asarray(frf.frequency, dtype=float)
-        H = np.asarray(frf.H, dtype=complex)
-        outs, ins = tuple(frf.outputs), tuple(frf.inputs)
-        src = str(getattr(frf, "source", "measured FRF"))
-    else:
-        raise InputError(
-            f"fit_modes: frf must be a MeasuredFRF or a tuple (omega [rad/s], H), got {type(frf).__name__}"
+        shape = np.shape(frf[1])
+        # coordinate k is output k and input k (a driving-point matrix)
+        n_o, n_i = shape[:2] if len(shape) == 3 else (1, 1)
+        frf = FRF.from_arrays(
+            frf[0],
+            frf[1],
+            tuple(f"{k + 1}" for k in range(n_o)),
+            tuple(f"{k + 1}" for k in range(n_i)),
+            source="arrays",
         )
-    if w.ndim != 1 or H.ndim != 3 or H.shape[0] != w.size:
+    elif not isinstance(frf, FRF):
         raise InputError(
-            f"fit_modes: H must have shape (n_freq, n_out, n_in) with n_freq = {w.size} (got {H.shape})"
+            f"fit_modes: frf must be an FRF or a tuple (omega [rad/s], data), got {type(frf).__name__}"
         )
+    frf = frf.as_kind("receptance")
+    w = np.asarray(frf.omega, dtype=float)
+    H = frf.matrices
     if not (np.all(np.isfinite(w)) and np.all(np.isfinite(H))):
-        raise InputError("fit_modes: omega and H must be finite; drop the bad points")
+        raise InputError("fit_modes: omega and the data must be finite; drop the bad points")
     if w.size > 1 and not np.all(np.diff(w) > 0):
         raise InputError("fit_modes: omega must increase strictly; sort the points and drop duplicates")
     if band is not None:
@@ -143,11 +141,13 @@ def _as_arrays(
             raise InputError(f"fit_modes: band must be (lo, hi) in rad/s with 0 <= lo < hi (got {band!r})")
         keep = (w >= lo) & (w <= hi)
         w, H = w[keep], H[keep]
+        coh = None if frf.coherence is None else frf.coherence[..., keep]
+        frf = replace(frf, omega=w, data=frf.data[..., keep], coherence=coh)
     if w.size < 8:
         raise InputError(f"fit_modes: {w.size} frequencies in the band; a fit needs at least 8")
     if np.any(w <= 0):
         raise InputError("fit_modes: the band must exclude 0 Hz (the lower residual is 1/s^2); raise band[0]")
-    return w, H, outs, ins, src
+    return frf, w, H
 
 
 def _weights(H: np.ndarray, weighting: Any) -> np.ndarray:
@@ -284,9 +284,9 @@ def fit_modes(
 
     Parameters
     ----------
-    frf : MeasuredFRF or tuple (omega, H)
-        Receptance, m/N; omega in rad/s; H shaped (n_freq,) or
-        (n_freq, n_out, n_in).
+    frf : FRF or tuple (omega, data)
+        Receptance, m/N (an FRF of another kind is converted); omega in
+        rad/s; data shaped (n_freq,) or (n_out, n_in, n_freq).
     modes : "auto", int or sequence of float
         Which poles: ``"auto"`` (stable tracks, see the module docstring),
         the n longest-stable poles, or the stable poles nearest the given
@@ -312,7 +312,7 @@ def fit_modes(
     -------
     ModalFit
     """
-    w, H, outs, ins, src = _as_arrays(frf, band)
+    data, w, H = _as_frf(frf, band)
     if (
         isinstance(max_order, bool)
         or not isinstance(max_order, int | np.integer)
@@ -324,11 +324,9 @@ def fit_modes(
             raise InputError(f"fit_modes: {nm} must be a fraction in (0, 1) (got {v!r})")
     with one_blas_thread():
         return _fit(
+            data,
             w,
             H,
-            outs,
-            ins,
-            src,
             modes,
             max_order,
             weighting,
@@ -342,11 +340,9 @@ def fit_modes(
 
 
 def _fit(
+    data: FRF,
     w: np.ndarray,
     H: np.ndarray,
-    outs: tuple,
-    ins: tuple,
-    src: str,
     modes: Any,
     max_order: int,
     weighting: Any,
@@ -408,16 +404,15 @@ def _fit(
         upper=UR,
         std_omega=std_w,
         std_damping=std_z,
-        omega=w,
-        H=H,
-        outputs=outs,
-        inputs=ins,
+        measured=data,
+        outputs=data.outputs,
+        inputs=data.inputs,
         quality=FitQuality(0.0, 0.0, np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)),
         stabilisation=stab,
-        source=src,
+        source=data.source or "arrays",
         message=msg,
     )
-    q = _quality(fit.frf(w), H, Wt, w, lam, fit.modal_constants)
+    q = _quality(fit.synthesis(w), H, Wt, w, lam, fit.modal_constants)
     object.__setattr__(q, "significance", _significance(w, H, Wt, lam, lower, upper))
     object.__setattr__(fit, "quality", q)
     return fit

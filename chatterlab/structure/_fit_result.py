@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ._frf import FRF
 from ._lscf import Stabilisation
 
 __all__ = ["ModalFit", "FitQuality"]
@@ -63,7 +64,8 @@ class ModalFit:
     std_omega, std_damping : ndarray (m,)
         Standard deviations of omega_n and damping from the refinement's
         Jacobian (NaN without refinement).
-    omega, H : the fitted data (rad/s; (n_freq, n_out, n_in) m/N).
+    measured : FRF
+        The fitted data: the receptance over the fitted band.
     outputs, inputs : coordinate names.
     quality : FitQuality
     stabilisation : Stabilisation
@@ -77,8 +79,7 @@ class ModalFit:
     upper: np.ndarray
     std_omega: np.ndarray
     std_damping: np.ndarray
-    omega: np.ndarray
-    H: np.ndarray
+    measured: FRF
     outputs: tuple[str, ...]
     inputs: tuple[str, ...]
     quality: FitQuality
@@ -94,6 +95,11 @@ class ModalFit:
     @property
     def n_modes(self) -> int:
         return int(self.poles.size)
+
+    @property
+    def omega(self) -> np.ndarray:
+        """The fitted frequencies, rad/s."""
+        return self.measured.omega
 
     @property
     def band(self) -> tuple[float, float]:
@@ -155,12 +161,10 @@ class ModalFit:
         return tuple(c for _, _, c in self._driving())
 
     # ------------------------------------------------------------ synthesis
-    def frf(self, omega: Any, *, real_modes: bool = False, residuals: bool = True) -> np.ndarray:
-        """The fitted receptance at ``omega`` (rad/s), (n_freq, n_out, n_in).
-
-        ``real_modes``: the real-mode sum sum Re(A_r) / (w_r^2 - w^2 + 2 j
-        zeta_r w_r w) (what :meth:`to_model` reproduces) instead of the
-        complex-residue sum; ``residuals``: add LR / s^2 + UR."""
+    def synthesis(self, omega: Any, *, real_modes: bool = False, residuals: bool = True) -> np.ndarray:
+        """The fitted receptance at ``omega`` (rad/s) as one matrix per
+        frequency, (n_freq, n_out, n_in) (the layout of the fit; :meth:`frf`
+        gives the FRF)."""
         w = np.atleast_1d(np.asarray(omega, dtype=float))
         s = 1j * w
         if real_modes:
@@ -178,14 +182,22 @@ class ModalFit:
                 out = out + self.lower[None] / s[:, None, None] ** 2 + self.upper[None]
         return out
 
-    def to_measured(self, omega: Any = None) -> Any:
-        """The fitted FRF as a MeasuredFRF at ``omega`` (default: the fitted
-        frequencies)."""
-        from ._measured import MeasuredFRF
+    def frf(self, omega: Any = None, *, real_modes: bool = False, residuals: bool = True) -> FRF:
+        """The fitted receptance at ``omega`` (rad/s; default the fitted
+        frequencies) as an :class:`~chatterlab.structure.FRF`.
 
-        w = self.omega if omega is None else np.asarray(omega, dtype=float)
-        return MeasuredFRF.from_arrays(
-            w, self.frf(w), self.outputs, self.inputs, source=f"modal fit of {self.source}"
+        ``real_modes``: the real-mode sum sum Re(A_r) / (w_r^2 - w^2 + 2 j
+        zeta_r w_r w) (what :meth:`to_model` reproduces) instead of the
+        complex-residue sum; ``residuals``: add LR / s^2 + UR."""
+        w = np.atleast_1d(np.asarray(self.omega if omega is None else omega, dtype=float))
+        H = self.synthesis(w, real_modes=real_modes, residuals=residuals)
+        return FRF(
+            omega=w,
+            data=np.ascontiguousarray(np.moveaxis(H, 0, -1)),
+            outputs=self.outputs,
+            inputs=self.inputs,
+            method="modal fit",
+            source=f"modal fit of {self.source}",
         )
 
     # ------------------------------------------------------------ model
@@ -251,7 +263,7 @@ class ModalFit:
         # a residual part counts when its receptance in the band (UR, LR / lo^2)
         # exceeds rank_tol of the measured peak; below, it is round-off or noise
         # and would only make Psi ill-conditioned
-        peak = float(np.abs(self.H).max())
+        peak = float(np.abs(self.measured.data).max())
         pseudo = []
         if residuals in ("upper", "both"):
             pseudo.append((self.upper, hi * factor, hi * factor, peak))
@@ -364,33 +376,13 @@ class ModalFit:
     # ------------------------------------------------------------ plots
     def plot(self, output: int | str = 0, input: int | str = 0, ax: Any = None) -> Any:
         """Measured and fitted magnitude and phase of one entry against
-        frequency (Hz), with the fitted natural frequencies marked, on ``ax``
-        (a pair of Axes: magnitude, phase; default new); returns the pair.
-        Imports matplotlib."""
-        import matplotlib.pyplot as plt
+        frequency (Hz), with the fitted natural frequencies marked
+        (:func:`chatterlab.plot.plot_modal_fit`), on ``ax`` (a pair of Axes:
+        magnitude, phase; default new); returns the pair.  Imports
+        matplotlib."""
+        from ..plot import plot_modal_fit
 
-        o = self.outputs.index(output) if isinstance(output, str) else int(output)
-        i = self.inputs.index(input) if isinstance(input, str) else int(input)
-        if ax is None:
-            _, ax = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
-        ax_m, ax_p = ax
-        f = self.omega / (2 * np.pi)
-        Hf = self.frf(self.omega)[:, o, i]
-        Hm = self.H[:, o, i]
-        ax_m.semilogy(f, np.abs(Hm), ".", ms=2, color="0.5", label="measured")
-        ax_m.semilogy(f, np.abs(Hf), "-", color="tab:red", lw=1.2, label=f"fit ({self.n_modes} modes)")
-        ax_p.plot(f, np.degrees(np.angle(Hm)), ".", ms=2, color="0.5")
-        ax_p.plot(f, np.degrees(np.angle(Hf)), "-", color="tab:red", lw=1.2)
-        for fr in self.frequency_hz:
-            ax_m.axvline(fr, color="k", lw=0.6, ls=":")
-        ax_m.set_ylabel(f"|{self.outputs[o]} / {self.inputs[i]}|  [m/N]")
-        ax_p.set_ylabel("phase [deg]")
-        ax_p.set_xlabel("frequency [Hz]")
-        ax_m.legend(fontsize=8)
-        ax_m.set_title(
-            f"modal fit: error {100 * self.quality.error:.2g} %, FRAC {self.quality.frac[o, i]:.5f}"
-        )
-        return ax
+        return plot_modal_fit(self, output=output, input=input, ax=ax)
 
     def plot_stabilisation(self, ax: Any = None) -> Any:
         """The stabilisation diagram with the chosen poles marked."""

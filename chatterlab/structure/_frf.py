@@ -1,28 +1,34 @@
-"""A measured frequency response: a structure known only by its FRF.
+"""The frequency response of a structure, modelled or measured: :class:`FRF`.
 
-:class:`MeasuredFRF` holds the receptance H (m/N) of a structure between
-named coordinates at the measured frequencies, the band those frequencies
-cover, and optionally the coherence.  It is the object every measured input
-becomes however it arrives (CSV/TXT, UFF 58/58b, CutPro-style ``.frf``,
-python-control ``FrequencyResponseData``, arrays, or a model's computed FRF
-as the oracle of the tests), and the object the lobe engine
-(:func:`chatterlab.lobes.measured_plant`), the modal fit and receptance
-coupling take.
+One container for every FRF chatterlab makes or reads: the open- or
+closed-loop response a model gives (:func:`chatterlab.frequency.frf`), a
+tap test read from a file (:meth:`FRF.read`: CSV/TXT, UFF 58/58b,
+CutPro-style ``.frf``, netCDF), a python-control system evaluated at some
+frequencies (:meth:`FRF.from_control`), a modal fit's synthesis and a
+receptance coupling's result.  The lobe engine
+(:func:`chatterlab.lobes.measured_plant`), the modal fit
+(:func:`chatterlab.structure.fit_modes`) and receptance coupling
+(:func:`chatterlab.structure.couple_tool`) take it.
 
-Inside: angular frequency in rad/s, receptance in m/N (a rotation among the
-coordinates: rad and N m as the model's), data shaped ``(n_freq, n_out,
-n_in)``.  Hz only in :attr:`MeasuredFRF.frequency_hz` and in files.
+Inside: angular frequency ``omega`` in rad/s, the values ``data`` shaped
+``(n_out, n_in, n_freq)`` (python-control's order: ``data[o, i, k]`` is
+output ``outputs[o]`` per unit input ``inputs[i]`` at ``omega[k]``), SI
+(receptance m/N, mobility m/(N s), accelerance m/(N s^2); a rotation among
+the coordinates: rad and N m as the model's).  Hz only in
+:attr:`FRF.frequency_hz` and in files.  Code that needs one matrix per
+frequency for batched linear algebra takes :attr:`FRF.matrices`
+(n_freq, n_out, n_in).
 
-Between the measured frequencies, :meth:`MeasuredFRF.interpolate` uses a
-cubic spline (not-a-knot) through the real and the imaginary part of every
-entry separately, in w.  For data that are smooth on the scale of the
-spacing h, the error of a cubic spline is at most (5/384) h^4 max|H''''|
-(Hall & Meyer [1]; not-a-knot ends keep the order 4 with a larger constant
-in the end intervals).  To leading order the error is the Hermite term,
-(1/384) h^4 |H''''| at mid-interval, plus what the spline's slope errors add
-on an uneven spacing; :meth:`MeasuredFRF.interpolation_error` estimates
-that per interval (H'''' from fourth divided differences, the slope errors
-against the polynomial through seven samples).  Outside the measured band nothing is
+Between the measured frequencies, :meth:`FRF.interpolate` uses a cubic
+spline (not-a-knot) through the real and the imaginary part of every entry
+separately, in w.  For data that are smooth on the scale of the spacing h,
+the error of a cubic spline is at most (5/384) h^4 max|H''''| (Hall &
+Meyer [1]; not-a-knot ends keep the order 4 with a larger constant in the
+end intervals).  To leading order the error is the Hermite term, (1/384)
+h^4 |H''''| at mid-interval, plus what the spline's slope errors add on an
+uneven spacing; :meth:`FRF.interpolation_error` estimates that per interval
+(H'''' from fourth divided differences, the slope errors against the
+polynomial through seven samples).  Outside the measured band nothing is
 extrapolated: the call raises (``outside="raise"``, the default) or returns
 NaN (``outside="nan"``).
 
@@ -37,21 +43,34 @@ References
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, Literal
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 
 from ..errors import InputError
+from ._frf_spline import BAND_TOL, check_frequency, slope_errors, spline, spline_error, spline_values
 
 if TYPE_CHECKING:
     from ._system import FrozenSystem
 
-__all__ = ["MeasuredFRF"]
+__all__ = ["FRF"]
 
-#: relative tolerance on the band ends (a frequency that prints equal is inside)
-_BAND_TOL = 1e-12
+#: kind -> (power p of j w from a receptance, unit of the values)
+_KINDS = {"receptance": (0, "m/N"), "mobility": (1, "m/(N s)"), "accelerance": (2, "m/(N s^2)")}
+#: the closed-loop facts as files name them: file key -> field
+_FACTS = {
+    "closed_loop": "closed_loop",
+    "terms": "terms",
+    "method": "method",
+    "position_m": "position",
+    "width_m": "width",
+    "delay_s": "delay",
+}
+
+Kind = Literal["receptance", "mobility", "accelerance"]
 
 
 def _names(names: Any, n: int, what: str) -> tuple[str, ...]:
@@ -59,7 +78,9 @@ def _names(names: Any, n: int, what: str) -> tuple[str, ...]:
         names = (names,)
     out = tuple(str(x) for x in names)
     if len(out) != n:
-        raise InputError(f"{what} must name {n} coordinate(s) to match H (got {len(out)}: {list(out)})")
+        raise InputError(
+            f"{what} must name {n} coordinate(s) to match the data (got {len(out)}: {list(out)})"
+        )
     if len(set(out)) != len(out):
         raise InputError(f"{what} name a coordinate twice: {list(out)}")
     return out
@@ -70,102 +91,169 @@ def _unknown(name: str, known: tuple[str, ...], what: str) -> InputError:
 
     near = difflib.get_close_matches(name, known, n=1)
     hint = f" (did you mean {near[0]!r}?)" if near else ""
-    return InputError(f"{what} {name!r} is not measured{hint}; measured: {', '.join(known)}")
+    return InputError(f"{what} {name!r} is not one of the FRF's {what}s{hint}: {', '.join(known)}")
+
+
+def _pick(names: tuple[str, ...], key: int | str, what: str) -> int:
+    """The index of an output or input given by index or by name."""
+    if isinstance(key, str):
+        if key not in names:
+            raise InputError(f"{what} {key!r} is not one of the FRF's {what}s {list(names)}")
+        return names.index(key)
+    return int(key)
+
+
+def _check_kind(kind: str) -> None:
+    if kind not in _KINDS:
+        raise InputError(f"kind must be one of {', '.join(_KINDS)} (got {kind!r})")
+
+
+def _fact(key: str, text: Any) -> Any:
+    """A closed-loop fact as a file gives it (text in CSV, typed in netCDF)."""
+    if key == "closed_loop":
+        return text if isinstance(text, bool) else str(text).strip().lower() in ("true", "1")
+    if key in ("terms", "method"):
+        return str(text)
+    return None if text is None or str(text).strip().lower() in ("", "none", "null") else float(text)
 
 
 @dataclass(frozen=True, eq=False)
-class MeasuredFRF:
-    """Receptance of a structure between named coordinates, as measured.
+class FRF:
+    """A frequency response: ``data[o, i, k]`` is output o per unit input i
+    at ``omega[k]`` (module docstring).
 
     Attributes
     ----------
-    frequency : ndarray, shape (n_freq,)
-        Angular frequencies, rad/s, strictly increasing, >= 0.  Spacing may
-        be uneven.
-    H : ndarray, shape (n_freq, n_out, n_in), complex
-        Receptance, m/N: ``H[k, o, i]`` is the displacement of coordinate
-        ``outputs[o]`` per unit force at ``inputs[i]`` at ``frequency[k]``.
+    omega : ndarray, shape (n_freq,)
+        Angular frequency, rad/s.
+    data : ndarray, shape (n_out, n_in, n_freq), complex
+        Receptance (m/N), mobility (m/(N s)) or accelerance (m/(N s^2)),
+        as ``kind`` says.
     outputs, inputs : tuple of str
-        Coordinate names (``"tool.x"``; for a UFF file ``"NODE.x"``).
-    coherence : ndarray, shape (n_freq, n_out, n_in), optional
+        Coordinate names (``"tool.x"``; a UFF file's ``"NODE.x"``).
+    kind : {"receptance", "mobility", "accelerance"}
+    closed_loop, method, position, width, delay, terms
+        What a computed FRF is: with the cutting process in the loop or
+        not, how it was computed (``"direct"``, ``"modal"``, ``"lti"``;
+        ``"measured"``, ``"modal fit"``, ``"rcsa"``...), the slide position
+        (m), the width of cut (m), the delay (s) and the feedback's terms.
+    meta : dict
+        What a file said besides the data (its units and quantity ...).
+    coherence : ndarray like ``data`` (real), optional
         Ordinary coherence (0..1) of each entry, when measured.
     source : str
-        Where the data came from (a file name, ``"arrays"``, ``"model ..."``).
-    meta : dict
-        What the file said besides the data (its units and quantity...).
+        Where the data came from (a file name, ``"arrays"``, a model).
     """
 
-    frequency: np.ndarray
-    H: np.ndarray
+    #: the kinds of response, by the power of j w that makes them of a receptance
+    KINDS: ClassVar[tuple[str, ...]] = tuple(_KINDS)
+
+    omega: np.ndarray
+    data: np.ndarray
     outputs: tuple[str, ...]
     inputs: tuple[str, ...]
-    coherence: np.ndarray | None = None
-    source: str = "arrays"
+    kind: str = "receptance"
+    closed_loop: bool = False
+    method: str = "direct"
+    position: float | None = None
+    width: float | None = None
+    delay: float | None = None
+    terms: str = "none"
     meta: dict[str, Any] = field(default_factory=dict)
+    coherence: np.ndarray | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        _check_kind(self.kind)
+        shape = (len(self.outputs), len(self.inputs), np.shape(self.omega)[0])
+        if np.shape(self.data) != shape:
+            raise InputError(
+                f"FRF data must have shape (n_out, n_in, n_freq) = {shape} (got {np.shape(self.data)})"
+            )
+        if self.coherence is not None and np.shape(self.coherence) != shape:
+            raise InputError(
+                f"FRF coherence must have the shape of data {shape} (got {np.shape(self.coherence)})"
+            )
 
     # ------------------------------------------------------------------ construction
 
     @classmethod
     def from_arrays(
         cls,
-        frequency: Any,
-        H: Any,
+        omega: Any,
+        data: Any,
         outputs: Any = ("1",),
         inputs: Any = ("1",),
         *,
         hz: bool = False,
+        kind: Kind = "receptance",
         coherence: Any = None,
         source: str = "arrays",
+        method: str = "measured",
         meta: dict[str, Any] | None = None,
-    ) -> MeasuredFRF:
-        """A measured FRF from arrays, checked.
+    ) -> FRF:
+        """An FRF from arrays, checked (a measurement, or any response given
+        as numbers).
 
         Parameters
         ----------
-        frequency : array, shape (n_freq,)
-            rad/s (Hz with ``hz=True``); strictly increasing, finite, >= 0.
-        H : array, shape (n_freq, n_out, n_in) or (n_freq,)
-            Receptance, m/N (a 1-D array is one output and one input).
+        omega : array, shape (n_freq,)
+            rad/s (Hz with ``hz=True``); strictly increasing, finite, >= 0,
+            at least 2 values.
+        data : array, shape (n_out, n_in, n_freq) or (n_freq,)
+            The response (a 1-D array is one output and one input), SI of
+            ``kind``.
         outputs, inputs : sequence of str
             Coordinate names.
-        coherence : array like ``H``, optional
+        coherence : array like ``data``, optional
             Values in [0, 1].
         """
-        w = np.asarray(frequency, dtype=float)
+        w = np.array(omega, dtype=float)
         if w.ndim != 1 or w.size < 2:
             raise InputError(
                 f"{source}: frequency must be a 1-D array of at least 2 values (got shape {w.shape})"
             )
         if hz:
             w = 2 * np.pi * w
-        Hc = np.asarray(H, dtype=complex)
+        _check_kind(kind)
+        Hc = np.array(data, dtype=complex, order="C")
         if Hc.ndim == 1:
-            Hc = Hc[:, None, None]
-        if Hc.ndim != 3 or Hc.shape[0] != w.size:
-            raise InputError(
-                f"{source}: H must have shape (n_freq, n_out, n_in) with n_freq = {w.size} (got {Hc.shape})"
+            Hc = Hc[None, None, :]
+        if Hc.ndim != 3 or Hc.shape[2] != w.size:
+            hint = (
+                "; it looks like (n_freq, n_out, n_in): np.moveaxis(data, 0, -1) gives the FRF's order"
+                if Hc.ndim == 3 and Hc.shape[0] == w.size
+                else ""
             )
-        _check_frequency(w, source)
+            raise InputError(
+                f"{source}: data must have shape (n_out, n_in, n_freq) with n_freq = {w.size}"
+                f" (got {Hc.shape}){hint}"
+            )
+        check_frequency(w, source)
         bad = ~np.isfinite(Hc)
         if np.any(bad):
-            k, o, i = (int(x[0]) for x in np.nonzero(bad))
+            o, i, k = (int(x[0]) for x in np.nonzero(bad))
             raise InputError(
-                f"{source}: H is not finite at {w[k] / (2 * np.pi):g} Hz (entry {o}, {i}); drop or repair that point"
+                f"{source}: the data are not finite at {w[k] / (2 * np.pi):g} Hz (entry {o}, {i});"
+                " drop or repair that point"
             )
-        outs = _names(outputs, Hc.shape[1], f"{source}: outputs")
-        ins = _names(inputs, Hc.shape[2], f"{source}: inputs")
+        outs = _names(outputs, Hc.shape[0], f"{source}: outputs")
+        ins = _names(inputs, Hc.shape[1], f"{source}: inputs")
         coh = None
         if coherence is not None:
-            coh = np.asarray(coherence, dtype=float)
+            coh = np.array(coherence, dtype=float, order="C")
             if coh.ndim == 1:
-                coh = coh[:, None, None]
+                coh = coh[None, None, :]
             if coh.shape != Hc.shape:
-                raise InputError(f"{source}: coherence must have the shape of H {Hc.shape} (got {coh.shape})")
+                raise InputError(
+                    f"{source}: coherence must have the shape of data {Hc.shape} (got {coh.shape})"
+                )
             if not np.all(np.isfinite(coh) & (coh >= 0) & (coh <= 1 + 1e-9)):
                 raise InputError(f"{source}: coherence must lie in [0, 1]")
+            coh.setflags(write=False)
         w.setflags(write=False)
         Hc.setflags(write=False)
-        return cls(w, Hc, outs, ins, coh, source, dict(meta or {}))
+        return cls(w, Hc, outs, ins, kind, method=method, meta=dict(meta or {}), coherence=coh, source=source)
 
     @classmethod
     def read(
@@ -176,73 +264,98 @@ class MeasuredFRF:
         *,
         point: str | None = None,
         format: str | None = None,
-    ) -> MeasuredFRF:
-        """Read a measured FRF file; the format from the suffix (``.csv``,
-        ``.txt``: columns; ``.frf``: CutPro-style; ``.uff``, ``.unv``: UFF
-        dataset 58/58b) or ``format`` (``"csv"``, ``"frf"``, ``"uff"``).
+        kind: Kind | None = "receptance",
+    ) -> FRF:
+        """Read an FRF file; the format from the suffix (``.csv``, ``.txt``:
+        columns; ``.frf``: CutPro-style; ``.uff``, ``.unv``: UFF dataset
+        58/58b; ``.nc``: netCDF as :meth:`to_netcdf` writes) or ``format``
+        (``"csv"``, ``"frf"``, ``"uff"``, ``"netcdf"``).
 
         ``units`` (``"mm/N"``, ``"m/s/N"``, ``"g/N"``...) and ``quantity``
         (``"receptance"``, ``"mobility"``, ``"accelerance"``) override what
-        the file says; everything is converted to receptance in m/N.
+        the file says.  The values are converted to ``kind`` (default
+        receptance in m/N; None keeps the file's quantity, in SI).
         ``point`` names the point of two-letter columns (``xy`` ->
-        ``POINT.x`` / ``POINT.y``).  See docs/measured-frf.md for the formats.
-        """
+        ``POINT.x`` / ``POINT.y``).  What a chatterlab file says of a
+        closed loop (``closed_loop``, ``width_m`` ...) is read back into the
+        fields.  See docs/measured-frf.md for the formats."""
         from ..io._frf_files import read_frf
 
-        return cls.from_table(read_frf(path, units=units, quantity=quantity, point=point, format=format))
+        rec = read_frf(path, units=units, quantity=quantity, point=point, format=format)
+        return cls.from_record(rec, kind=kind)
 
     @classmethod
-    def from_table(cls, t: Any, source: str | None = None) -> MeasuredFRF:
-        """From what :func:`chatterlab.io.read_frf` returns (an ``FRFTable``:
-        frequencies in Hz, receptance in m/N, coordinate names)."""
-        return cls.from_arrays(
-            t.frequency_hz,
-            t.H,
-            t.outputs,
-            t.inputs,
-            hz=True,
-            coherence=t.coherence,
-            source=source or t.source,
-            meta=dict(t.meta),
+    def from_record(cls, record: Any, *, source: str | None = None, kind: Kind | None = "receptance") -> FRF:
+        """From what :func:`chatterlab.io.read_frf` returns (frequencies in
+        Hz or rad/s, the values in SI of the file's quantity, coordinate
+        names, coherence, what the file says), converted to ``kind`` (None:
+        the file's quantity)."""
+        meta = dict(record.meta)
+        facts = {field_: _fact(key, meta.pop(key)) for key, field_ in _FACTS.items() if key in meta}
+        exact = getattr(record, "omega", None)
+        out = cls.from_arrays(
+            record.frequency_hz if exact is None else exact,
+            record.data,
+            record.outputs,
+            record.inputs,
+            hz=exact is None,
+            kind=record.quantity,
+            coherence=record.coherence,
+            source=source or record.source,
+            method=str(facts.pop("method", "measured")),
+            meta=meta,
         )
+        out = replace(out, **facts) if facts else out
+        return out if kind is None else out.as_kind(kind)
 
     @classmethod
-    def from_control(cls, frd: Any, *, source: str = "python-control FrequencyResponseData") -> MeasuredFRF:
-        """From a ``control.FrequencyResponseData`` (receptance, m/N; omega in
-        rad/s); the coordinate names are its signal labels (``:`` read as
-        ``.``, see :meth:`to_control`)."""
+    def from_control(
+        cls,
+        sys: Any,
+        omega: Any = None,
+        *,
+        kind: Kind = "receptance",
+        source: str | None = None,
+    ) -> FRF:
+        """The response of a python-control system at ``omega`` (rad/s): any
+        LTI system (``StateSpace``, ``TransferFunction``) evaluated at
+        j omega, or a ``FrequencyResponseData`` (its own frequencies when
+        ``omega`` is None: exact, its data as stored).  The values are taken
+        as ``kind`` in SI; the coordinate names are the system's signal
+        labels (``:`` read as ``.``, see :meth:`to_control`).  The one way
+        from python-control into chatterlab."""
         import control
 
-        if not isinstance(frd, control.FrequencyResponseData):
-            raise InputError(f"expected a control.FrequencyResponseData, got {type(frd).__name__}")
-        resp = np.asarray(
-            getattr(frd, "frdata", None) if hasattr(frd, "frdata") else frd.fresp, dtype=complex
-        )  # (n_out, n_in, n_freq)
-        outs = tuple(x.replace(":", ".") for x in frd.output_labels)
-        ins = tuple(x.replace(":", ".") for x in frd.input_labels)
-        return cls.from_arrays(
-            np.asarray(frd.omega, dtype=float), np.transpose(resp, (2, 0, 1)), outs, ins, source=source
-        )
-
-    @classmethod
-    def from_frf(cls, frf: Any, *, source: str | None = None) -> MeasuredFRF:
-        """From a computed :class:`chatterlab.frequency.FRF` (any quantity;
-        converted to receptance).  Duck-typed: ``omega``, ``data`` (n_out,
-        n_in, n_freq), ``outputs``, ``inputs``, ``kind``."""
-        power = {"receptance": 0, "mobility": 1, "accelerance": 2}[frf.kind]
-        w = np.asarray(frf.omega, dtype=float)
-        data = np.asarray(frf.data, dtype=complex)
-        if power:
-            if np.any(w == 0):
-                raise InputError(f"a {frf.kind} at 0 Hz cannot be converted to receptance; drop that point")
-            data = data / (1j * w) ** power
-        return cls.from_arrays(
-            w,
-            np.transpose(data, (2, 0, 1)),
-            frf.outputs,
-            frf.inputs,
-            source=source or f"computed FRF ({frf.method})",
-        )
+        if not isinstance(sys, control.LTI):
+            raise InputError(
+                f"expected a python-control system (StateSpace, TransferFunction or FrequencyResponseData),"
+                f" got {type(sys).__name__}"
+            )
+        frd = isinstance(sys, control.FrequencyResponseData)
+        what = "FrequencyResponseData" if frd else type(sys).__name__
+        outs = tuple(x.replace(":", ".") for x in sys.output_labels)
+        ins = tuple(x.replace(":", ".") for x in sys.input_labels)
+        src = source or f"python-control {what}"
+        if omega is None:
+            if not frd:
+                raise InputError("from_control: give the frequencies omega (rad/s) to evaluate the system at")
+            resp = getattr(sys, "frdata", None) if hasattr(sys, "frdata") else sys.fresp
+            return cls.from_arrays(
+                np.asarray(sys.omega, dtype=float),
+                resp,
+                outs,
+                ins,
+                kind=kind,
+                source=src,
+                method="python-control",
+            )
+        # any frequencies (a lobe engine's grid: unsorted, repeated, one): checked finite only
+        w = np.atleast_1d(np.asarray(omega, dtype=float))
+        if w.ndim != 1 or not np.all(np.isfinite(w)):
+            raise InputError("from_control: omega must be a 1-D array of finite frequencies (rad/s)")
+        resp = sys.eval(w, squeeze=False) if frd else sys(1j * w, squeeze=False)
+        data = np.asarray(resp, dtype=complex).reshape(sys.noutputs, sys.ninputs, w.size)
+        return cls(w, data, outs, ins, kind, method="python-control", source=src)
 
     @classmethod
     def from_model(
@@ -251,12 +364,12 @@ class MeasuredFRF:
         outputs: Any,
         inputs: Any | None = None,
         omega: Any = None,
-    ) -> MeasuredFRF:
+    ) -> FRF:
         """A model's open-loop receptance at the frequencies ``omega``
         (rad/s), as if measured: the exact pole-residue sum over all complex
-        modes (the same sum as ``chatterlab.frequency.frf(...,
-        method="modal")``).  ``inputs`` defaults to ``outputs`` (a
-        driving-point matrix).  The oracle of the measured-FRF tests."""
+        modes (:func:`chatterlab.structure.modal_response`).  ``inputs``
+        defaults to ``outputs`` (a driving-point matrix).  The oracle of the
+        measured-FRF tests."""
         from ._complex import modal_response
 
         outs = [outputs] if isinstance(outputs, str) else list(outputs)
@@ -264,31 +377,36 @@ class MeasuredFRF:
         if omega is None:
             raise InputError("from_model needs the frequencies omega (rad/s)")
         w = np.asarray(omega, dtype=float)
-        _check_frequency(w, "from_model")
+        check_frequency(w, "from_model")
         rows = np.array([frozen.dof(s) for s in outs])
         cols = np.array([frozen.dof(s) for s in ins]).T
         cm = frozen.complex_modes
         G = modal_response(cm, rows, cols, 1j * w, np.arange(cm.lam.size), False)
         return cls.from_arrays(
-            w,
-            np.transpose(G, (2, 0, 1)),
-            outs,
-            ins,
-            source=f"model {frozen.model.source}",
-            meta={"model": True},
+            w, G, outs, ins, source=f"model {frozen.model.source}", method="modal", meta={"model": True}
         )
 
     # ------------------------------------------------------------------ views
 
     @property
     def frequency_hz(self) -> np.ndarray:
-        """The measured frequencies, Hz."""
-        return self.frequency / (2 * np.pi)
+        """The frequencies, Hz."""
+        return self.omega / (2 * np.pi)
+
+    @cached_property
+    def matrices(self) -> np.ndarray:
+        """The data as one (n_out, n_in) matrix per frequency, shape
+        (n_freq, n_out, n_in) (C-contiguous, read-only): the layout of
+        batched linear algebra (``np.linalg.solve``, ``@``) and of the
+        spline.  The same numbers as ``data``."""
+        m = np.ascontiguousarray(np.moveaxis(np.asarray(self.data), -1, 0))
+        m.setflags(write=False)
+        return m
 
     @property
     def band(self) -> tuple[float, float]:
-        """(lo, hi), rad/s: the measured band, first to last frequency."""
-        return float(self.frequency[0]), float(self.frequency[-1])
+        """(lo, hi), rad/s: the first and the last frequency."""
+        return float(self.omega[0]), float(self.omega[-1])
 
     @property
     def band_hz(self) -> tuple[float, float]:
@@ -296,14 +414,28 @@ class MeasuredFRF:
         return lo / (2 * np.pi), hi / (2 * np.pi)
 
     @property
-    def shape(self) -> tuple[int, int, int]:
-        n, o, i = self.H.shape
-        return n, o, i
+    def unit(self) -> str:
+        """Unit of ``data``: m/N (and /s, /s^2) for translations; with a
+        rotation (``.rz``) among the inputs or outputs the entries mix m, rad,
+        N and N m, and the label says so."""
+        if any(x.endswith(".rz") for x in self.outputs + self.inputs):
+            p = _KINDS[self.kind][0]
+            return "(m or rad)/(N or N m)" + ("" if p == 0 else "/s" if p == 1 else "/s^2")
+        return _KINDS[self.kind][1]
+
+    @property
+    def label(self) -> str:
+        """``"open loop"``, ``"closed loop P+D"``... (a plot's legend)."""
+        if not self.closed_loop:
+            return "open loop"
+        return {"pd": "closed loop P+D", "pdo": "closed loop P+D+delay", "o": "closed loop delay"}.get(
+            self.terms, "closed loop"
+        )
 
     def __getitem__(self, key: tuple[str, str]) -> np.ndarray:
-        """``frf["tool.x", "tool.x"]`` -> (n_freq,) complex."""
+        """``frf["tool.x", "tool.x"]`` -> (n_freq,) complex (output, input)."""
         o, i = key
-        return self.H[:, self._out(o), self._in(i)]
+        return self.data[self._out(o), self._in(i)]
 
     def _out(self, name: str) -> int:
         if name not in self.outputs:
@@ -315,7 +447,7 @@ class MeasuredFRF:
             raise _unknown(name, self.inputs, "input")
         return self.inputs.index(name)
 
-    def select(self, outputs: Any = None, inputs: Any = None) -> MeasuredFRF:
+    def select(self, outputs: Any = None, inputs: Any = None) -> FRF:
         """The sub-matrix between the named outputs and inputs (in that
         order; None keeps all)."""
         outs = (
@@ -324,45 +456,71 @@ class MeasuredFRF:
         ins = self.inputs if inputs is None else ((inputs,) if isinstance(inputs, str) else tuple(inputs))
         io = [self._out(o) for o in outs]
         ii = [self._in(i) for i in ins]
-        H = self.H[:, io][:, :, ii]
-        coh = None if self.coherence is None else self.coherence[:, io][:, :, ii]
-        return MeasuredFRF.from_arrays(
-            self.frequency, H, outs, ins, coherence=coh, source=self.source, meta=self.meta
-        )
+        sel = np.ix_(io, ii)
+        coh = None if self.coherence is None else self.coherence[sel]
+        return replace(self, data=self.data[sel], outputs=outs, inputs=ins, coherence=coh)
 
-    def renamed(self, outputs: Any = None, inputs: Any = None) -> MeasuredFRF:
+    def renamed(self, outputs: Any = None, inputs: Any = None) -> FRF:
         """The same data under other coordinate names."""
         outs = self.outputs if outputs is None else _names(outputs, len(self.outputs), "outputs")
         ins = self.inputs if inputs is None else _names(inputs, len(self.inputs), "inputs")
-        return MeasuredFRF(self.frequency, self.H, outs, ins, self.coherence, self.source, self.meta)
+        return replace(self, outputs=outs, inputs=ins)
+
+    def as_kind(self, kind: Kind) -> FRF:
+        """Convert between receptance, mobility and accelerance: the values
+        times (j w)^p (Ewins [2]); to a lower one at 0 Hz is refused."""
+        _check_kind(kind)
+        p = _KINDS[kind][0] - _KINDS[self.kind][0]
+        if p == 0:
+            return self
+        if p > 0:
+            return replace(self, data=self.data * (1j * self.omega) ** p, kind=kind)
+        if np.any(self.omega == 0):
+            raise InputError(
+                f"{self.source or 'FRF'}: a {self.kind} at 0 Hz cannot be converted to {kind}; drop that point"
+            )
+        return replace(self, data=self.data / (1j * self.omega) ** (-p), kind=kind)
+
+    def peaks(self, output: int | str = 0, input: int | str = 0, n: int = 3) -> list[tuple[float, float]]:
+        """The n largest local maxima of |data| as (frequency Hz, magnitude);
+        ``output`` and ``input`` by index or by name (``"rfe5.x"``), as in :meth:`plot`."""
+        mag = np.abs(self.data[_pick(self.outputs, output, "output"), _pick(self.inputs, input, "input")])
+        k = np.nonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:]))[0] + 1
+        k = k[np.argsort(-mag[k])][:n]
+        out = []
+        for j in sorted(k, key=lambda j: -mag[j]):
+            # parabolic refinement of the peak on the sampled grid
+            y0, y1, y2 = np.log(mag[j - 1 : j + 2])
+            den = y0 - 2 * y1 + y2
+            dx = 0.5 * (y0 - y2) / den if den != 0 else 0.0
+            f = self.frequency_hz[j] + dx * (self.frequency_hz[j + 1] - self.frequency_hz[j])
+            out.append((float(f), float(np.exp(y1 - 0.25 * (y0 - y2) * dx))))
+        return out
 
     # ------------------------------------------------------------------ interpolation
 
     def in_band(self, omega: Any) -> np.ndarray:
-        """Boolean mask of the frequencies (rad/s) inside the measured band."""
+        """Boolean mask of the frequencies (rad/s) inside the band."""
         w = np.asarray(omega, dtype=float)
         lo, hi = self.band
-        tol = _BAND_TOL * hi
+        tol = BAND_TOL * hi
         return (w >= lo - tol) & (w <= hi + tol)
 
     @cached_property
     def _spline(self) -> Any:
-        """The cubic splines of Re H and Im H (all entries), built once."""
-        from scipy.interpolate import CubicSpline
-
-        n = self.frequency.size
-        flat = self.H.reshape(n, -1)
-        y = np.concatenate([flat.real, flat.imag], axis=1)
-        return CubicSpline(self.frequency, y, axis=0, bc_type="not-a-knot", extrapolate=False)
+        """The cubic splines of Re and Im of every entry, built once."""
+        check_frequency(np.asarray(self.omega), self.source or "FRF")
+        return spline(self.omega, self.matrices)
 
     def interpolate(self, omega: Any, *, outside: Literal["raise", "nan"] = "raise") -> np.ndarray:
-        """H at the angular frequencies ``omega`` (rad/s), shape (n, n_out, n_in).
+        """The values at the angular frequencies ``omega`` (rad/s), shape
+        (n_out, n_in, n).
 
         A cubic spline (not-a-knot) through the real and the imaginary part
-        of each entry in w; at the measured frequencies it returns the data
-        exactly.  Error: see :meth:`interpolation_error`.  Outside the
-        measured band ``outside="raise"`` raises :class:`InputError`,
-        ``"nan"`` returns NaN there; nothing is extrapolated."""
+        of each entry in w; at the sampled frequencies it returns the data
+        exactly.  Error: see :meth:`interpolation_error`.  Outside the band
+        ``outside="raise"`` raises :class:`InputError`, ``"nan"`` returns
+        NaN there; nothing is extrapolated."""
         w = np.atleast_1d(np.asarray(omega, dtype=float))
         inside = self.in_band(w)
         if not np.all(inside) and outside == "raise":
@@ -374,23 +532,14 @@ class MeasuredFRF:
             )
         if outside not in ("raise", "nan"):
             raise InputError(f"outside must be 'raise' or 'nan' (got {outside!r})")
-        lo, hi = self.band
-        wc = np.clip(w, lo, hi)
-        n, no, ni = self.H.shape
-        y = self._spline(wc)
-        out = (y[:, : no * ni] + 1j * y[:, no * ni :]).reshape(w.size, no, ni)
-        # exact at the samples (the spline passes through them to round-off; make it exact)
-        k = np.searchsorted(self.frequency, wc)
-        k = np.minimum(k, n - 1)
-        hit = self.frequency[k] == wc
-        out[hit] = self.H[k[hit]]
-        out[~inside] = np.nan
-        return out
+        out = spline_values(self._spline, np.asarray(self.omega), self.matrices, w, inside)
+        return np.moveaxis(out, 0, -1)
 
     def interpolation_error(self, omega: Any) -> np.ndarray:
         """Estimated error of :meth:`interpolate` at ``omega`` (rad/s), per
-        entry, shape (n, n_out, n_in), m/N: the largest leading-order error
-        of the spline over the interval [x_j, x_j+1] that holds each w.
+        entry, shape (n_out, n_in, n), in the unit of ``data``: the largest
+        leading-order error of the spline over the interval [x_j, x_j+1]
+        that holds each w.
 
         On an interval of length h the spline s is the cubic Hermite
         interpolant of the samples with the spline's own slopes s'_j, so
@@ -421,154 +570,160 @@ class MeasuredFRF:
         smooth on the scale of the spacing, and it also measures noise,
         which a spline passes through."""
         w = np.atleast_1d(np.asarray(omega, dtype=float))
-        x = self.frequency
-        n = x.size
-        if n < 5:
-            return np.full((w.size,) + self.H.shape[1:], np.inf)
-        j = np.clip(np.searchsorted(x, w) - 1, 0, n - 2)  # interval [x_j, x_j+1]
-        h = x[j + 1] - x[j]
-        # the fourth derivative (complex, per entry) at mid-interval: the mean of the fourth
-        # divided differences of the five samples from x_j-2 and from x_j-1
-        s0, s1 = np.clip(j - 2, 0, n - 5), np.clip(j - 1, 0, n - 5)
-        d4 = 12.0 * (_newton(x, self.H, s0, 5)[4] + _newton(x, self.H, s1, 5)[4])
-        slope = self._slope_errors
-        t = np.linspace(0.0, 1.0, 17)[1:-1, None, None, None]
-        hh = h[None, :, None, None]
-        e = -(d4[None] / 24.0) * hh**4 * t**2 * (1 - t) ** 2 + hh * (
-            t * (1 - t) ** 2 * slope[j][None] - t**2 * (1 - t) * slope[j + 1][None]
-        )
-        err = np.max(np.abs(e), axis=0)
-        err[~self.in_band(w)] = np.nan
-        return err
+        x = np.asarray(self.omega)
+        if x.size < 5:
+            return np.full(self.data.shape[:2] + (w.size,), np.inf)
+        err = spline_error(x, self.matrices, self._slope_errors, w, self.in_band(w))
+        return np.moveaxis(err, 0, -1)
 
     @cached_property
     def _slope_errors(self) -> np.ndarray:
-        """d_j = s'(x_j) - H'(x_j) at every sample, (n, n_out, n_in): the
-        spline's slope less that of the polynomial through the seven samples
-        around x_j (whose slope error, O(h^6), is below the spline's)."""
-        x = self.frequency
-        n, no, ni = self.H.shape
-        ds = self._spline.derivative()(x)
-        spline_slope = (ds[:, : no * ni] + 1j * ds[:, no * ni :]).reshape(n, no, ni)
-        k = min(7, n)  # the polynomial through the k (7) samples around x_j
-        s = np.clip(np.arange(n) - k // 2, 0, n - k)
-        c = _newton(x, self.H, s, k)
-        P = np.ones(n)
-        dP = np.zeros(n)
-        poly_slope = np.zeros_like(spline_slope)
-        for i in range(k):  # d/dx of the Newton form sum_i c_i prod_{l<i} (x - x_l)
-            poly_slope += c[i] * dP[:, None, None]
-            xk = x[s + i]
-            dP = dP * (x - xk) + P
-            P = P * (x - xk)
-        return spline_slope - poly_slope
+        """The spline's slope errors at the samples (``_frf_spline.slope_errors``)."""
+        return slope_errors(self._spline, np.asarray(self.omega), self.matrices)
 
     # ------------------------------------------------------------------ out
 
     def to_control(self) -> Any:
-        """A ``control.FrequencyResponseData`` (omega in rad/s, m/N), with
-        the coordinate names as signal labels (python-control refuses '.' in
-        a label: ``tool.x`` becomes ``tool:x``, and :meth:`from_control`
-        turns it back)."""
+        """A ``control.FrequencyResponseData`` (omega in rad/s, the data in
+        SI), with the coordinate names as signal labels (python-control
+        refuses '.' in a label: ``tool.x`` becomes ``tool:x``, and
+        :meth:`from_control` turns it back).  The one way from chatterlab
+        to python-control."""
         import control
 
         return control.FrequencyResponseData(
-            np.transpose(self.H, (1, 2, 0)),
-            self.frequency,
+            np.asarray(self.data),
+            np.asarray(self.omega),
             inputs=[x.replace(".", ":") for x in self.inputs],
             outputs=[x.replace(".", ":") for x in self.outputs],
         )
 
-    def _table(self) -> Any:
-        from ..io._frf_files import FRFTable
+    def _record(self) -> Any:
+        """The FRF as io's plain arrays (for its writers)."""
+        from ..io._frf_table import FRFRecord
 
-        return FRFTable(
+        facts: dict[str, Any] = {}
+        if self.closed_loop or self.method not in ("measured",):
+            facts = {key: getattr(self, f) for key, f in _FACTS.items()}
+        return FRFRecord(
             frequency_hz=self.frequency_hz,
-            H=np.asarray(self.H),
+            data=np.asarray(self.data),
             outputs=self.outputs,
             inputs=self.inputs,
+            quantity=self.kind,
             coherence=self.coherence,
             source=self.source,
+            meta=facts,
+            omega=np.asarray(self.omega),
         )
 
-    def to_csv(self, path: str | os.PathLike[str], *, units: str = "m/N", form: str = "reim") -> None:
-        """Write a CSV file (docs/measured-frf.md): frequency in Hz, then per
-        pair ``OUT/IN re``, ``OUT/IN im`` (``form="magphase"``: ``mag``,
-        ``phase`` in deg), in ``units`` (a receptance unit: m/N, mm/N, um/N),
-        17 significant digits (exact round trip); written atomically."""
-        from ..io._frf_files import write_frf_csv
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form of ``chatterlab frf --format json``."""
+        from .._version import __version__
 
-        write_frf_csv(path, self._table(), units=units, form=form)
+        out = {
+            "chatterlab": __version__,
+            "kind": "frf",
+            "quantity": self.kind,
+            "unit": self.unit,
+            "closed_loop": self.closed_loop,
+            "terms": self.terms,
+            "method": self.method,
+            "position_m": self.position,
+            "width_m": self.width,
+            "delay_s": self.delay,
+            "outputs": list(self.outputs),
+            "inputs": list(self.inputs),
+            "frequency_hz": self.frequency_hz.tolist(),
+            "real": self.data.real.tolist(),
+            "imag": self.data.imag.tolist(),
+        }
+        if self.coherence is not None:
+            out["coherence"] = np.asarray(self.coherence).tolist()
+        if self.source:
+            out["source"] = self.source
+        if self.meta:
+            out["meta"] = self.meta
+        return out
 
-    def to_uff(self, path: str | os.PathLike[str], *, binary: bool = False) -> None:
-        """Write UFF dataset 58 (58b with ``binary=True``), one dataset per
-        (output, input) pair, receptance in SI (needs pyuff: ``pip install
-        chatterlab[uff]``); written atomically."""
-        from ..io._frf_files import write_frf_uff
+    def to_json(self, path: Any = None, *, indent: int | None = None) -> str:
+        """Strict JSON of :meth:`to_dict` (every float exact, non-finite
+        numbers as null), returned, and written to ``path`` (atomically)
+        when one is given."""
+        from ..io._files import json_text, text_out
 
-        write_frf_uff(path, self._table(), binary=binary)
+        s = json_text(self.to_dict(), indent)
+        if path is not None:
+            with text_out(path) as fh:
+                fh.write(s)
+        return s
+
+    def to_csv(
+        self,
+        path: str | os.PathLike[str] | IO[str],
+        *,
+        units: str | None = None,
+        form: Literal["reim", "magphase", "both"] = "reim",
+        comments: bool = True,
+    ) -> Path | None:
+        """Write a CSV file that :meth:`read` reads back
+        (:func:`chatterlab.io.write_frf_csv`, docs/measured-frf.md):
+        ``# units``, ``# quantity``, ``# source`` and the closed-loop facts
+        as comment lines (``comments=False``: none), then frequency in Hz
+        and per (output, input) pair ``re``/``im`` (``form="magphase"``:
+        magnitude and phase in deg; ``"both"``: all four) in ``units`` (a
+        unit of the FRF's kind: m/N, mm/N, um/N for a receptance; default
+        SI), 17 significant digits (re/im: an exact round trip).  Written
+        atomically; returns the path (None for a text stream)."""
+        from ..io._frf_csv import write_frf_csv
+
+        return write_frf_csv(path, self._record(), units=units, form=form, comments=comments)
+
+    def to_uff(self, path: str | os.PathLike[str], *, binary: bool = False) -> Path:
+        """Write UFF dataset 58 (58b with ``binary=True``: exact), one
+        dataset per (output, input) pair, SI (needs pyuff: ``pip install
+        chatterlab[uff]``); written atomically; returns the path."""
+        from ..io._frf_uff import write_frf_uff
+
+        return write_frf_uff(path, self._record(), binary=binary)
+
+    def to_xarray(self) -> Any:
+        """The FRF as an :class:`xarray.Dataset`: dimensions ``output``,
+        ``input`` and ``frequency`` (Hz) labelled with the coordinate names,
+        ``omega`` (rad/s) on ``frequency``, ``real`` and ``imag`` (SI of the
+        kind), ``coherence`` when known; the kind, units, source and the
+        closed-loop facts as attributes (:func:`chatterlab.io.frf_parts`)."""
+        from ..io import frf_parts, make_dataset
+
+        ds = make_dataset(*frf_parts(self._record()))
+        ds = ds.assign_coords(output=list(self.outputs), input=list(self.inputs))
+        for d in ("output", "input"):
+            ds[d].attrs.update(units="", long_name=f"{d} coordinate (POINT.DIR)")
+        return ds
+
+    def to_netcdf(self, path: str | os.PathLike[str]) -> Path:
+        """A netCDF-4 file (:func:`chatterlab.io.write_frf_netcdf`; the
+        values as doubles, omega exactly: :meth:`read` gives the same FRF
+        back), written atomically; returns the path."""
+        from ..io import write_frf_netcdf
+
+        return write_frf_netcdf(path, self._record())
 
     def plot(
-        self, axes: Any = None, *, form: Literal["magphase", "reim"] = "magphase", title: str | None = None
+        self,
+        ax: Any = None,
+        *,
+        output: int | str | None = None,
+        input: int | str | None = None,
+        **style: Any,
     ) -> Any:
-        """Magnitude (log) and phase, or real and imaginary part, of every
-        entry against frequency in Hz; returns the two Axes."""
-        import matplotlib.pyplot as plt
+        """Magnitude (log) and phase against frequency in Hz
+        (:func:`chatterlab.plot.plot_frf`; ``part="reim"``: real and
+        imaginary part; ``peaks``, ``title`` ...): the entry ``output`` /
+        ``input`` (index or name), or every entry when neither is given.
+        ``ax`` is a pair of Axes.  Returns the pair.  Imports matplotlib."""
+        from ..plot import plot_frf
 
-        if axes is None:
-            _, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
-        a0, a1 = axes
-        f = self.frequency_hz
-        for o, on in enumerate(self.outputs):
-            for i, inn in enumerate(self.inputs):
-                z = self.H[:, o, i]
-                lab = f"{on} / {inn}"
-                if form == "magphase":
-                    (ln,) = a0.semilogy(f, np.abs(z), label=lab)
-                    a1.plot(f, np.degrees(np.angle(z)), color=ln.get_color())
-                else:
-                    (ln,) = a0.plot(f, z.real, label=lab)
-                    a1.plot(f, z.imag, color=ln.get_color())
-        if form == "magphase":
-            a0.set_ylabel("|H|  [m/N]")
-            a1.set_ylabel("phase [deg]")
-            a1.set_yticks([-180, -90, 0, 90, 180])
-        else:
-            a0.set_ylabel("Re H  [m/N]")
-            a1.set_ylabel("Im H  [m/N]")
-        a1.set_xlabel("frequency [Hz]")
-        for ax in axes:
-            ax.grid(True, which="both", alpha=0.3)
-        a0.legend(fontsize=8)
-        a0.set_title(title or f"measured FRF: {self.source}")
-        return axes
-
-
-def _check_frequency(w: np.ndarray, source: str) -> None:
-    if not np.all(np.isfinite(w)):
-        raise InputError(f"{source}: frequencies must be finite")
-    if np.any(w < 0):
-        raise InputError(f"{source}: frequencies must be >= 0 (got {w.min() / (2 * np.pi):g} Hz)")
-    d = np.diff(w)
-    if np.any(d <= 0):
-        k = int(np.nonzero(d <= 0)[0][0])
-        what = "repeated" if d[k] == 0 else "decreasing"
-        raise InputError(
-            f"{source}: frequencies must increase strictly; {w[k + 1] / (2 * np.pi):g} Hz after"
-            f" {w[k] / (2 * np.pi):g} Hz is {what} (point {k + 2}); sort the data and drop duplicates"
-        )
-
-
-def _newton(x: np.ndarray, H: np.ndarray, s: np.ndarray, k: int) -> list[np.ndarray]:
-    """Newton divided differences H[x_s], H[x_s, x_s+1], ..., H[x_s .. x_s+k-1]
-    of the k samples from index s (one start per entry of ``s``), each
-    (len(s), n_out, n_in), complex."""
-    idx = s[:, None] + np.arange(k)[None, :]
-    xs = x[idx]
-    dd = H[idx]
-    out = [dd[:, 0]]
-    for level in range(1, k):
-        den = (xs[:, level:] - xs[:, : k - level])[:, :, None, None]
-        dd = (dd[:, 1:] - dd[:, :-1]) / den
-        out.append(dd[:, 0])
-    return out
+        if output is None and input is None and len(self.outputs) * len(self.inputs) > 1:
+            return plot_frf([self], output=None, input=None, ax=ax, **style)
+        return plot_frf([self], output=output or 0, input=input or 0, ax=ax, **style)

@@ -45,36 +45,11 @@ class Stabilisation:
 
     def plot(self, ax: Any = None) -> Any:
         """The stabilisation diagram (order against frequency in Hz) over the
-        measured magnitude; returns the Axes.  Imports matplotlib."""
-        import matplotlib.pyplot as plt
+        measured magnitude (:func:`chatterlab.plot.plot_stabilisation`);
+        returns the Axes.  Imports matplotlib."""
+        from ..plot import plot_stabilisation
 
-        if ax is None:
-            _, ax = plt.subplots(figsize=(8, 5))
-        styles = {
-            NEW: dict(marker="o", mfc="none", color="0.6", ms=4, label="new"),
-            STABLE_FREQUENCY: dict(marker="d", mfc="none", color="tab:blue", ms=4, label="stable frequency"),
-            STABLE: dict(marker="+", color="tab:red", ms=7, label="stable frequency and damping"),
-        }
-        for code, st in styles.items():
-            f, o = [], []
-            for p, lam, s in zip(self.orders, self.poles, self.status, strict=True):
-                sel = s == code
-                f.extend(np.abs(lam[sel]) / (2 * np.pi))
-                o.extend([p] * int(sel.sum()))
-            ax.plot(f, o, ls="none", **st)
-        for lam in self.selected:
-            ax.axvline(abs(lam) / (2 * np.pi), color="k", lw=0.8, ls=":")
-        ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("model order p")
-        ax2 = ax.twinx()
-        ax2.semilogy(self.omega / (2 * np.pi), self.magnitude, color="k", lw=0.8)
-        ax2.set_ylabel("sum |H|  [m/N]")
-        ax.set_xlim(self.omega[0] / (2 * np.pi), self.omega[-1] / (2 * np.pi))
-        ax.legend(loc="upper left", fontsize=8)
-        ax.set_title(
-            f"stabilisation: frequency {100 * self.tol_frequency:g} %, damping {100 * self.tol_damping:g} %"
-        )
-        return ax
+        return plot_stabilisation(self, ax=ax, codes=(NEW, STABLE_FREQUENCY, STABLE))
 
 
 def _lscf_blocks(w: np.ndarray, H: np.ndarray, Wt: np.ndarray, p: int, dt: float) -> Any:

@@ -71,6 +71,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ._complex import dynamic_receptance
+from ._frf import FRF
 
 __all__ = [
     "Joint",
@@ -142,30 +144,51 @@ class Joint:
 # ============================================================================ receptances
 
 
-def receptance(frozen: Any, outputs: Any, inputs: Any, omega: Any) -> np.ndarray:
-    """Receptance of a chatterlab structure between ``POINT.DIR`` specs at
-    ``omega`` (rad/s), (n_freq, n_out, n_in), by one linear solve per
-    frequency of (-w^2 A + j w B + C) -- valid for a free-free structure
-    (rigid-body modes) at w > 0, where the complex modes are not."""
+def _frozen(structure: Any) -> Any:
+    """A FrozenSystem from a Model, System or FrozenSystem."""
     from ._system import FrozenSystem, System
 
-    if isinstance(frozen, System):
-        frozen = frozen.at()
-    elif not isinstance(frozen, FrozenSystem):
+    if isinstance(structure, System):
+        return structure.at()
+    if not isinstance(structure, FrozenSystem):
         from ._assembly import assemble
 
-        frozen = assemble(frozen).at()
+        return assemble(structure).at()
+    return structure
+
+
+def _stack(frozen: Any, outputs: Any, inputs: Any, omega: Any) -> np.ndarray:
+    """The receptance between POINT.DIR specs, one matrix per frequency
+    (n_freq, n_out, n_in) (:func:`dynamic_receptance` on the frozen
+    matrices)."""
     outs = [outputs] if isinstance(outputs, str) else list(outputs)
     ins = [inputs] if isinstance(inputs, str) else list(inputs)
     w = np.asarray(omega, dtype=float)
     if w.ndim != 1 or np.any(~np.isfinite(w)) or np.any(w <= 0):
         raise InputError("receptance: omega must be a 1-D array of frequencies > 0 rad/s")
     Co = np.array([frozen.dof(s) for s in outs])
-    Bi = np.array([frozen.dof(s) for s in ins]).T.astype(complex)
-    s = 1j * w
-    Z = s[:, None, None] ** 2 * frozen.A + s[:, None, None] * frozen.B + frozen.C
-    X = np.linalg.solve(Z, np.broadcast_to(Bi, (w.size,) + Bi.shape))
-    return Co @ X
+    Bi = np.array([frozen.dof(s) for s in ins]).T
+    return dynamic_receptance(frozen.A, frozen.B, frozen.C, w, Co, Bi)
+
+
+def receptance(structure: Any, outputs: Any, inputs: Any, omega: Any) -> FRF:
+    """Receptance of a chatterlab structure (Model, System or
+    FrozenSystem) between ``POINT.DIR`` specs at ``omega`` (rad/s), by one
+    linear solve per frequency of (-w^2 A + j w B + C)
+    (:func:`dynamic_receptance`) -- valid for a free-free structure
+    (rigid-body modes) at w > 0, where the complex modes are not."""
+    frozen = _frozen(structure)
+    outs = [outputs] if isinstance(outputs, str) else list(outputs)
+    ins = [inputs] if isinstance(inputs, str) else list(inputs)
+    G = _stack(frozen, outs, ins, omega)
+    return FRF(
+        omega=np.asarray(omega, dtype=float),
+        data=np.ascontiguousarray(np.moveaxis(G, 0, -1)),
+        outputs=tuple(outs),
+        inputs=tuple(ins),
+        position=frozen.position,
+        source=f"model {frozen.model.source}",
+    )
 
 
 def rotations_from_translations(H: Any, spacing: float) -> np.ndarray:
@@ -174,7 +197,8 @@ def rotations_from_translations(H: Any, spacing: float) -> np.ndarray:
     the axis (towards the spindle; the tool along +x, rz counter-clockwise),
     by finite differences (Duarte & Ewins [4]).
 
-    ``H`` is (n_freq, n_p, n_p): h_ij = displacement at i per force at j,
+    ``H`` is one matrix per frequency (n_freq, n_p, n_p; an FRF's
+    ``matrices``): h_ij = displacement at i per force at j,
     n_p = 2 (theta_0 ~ (y_0 - y_1)/s) or n_p = 3 (theta_0 ~ (3 y_0 - 4 y_1 +
     y_2)/(2 s)); the errors (module docstring): O(s^2) on the rotation per
     force, O(s) on the rotation per moment (half as large with three
@@ -209,7 +233,8 @@ def couple(
     Parameters
     ----------
     HA : (n_freq, nA, nA), HB : (n_freq, nB, nB)
-        Receptances of A and B over their coordinates.
+        Receptances of A and B over their coordinates, one matrix per
+        frequency (an FRF's ``matrices``: the layout of the batched solve).
     a, b : sequence of int
         The coupling coordinates in A and in B, in matching order.
     compliance : (n_freq, n_c, n_c), optional
@@ -305,30 +330,38 @@ def tool_model(
 # ============================================================================ tool on holder
 
 
-def _holder_arrays(holder: Any, coords: tuple[str, ...] | None) -> tuple[np.ndarray, np.ndarray, tuple, str]:
-    if isinstance(holder, tuple) and len(holder) == 2:
-        w = np.asarray(holder[0], float)
-        H = np.asarray(holder[1], complex)
-        if H.ndim != 3 or H.shape[0] != w.size or H.shape[1] != H.shape[2]:
-            raise InputError(f"couple_tool: holder H must be (n_freq, n_c, n_c) (got {H.shape})")
-        return w, H, tuple(f"c{k}" for k in range(H.shape[1])), "arrays"
-    if not all(hasattr(holder, x) for x in ("frequency", "H", "outputs", "inputs")):
-        raise InputError(
-            f"couple_tool: holder must be a MeasuredFRF or a tuple (omega, H), got {type(holder).__name__}"
-        )
-    outs, ins = tuple(holder.outputs), tuple(holder.inputs)
+def _as_frf(frf: Any, what: str) -> FRF:
+    """An FRF (receptance) from an FRF or a tuple (omega rad/s, data
+    (n_out, n_in, n_freq) or (n_freq,)) whose coordinate k is ``ck``."""
+    if isinstance(frf, tuple) and len(frf) == 2:
+        shape = np.shape(frf[1])
+        n_o, n_i = shape[:2] if len(shape) == 3 else (1, 1)
+        outs = tuple(f"c{k}" for k in range(n_o))
+        return FRF.from_arrays(frf[0], frf[1], outs, tuple(f"c{k}" for k in range(n_i)), source="arrays")
+    if not isinstance(frf, FRF):
+        raise InputError(f"{what} must be an FRF or a tuple (omega, data), got {type(frf).__name__}")
+    return frf.as_kind("receptance")
+
+
+def _holder_arrays(
+    holder: Any, coords: tuple[str, ...] | None, func: str = "couple_tool"
+) -> tuple[FRF, np.ndarray, np.ndarray, tuple, str]:
+    """(the holder FRF, omega, its matrices (n_freq, n_c, n_c) over the
+    coupling coordinates, those coordinates, its source)."""
+    frf = _as_frf(holder, f"{func}: holder")
+    outs, ins = frf.outputs, frf.inputs
     use = coords if coords is not None else outs
     for c in use:
         if c not in outs or c not in ins:
             raise InputError(
-                f"couple_tool: the holder FRF ({getattr(holder, 'source', '')}) has no coupling coordinate '{c}'"
+                f"{func}: the holder FRF ({frf.source}) has no coupling coordinate '{c}'"
                 f" as output and input (it has outputs {', '.join(outs)}; inputs {', '.join(ins)}); give its"
                 " (y, rz) receptances, e.g. from rotations_from_translations"
             )
     io = [outs.index(c) for c in use]
     ii = [ins.index(c) for c in use]
-    H = np.asarray(holder.H, complex)[:, io][:, :, ii]
-    return np.asarray(holder.frequency, float), H, tuple(use), str(getattr(holder, "source", "holder"))
+    H = frf.matrices[:, io][:, :, ii]
+    return frf, np.asarray(frf.omega, float), H, tuple(use), frf.source or "holder"
 
 
 def couple_tool(
@@ -347,9 +380,10 @@ def couple_tool(
 
     Parameters
     ----------
-    holder : MeasuredFRF or tuple (omega, H)
+    holder : FRF or tuple (omega, data)
         The holder's receptance at the coupling point over the coupling
-        coordinates (e.g. ``holder.y``, ``holder.rz``), (n_freq, n_c, n_c).
+        coordinates (e.g. ``holder.y``, ``holder.rz``); data (n_c, n_c,
+        n_freq) in the FRF's axis order.
     tool : Model, System or FrozenSystem
         The free-free tool (:func:`tool_model`); its coupling point is
         ``base``.
@@ -366,13 +400,11 @@ def couple_tool(
 
     Returns
     -------
-    MeasuredFRF
+    FRF
         The assembled receptance at the tool's outputs/inputs, over the
         holder's band.
     """
-    from ._measured import MeasuredFRF
-
-    w_h, HA, hc, src = _holder_arrays(holder, holder_coords)
+    hfrf, w_h, HA, hc, src = _holder_arrays(holder, holder_coords)
     if len(hc) != len(directions):
         raise InputError(
             f"couple_tool: {len(hc)} holder coordinates ({', '.join(hc)}) for {len(directions)} directions"
@@ -385,21 +417,16 @@ def couple_tool(
     ins = outs if inputs is None else ([inputs] if isinstance(inputs, str) else list(inputs))
     w = w_h if omega is None else np.asarray(omega, float)
     if omega is not None:
-        if not hasattr(holder, "interpolate"):
-            raise InputError(
-                "couple_tool: omega= needs a MeasuredFRF holder (to interpolate); pass arrays on omega"
-            )
-        Hfull = np.asarray(holder.interpolate(w), complex)
-        idx_o = [list(holder.outputs).index(c) for c in hc]
-        idx_i = [list(holder.inputs).index(c) for c in hc]
-        HA = Hfull[:, idx_o][:, :, idx_i]
+        sub = hfrf.select(list(hc), list(hc))
+        HA = np.ascontiguousarray(np.moveaxis(sub.interpolate(w), -1, 0))
     G = _tool_point(HA, tool, jt, directions, base, outs, ins, w)
-    return MeasuredFRF.from_arrays(
+    return FRF.from_arrays(
         w,
-        G,
+        np.moveaxis(G, 0, -1),
         tuple(outs),
         tuple(ins),
         source=f"RCSA of {src} and {getattr(_model_of(tool), 'source', 'tool')}",
+        method="rcsa",
     )
 
 
@@ -419,10 +446,11 @@ def _tool_point(
 ) -> np.ndarray:
     """G_tt = H_tt - H_tc (H_cc + H_aa + Z^-1)^-1 H_ct (module docstring)."""
     cpl = [f"{base}.{d}" for d in directions]
-    Hcc = receptance(tool, cpl, cpl, w)
-    Htc = receptance(tool, outs, cpl, w)
-    Hct = receptance(tool, cpl, ins, w)
-    Htt = receptance(tool, outs, ins, w)
+    fz = _frozen(tool)
+    Hcc = _stack(fz, cpl, cpl, w)
+    Htc = _stack(fz, outs, cpl, w)
+    Hct = _stack(fz, cpl, ins, w)
+    Htt = _stack(fz, outs, ins, w)
     S = Hcc + HA + joint.compliance(w)
     return Htt - Htc @ np.linalg.solve(S, Hct)
 
@@ -456,7 +484,7 @@ def identify_joint(
     band: tuple[float, float] | None = None,
 ) -> JointFit:
     """Fit the (y, rz) joint's k, k_rot, c, c_rot to a measured tool-point
-    receptance (a 1 x 1 MeasuredFRF, or the ``output`` entry of a larger
+    receptance (a 1 x 1 FRF, or the ``output`` entry of a larger
     one; ``output`` is the tool's point) by least squares on the complex log ratio
     log(G_model / G_measured) (magnitude and phase errors weighted alike,
     the maximum-likelihood choice for relative noise), over the logarithms
@@ -475,13 +503,14 @@ def identify_joint(
     for f in free:
         if not (0 < x0[f] < math.inf):
             raise InputError(f"identify_joint: the initial {f} must be finite and > 0 (got {x0[f]!r})")
-    w_h, HA, _, _ = _holder_arrays(holder, holder_coords)
-    w_m = np.asarray(measured.frequency, float)
-    Hm = np.asarray(measured.H, complex)
-    if Hm.shape[1:] == (1, 1):
-        Gm = Hm[:, 0, 0]  # a tap test's one FRF, whatever its coordinates are called
+    _, w_h, HA, _, _ = _holder_arrays(holder, holder_coords, "identify_joint")
+    measured = _as_frf(measured, "identify_joint: measured")
+    w_m = np.asarray(measured.omega, float)
+    Hm = measured.data
+    if Hm.shape[:2] == (1, 1):
+        Gm = Hm[0, 0]  # a tap test's one FRF, whatever its coordinates are called
     elif output in measured.outputs and output in measured.inputs:
-        Gm = Hm[:, list(measured.outputs).index(output), list(measured.inputs).index(output)]
+        Gm = Hm[list(measured.outputs).index(output), list(measured.inputs).index(output)]
     else:
         raise InputError(
             f"identify_joint: the measured FRF ({getattr(measured, 'source', '')}) has no '{output}' as output"
@@ -494,10 +523,11 @@ def identify_joint(
     sel = np.ones(w_m.size, bool) if band is None else (w_m >= band[0]) & (w_m <= band[1])
     w, HAs, Gms = w_m[sel], HA[sel], Gm[sel]
     cpl = ["base.y", "base.rz"]
-    Hcc = receptance(tool, cpl, cpl, w)
-    Htc = receptance(tool, [output], cpl, w)
-    Hct = receptance(tool, cpl, [output], w)
-    Htt = receptance(tool, [output], [output], w)[:, 0, 0]
+    fz = _frozen(tool)
+    Hcc = _stack(fz, cpl, cpl, w)
+    Htc = _stack(fz, [output], cpl, w)
+    Hct = _stack(fz, cpl, [output], w)
+    Htt = _stack(fz, [output], [output], w)[:, 0, 0]
 
     def joint_of(x: np.ndarray) -> Joint:
         v = dict(x0)

@@ -132,18 +132,18 @@ def noise(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def make() -> dict[str, Any]:
-    """The three MeasuredFRFs and the truth (nothing written)."""
-    from chatterlab.structure import MeasuredFRF, assemble, receptance
+    """The three FRFs and the truth (nothing written)."""
+    from chatterlab.structure import FRF, assemble, receptance
 
     rng = np.random.default_rng(SEED)
     w = frequency_grid()
-    tip = np.zeros((w.size, 2, 2), complex)
+    tip = np.zeros((2, 2, w.size), complex)
     truth: dict[str, Any] = {"noise": NOISE, "band_hz": [F_LO, F_HI], "modes": {}}
     holders = {}
     for j, d in enumerate(("x", "y")):
         full = assemble(machine(d)).at()
-        Ht = receptance(full, ["tip.y"], ["tip.y"], w)[:, 0, 0]
-        tip[:, j, j] = Ht * (1 + noise(rng, Ht.shape))
+        Ht = receptance(full, ["tip.y"], ["tip.y"], w).data[0, 0]
+        tip[j, j] = Ht * (1 + noise(rng, Ht.shape))
         # the modes in the band that the tool point sees (the axial mode has no
         # residue at tip.y): peak contribution |R| / |Re lam| above 1e-3 of the largest
         cm = full.complex_modes
@@ -156,13 +156,11 @@ def make() -> dict[str, Any]:
             "damping": [float(-x.real / abs(x)) for x in lam],
         }
         hold = assemble(machine(d, tool=False)).at()
-        HA = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], w)
-        HA = HA * (1 + noise(rng, HA.shape))
+        HA = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], w).matrices
+        HA = np.moveaxis(HA * (1 + noise(rng, HA.shape)), 0, -1)  # the noise drawn per frequency, as ever
         names = (f"holder.{d}", f"holder.t{d}")
-        holders[d] = MeasuredFRF.from_arrays(w, HA, names, names, source=f"holder_{d}.csv")
-    tool_point = MeasuredFRF.from_arrays(
-        w, tip, ("tool.x", "tool.y"), ("tool.x", "tool.y"), source="tool_point.csv"
-    )
+        holders[d] = FRF.from_arrays(w, HA, names, names, source=f"holder_{d}.csv")
+    tool_point = FRF.from_arrays(w, tip, ("tool.x", "tool.y"), ("tool.x", "tool.y"), source="tool_point.csv")
     truth.update(
         {"spindle": SPINDLE, "bearing": BEARING, "holder": HOLDER, "tool": TOOL, "joint": JOINT, "seed": SEED}
     )

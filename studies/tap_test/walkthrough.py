@@ -98,7 +98,7 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
     from chatterlab.model import Process, build_model
     from chatterlab.process import Milling
     from chatterlab.structure import (
-        MeasuredFRF,
+        FRF,
         assemble,
         couple_tool,
         fit_modes,
@@ -112,13 +112,11 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
     res: dict[str, Any] = {}
 
     # ---------------------------------------------------------------- 1. the file
-    frf = MeasuredFRF.read(HERE / "tool_point.csv")
+    frf = FRF.read(HERE / "tool_point.csv")
     if quick:  # every second frequency: the same band, half the work
-        frf = MeasuredFRF.from_arrays(
-            frf.frequency[::2], frf.H[::2], frf.outputs, frf.inputs, source=frf.source
-        )
+        frf = FRF.from_arrays(frf.omega[::2], frf.data[..., ::2], frf.outputs, frf.inputs, source=frf.source)
     res["band_hz"] = frf.band_hz
-    res["n_frequencies"] = int(frf.frequency.size)
+    res["n_frequencies"] = int(frf.omega.size)
 
     # ---------------------------------------------------------------- 2. the fit
     # fitted up to 4 kHz: the machine's next modes (6.3 and 7.4 kHz) lie so
@@ -158,16 +156,16 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
     }
     milling = Milling.from_immersion(**MILLING)  # type: ignore[arg-type]
     mill_frf = lobes_measured(frf, rpm, milling=milling, name="measured FRF", **nf)
-    dense = frf.frequency
-    mill_fit = lobes_measured(fit.to_measured(dense), rpm, milling=milling, name="modal fit", **nf)
+    dense = frf.omega
+    mill_fit = lobes_measured(fit.frf(dense), rpm, milling=milling, name="modal fit", **nf)
     res["milling_min_mm"] = {"frf": 1e3 * mill_frf.minimum["width"], "fit": 1e3 * mill_fit.minimum["width"]}
     res["milling_envelope_rel"] = _envelope_gap(mill_fit, mill_frf)
 
     # ---------------------------------------------------------------- 4. coupling
-    holders = {d: MeasuredFRF.read(HERE / f"holder_{d}.csv") for d in ("x", "y")}
+    holders = {d: FRF.read(HERE / f"holder_{d}.csv") for d in ("x", "y")}
     if quick:
         holders = {
-            d: MeasuredFRF.from_arrays(h.frequency[::2], h.H[::2], h.outputs, h.inputs, source=h.source)
+            d: FRF.from_arrays(h.omega[::2], h.data[..., ::2], h.outputs, h.inputs, source=h.source)
             for d, h in holders.items()
         }
     # the holder's FRFs smoothed by a modal fit before coupling: the coupling
@@ -175,7 +173,7 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
     # prediction (compare "raw" below)
     holder_fits = {d: fit_modes(h, max_order=16 if quick else 24) for d, h in holders.items()}
     res["holder_fit"] = {d: hf.table() for d, hf in holder_fits.items()}
-    smooth = {d: hf.to_measured(holders[d].frequency) for d, hf in holder_fits.items()}
+    smooth = {d: hf.frf(holders[d].omega) for d, hf in holder_fits.items()}
     T = gen.TOOL
     tool = tool_model(T["length"], T["diameter"], E=T["E"], nu=T["nu"], rho=T["rho"], elements=T["elements"])
     from chatterlab.structure import Joint
@@ -193,26 +191,26 @@ def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
         "log_error": jfit.error,
     }
     # the measured overhang, predicted back, and the new one against the truth
-    w = holders["y"].frequency
+    w = holders["y"].omega
     pred = {}
     err: dict[str, Any] = {}
     for L in (T["length"], L_NEW):
         toolL = tool_model(L, T["diameter"], E=T["E"], nu=T["nu"], rho=T["rho"], elements=T["elements"])
         exact = np.stack(
             [
-                receptance(assemble(gen.machine(d, tool_length=L)).at(), ["tip.y"], ["tip.y"], w)[:, 0, 0]
+                receptance(assemble(gen.machine(d, tool_length=L)).at(), ["tip.y"], ["tip.y"], w).data[0, 0]
                 for d in "xy"
             ],
             axis=1,
         )
         for kind, hs in (("fitted holder", smooth), ("raw holder", holders)):
-            H = np.zeros((w.size, 2, 2), complex)
+            H = np.zeros((2, 2, w.size), complex)
             for j, d in enumerate(("x", "y")):
-                H[:, j, j] = couple_tool(hs[d], toolL, joint=jfit.joint).H[:, 0, 0]
-            e = np.abs(np.stack([H[:, 0, 0], H[:, 1, 1]], axis=1) - exact) / np.abs(exact)
+                H[j, j] = couple_tool(hs[d], toolL, joint=jfit.joint).data[0, 0]
+            e = np.abs(np.stack([H[0, 0], H[1, 1]], axis=1) - exact) / np.abs(exact)
             err[f"{1e3 * L:g} mm, {kind}"] = {"rms": float(np.sqrt(np.mean(e**2))), "max": float(e.max())}
             if kind == "fitted holder":
-                pred[L] = MeasuredFRF.from_arrays(
+                pred[L] = FRF.from_arrays(
                     w, H, ("tool.x", "tool.y"), ("tool.x", "tool.y"), source=f"RCSA {L * 1e3:g} mm"
                 )
         res["exact_tool_point" if L == T["length"] else "exact_new"] = exact
@@ -269,8 +267,8 @@ def _figures(
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
     f = frf.frequency_hz
     for j, c in enumerate(frf.outputs):
-        axes[0].semilogy(f, np.abs(frf.H[:, j, j]), lw=0.8, label=f"{c}/{c}")
-        axes[1].plot(f, np.degrees(np.angle(frf.H[:, j, j])), lw=0.8)
+        axes[0].semilogy(f, np.abs(frf.data[j, j]), lw=0.8, label=f"{c}/{c}")
+        axes[1].plot(f, np.degrees(np.angle(frf.data[j, j])), lw=0.8)
     axes[0].set_ylabel("|H|  [m/N]")
     axes[1].set_ylabel("phase [deg]")
     axes[1].set_xlabel("frequency [Hz]")
@@ -319,7 +317,7 @@ def _figures(
     L0 = sorted(pred)[0]
     w = pred[L0].frequency_hz
     axes[0].semilogy(
-        f, np.abs(frf.H[:, 1, 1]), ".", ms=1.5, color="0.6", label="measured 60 mm (tool_point.csv)"
+        f, np.abs(frf.data[1, 1]), ".", ms=1.5, color="0.6", label="measured 60 mm (tool_point.csv)"
     )
     axes[0].semilogy(
         w, np.abs(res["exact_tool_point"][:, 1]), color="k", lw=2.5, alpha=0.35, label="true machine 60 mm"
@@ -328,7 +326,7 @@ def _figures(
         w, np.abs(res["exact_new"][:, 1]), color="k", lw=2.5, alpha=0.35, ls=":", label="true machine 75 mm"
     )
     for L, st in zip(sorted(pred), (dict(color="tab:blue"), dict(color="tab:red")), strict=True):
-        axes[0].semilogy(w, np.abs(pred[L].H[:, 1, 1]), lw=1.0, label=f"RCSA {1e3 * L:g} mm", **st)
+        axes[0].semilogy(w, np.abs(pred[L].data[1, 1]), lw=1.0, label=f"RCSA {1e3 * L:g} mm", **st)
     axes[0].set_xlabel("frequency [Hz]")
     axes[0].set_ylabel("|H_yy|  [m/N]")
     axes[0].set_title("tool point: modelled tool on the measured holder")
