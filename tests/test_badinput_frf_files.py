@@ -27,7 +27,8 @@ from hypothesis import strategies as st
 
 from chatterlab.cli._main import main
 from chatterlab.errors import ChatterlabError, InputError
-from chatterlab.io import FRFTable, read_frf, write_frf_uff
+from chatterlab.io import read_frf, write_frf_uff
+from chatterlab.io._frf_table import FRFRecord
 
 ROOT = Path(__file__).resolve().parents[1]
 SCALE = {"m/N": 1.0, "mm/N": 1e-3, "um/N": 1e-6, "µm/N": 1e-6}
@@ -183,7 +184,7 @@ def test_fuzz_valid_files_are_read_whole(capsys, tmp_path, case, encoding, eol, 
     before = digest(p)
     t = read_frf(p)
     np.testing.assert_array_equal(t.frequency_hz, f)
-    np.testing.assert_allclose(t.H[:, 0, 0], H, rtol=1e-9)
+    np.testing.assert_allclose(t.data[0, 0], H, rtol=1e-9)
     model = tmp_path / "m.toml"
     model.write_text(MODEL.format(file=p.name, coord=t.outputs[0]))
     code, out, err, elapsed = run(capsys, "check", model)
@@ -196,13 +197,13 @@ def test_fuzz_valid_files_are_read_whole(capsys, tmp_path, case, encoding, eol, 
 # ============================================================================ fuzz: damaged files
 
 
-def _uff_file(path: Path, n: int, binary: bool) -> FRFTable:
+def _uff_file(path: Path, n: int, binary: bool) -> FRFRecord:
     f = 100.0 + 7.0 * np.arange(n)
-    H = np.zeros((n, 2, 2), complex)
-    H[:, 0, 0] = H[:, 1, 1] = sdof(f)
-    H[:, 0, 1] = H[:, 1, 0] = 0.1 * sdof(f)
-    coh = np.full((n, 2, 2), 0.9)
-    t = FRFTable(f, H, ("1.x", "1.y"), ("1.x", "1.y"), coh)
+    H = np.zeros((2, 2, n), complex)
+    H[0, 0] = H[1, 1] = sdof(f)
+    H[0, 1] = H[1, 0] = 0.1 * sdof(f)
+    coh = np.full((2, 2, n), 0.9)
+    t = FRFRecord(f, H, ("1.x", "1.y"), ("1.x", "1.y"), "receptance", coh)
     write_frf_uff(path, t, binary=binary)
     return t
 
@@ -283,7 +284,7 @@ def test_fuzz_damaged_files_are_refused_or_read_whole(capsys, tmp_path, fmt, how
     if t is not None:  # accepted: then it is the whole of what is there
         if fmt == "uff":
             np.testing.assert_array_equal(t.frequency_hz, full.frequency_hz)
-            np.testing.assert_allclose(t.H, full.H, rtol=1e-9)
+            np.testing.assert_allclose(t.data, full.data, rtol=1e-9)
             np.testing.assert_allclose(t.coherence, full.coherence, rtol=1e-9)
         else:
             assert how == "truncate", how
@@ -320,7 +321,7 @@ TABS = ROWS.replace(",", "\t")
 )
 def test_the_headers_people_write_are_read(tmp_path, header):
     p = write(tmp_path, "t.csv", f"# units: m/N\n{header}\n{ROWS}")
-    np.testing.assert_allclose(read_frf(p).H[:, 0, 0], sdof(F), rtol=1e-15)
+    np.testing.assert_allclose(read_frf(p).data[0, 0], sdof(F), rtol=1e-15)
 
 
 @pytest.mark.parametrize(
@@ -332,7 +333,7 @@ def test_magnitude_and_phase_with_the_unit_in_the_header(tmp_path, phase, to):
         f"{a!r},{abs(b)!r},{float(to(np.angle(b)))!r}\n" for a, b in zip(F.tolist(), z.tolist(), strict=True)
     )
     p = write(tmp_path, "t.csv", f"# units: m/N\nf, magnitude, {phase}\n{rows}")
-    np.testing.assert_allclose(read_frf(p).H[:, 0, 0], z, rtol=1e-12)
+    np.testing.assert_allclose(read_frf(p).data[0, 0], z, rtol=1e-12)
 
 
 def test_a_phase_without_its_unit_is_refused_not_guessed(tmp_path):
@@ -369,7 +370,7 @@ def test_utf16_with_its_byte_order_mark_is_read(tmp_path, encoding):
     text = f"# units: µm/N\nf,re,im\n{ROWS}"
     data = b"\xfe\xff" + text.encode("utf-16-be") if encoding == "utf-16-be-bom" else text.encode("utf-16")
     p = write(tmp_path, "t.csv", data)
-    np.testing.assert_allclose(read_frf(p).H[:, 0, 0], sdof(F) * 1e-6, rtol=1e-15)
+    np.testing.assert_allclose(read_frf(p).data[0, 0], sdof(F) * 1e-6, rtol=1e-15)
 
 
 @pytest.mark.parametrize(
@@ -401,7 +402,7 @@ def test_cutpro_caption_units_are_the_units(tmp_path):
     """'Real(mm/N)' in the captions and no Units line: mm/N, not CutPro's m/N default."""
     p = write(tmp_path, "t.frf", f"Frequency(Hz)\tReal(mm/N)\tImag(mm/N)\n{TABS}")
     t = read_frf(p)
-    np.testing.assert_allclose(t.H[:, 0, 0], sdof(F) * 1e-3, rtol=1e-15)
+    np.testing.assert_allclose(t.data[0, 0], sdof(F) * 1e-3, rtol=1e-15)
     assert t.meta["units"] == "mm/N"
 
 

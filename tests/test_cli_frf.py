@@ -15,7 +15,7 @@ import chatterlab as cl
 from chatterlab.cli import main
 from chatterlab.lobes._measured import lobes_measured
 from chatterlab.process import Milling
-from chatterlab.structure import MeasuredFRF
+from chatterlab.structure import FRF
 
 K, M, ZETA = 1.0e7, 1.0, 0.03  # a 503 Hz, 3 % tool point
 
@@ -28,21 +28,17 @@ def _sdof(f_hz):
 @pytest.fixture
 def tap(tmp_path):
     f = np.arange(100.0, 1500.0 + 1e-9, 1.0)
-    MeasuredFRF.from_arrays(f, _sdof(f)[:, None, None], ("tool.x",), ("tool.x",), hz=True).to_csv(
-        tmp_path / "tap.csv"
-    )
+    FRF.from_arrays(f, _sdof(f), ("tool.x",), ("tool.x",), hz=True).to_csv(tmp_path / "tap.csv")
     return tmp_path / "tap.csv"
 
 
 @pytest.fixture
 def tap_xy(tmp_path):
     f = np.arange(100.0, 1500.0 + 1e-9, 1.0)
-    H = np.zeros((f.size, 2, 2), complex)
-    H[:, 0, 0] = _sdof(f)
-    H[:, 1, 1] = _sdof(f)
-    MeasuredFRF.from_arrays(f, H, ("tool.x", "tool.y"), ("tool.x", "tool.y"), hz=True).to_csv(
-        tmp_path / "tap_xy.csv"
-    )
+    H = np.zeros((2, 2, f.size), complex)
+    H[0, 0] = _sdof(f)
+    H[1, 1] = _sdof(f)
+    FRF.from_arrays(f, H, ("tool.x", "tool.y"), ("tool.x", "tool.y"), hz=True).to_csv(tmp_path / "tap_xy.csv")
     return tmp_path / "tap_xy.csv"
 
 
@@ -62,7 +58,7 @@ def test_turning_from_a_file_without_a_model(tap, tmp_path, capsys):
     got = np.array([float(r[col]) for r in rows])
     assert {r[head.index("status")] for r in rows} == {"boundary in the measured band (outside it unknown)"}
     ref = lobes_measured(
-        MeasuredFRF.read(tap),
+        FRF.read(tap),
         np.linspace(2000.0, 6000.0, 21),
         process=cl.loads_model('[[body]]\nid="b"\nmass=1.0\ninertia=1.0\ncentre=[0.0,0.0]\n'
                                '[process]\nkind="turning"\nrpm=3000.0\n').process,

@@ -10,7 +10,7 @@ import pytest
 import chatterlab as cl
 from chatterlab.errors import InputError, ModelError
 from chatterlab.lobes._measured import lobes_measured, lobes_model_frf
-from chatterlab.structure import MeasuredFRF
+from chatterlab.structure import FRF
 
 # the 1-DOF turning tool of docs/model-format.md: m = 1 kg, k = 1e7 N/m, zeta = 3 %
 M, K, ZETA = 1.0, 1.0e7, 0.03
@@ -20,7 +20,7 @@ def _write_frf(folder, name="tool.csv"):
     f = np.arange(100.0, 1500.0 + 1e-9, 1.0)
     w = 2 * np.pi * f
     H = 1.0 / (K - M * w**2 + 2j * ZETA * np.sqrt(K * M) * w)
-    MeasuredFRF.from_arrays(f, H[:, None, None], ("tool.x",), ("tool.x",), hz=True).to_csv(folder / name)
+    FRF.from_arrays(f, H, ("tool.x",), ("tool.x",), hz=True).to_csv(folder / name)
     return folder / name
 
 
@@ -53,7 +53,7 @@ def test_frf_model_equals_the_measured_engine(tmp_path):
     rpm = np.linspace(2000.0, 6000.0, 41)
     got = lobes_model_frf(model, rpm, width_max=0.005)
     ref = lobes_measured(
-        MeasuredFRF.read(path), rpm, process=model.process, width_max=0.005, Kf=2.0e9, coordinates=["tool.x"]
+        FRF.read(path), rpm, process=model.process, width_max=0.005, Kf=2.0e9, coordinates=["tool.x"]
     )
     # the same plant and engine; D_P = (Kf b_ref) / b_ref differs from Kf by at most two roundings, and
     # b_lim ~ 1/Kf, so the two agree to a few ulp plus the envelope refinement's stopping tolerance

@@ -1,6 +1,6 @@
 """Lobes straight from a measured FRF (issue 13, item 2).
 
-The oracle is a model whose FRF is "measured" on a grid (MeasuredFRF.from_model):
+The oracle is a model whose FRF is "measured" on a grid (FRF.from_model):
 the lobes from the spline-interpolated FRF must equal the model's lobes to
 the error that the interpolation of H near the chatter frequency carries
 into b_lim, derived to first order (docs/measured-frf.md):
@@ -27,7 +27,7 @@ from chatterlab.errors import InputError
 from chatterlab.lobes import lobes, lobes_measured, measured_plant
 from chatterlab.model import Process
 from chatterlab.process import Milling
-from chatterlab.structure import MeasuredFRF
+from chatterlab.structure import FRF
 
 MASS, STIFF, DAMP, KF = 2.0, 2.0e7, 400.0, 2.0e9
 RPM = np.linspace(2500.0, 11000.0, 150)
@@ -44,19 +44,19 @@ def turning():
     return m, fz, lobes(fz, RPM, width_max=0.05, verify=0)
 
 
-def measured(fz, df: float, lo: float = 100.0, hi: float = 1500.0) -> MeasuredFRF:
+def measured(fz, df: float, lo: float = 100.0, hi: float = 1500.0) -> FRF:
     f = np.arange(lo, hi + df / 2, df)
-    return MeasuredFRF.from_model(fz, "tip.x", omega=2 * np.pi * f)
+    return FRF.from_model(fz, "tip.x", omega=2 * np.pi * f)
 
 
-def first_order_bound(frf: MeasuredFRF, ref, j: int) -> float:
+def first_order_bound(frf: FRF, ref, j: int) -> float:
     """The derived bound on |b_meas - b_model| at speed j (1-DOF, f = n = x)."""
     wc = 2 * np.pi * ref.chatter_hz[j]
     k = int(ref.lobe[j])
-    x = frf.frequency
+    x = frf.omega
     i = int(np.searchsorted(x, wc))
     wq = np.linspace(x[max(i - 2, 0)], x[min(i + 1, x.size - 1)], 401)
-    eps = float(np.max(np.abs(frf.interpolate(wq)[:, 0, 0] - sdof(wq))))
+    eps = float(np.max(np.abs(frf.interpolate(wq)[0, 0] - sdof(wq))))
     G = sdof(np.array([wc]))[0]
     b = -1.0 / (2 * KF * G.real)
 
@@ -104,10 +104,8 @@ def test_turning_lobes_from_measured_frf_within_the_derived_bound(turning, df):
     # absolute minimum: min over w of b(w), so only the eps / |Re G| term (envelope theorem)
     a, r = got.absolute_minimum, ref.absolute_minimum
     wc = 2 * np.pi * r["chatter_hz"]
-    wq = np.linspace(
-        wc - 2 * (frf.frequency[1] - frf.frequency[0]), wc + 2 * (frf.frequency[1] - frf.frequency[0]), 201
-    )
-    eps = np.max(np.abs(frf.interpolate(wq)[:, 0, 0] - sdof(wq)))
+    wq = np.linspace(wc - 2 * (frf.omega[1] - frf.omega[0]), wc + 2 * (frf.omega[1] - frf.omega[0]), 201)
+    eps = np.max(np.abs(frf.interpolate(wq)[0, 0] - sdof(wq)))
     assert abs(a["width"] - r["width"]) <= 1.1 * r["width"] * eps / abs(sdof(np.array([wc]))[0].real)
     assert set(np.unique(got.claim)) == {4}  # boundaries, from the measured band only
 
@@ -122,19 +120,19 @@ def test_noisy_measured_frf_within_the_same_bound(turning):
     m, fz, ref = turning
     clean = measured(fz, 1.0)
     rng = np.random.default_rng(2026)
-    H = clean.H[:, 0, 0]
+    H = clean.data[0, 0]
     noise = 1e-3 * np.abs(H) * (rng.normal(size=H.size) + 1j * rng.normal(size=H.size)) / np.sqrt(2)
-    noisy = MeasuredFRF.from_arrays(clean.frequency, H + noise, ["tip.x"], ["tip.x"])
+    noisy = FRF.from_arrays(clean.omega, H + noise, ["tip.x"], ["tip.x"])
     got = lobes_measured(noisy, RPM, process=m.process, Kf=KF, width_max=0.05)
     sel = np.nonzero(inside_one_lobe(ref, got))[0]
     err = np.abs(got.b_lim - ref.b_lim)[sel]
     bound = np.array([first_order_bound(noisy, ref, j) for j in sel])
     assert np.all(err <= 1.1 * bound), np.max(err / bound)
     assert np.max(np.abs(got.b_lim[sel] / ref.b_lim[sel] - 1)) > 1e-5  # the noise shows (clean: 1.2e-6)
-    w = noisy.frequency
+    w = noisy.omega
     wq = np.linspace(w[300], w[600], 3001)
-    eps = np.abs(noisy.interpolate(wq)[:, 0, 0] - sdof(wq))
-    smooth = np.abs(clean.interpolate(wq)[:, 0, 0] - sdof(wq))
+    eps = np.abs(noisy.interpolate(wq)[0, 0] - sdof(wq))
+    smooth = np.abs(clean.interpolate(wq)[0, 0] - sdof(wq))
     assert np.max(eps) <= 2.0 * np.max(np.abs(noise[299:602])) + np.max(smooth)
 
 
@@ -160,7 +158,7 @@ def test_lobes_from_a_measured_file_equal_lobes_from_the_object(turning, tmp_pat
     frf = measured(fz, 2.0)
     p = tmp_path / "tap.csv"
     frf.to_csv(p, units="um/N")
-    back = MeasuredFRF.read(p)
+    back = FRF.read(p)
     a = lobes_measured(frf, RPM, process=m.process, Kf=KF, width_max=0.05)
     b = lobes_measured(back, RPM, process=m.process, Kf=KF, width_max=0.05)
     # the file holds H to a few ulps (um/N scaling) and f to 2 ulps: the same lobes to round-off
@@ -221,7 +219,7 @@ rpm = 3000
     rpm = np.linspace(3000.0, 30000.0, 200)
     ref = lobes(fz, rpm, width_max=0.2, verify=0)
     f = np.arange(100.0, 900.0, 1.0)  # the y mode is at 1233 Hz
-    frf = MeasuredFRF.from_model(fz, ["tool.x", "tool.y"], omega=2 * np.pi * f)
+    frf = FRF.from_model(fz, ["tool.x", "tool.y"], omega=2 * np.pi * f)
     got = lobes_measured(
         frf,
         rpm,
@@ -292,7 +290,7 @@ def test_milling_zoa_from_measured_frf(milling_model):
     rpm = np.linspace(5000.0, 20000.0, 60)
     tau = 60.0 / (MILL.teeth * rpm)
     ref = lobes(fz, tau, width_max=0.05, verify=0, process=Process(kind="delay"))
-    frf = MeasuredFRF.from_model(fz, ["tool.x", "tool.y"], omega=2 * np.pi * np.arange(300.0, 2000.0, 1.0))
+    frf = FRF.from_model(fz, ["tool.x", "tool.y"], omega=2 * np.pi * np.arange(300.0, 2000.0, 1.0))
     got = lobes_measured(frf, rpm, milling=MILL, width_max=0.05)
     fin = np.isfinite(ref.b_lim)
     assert fin.any() and np.array_equal(np.isfinite(got.b_lim), fin)
@@ -306,7 +304,7 @@ def test_milling_zoa_from_measured_frf(milling_model):
     N, Kt = MILL.teeth, MILL.Kt
     alpha0 = -(2 * np.pi / N) * 2 * MILL.zoa() / Kt
     for j in np.nonzero(np.isfinite(got.b_lim))[0][::6]:
-        G = frf.interpolate([2 * np.pi * got.chatter_hz[j]])[0]
+        G = frf.interpolate([2 * np.pi * got.chatter_hz[j]])[:, :, 0]
         lam = -1.0 / np.linalg.eigvals(G @ alpha0)
         a = -(2 * np.pi / (N * Kt)) * lam.real * (1 + (lam.imag / lam.real) ** 2)
         # the same spline G: round-off of the refinement (~1e-12)
@@ -318,8 +316,8 @@ def test_milling_zoa_from_measured_frf(milling_model):
 
 def test_measured_plant_refuses_what_it_cannot_use(turning):
     _, fz, _ = turning
-    two = MeasuredFRF.from_arrays(
-        2 * np.pi * np.array([100.0, 200.0, 300.0]), np.ones((3, 2, 2)), ["a.x", "a.y"], ["b.x", "b.y"]
+    two = FRF.from_arrays(
+        2 * np.pi * np.array([100.0, 200.0, 300.0]), np.ones((2, 2, 3)), ["a.x", "a.y"], ["b.x", "b.y"]
     )
     with pytest.raises(InputError, match="driving-point"):
         measured_plant(two, Kf=1e9)
@@ -334,7 +332,7 @@ def test_measured_plant_refuses_what_it_cannot_use(turning):
         vp = Milling(
             teeth=2, diameter=0.02, Kt=6e8, Kn=1e8, entry=0.0, exit=np.pi, pitch=(2.8, 2 * np.pi - 2.8)
         )
-        three = MeasuredFRF.from_arrays(two.frequency, two.H, ["a.x", "a.y"], ["a.x", "a.y"])
+        three = two.renamed(inputs=["a.x", "a.y"])
         measured_plant(three, milling=vp)
     with pytest.raises(InputError, match="no component on the measured coordinate"):
         measured_plant(one, Kf=1e9, force_angle=np.pi / 2)

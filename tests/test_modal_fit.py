@@ -93,8 +93,8 @@ def test_noise_free_modal_sum_is_recovered_to_round_off():
     np.testing.assert_allclose(fit.modal_stiffness[:, 0], K, rtol=1e-9)
     assert np.all(np.abs(fit.quality.complexity) < 1e-9)  # real modes stay real
     assert fit.quality.error < 1e-11
-    assert np.all(np.abs(fit.lower) < 1e-9 * np.abs(fit.H).max() * w[0] ** 2)
-    assert np.all(np.abs(fit.upper) < 1e-9 * np.abs(fit.H).max())
+    assert np.all(np.abs(fit.lower) < 1e-9 * np.abs(fit.measured.data).max() * w[0] ** 2)
+    assert np.all(np.abs(fit.upper) < 1e-9 * np.abs(fit.measured.data).max())
 
 
 def test_noisy_fit_within_the_cramer_rao_bound():
@@ -169,9 +169,10 @@ def test_modes_by_frequency_picks_the_named_poles():
 
 
 def matrix_data(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, H): the shapes and their receptance, (n_out, n_in, n_freq) as an FRF holds it."""
     Phi = np.array([[0.2, 0.1], [0.05, -0.15], [0.1, 0.12]])  # mass-normalised shapes, 1/sqrt(kg)
     wn = 2 * np.pi * FN
-    H = np.einsum("ra,rb,kr->kab", Phi, Phi, 1 / (wn**2 - w[:, None] ** 2 + 2j * ZETA * wn * w[:, None]))
+    H = np.einsum("ra,rb,kr->abk", Phi, Phi, 1 / (wn**2 - w[:, None] ** 2 + 2j * ZETA * wn * w[:, None]))
     return Phi, H
 
 
@@ -189,13 +190,14 @@ def test_matrix_fit_recovers_shapes_and_to_model_is_exact():
     model = fit.to_model(residuals="none")
     assert model.matrices.coordinates == ("1", "2", "fit.q1")  # 3 modes on 2 coordinates: one internal
     fr = assemble(model).at()
-    G = np.transpose(frf(fr, w, inputs=["1.x", "2.x"], outputs=["1.x", "2.x"]).data, (2, 0, 1))
+    G = frf(fr, w, inputs=["1.x", "2.x"], outputs=["1.x", "2.x"]).data
     # the model's receptance is Psi diag(1/d_r) Psi^T with Psi^T M Psi = I: the
     # real-mode sum exactly, up to the solve's round-off (cond(Z) eps |H|, the
     # dynamic stiffness condition < 1e4 off resonance and ~1/zeta = 50 more at
     # one): 1e-10 of the peak
     ref = fit.frf(w, real_modes=True, residuals=False)
-    assert np.max(np.abs(G - ref)) < 1e-10 * np.abs(H).max()
+    assert ref.data.shape == G.shape and ref.outputs == ("1", "2")  # the fit's FRF: the one container
+    assert np.max(np.abs(G - ref.data)) < 1e-10 * np.abs(H).max()
     assert np.max(np.abs(G - H)) < 1e-9 * np.abs(H).max()
 
 
@@ -210,7 +212,8 @@ def test_noisy_matrix_fit_within_its_standard_deviations():
     rng = np.random.default_rng(23)
     w = 2 * np.pi * np.linspace(100.0, 5000.0, 900)
     Phi, H = matrix_data(w)
-    Hn = H * (1 + relative_noise(rng, H.shape, sigma))
+    # the noise drawn one frequency after another (the realisation this seeded test was written for)
+    Hn = H * (1 + np.moveaxis(relative_noise(rng, (w.size, 2, 2), sigma), 0, -1))
     fit = fit_modes((w, Hn), max_order=12)
     assert fit.n_modes == 3
     assert np.all(np.abs(fit.omega_n - 2 * np.pi * FN) < 4.5 * fit.std_omega)
@@ -290,20 +293,21 @@ def test_bad_input_is_one_line():
     w = 2 * np.pi * np.linspace(100.0, 5000.0, 200)
     H = modal_sum(w)
     cases = [
-        ((w[::-1], H), {}, "omega must increase strictly"),
+        ((w[::-1], H), {}, "increase strictly"),
         ((w, H[:-1]), {}, "must have shape"),
         ((w, H), {"band": (0.0, 10.0)}, "at least 8"),
         ((np.concatenate([[0.0], w]), np.concatenate([[0j], H])), {}, "exclude 0 Hz"),
         ((w, H), {"max_order": 0}, "max_order"),
         ((w, H), {"weighting": "log"}, "weighting"),
-        ("file.csv", {}, "MeasuredFRF or a tuple"),
+        ("file.csv", {}, "an FRF or a tuple"),
+        ((w, np.ones((w.size, 1, 1))), {}, r"looks like \(n_freq, n_out, n_in\)"),
     ]
     for frf_, kw, msg in cases:
         with pytest.raises(InputError, match=msg) as ei:
             fit_modes(frf_, **kw)
         assert "\n" not in str(ei.value)
     # a cross FRF without a driving point has no shape scale
-    fit = fit_modes((w, H[:, None, None]))
+    fit = fit_modes((w, H[None, None, :]))
     object.__setattr__(fit, "inputs", ("elsewhere",))
     with pytest.raises(InputError, match="driving point"):
         fit.to_model()

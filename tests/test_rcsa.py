@@ -20,8 +20,8 @@ import pytest
 from chatterlab.errors import InputError
 from chatterlab.model import build_model
 from chatterlab.structure import (
+    FRF,
     Joint,
-    MeasuredFRF,
     assemble,
     couple,
     couple_tool,
@@ -90,6 +90,11 @@ W = 2 * np.pi * np.linspace(100.0, 8000.0, 500)
 SPRING = Joint.spring(KJ, KROT, CJ, CROT)
 
 
+def stack(structure, outputs, inputs, w):
+    """The receptance as one matrix per frequency (n_freq, n_out, n_in): the layout of the algebra below."""
+    return receptance(structure, outputs, inputs, w).matrices
+
+
 def round_off_bound(frozens, w):
     """n eps max cond of the dynamic stiffness matrices solved (the forward
     error of a backward-stable solve is <= n eps cond |x|), per frequency."""
@@ -106,17 +111,18 @@ def test_coupling_computed_substructures_equals_the_full_model(joint):
     full = assemble(full_model(joint)).at()
     hold = assemble(holder_model()).at()
     tool = assemble(tool_model(LT, DT, E=6.0e11, nu=0.22, rho=14500.0, elements=8)).at()
-    G_full = receptance(full, ["tip.y"], ["tip.y"], W)[:, 0, 0]
-    HA = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], W)
+    G_full = receptance(full, ["tip.y"], ["tip.y"], W).data[0, 0]
+    holder = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], W)
+    HA = holder.matrices
     jt = Joint.rigid(2) if joint == "rigid" else SPRING
-    G = couple_tool((W, HA), tool, joint=jt).H[:, 0, 0]
+    G = couple_tool(holder, tool, joint=jt).data[0, 0]
     # forward error: each receptance to n eps cond(Z) relative; the RCSA
     # combination H_tt - H_tc S^-1 H_ct then errs by that times the size of
     # its terms (and cond(S) once more for the 2x2 solve)
     cpl = ["base.y", "base.rz"]
-    Htt = np.abs(receptance(tool, ["tip.y"], ["tip.y"], W)[:, 0, 0])
-    S = receptance(tool, cpl, cpl, W) + HA + jt.compliance(W)
-    Htc = receptance(tool, ["tip.y"], cpl, W)
+    Htt = np.abs(receptance(tool, ["tip.y"], ["tip.y"], W).data[0, 0])
+    S = stack(tool, cpl, cpl, W) + HA + jt.compliance(W)
+    Htc = stack(tool, ["tip.y"], cpl, W)
     corr = np.abs(Htc @ np.linalg.solve(S, np.swapaxes(Htc, 1, 2)))[:, 0, 0]
     kS = np.linalg.cond(S)
     rel = round_off_bound([full, hold, tool], W)
@@ -137,11 +143,11 @@ def test_general_coupling_with_three_coordinates_and_all_outputs():
     a = ["h1.x", "h1.y", "h1.rz"]
     b = ["base.x", "base.y", "base.rz", "tip.y"]
     w = W[::5]
-    HA = receptance(hold, a, a, w)
-    HB = receptance(tool, b, b, w)
+    HA = stack(hold, a, a, w)
+    HB = stack(tool, b, b, w)
     jt = Joint((1e9, KJ, KROT), (0.0, CJ, CROT))
     G = couple(HA, HB, [0, 1, 2], [0, 1, 2], jt.compliance(w))
-    ref = receptance(full, a + b, a + b, w)
+    ref = stack(full, a + b, a + b, w)
     rel = round_off_bound([full, hold, tool], w)
     scale = np.max(np.abs(ref), axis=(1, 2))
     # the same forward-error argument, with cond(S) <= 1e4 on this grid
@@ -160,14 +166,15 @@ def test_noisy_holder_error_stays_within_the_propagated_noise():
     rng = np.random.default_rng(7)
     hold = assemble(holder_model()).at()
     tool = assemble(tool_model(LT, DT, E=6.0e11, nu=0.22, rho=14500.0, elements=8)).at()
-    HA = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], W)
+    HA = stack(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], W)
     eps = sigma * (rng.standard_normal(HA.shape) + 1j * rng.standard_normal(HA.shape)) / np.sqrt(2)
-    G0 = couple_tool((W, HA), tool, joint=SPRING).H[:, 0, 0]
-    Gn = couple_tool((W, HA * (1 + eps)), tool, joint=SPRING).H[:, 0, 0]
+    # the holder as arrays (omega, data (n_out, n_in, n_freq)): the tuple form of couple_tool
+    G0 = couple_tool((W, np.moveaxis(HA, 0, -1)), tool, joint=SPRING).data[0, 0]
+    Gn = couple_tool((W, np.moveaxis(HA * (1 + eps), 0, -1)), tool, joint=SPRING).data[0, 0]
     cpl = ["base.y", "base.rz"]
-    S = receptance(tool, cpl, cpl, W) + HA + SPRING.compliance(W)
-    u = np.linalg.solve(np.swapaxes(S, 1, 2), np.swapaxes(receptance(tool, ["tip.y"], cpl, W), 1, 2))[:, :, 0]
-    v = np.linalg.solve(S, receptance(tool, cpl, ["tip.y"], W))[:, :, 0]
+    S = stack(tool, cpl, cpl, W) + HA + SPRING.compliance(W)
+    u = np.linalg.solve(np.swapaxes(S, 1, 2), np.swapaxes(stack(tool, ["tip.y"], cpl, W), 1, 2))[:, :, 0]
+    v = np.linalg.solve(S, stack(tool, cpl, ["tip.y"], W))[:, :, 0]
     sd = sigma * np.sqrt(np.einsum("kj,kjl,kl->k", np.abs(u) ** 2, np.abs(HA) ** 2, np.abs(v) ** 2))
     second = np.max(np.abs(np.linalg.solve(S, HA)), axis=(1, 2))
     ratio = np.abs(Gn - G0) / sd
@@ -187,13 +194,14 @@ def test_joint_identification_recovers_the_joint():
     full = assemble(full_model("spring")).at()
     hold = assemble(holder_model()).at()
     tool = tool_model(LT, DT, E=6.0e11, nu=0.22, rho=14500.0, elements=8)
-    HA = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], W)
-    holder = MeasuredFRF.from_arrays(W, HA, ("h.y", "h.rz"), ("h.y", "h.rz"))
-    G = receptance(full, ["tip.y"], ["tip.y"], W)
+    holder = receptance(hold, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], W).renamed(
+        ("h.y", "h.rz"), ("h.y", "h.rz")
+    )
+    G = receptance(full, ["tip.y"], ["tip.y"], W).data
     start = Joint.spring(3 * KJ, KROT / 3, 2 * CJ, CROT)
     free = ("k", "k_rot", "c")
     fit = identify_joint(
-        holder, tool, MeasuredFRF.from_arrays(W, G, ("tip.y",), ("tip.y",)), initial=start, free=free
+        holder, tool, FRF.from_arrays(W, G, ("tip.y",), ("tip.y",)), initial=start, free=free
     )
     got = np.array([fit.joint.stiffness[0], fit.joint.stiffness[1], fit.joint.damping[0]])
     true = np.array([KJ, KROT, CJ])
@@ -202,7 +210,7 @@ def test_joint_identification_recovers_the_joint():
     rng = np.random.default_rng(2)
     Gn = G * (1 + 0.01 * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2))
     fitn = identify_joint(
-        holder, tool, MeasuredFRF.from_arrays(W, Gn, ("tip.y",), ("tip.y",)), initial=start, free=free
+        holder, tool, FRF.from_arrays(W, Gn, ("tip.y",), ("tip.y",)), initial=start, free=free
     )
     gotn = np.array([fitn.joint.stiffness[0], fitn.joint.stiffness[1], fitn.joint.damping[0]])
     assert np.all(np.abs(gotn - true) < 4.5 * fitn.std), (gotn - true) / fitn.std
@@ -242,8 +250,8 @@ def test_finite_difference_rotations_converge_at_their_orders():
         ]
         fr = assemble(build_model({"node": nodes, "beam": beams, "support": [{"node": "h0"}]})).at()
         pts = ["h1.y", "p1.y", "p2.y"]
-        Ht = receptance(fr, pts, pts, w)
-        ex = receptance(fr, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], w)[0]
+        Ht = stack(fr, pts, pts, w)
+        ex = stack(fr, ["h1.y", "h1.rz"], ["h1.y", "h1.rz"], w)[0]
         for n_p in (2, 3):
             fd = rotations_from_translations(Ht[:, :n_p, :n_p], s)[0]
             errs[n_p].append(np.abs(fd - ex) / np.abs(ex))
@@ -260,7 +268,7 @@ def test_finite_difference_rotations_converge_at_their_orders():
 def test_bad_input_is_one_line():
     tool = tool_model(LT, DT)
     HA = np.ones((W.size, 2, 2), complex)
-    holder = MeasuredFRF.from_arrays(W, HA, ("h.y", "h.rz"), ("h.y", "h.rz"))
+    holder = FRF.from_arrays(W, np.ones((2, 2, W.size)), ("h.y", "h.rz"), ("h.y", "h.rz"))
     cases = [
         (lambda: Joint((1e7, -1.0)), "must be >= 0"),
         (lambda: Joint((1e7,), (1.0, 2.0)), "one per coordinate"),
@@ -271,7 +279,8 @@ def test_bad_input_is_one_line():
             "no coupling coordinate 'holder.rz'",
         ),
         (lambda: couple_tool(holder, tool, joint=Joint.rigid(3)), "the joint has 3 coordinates"),
-        (lambda: couple_tool("holder.csv", tool), "MeasuredFRF or a tuple"),
+        (lambda: couple_tool("holder.csv", tool), "an FRF or a tuple"),
+        (lambda: couple_tool((W, HA), tool), r"looks like \(n_freq, n_out, n_in\)"),
         (lambda: rotations_from_translations(HA, 0.0), "spacing must be > 0"),
         (lambda: couple(HA, HA, [0, 1], [0]), "same number"),
         (

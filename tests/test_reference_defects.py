@@ -18,7 +18,7 @@ from chatterlab.frequency import multipliers
 from chatterlab.frequency._floquet_sdm import matched_change, sdm_multipliers
 from chatterlab.lobes import lobes, milling_of, tool_structure
 from chatterlab.process._cutting import feedback
-from chatterlab.structure._measured import MeasuredFRF
+from chatterlab.structure import FRF
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -83,11 +83,11 @@ def sdof(w):
 def interval_ratios(f_hz: np.ndarray) -> np.ndarray:
     """Estimate / largest true error over each interval (error >= 1 % of the largest, not the ends)."""
     w = 2 * np.pi * f_hz
-    m = MeasuredFRF.from_arrays(w, sdof(w))
+    m = FRF.from_arrays(w, sdof(w))
     t = np.linspace(0.0, 1.0, 41)[1:-1]
     wq = w[:-1, None] + t[None, :] * np.diff(w)[:, None]
-    true = np.abs(m.interpolate(wq.ravel())[:, 0, 0] - sdof(wq.ravel())).reshape(wq.shape).max(axis=1)
-    est = m.interpolation_error(wq[:, 20])[:, 0, 0]
+    true = np.abs(m.interpolate(wq.ravel())[0, 0] - sdof(wq.ravel())).reshape(wq.shape).max(axis=1)
+    est = m.interpolation_error(wq[:, 20])[0, 0]
     ok = true >= 1e-2 * true.max()
     ok[:3] = ok[-4:] = False
     return est[ok] / true[ok]

@@ -54,10 +54,10 @@ def test_files_are_what_generate_makes():
     assert {k: v for k, v in fresh.items() if k != "modes"} == {
         k: v for k, v in committed.items() if k != "modes"
     }
-    from chatterlab.structure import MeasuredFRF
+    from chatterlab.structure import FRF
 
-    frf = MeasuredFRF.read(STUDY / "tool_point.csv")
-    np.testing.assert_allclose(frf.H, data["tool_point"].H, rtol=1e-9, atol=0)
+    frf = FRF.read(STUDY / "tool_point.csv")
+    np.testing.assert_allclose(frf.data, data["tool_point"].data, rtol=1e-9, atol=0)
 
 
 def test_the_csv_round_trip_is_exact(tmp_path):
@@ -67,11 +67,11 @@ def test_the_csv_round_trip_is_exact(tmp_path):
         import generate
     finally:
         sys.path.pop(0)
-    from chatterlab.structure import MeasuredFRF
+    from chatterlab.structure import FRF
 
     tp = generate.make()["tool_point"]
     tp.to_csv(tmp_path / "tool_point.csv")
-    np.testing.assert_array_equal(MeasuredFRF.read(tmp_path / "tool_point.csv").H, tp.H)
+    np.testing.assert_array_equal(FRF.read(tmp_path / "tool_point.csv").data, tp.data)
 
 
 def test_figures_are_drawn(result):
