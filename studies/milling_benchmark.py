@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from chatterlab.frequency import ToolStructure
-from chatterlab.lobes import MillingLobes, milling_lobes
+from chatterlab.lobes import LobeDiagram, milling_lobes
 from chatterlab.process import Milling
 
 MASS, FN, ZETA = 0.03993, 922.0, 0.011
@@ -82,17 +82,17 @@ def draw(res: dict[str, Any], folder: Path) -> list[Path]:
     paths = []
     fig, axes = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
     for ax, imm in zip(axes, (0.05, 1.0), strict=True):
-        sets: list[tuple[str, MillingLobes, dict[str, Any]]] = [
+        sets: list[tuple[str, LobeDiagram, dict[str, Any]]] = [
             ("ZOA (Altintas & Budak)", res[imm]["zoa"], {"color": "0.55", "lw": 1.2}),
             ("SDM, 40 steps", res[imm]["sdm"], {"color": "tab:orange", "lw": 1.0, "ls": "--"}),
             ("spectral Floquet (reference)", res[imm]["spectral"], {"color": "tab:blue", "lw": 1.4}),
         ]
         for label, L, kw in sets:
-            ax.plot(L.rpm, np.where(np.isfinite(L.a_lim), L.a_lim * 1e3, np.nan), label=label, **kw)
+            ax.plot(L.speed, np.where(np.isfinite(L.a_lim), L.a_lim * 1e3, np.nan), label=label, **kw)
         sp = res[imm]["spectral"]
         flip = sp.kind == "flip"
         ax.plot(
-            sp.rpm[flip], sp.a_lim[flip] * 1e3, "v", ms=3, color="tab:red", label="flip (period doubling)"
+            sp.speed[flip], sp.a_lim[flip] * 1e3, "v", ms=3, color="tab:red", label="flip (period doubling)"
         )
         ax.set_ylim(0, DEPTH_MAX * 1e3)
         ax.set_ylabel("limit axial depth a_lim (mm)")
@@ -115,7 +115,7 @@ def draw(res: dict[str, Any], folder: Path) -> list[Path]:
     ):
         L = res[key]
         ax.plot(
-            L.rpm, np.where(np.isfinite(L.a_lim), L.a_lim * 1e3, np.nan), label=label, color=colour, lw=1.3
+            L.speed, np.where(np.isfinite(L.a_lim), L.a_lim * 1e3, np.nan), label=label, color=colour, lw=1.3
         )
     ax.set_ylim(0, DEPTH_MAX * 1e3)
     ax.set_xlabel("spindle speed (rpm)")
@@ -147,7 +147,7 @@ def main() -> None:
     u, v = res["uniform"], res["variable"]
     j = int(np.argmax(v.a_lim / u.a_lim))
     print(
-        f"variable pitch: largest gain x{v.a_lim[j] / u.a_lim[j]:.2f} at {v.rpm[j]:.0f} rpm"
+        f"variable pitch: largest gain x{v.a_lim[j] / u.a_lim[j]:.2f} at {v.speed[j]:.0f} rpm"
         f" ({u.a_lim[j] * 1e3:.3f} -> {v.a_lim[j] * 1e3:.3f} mm)"
     )
     folder = Path(__file__).resolve().parents[1] / "docs" / "figures"

@@ -39,13 +39,19 @@ def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
         rows = list(csv.reader(fh))
     head, body = rows[0], rows[1:]
     # SI, name [unit], no comment line: what every chatterlab CSV is (pandas reads it as it is)
-    assert head == ["speed [rpm]", "a_lim [m]", "kind", "chatter frequency [Hz]", "|mu| [-]", "arg mu [rad]",
-                    "error [m]", "searched up to [m]", "scan step [m]", "basis", "certified to [m]"]  # fmt: skip
-    assert {(float(r[7]), float(r[8])) for r in body} == {(ref.depth_max, ref.scan_step)}
-    got = np.array([float(r[head.index("a_lim [m]")]) for r in body])
+    # one column scheme for every lobe diagram (tests/test_lobes.py), the limit named a_lim
+    assert head == ["speed [rpm]", "delay [s]", "a_lim [m]", "chatter frequency [Hz]", "kind", "lobe [-]",
+                    "status", "certified to [m]", "|mu| [-]", "arg mu [rad]", "error [m]", "basis",
+                    "searched below [m]", "scan step [m]", "band low [Hz]", "band high [Hz]"]  # fmt: skip
+    col = {h: i for i, h in enumerate(head)}
+    assert {(float(r[col["searched below [m]"]]), float(r[col["scan step [m]"]])) for r in body} == {
+        (ref.width_max, ref.scan_step)
+    }
+    got = np.array([float(r[col["a_lim [m]"]]) for r in body])
     # the same computation through the CLI: the CSV holds repr() of the floats, so exactly equal
     np.testing.assert_array_equal(got, ref.a_lim)
-    np.testing.assert_array_equal([float(r[0]) for r in body], ref.rpm)
+    np.testing.assert_array_equal([float(r[0]) for r in body], ref.speed)
+    np.testing.assert_array_equal([float(r[1]) for r in body], 60.0 / (mill.teeth * ref.speed))
     assert [r[head.index("kind")] for r in body] == [k or "none" for k in ref.kind]
 
 

@@ -95,7 +95,7 @@ def test_constant_coefficients_are_the_turning_engine(structure):
     np.testing.assert_allclose(fl.a_lim, zo.a_lim, rtol=1e-7)
     # and the multipliers are exp(j w_c tau) on the unit circle at the engine's chatter frequency:
     # the Floquet frequency is the member of the family (arg mu + 2 pi k)/tau nearest a pole
-    np.testing.assert_allclose(fl.frequency_hz, zo.frequency_hz, rtol=1e-6)
+    np.testing.assert_allclose(fl.chatter_hz, zo.chatter_hz, rtol=1e-6)
 
 
 def test_zoa_misses_the_flip_lobes_at_low_immersion():
@@ -192,8 +192,8 @@ def test_study_milling_benchmark_runs_and_variable_pitch_raises_the_lobe():
     # near the design speed of the 70/110 pitch (omega_c Delta / pi ~ 11000 rpm for ~920 Hz
     # chatter) the regeneration of consecutive teeth cancels: the limit rises several times
     u, v = res["uniform"], res["variable"]
-    k = int(np.argmin(np.abs(u.rpm - 9500.0)))
-    assert u.rpm[k] == 9500.0 and v.a_lim[k] > 3 * u.a_lim[k], (u.a_lim, v.a_lim)
+    k = int(np.argmin(np.abs(u.speed - 9500.0)))
+    assert u.speed[k] == 9500.0 and v.a_lim[k] > 3 * u.a_lim[k], (u.a_lim, v.a_lim)
 
 
 def chain(n: int = 12) -> ToolStructure:

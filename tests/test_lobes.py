@@ -285,27 +285,31 @@ def test_two_dof_boundary_points_have_a_root_on_the_axis(two_dof, two_dof_lobes,
 
 
 def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
-    """CSV: b_lim in m (SI, like every result file) and frequencies written with 9 significant digits
-    (relative 5e-9 after the round trip); netCDF: float64, exact."""
+    """CSV: b_lim in m (SI, like every result file), every number the shortest
+    decimal of its double (exact after the round trip), one column scheme for
+    every process and method (the Floquet columns nan here); netCDF: float64, exact."""
     d = turning_lobes
     p = tmp_path / "lobes.csv"
     d.to_csv(p)
     with open(p, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "lobe [-]", "status",
-                       "searched below [m]", "band low [Hz]", "band high [Hz]"]  # fmt: skip
+    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "kind", "lobe [-]",
+                       "status", "certified to [m]", "|mu| [-]", "arg mu [rad]", "error [m]", "basis",
+                       "searched below [m]", "scan step [m]", "band low [Hz]", "band high [Hz]"]  # fmt: skip
     # what was searched, on every row: an inf there means nothing beyond it
-    assert {tuple(r[6:]) for r in rows[1:]} == {
-        (f"{d.width_max:.9g}", f"{d.band_hz[0]:.9g}", f"{d.band_hz[1]:.9g}")
+    assert {tuple(r[11:]) for r in rows[1:]} == {
+        ("complete", repr(d.width_max), "nan", repr(d.band_hz[0]), repr(d.band_hz[1]))
     }
-    assert {r[5] for r in rows[1:]} == {"boundary"}
-    tab = np.array([[float(x) for x in r[:5]] for r in rows[1:]])
-    assert tab.shape == (d.speed.size, 5)
-    np.testing.assert_allclose(tab[:, 0], d.speed, rtol=5e-9)
-    np.testing.assert_allclose(tab[:, 1], d.delay, rtol=5e-9)
-    np.testing.assert_allclose(tab[:, 2], d.b_lim, rtol=5e-9)
-    np.testing.assert_allclose(tab[:, 3], d.chatter_hz, rtol=5e-9)
+    assert {r[6] for r in rows[1:]} == {"boundary"} and {r[4] for r in rows[1:]} == {"hopf"}
+    tab = np.array([[float(x) for x in r[:4] + [r[5], r[7]]] for r in rows[1:]])
+    assert tab.shape == (d.speed.size, 6)
+    np.testing.assert_array_equal(tab[:, 0], d.speed)
+    np.testing.assert_array_equal(tab[:, 1], d.delay)
+    np.testing.assert_array_equal(tab[:, 2], d.b_lim)
+    np.testing.assert_array_equal(tab[:, 3], d.chatter_hz)
     np.testing.assert_array_equal(tab[:, 4], d.lobe)
+    np.testing.assert_array_equal(tab[:, 5], d.b_lim)  # a proven band: certified to the limit
+    assert all(r[8] == r[9] == r[10] == "nan" for r in rows[1:])
 
     nc = tmp_path / "lobes.nc"
     d.to_netcdf(str(nc), attrs={"study": "round trip"})

@@ -40,7 +40,7 @@ def test_one_dof_limits_against_the_semi_discretisation():
     assert set(ml.basis) == {"complete"}
     assert {"hopf", "flip"} <= set(ml.kind)
     bad = []
-    for r, a, k in zip(ml.rpm, ml.a_lim, ml.kind, strict=True):
+    for r, a, k in zip(ml.speed, ml.a_lim, ml.kind, strict=True):
         if not np.isfinite(a):
             top, bar = sdm_extrapolated(r, 0.01)
             if not top < 1.0 - 3 * bar:
@@ -88,5 +88,5 @@ def test_two_dof_and_variable_pitch_against_a_brute_force_scan(tool):
     assert set(ml.basis) == {"complete"}
     if tool == "pitch":
         assert {"fold", "flip", "hopf"} <= set(ml.kind), ml.kind
-    bad = [m for r, a in zip(ml.rpm, ml.a_lim, strict=True) for m in _brute(st, mill, r, a, 0.01)]
+    bad = [m for r, a in zip(ml.speed, ml.a_lim, strict=True) for m in _brute(st, mill, r, a, 0.01)]
     assert not bad, bad

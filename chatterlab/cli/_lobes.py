@@ -211,7 +211,7 @@ def _measured_diagram(args: argparse.Namespace, model: Any, v: Any, wmax: float)
 
 def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
     """Summary, --out, --plot and the exit status of a lobe diagram (a
-    ``LobeDiagram`` or milling's ``MillingLobes``: the same methods)."""
+    :class:`~chatterlab.lobes.LobeDiagram`, for every process)."""
     print(d.summary())
     if args.out:
         if args.out.lower().endswith(".csv"):

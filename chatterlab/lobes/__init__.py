@@ -16,7 +16,7 @@ from ._confirm import Confirmation, confirm
 from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_lti, lti_plant
 from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary, lobes
 from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
-from ._milling import MillingLobes, milling_lobes, zoa_plant
+from ._milling import milling_lobes, zoa_plant
 from ._milling_model import Reduction, is_milling, milling_of, reduce_structure, tool_structure
 
 __all__ = [
@@ -38,7 +38,6 @@ __all__ = [
     "lobes_model_frf",
     "model_frf",
     "regenerative_matrices",
-    "MillingLobes",
     "Reduction",
     "is_milling",
     "milling_of",

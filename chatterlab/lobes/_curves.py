@@ -1,4 +1,6 @@
-"""The lobes of a diagram as exact curves, and their lower envelope.
+"""The geometry of a lobe diagram: its lobes as exact curves, and their
+lower envelope at any speed (:class:`LobeGeometry`, from
+:meth:`chatterlab.lobes.LobeDiagram.geometry`; the lobe plot draws it).
 
 A branch of the stability boundary is one curve (omega, phi(omega),
 width(omega)); its lobes are T(omega) = (phi + 2 pi k) / omega.  The
@@ -6,8 +8,9 @@ diagram samples each branch on the engine's frequency grid; here the
 samples are put back in curve order (:func:`lobe_curves`), every lobe is
 interpolated between them (cubic Hermite in a chord parameter,
 :class:`Segments`), and the lower envelope over all lobes is evaluated at
-any speed (:func:`envelope`, :func:`envelope_line` with the cusps).  No
-matplotlib here: this is the geometry the lobe plot draws.
+any speed (:func:`envelope`, :func:`envelope_line` with the cusps).  The
+speed of a delay comes from the diagram's own process (its kinematics), never
+from a fit.  No matplotlib here: the plot only draws what this computes.
 """
 
 from __future__ import annotations
@@ -55,42 +58,6 @@ class Curve:
     @property
     def width(self) -> np.ndarray:
         return self.chain.width[self.start : self.stop]
-
-
-def speed_maps(d: Any) -> tuple[Any, Any]:
-    """The process's speed as a function of the delay and its inverse,
-    recovered from the diagram's own (delay, speed) pairs: 1/speed is affine
-    in the delay for shaping (v = L / (T - L / v_r)) and turning (n = 60 / T),
-    so the maps are exact there; speed = delay for a delay process; otherwise
-    a monotone interpolation of the pairs."""
-    T = np.concatenate([np.asarray(d.delay, float)] + [lb.delay for lb in d.lobes])
-    v = np.concatenate([np.asarray(d.speed, float)] + [lb.speed for lb in d.lobes])
-    ok = np.isfinite(T) & np.isfinite(v) & (v > 0) & (T > 0)
-    T, v = T[ok], v[ok]
-
-    def same(t: Any) -> np.ndarray:
-        return np.asarray(t, float)
-
-    if np.allclose(v, T, rtol=1e-12, atol=0):
-        return same, same
-    (a, c), *_ = np.linalg.lstsq(np.stack([T, np.ones_like(T)], axis=1), 1.0 / v, rcond=None)
-    if np.max(np.abs((a * T + c) * v - 1.0)) < 1e-9:
-
-        def speed(t: Any) -> np.ndarray:
-            with np.errstate(divide="ignore"):
-                s = 1.0 / (a * np.asarray(t, float) + c)
-            return np.where(s > 0, s, np.nan)
-
-        def delay(s: Any) -> np.ndarray:
-            return (1.0 / np.asarray(s, float) - c) / a
-
-        return speed, delay
-    o = np.argsort(T)
-    q = np.argsort(v)
-    return (
-        lambda t: np.interp(t, T[o], v[o], left=np.nan, right=np.nan),
-        lambda s: np.interp(s, v[q], T[q], left=np.nan, right=np.nan),
-    )
 
 
 def _branch_chains(lbs: list[Any]) -> list[np.ndarray]:
@@ -195,7 +162,7 @@ def lobe_curves(d: Any) -> list[Curve]:
     if not d.lobes:
         return []
     Tlo, Thi = float(np.min(d.delay)), float(np.max(d.delay))
-    to_speed, _ = speed_maps(d)
+    to_speed = d.speed_of
     branches: dict[int, list[Any]] = {}
     for lb in d.lobes:
         branches.setdefault(lb.branch, []).append(lb)
@@ -381,3 +348,27 @@ def envelope_line(
             o = np.argsort(vv, kind="stable")
             vv, ee, ff = vv[o], np.concatenate([ee, e3])[o], np.concatenate([ff, f3])[o]
     return vv, ee, ff
+
+
+@dataclass(frozen=True, eq=False)
+class LobeGeometry:
+    """A diagram's lobes as curves and what evaluates their lower envelope:
+    ``curves`` (every lobe in the speed range, :func:`lobe_curves`),
+    ``segments`` (:class:`Segments`), ``static`` (the width of a root through
+    s = 0 at every speed, inf: none) and ``delay_of`` (the process's delay
+    at a speed)."""
+
+    curves: list[Curve]
+    segments: Segments
+    static: float
+    delay_of: Any
+
+    @classmethod
+    def of(cls, d: Any) -> LobeGeometry:
+        curves = lobe_curves(d)
+        return cls(curves, Segments(curves), static_width(d), d.delay_of)
+
+    def envelope_line(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The envelope at the sorted speeds ``v`` with its cusps: speed,
+        width (m), chatter frequency (Hz) (:func:`envelope_line`)."""
+        return envelope_line(self.segments, v, self.delay_of, self.static)

@@ -51,13 +51,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from ..errors import InputError, check_speed, check_width
 from ..frequency._delay_system import single_threaded
-from ..model._items import Process
 from ..structure._assembly import FrozenSystem
 from ._envelope import Boundary, _check_terms, _Segment, boundary
 from ._plant import Plant
@@ -76,7 +75,7 @@ def lobes(
     *,
     width_max: float = 0.02,
     terms: Literal["pdo", "o"] = "pdo",
-    process: Process | None = None,
+    process: Any = None,
     fmin: float | None = None,
     fmax: float | None = None,
     n_frequencies: int | None = None,
@@ -98,8 +97,11 @@ def lobes(
         Largest width of cut considered, m; b_lim = inf above it.
     terms : {"pdo", "o"}
         All feedback terms (the paper's case c) or the delayed term only.
-    process : Process, optional
-        Kinematics mapping speed to delay (default: the model's ``[process]``).
+    process : Process or Milling, optional
+        Kinematics mapping speed to delay (default: the model's ``[process]``):
+        anything with ``kind``, ``speed_unit``, ``speed_name``, ``min_delay``,
+        ``delay(speed)`` and ``speed_for_delay(T)`` (a milling cutter's speed
+        is the spindle speed, its delay the tooth period).
     fmin, fmax : float, optional
         Chatter frequency band searched, Hz (default: from the modes).
     n_frequencies : int, optional
@@ -147,7 +149,7 @@ def lobes(
     return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
 
 
-def _process_of(frozen: FrozenSystem | None, process: Process | None) -> Process:
+def _process_of(frozen: FrozenSystem | None, process: Any) -> Any:
     """The kinematics mapping speed to delay: ``process`` or the model's."""
     proc = process if process is not None else (frozen.model.process if frozen is not None else None)
     if proc is None:
@@ -159,7 +161,7 @@ def _process_of(frozen: FrozenSystem | None, process: Process | None) -> Process
     return proc
 
 
-def _checked_speeds(speeds: np.ndarray, proc: Process) -> np.ndarray:
+def _checked_speeds(speeds: np.ndarray, proc: Any) -> np.ndarray:
     """The speeds as a non-empty 1-D float array, each end checked in the
     process's unit (or the first one that is not finite)."""
     speeds = np.asarray(speeds, dtype=float)
@@ -173,7 +175,7 @@ def _checked_speeds(speeds: np.ndarray, proc: Process) -> np.ndarray:
 
 
 def _lobe_curves(
-    segs: list[_Segment], T: np.ndarray, lobe_k: np.ndarray, proc: Process, b_ref: float
+    segs: list[_Segment], T: np.ndarray, lobe_k: np.ndarray, proc: Any, b_ref: float
 ) -> tuple[list[Lobe], int]:
     """Every lobe in the range of delays, as curves on the frequency grid, and
     the number of lobes crossing the range (when more than 400 of a branch do,
@@ -215,7 +217,7 @@ def _lobe_curves(
 def _diagram_of(
     bd: Boundary,
     frozen: FrozenSystem | None,
-    proc: Process,
+    proc: Any,
     speeds: np.ndarray,
     T: np.ndarray,
     envelope: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -243,8 +245,7 @@ def _diagram_of(
         lobes=tuple(lobe_list),
         minimum=minimum,
         absolute_minimum=absolute,
-        speed_unit=proc.speed_unit,
-        speed_name=proc.speed_name,
+        process=proc,
         width_max=width_max,
         terms=terms,
         position=frozen.position if frozen is not None else None,

@@ -261,12 +261,11 @@ def lobes_measured(
     rpm = np.asarray(speeds, dtype=float)
     if rpm.ndim != 1 or rpm.size == 0:
         raise InputError("speeds must be a non-empty 1-D array of spindle speeds (rpm)")
-    tau = np.array([milling.tooth_period(float(n)) for n in rpm])
     d = lobes(
         None,
-        tau,
+        rpm,
         width_max=width_max,
-        process=Process(kind="delay"),
+        process=milling,
         fmin=fmin,
         fmax=fmax,
         n_frequencies=n_frequencies,
@@ -274,18 +273,7 @@ def lobes_measured(
         plant=plant,
         name=label + f" (milling, ZOA, {milling.teeth} teeth)",
     )
-    to_rpm = 60.0 / milling.teeth
-    mn = dict(d.minimum)
-    if np.isfinite(mn.get("speed", np.nan)):
-        mn["speed"] = to_rpm / mn["speed"]
-    return replace(
-        d,
-        speed=rpm,
-        speed_unit="rpm",
-        speed_name="spindle speed",
-        minimum=mn,
-        lobes=tuple(replace(lb, speed=to_rpm / lb.delay) for lb in d.lobes),
-    )
+    return replace(d, method="zoa", resolution=f"D-subdivision on {d.n_frequencies} measured frequencies")
 
 
 def model_frf(model: Any) -> FRF:

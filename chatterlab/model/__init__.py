@@ -40,10 +40,18 @@ from ._items import (
     Section,
     Spring,
     Support,
+    spindle_speed_for,
+    stroke_cycle,
+    stroke_speed,
+    tooth_period,
 )
 from ._reader import build_model, load_model, loads_model
 
 __all__ = [
+    "tooth_period",
+    "spindle_speed_for",
+    "stroke_cycle",
+    "stroke_speed",
     "Body",
     "Node",
     "Section",

@@ -33,6 +33,10 @@ __all__ = [
     "Constraint",
     "Coupling",
     "Process",
+    "tooth_period",
+    "spindle_speed_for",
+    "stroke_cycle",
+    "stroke_speed",
     "Movable",
     "MatrixBlock",
     "Model",
@@ -277,6 +281,33 @@ class MillingCut:
         return self.teeth / (2 * math.pi) * (primitive(self.exit) - primitive(self.entry))
 
 
+# ---------------------------------------------------------------- speed <-> delay
+# The one place where a speed becomes a delay (and back): the process
+# kinematics of Process below and of chatterlab.process.Milling use these.
+
+
+def tooth_period(rpm: Any, teeth: int = 1) -> Any:
+    """T = 60 / (N n), s: the time between two teeth (turning: N = 1, one
+    revolution) at n rpm."""
+    return 60.0 / (teeth * rpm)
+
+
+def spindle_speed_for(T: Any, teeth: int = 1) -> Any:
+    """n = 60 / (N T), rpm: the inverse of :func:`tooth_period`."""
+    return 60.0 / (teeth * T)
+
+
+def stroke_cycle(stroke: Any, speed: Any, return_speed: Any) -> Any:
+    """T = L / v_w + L / v_l, s: one stroke cycle of a shaper (work stroke of
+    length L at v_w, return at v_l): the delay between two passes."""
+    return stroke / speed + stroke / return_speed
+
+
+def stroke_speed(stroke: Any, T: Any, return_speed: Any) -> Any:
+    """v_w = L / (T - L / v_l), m/s: the inverse of :func:`stroke_cycle`."""
+    return stroke / (T - stroke / return_speed)
+
+
 @dataclass(frozen=True)
 class Process:
     """Process kinematics: how the cutting speed sets the delay T.
@@ -331,12 +362,9 @@ class Process:
             bad = v[~(np.isfinite(v) & (v > 0))] if v.ndim else v
             check_speed(float(np.ravel(bad)[0]), "speed", self.speed_unit)
         if self.kind == "shaping":
-            stroke = self.run_in + self.cut + self.coast
-            out = stroke / v + stroke / self.return_speed
-        elif self.kind == "turning":
-            out = 60.0 / v
-        elif self.kind == "milling":
-            out = 60.0 / (self._teeth * v)
+            out = stroke_cycle(self.stroke, v, self.return_speed)
+        elif self.kind in ("turning", "milling"):
+            out = tooth_period(v, self._teeth)
         else:
             out = v if speed is not None else np.asarray(self.delay_value)
         if speed is not None and np.any(out > MAX_DELAY):
@@ -349,12 +377,9 @@ class Process:
         """Inverse of :meth:`delay`: the speed that gives the delay T."""
         T = np.asarray(T, dtype=float)
         if self.kind == "shaping":
-            stroke = self.run_in + self.cut + self.coast
-            out = stroke / (T - stroke / self.return_speed)
-        elif self.kind == "turning":
-            out = 60.0 / T
-        elif self.kind == "milling":
-            out = 60.0 / (self._teeth * T)
+            out = stroke_speed(self.stroke, T, self.return_speed)
+        elif self.kind in ("turning", "milling"):
+            out = spindle_speed_for(T, self._teeth)
         else:
             out = T
         return float(out) if out.ndim == 0 else out
@@ -364,12 +389,27 @@ class Process:
         return self.milling.teeth if self.milling is not None else 1
 
     @property
+    def stroke(self) -> float:
+        """Shaping: run-in + cut + coast, m (0 for the other kinds)."""
+        return self.run_in + self.cut + self.coast
+
+    @property
     def min_delay(self) -> float:
         """The smallest delay any speed can give (the return-stroke time for
         shaping, 0 otherwise)."""
         if self.kind == "shaping":
-            return (self.run_in + self.cut + self.coast) / self.return_speed
+            return self.stroke / self.return_speed
         return 0.0
+
+    @property
+    def width_name(self) -> str:
+        """What the width of cut is called: the axial depth a_p for milling."""
+        return "axial depth of cut a_p" if self.kind == "milling" else "width of cut b"
+
+    @property
+    def limit_name(self) -> str:
+        """The symbol of the stability limit: a_lim for milling, b_lim otherwise."""
+        return "a_lim" if self.kind == "milling" else "b_lim"
 
 
 @dataclass(frozen=True)

@@ -3,11 +3,11 @@ arrays), accept ``ax=`` and return the Axes they drew on (a tuple of Axes for
 a multi-panel plot; each docstring says which).  matplotlib is imported
 inside the functions, so importing this package is light.
 
-One module per subject: ``_lobes`` (with ``_lobe_panel`` and the geometry in
-``_envelope``), ``_atlas``, ``_frf`` (FRF, Nyquist of the determinant and
+One module per subject: ``_lobes`` (with ``_lobe_panel``; the geometry it
+draws is the diagram's own, :meth:`chatterlab.lobes.LobeDiagram.geometry`;
+``_milling`` for a diagram of Floquet limits), ``_atlas``, ``_frf`` (FRF, Nyquist of the determinant and
 of the loop), ``_fit`` (a modal fit, its stabilisation diagram), ``_time`` (histories, spectra, one run's response), ``_modes``
-(mode shapes on the structure, frequencies), ``_milling`` (milling
-lobes, Hopf and flip), ``_sweep`` (any output, the
+(mode shapes on the structure, frequencies), ``_sweep`` (any output, the
 stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ from ._atlas import plot_atlas
 from ._fit import plot_modal_fit, plot_stabilisation
 from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
-from ._milling import plot_milling_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
@@ -31,7 +30,6 @@ __all__ = [
     "touching_width",
     "track_loci",
     "plot_lobes",
-    "plot_milling_lobes",
     "plot_atlas",
     "plot_histories",
     "plot_cases",

@@ -8,8 +8,6 @@ from typing import Any
 
 import numpy as np
 
-from ._envelope import Curve, Segments, envelope_line
-
 #: the envelope is evaluated at this many points per horizontal pixel ...
 ENVELOPE_POINTS_PER_PIXEL = 4
 #: ... of a figure saved at up to this resolution (savefig's default is 130 dpi)
@@ -37,7 +35,7 @@ def _speed_grid(ax: Any, lo: float, hi: float, extra: np.ndarray) -> np.ndarray:
     return np.unique(np.concatenate([g, extra]))
 
 
-def bottoms(curves: list[Curve]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def bottoms(curves: list[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Speed and width (m) of each lobe's lowest sample, and its branch."""
     if not curves:
         return np.zeros(0), np.zeros(0), np.zeros(0, int)
@@ -49,7 +47,7 @@ def bottoms(curves: list[Curve]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     )
 
 
-def lobe_density(curves: list[Curve], lo: float, hi: float, pixels: float) -> float:
+def lobe_density(curves: list[Any], lo: float, hi: float, pixels: float) -> float:
     """Most lobe bottoms of one branch within DENSE_PIXELS pixel columns."""
     sp, _, br = bottoms(curves)
     n = max(int(pixels), 1)
@@ -61,7 +59,7 @@ def lobe_density(curves: list[Curve], lo: float, hi: float, pixels: float) -> fl
     return worst
 
 
-def zoom_range(curves: list[Curve], d: Any, lo: float, hi: float) -> tuple[float, float]:
+def zoom_range(curves: list[Any], d: Any, lo: float, hi: float) -> tuple[float, float]:
     """A speed range around the diagram's minimum holding about 2 ZOOM_LOBES + 1
     lobes of the branch that forms the envelope there."""
     vc = float(d.minimum["speed"]) if np.isfinite(d.minimum["speed"]) else 0.5 * (lo + hi)
@@ -115,13 +113,11 @@ def _requested_spans(d: Any, which: int) -> list[tuple[float, float]]:
 def draw_lobe_panel(
     ax: Any,
     d: Any,
-    curves: list[Curve],
+    curves: list[Any],
     lo: float,
     hi: float,
     *,
-    segs: Segments,
-    delay_of: Any,
-    static: float,
+    geometry: Any,
     lobe_numbers: int,
     dense_ok: bool,
     references: Mapping[str, Any] | None = None,
@@ -150,7 +146,7 @@ def draw_lobe_panel(
         dense = False
     else:
         vg = _speed_grid(ax, lo, hi, np.asarray(d.speed, float))
-        vx, env, fq = envelope_line(segs, vg, delay_of, static)
+        vx, env, fq = geometry.envelope_line(vg)
     em = env * 1e3
     fin = np.isfinite(em)
     top = d.width_max * 1e3
@@ -176,7 +172,7 @@ def draw_lobe_panel(
 
 def _draw_lobes_and_envelope(
     ax: Any,
-    curves: list[Curve],
+    curves: list[Any],
     lo: float,
     hi: float,
     vx: np.ndarray,
@@ -336,7 +332,7 @@ def _draw_claims(
 
 def _label_lobes(
     ax: Any,
-    curves: list[Curve],
+    curves: list[Any],
     vx: np.ndarray,
     em: np.ndarray,
     lo: float,

@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 
-from ._envelope import Curve, Segments, lobe_curves, speed_maps, static_width
 from ._lobe_panel import DENSE_PIXELS, DISPLAY_DPI, draw_lobe_panel, lobe_density, zoom_range
 from ._style import LAID_OUT, axes_arg
 
@@ -21,8 +20,9 @@ def plot_lobes(
     title: str | None = None,
     references: Mapping[str, Any] | None = None,
     axes: Any = None,
+    **style: Any,
 ) -> Any:
-    """Stability lobe diagram: width of cut (mm) against speed.
+    """Stability lobe diagram: the limit width (mm) against speed.
 
     Draws every lobe (one LineCollection), the exact lower envelope of the
     lobes (the minimum over the lobe curves, linearly interpolated in speed,
@@ -54,18 +54,21 @@ def plot_lobes(
 
     Returns
     -------
-    The Axes, a tuple: (ax_lobes, ax_freq), or (ax_lobes, ax_zoom, ax_freq) when dense.
+    The Axes, a tuple: (ax_lobes, ax_freq), or (ax_lobes, ax_zoom, ax_freq) when dense;
+    for a diagram of Floquet limits (no lobe curves) one Axes.
     """
     ax_arg = axes_arg(ax, axes, "plot_lobes")
     d = diagram
+    if not d.lobes and getattr(d, "floquet", False):  # limits without lobe curves: Floquet multipliers
+        from ._milling import plot_milling_lobes
+
+        return plot_milling_lobes(d, ax=ax_arg, title=title, **style)
     v = np.asarray(d.speed, float)
     lo, hi = float(v.min()), float(v.max())
     if hi <= lo:
         lo, hi = lo * 0.95, hi * 1.05
-    curves = lobe_curves(d)
-    static = static_width(d)
-    segs = Segments(curves)
-    delay_of = speed_maps(d)[1] if d.lobes else (lambda s: np.asarray(s, float))
+    geometry = d.geometry()
+    curves = geometry.curves
     created = ax_arg is None
     # a measured FRF's lobes are not exact curves: no zoom on them (see draw_lobe_panel)
     measured = bool(getattr(d, "band_measured", False))
@@ -80,9 +83,7 @@ def plot_lobes(
             curves,
             plo,
             phi,
-            segs=segs,
-            delay_of=delay_of,
-            static=static,
+            geometry=geometry,
             lobe_numbers=lobe_numbers,
             dense_ok=dense_ok,
             references=references,
@@ -100,7 +101,7 @@ def plot_lobes(
         _dense_legend(ax, main, note)
     else:
         _lobe_legend(ax, main, curves, d, "outside", count)
-    ax.set_ylabel("width of cut b [mm]")
+    ax.set_ylabel(f"{d.width_name} [mm]")
     ax.grid(alpha=0.3)
     _frequency_panel(axf, main, d)
     if axz is not None:
@@ -112,7 +113,7 @@ def plot_lobes(
     return panels
 
 
-def _new_lobe_figure(curves: list[Curve], lo: float, hi: float) -> tuple[Any, ...]:
+def _new_lobe_figure(curves: list[Any], lo: float, hi: float) -> tuple[Any, ...]:
     """A new figure laid out for the diagram: (ax_lobes, ax_freq), or
     (ax_lobes, ax_zoom, ax_freq) when the lobes are denser than the pixels.
     The layout is decided on a figure of the final size (dpi of savefig: text
@@ -215,7 +216,7 @@ def _frequency_panel(axf: Any, main: dict[str, Any], d: Any) -> None:
     axf.grid(alpha=0.3)
 
 
-def _lobe_count(curves: list[Curve], d: Any) -> str:
+def _lobe_count(curves: list[Any], d: Any) -> str:
     """The number of lobes drawn, said against the diagram's summary."""
     ks = {(c.k, c.branch) for c in curves}
     if not ks:
@@ -230,7 +231,7 @@ def _lobe_count(curves: list[Curve], d: Any) -> str:
     )
 
 
-def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[Curve], d: Any, loc: str, count: str) -> None:
+def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[Any], d: Any, loc: str, count: str) -> None:
     import textwrap
 
     from matplotlib.lines import Line2D
@@ -259,7 +260,7 @@ def _with_labels(handles: list[Any]) -> tuple[list[Any], list[str]]:
     return handles, [(h[0] if isinstance(h, tuple) else h).get_label() for h in handles]
 
 
-def _branch_modes(curves: list[Curve]) -> str:
+def _branch_modes(curves: list[Any]) -> str:
     """Which mode each branch is: its chatter frequency where its width is least."""
     chains = {c.branch: c.chain for c in curves}
     parts = []

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, check_delay, check_position, check_speed
-from ..model._items import Process
+from ..model._items import Process, stroke_cycle
 
 __all__ = ["ShapingKinematics", "SteadyKinematics", "kinematics_for"]
 
@@ -52,7 +52,7 @@ class ShapingKinematics:
     @property
     def cycle(self) -> float:
         """One stroke cycle = the delay T between passes, s."""
-        return self.stroke / self.speed + self.stroke / self.return_speed
+        return float(stroke_cycle(self.stroke, self.speed, self.return_speed))
 
     @property
     def delay(self) -> float:

@@ -74,7 +74,7 @@ from typing import Literal
 import numpy as np
 
 from ..errors import InputError, check_count, check_finite, check_nonneg, check_positive, check_speed
-from ..model._items import HELIX_MAX_DEG, SPEED_PLAUSIBLE, SPEED_RANGE
+from ..model._items import HELIX_MAX_DEG, SPEED_PLAUSIBLE, SPEED_RANGE, spindle_speed_for, tooth_period
 
 __all__ = ["Milling", "check_spindle_speed"]
 
@@ -293,12 +293,33 @@ class Milling:
         return TWO_PI * check_spindle_speed(rpm) / 60.0
 
     def tooth_period(self, rpm: float) -> float:
-        """tau = 60 / (N n), s: the delay of a uniform-pitch cutter."""
-        return 60.0 / (self.teeth * check_spindle_speed(rpm))
+        """tau = 60 / (N n), s: the delay of a uniform-pitch cutter (the mean
+        delay of a variable pitch)."""
+        return float(tooth_period(check_spindle_speed(rpm), self.teeth))
 
     def period(self, rpm: float) -> float:
         """Principal period of the coefficients, s: tau (uniform pitch) or 60/n."""
-        return self.tooth_period(rpm) if self.uniform else 60.0 / check_spindle_speed(rpm)
+        return self.tooth_period(rpm) if self.uniform else float(tooth_period(check_spindle_speed(rpm)))
+
+    # ------------------------------------------------------------------ speed <-> delay
+    # the process kinematics every lobe result keeps (as chatterlab.model.Process does)
+    kind = "milling"
+    speed_unit = "rpm"
+    speed_name = "spindle speed"
+    width_name = "axial depth of cut a_p"
+    limit_name = "a_lim"
+    min_delay = 0.0
+
+    def delay(self, rpm: float | np.ndarray | None = None) -> float | np.ndarray:
+        """The tooth period 60 / (N n), s, at n rpm (default: :attr:`rpm`)."""
+        n = np.asarray(self.rpm if rpm is None else rpm, dtype=float)
+        out = tooth_period(n, self.teeth)
+        return float(out) if np.ndim(out) == 0 else out
+
+    def speed_for_delay(self, T: float | np.ndarray) -> float | np.ndarray:
+        """The spindle speed (rpm) whose tooth period is T (s)."""
+        out = spindle_speed_for(np.asarray(T, dtype=float), self.teeth)
+        return float(out) if np.ndim(out) == 0 else out
 
     def delays(self, rpm: float) -> np.ndarray:
         """tau_j = pitch_j / Omega, s, shape (N,)."""

@@ -364,7 +364,7 @@ class QuantityTask:
         ml = milling_lobes(S, mill, np.array([rpm]), depth_max=self.width_max)
         return {
             "a_lim": float(ml.a_lim[0]),
-            "chatter_frequency": float(ml.frequency_hz[0]),
+            "chatter_frequency": float(ml.chatter_hz[0]),
             "kind": KIND_CODES.get(str(ml.kind[0]), -1.0),
         }
 
