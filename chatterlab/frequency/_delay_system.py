@@ -28,7 +28,7 @@ References
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ParamSpec, TypeVar
 
@@ -46,6 +46,7 @@ R = TypeVar("R")
 __all__ = [
     "DelaySystem",
     "loop_system",
+    "loop_systems",
     "make_system",
     "make_first_order_system",
     "as_delay_system",
@@ -205,11 +206,16 @@ class DelaySystem:
         None when the eigenvector matrix is ill-conditioned (cond > 1e8)."""
 
         def compute() -> tuple[ComplexArray, ComplexArray, ComplexArray] | None:
-            p, S = np.linalg.eig(self.A)
-            ok = np.linalg.cond(S) < 1e8
+            p, S, ok = self.eigen()
             return (p, self.Cz @ S, np.linalg.solve(S, self.B)) if ok else None
 
         return self.cached("pf", compute)
+
+    def eigen(self) -> tuple[Any, Any, bool]:
+        """``(p, S, well_conditioned)``: ``A = S diag(p) S^{-1}`` (one
+        eigendecomposition, :func:`_eig`) and whether ``cond(S) < 1e8``.
+        Shared by systems with the same ``A`` (:func:`loop_systems`)."""
+        return self.cached("eig", lambda: _eig(self.A))
 
     def delay_free_poles(self) -> ComplexArray:
         """Eigenvalues of the delay-free closed loop :math:`P`, shape (m,)."""
@@ -234,6 +240,26 @@ class DelaySystem:
         if key not in self._cache:
             self._cache[key] = compute()
         return self._cache[key]
+
+
+#: eigendecompositions of first-order matrices done (a work counter, read by tests)
+EIG_COUNT = [0]
+
+
+def _eig(A: FloatArray) -> tuple[Any, Any, bool]:
+    """``np.linalg.eig(A)`` and whether the eigenvector matrix ``S`` has
+    ``cond_2(S) < 1e8``.  ``cond_2(S) <= ||S||_F ||S^{-1}||_F``, so the bound
+    (one inverse) decides when it is below 1e8; the SVD is taken only when it
+    is not (the same verdict as ``np.linalg.cond(S) < 1e8`` either way)."""
+    EIG_COUNT[0] += 1
+    p, S = np.linalg.eig(A)
+    try:
+        Sinv = np.linalg.inv(S)
+    except np.linalg.LinAlgError:
+        return p, S, False
+    bound = float(np.linalg.norm(S) * np.linalg.norm(Sinv))
+    ok = bool(bound < 1e8) or bool(np.linalg.cond(S) < 1e8)
+    return p, S, ok
 
 
 def _horner(coeffs: tuple[FloatArray, ...], lam: ArrayLike, derivative: bool = False) -> ComplexArray:
@@ -376,6 +402,36 @@ def loop_system(loop: Any) -> DelaySystem:
     return make_system(
         loop.M, loop.C, loop.K, DP=loop.DP, DV=loop.DV, DO=DO, tau=loop.delay if DO is not None else None
     )
+
+
+def loop_systems(loops: Sequence[Any]) -> list[DelaySystem]:
+    """:func:`loop_system` of several closed loops, sharing what they share.
+
+    The loops of one structure at other widths and delays (the lobe
+    diagram's argument-principle checks) have the same open-loop structure
+    ``(K, C, M)``: its roots are computed once.  Loops whose delay-free closed
+    loop is the same (no proportional or velocity feedback: only the delayed
+    term, which sits in ``U``, scales with the width; or two checks at one
+    width) have the same first-order matrix ``A``: it is decomposed once
+    (:meth:`DelaySystem.eigen`), and only ``L = C_z S``, ``R = S^{-1} B`` are
+    formed per system.  Each system is the one :func:`loop_system` builds;
+    the shared values are the ones each would compute (the same input, the
+    same arithmetic)."""
+    systems = [loop_system(loop) for loop in loops]
+    opens: dict[bytes, DelaySystem] = {}
+    firsts: dict[bytes, DelaySystem] = {}
+    for sys in systems:
+        ko = b"".join(np.ascontiguousarray(c).tobytes() for c in sys.open_coeffs)
+        ka = np.ascontiguousarray(sys.A).tobytes()
+        if ko in opens:
+            sys._cache["open_poles"] = opens[ko].open_loop_poles()
+        else:
+            opens[ko] = sys
+        if ka in firsts:
+            sys._cache["eig"] = firsts[ka].eigen()
+        else:
+            firsts[ka] = sys
+    return systems
 
 
 def make_first_order_system(

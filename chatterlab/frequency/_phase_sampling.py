@@ -29,6 +29,7 @@ See :mod:`chatterlab.frequency._winding` for the mathematics and references.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,12 +42,14 @@ __all__ = [
     "Sampler",
     "band_end",
     "initial_grid",
+    "certification_grid",
     "refine",
     "phase_change",
     "PassiveBands",
     "MAX_SAMPLES",
     "Certificate",
     "certified_phase",
+    "certified_phases",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -205,6 +208,17 @@ def initial_grid(
     return pts, n0, passive
 
 
+def certification_grid(p: ComplexArray, W: float) -> FloatArray:
+    """The first samples of a certified phase on ``[0, W]`` (rad/s): the ends
+    and the frequency of every delay-free pole ``p`` (the poles of ``H``)
+    between them.  :func:`certified_phase` adds every further sample where
+    its bounds need one, so nothing more is laid in advance: away from the
+    resonances a few wide intervals are passive at once, near them the
+    bisection reaches the spacing the Lipschitz bound asks for."""
+    f = p.imag[(p.imag > 0.0) & (p.imag < W)]
+    return np.unique(np.concatenate([[0.0], f, [W]]))
+
+
 def refine(
     F: Sampler, w: FloatArray, passive: PassiveBands | None
 ) -> tuple[FloatArray, ComplexArray, NDArray[np.bool_] | None, int]:
@@ -313,36 +327,35 @@ def _residue_bounds(sys: DelaySystem) -> tuple[ComplexArray, FloatArray, float] 
 
 
 def _interval_bounds(
-    p: ComplexArray, n: FloatArray, s0: float, a: FloatArray, b: FloatArray
+    p: ComplexArray, n: FloatArray, s0: FloatArray | float, a: FloatArray, b: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Upper bounds of ``||H(j w)||`` and ``||dH/dw||`` over each ``w`` in ``[a_i, b_i]``.
 
     With ``d_k`` the distance of ``p_k`` from the segment ``j[a, b]``:
     ``||H|| <= min(sum_k n_k / d_k, s0 / a + sum_k n_k |p_k| / (a d_k))`` (the second
-    from ``h/(s - p) = h/s + h p / (s (s - p))``) and ``||H'|| <= sum_k n_k / d_k^2``."""
+    from ``h/(s - p) = h/s + h p / (s (s - p))``) and ``||H'|| <= sum_k n_k / d_k^2``.
+    ``p``, ``n``: shape (K,) (one system) or (len(a), K) (each interval its
+    own system's), ``s0`` a scalar or (len(a),)."""
     out_h = np.empty(a.size)
     out_d = np.empty(a.size)
-    chunk = max(1, 4_000_000 // max(1, p.size))
-    ap = np.abs(p)
+    K = p.shape[-1]
+    chunk = max(1, 4_000_000 // max(1, K))
+    rows = p.ndim == 2
+    s0a = np.broadcast_to(np.asarray(s0, dtype=float), a.shape)
     for s in range(0, a.size, chunk):
-        aa, bb = a[s : s + chunk, None], b[s : s + chunk, None]
-        dx = np.abs(p.real)[None, :]
-        dy = np.maximum(np.maximum(aa - p.imag[None, :], p.imag[None, :] - bb), 0.0)
+        sl = slice(s, s + chunk)
+        aa, bb = a[sl, None], b[sl, None]
+        pp = p[sl] if rows else p[None, :]
+        nn = n[sl] if rows else n[None, :]
+        dx = np.abs(pp.real)
+        dy = np.maximum(np.maximum(aa - pp.imag, pp.imag - bb), 0.0)
         d = np.maximum(np.hypot(dx, dy), 1e-300)
         with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            h1 = np.sum(n / d, axis=1)
-            h2 = np.where(aa[:, 0] > 0, (s0 + np.sum(n * ap / d, axis=1)) / aa[:, 0], np.inf)
-            out_h[s : s + chunk] = np.minimum(h1, h2)
-            out_d[s : s + chunk] = np.sum(n / d**2, axis=1)
+            h1 = np.sum(nn / d, axis=1)
+            h2 = np.where(aa[:, 0] > 0, (s0a[sl] + np.sum(nn * np.abs(pp) / d, axis=1)) / aa[:, 0], np.inf)
+            out_h[sl] = np.minimum(h1, h2)
+            out_d[sl] = np.sum(nn / d**2, axis=1)
     return out_h, out_d
-
-
-def _passive_args(sys: DelaySystem, w: FloatArray) -> FloatArray:
-    """``sum_k Arg(1 - mu_k(j w) e^{-j w tau})``, the continuous phase of ``g``
-    wherever every ``|mu_k| < 1`` (each factor then has a positive real part)."""
-    mu = sys.loop_eigenvalues(1j * w)
-    zz = np.exp(-1j * w * sys.tau)[:, None]
-    return np.angle(1.0 - mu * zz).sum(axis=1)
 
 
 def _tail_start(p: ComplexArray, n: FloatArray, s0: float, W: float) -> float:
@@ -359,6 +372,68 @@ def _tail_start(p: ComplexArray, n: FloatArray, s0: float, W: float) -> float:
                 return W
         W *= 2.0
     return math.inf
+
+
+class _Loops:
+    """The factored loops of several systems with the same number of poles K
+    and the same rank r, stacked (row c: system c), so that the certification
+    handles all their intervals in one pass: poles ``p`` (C, K), residue norms
+    ``n`` (C, K), ``s0`` (C,), delays ``tau`` (C,), residues ``LR`` (C, K, r, r)."""
+
+    def __init__(
+        self, systems: list[DelaySystem], bounds: list[tuple[ComplexArray, FloatArray, float]]
+    ) -> None:
+        self.r = systems[0].r
+        self.p = np.stack([b[0] for b in bounds])
+        self.n = np.stack([b[1] for b in bounds])
+        self.s0 = np.array([b[2] for b in bounds])
+        self.tau = np.array([sy.tau for sy in systems])
+        LR = []
+        for sy in systems:
+            _, L, R = sy.partial_fractions()  # type: ignore[misc]  # not None: bounds exist
+            LR.append(L.T[:, :, None] * R[:, None, :])
+        self.LR = np.stack(LR)
+
+    def H(self, w: FloatArray, c: NDArray[np.intp]) -> ComplexArray:
+        """H(j w_i) of system c_i, shape (len(w), r, r): the partial fractions."""
+        with np.errstate(all="ignore"):
+            g = 1.0 / (1j * w[:, None] - self.p[c])
+            if self.r == 1:
+                return np.sum(g * self.LR[c, :, 0, 0], axis=1)[:, None, None]
+            return np.einsum("nk,nkij->nij", g, self.LR[c])
+
+    def X(self, w: FloatArray, c: NDArray[np.intp]) -> ComplexArray:
+        """X = H(j w) e^{-j w tau}, shape (len(w), r, r)."""
+        with np.errstate(all="ignore"):
+            return self.H(w, c) * np.exp(-1j * w * self.tau[c])[:, None, None]
+
+    def g(self, w: FloatArray, c: NDArray[np.intp]) -> ComplexArray:
+        """``g = det(I - X)`` (what :class:`Sampler` samples in factored mode)."""
+        X = self.X(w, c)
+        with np.errstate(all="ignore"):
+            if self.r == 1:
+                return 1.0 - X[:, 0, 0]
+            return np.linalg.det(np.eye(self.r)[None] - X)
+
+    def g_norm(self, w: FloatArray, c: NDArray[np.intp]) -> FloatArray:
+        """``||I - X(j w)||_F`` (an upper bound of the spectral norm), r > 1."""
+        with np.errstate(all="ignore"):
+            return np.linalg.norm(np.eye(self.r)[None] - self.X(w, c), axis=(1, 2))
+
+    def passive_args(self, w: FloatArray, c: NDArray[np.intp]) -> FloatArray:
+        """``sum_k Arg(1 - mu_k)``, ``mu_k`` the eigenvalues of ``X(j w)``: the
+        continuous phase of ``g`` wherever every ``|mu_k| < 1`` (each factor then
+        has a positive real part)."""
+        X = self.X(w, c)
+        with np.errstate(all="ignore"):
+            if self.r == 1:
+                mu = X[:, 0, :]
+            else:
+                mu = np.full(X.shape[:2], np.nan + 0j)
+                ok = np.all(np.isfinite(X), axis=(1, 2))
+                if np.any(ok):
+                    mu[ok] = np.linalg.eigvals(X[ok])
+            return np.angle(1.0 - mu).sum(axis=1)
 
 
 def certified_phase(F: Sampler, w0: FloatArray, W: float) -> Certificate | None:
@@ -400,81 +475,112 @@ def certified_phase(F: Sampler, w0: FloatArray, W: float) -> Certificate | None:
     ``g`` is evaluated in floating point: the proof is exact up to the round-off
     in the residues and in ``g`` (relative ~1e-12 here), which the criteria do
     not absorb.
+
+    The work is done by :func:`certified_phases`, for one system.
     """
-    sys = F.sys
-    rb = _residue_bounds(sys)
-    if rb is None:
-        return None
-    p, n, s0 = rb
-    tau = sys.tau
-    Wt = _tail_start(p, n, s0, W)
-    if not math.isfinite(Wt):
-        return None
-    w = np.unique(np.concatenate([w0[w0 < Wt], [Wt]]))
-    if w[0] > 0.0:
-        w = np.r_[0.0, w]
-    val = F(w)
-    r = sys.r
-    # per interval: 0 open, 1 passive, 2 Lipschitz, 3 unresolved
-    kind = np.zeros(w.size - 1, np.int8)
-    unresolved = 0
+    return certified_phases([(F.sys, w0, W)])[0]
+
+
+def certified_phases(items: Sequence[tuple[DelaySystem, FloatArray, float]]) -> list[Certificate | None]:
+    """:func:`certified_phase` of several systems ``(sys, w0, W)`` at once.
+
+    Each system is certified exactly as alone -- the same samples, bounds and
+    decisions (an interval's arithmetic does not depend on the others) -- but
+    the bisection rounds run over the open intervals of all the systems
+    together (those with the same number of poles and rank), so that a set of
+    checks pays the per-round overhead once."""
+    out: list[Certificate | None] = [None] * len(items)
+    groups: dict[tuple[int, int], list[tuple[int, DelaySystem, FloatArray, float, tuple[Any, ...]]]] = {}
+    for i, (sys, w0, W) in enumerate(items):
+        rb = _residue_bounds(sys)
+        if rb is None:
+            continue
+        Wt = _tail_start(*rb, W)
+        if not math.isfinite(Wt):
+            continue
+        groups.setdefault((rb[0].size, sys.r), []).append((i, sys, w0, Wt, rb))
+    for members in groups.values():
+        loops = _Loops([m[1] for m in members], [m[4] for m in members])
+        for (i, *_), cert in zip(members, _certify(loops, [(m[2], m[3]) for m in members]), strict=True):
+            out[i] = cert
+    return out
+
+
+def _certify(loops: _Loops, starts: list[tuple[FloatArray, float]]) -> list[Certificate]:
+    """The bisection of :func:`certified_phase` over the systems of ``loops``,
+    their samples concatenated (system by system, each sorted; the "interval"
+    from one system's last sample to the next one's first is never open)."""
+    ws = []
+    for w0, Wt in starts:
+        w = np.unique(np.concatenate([w0[w0 < Wt], [Wt]]))
+        ws.append(np.r_[0.0, w] if w[0] > 0.0 else w)
+    sid = np.concatenate([np.full(x.size, k) for k, x in enumerate(ws)])
+    w = np.concatenate(ws)
+    val = loops.g(w, sid)
+    r = loops.r
+    # per interval: 0 open, 1 passive, 2 Lipschitz, 3 unresolved, -1 between two systems
+    kind = np.where(sid[1:] == sid[:-1], 0, -1).astype(np.int8)
     for _ in range(200):
         todo = np.nonzero(kind == 0)[0]
-        if todo.size == 0 or w.size > MAX_SAMPLES:
+        if todo.size:
+            over = np.bincount(sid, minlength=len(ws)) > MAX_SAMPLES
+            todo = todo[~over[sid[todo]]]
+        if todo.size == 0:
             break
-        a, b = w[todo], w[todo + 1]
-        hb, hd = _interval_bounds(p, n, s0, a, b)
+        a, b, cs = w[todo], w[todo + 1], sid[todo]
+        hb, hd = _interval_bounds(loops.p[cs], loops.n[cs], loops.s0[cs], a, b)
         passive = hb < 1.0
+        tau = loops.tau[cs]
         L = hd + tau * hb
         ga, gb = val[todo], val[todo + 1]
-        Xa = _g_norm(sys, a) if r > 1 else np.abs(ga)
-        Xb = _g_norm(sys, b) if r > 1 else np.abs(gb)
+        Xa = loops.g_norm(a, cs) if r > 1 else np.abs(ga)
+        Xb = loops.g_norm(b, cs) if r > 1 else np.abs(gb)
         with np.errstate(over="ignore", invalid="ignore"):
             h = b - a
             lip = ((Xa + L * h) ** r - Xa**r < np.abs(ga)) | ((Xb + L * h) ** r - Xb**r < np.abs(gb))
         lip &= np.isfinite(ga) & np.isfinite(gb)
         kind[todo[passive]] = 1
         kind[todo[~passive & lip]] = 2
-        bad = todo[~passive & ~lip]
-        tiny = (b - a)[~passive & ~lip] <= 1e-12 * np.maximum(b[~passive & ~lip], 1.0 / tau)
+        fail = ~passive & ~lip
+        bad = todo[fail]
+        tiny = (b - a)[fail] <= 1e-12 * np.maximum(b[fail], 1.0 / tau[fail])
         kind[bad[tiny]] = 3
         split = bad[~tiny]
         if split.size == 0:
             break
         mid = 0.5 * (w[split] + w[split + 1])
-        vm = F(mid)
+        vm = loops.g(mid, sid[split])
         # insert: each split interval becomes two open intervals
-        w_new = np.insert(w, split + 1, mid)
+        w = np.insert(w, split + 1, mid)
         val = np.insert(val, split + 1, vm)
+        sid = np.insert(sid, split + 1, sid[split])
         kind = np.insert(kind, split + 1, 0)
         kind[split + np.arange(split.size)] = 0
-        w = w_new
-    complete = not np.any(kind == 0)
-    unresolved = int(np.sum(kind == 3))
-    inc = np.angle(val[1:] * np.conj(val[:-1]))
-    pas = np.nonzero(kind == 1)[0]
-    if pas.size:
-        ends = np.unique(np.concatenate([pas, pas + 1]))
-        arg = _passive_args(sys, w[ends])
-        inc[pas] = arg[np.searchsorted(ends, pas + 1)] - arg[np.searchsorted(ends, pas)]
-    inc[~np.isfinite(inc)] = 0.0
-    tail = -float(_passive_args(sys, np.array([w[-1]]))[0])
-    return Certificate(
-        float(np.sum(inc)) + tail,
-        tail,
-        float(w[-1]),
-        w,
-        val,
-        unresolved,
-        int(pas.size),
-        int(np.sum(kind == 2)),
-        complete,
-    )
-
-
-def _g_norm(sys: DelaySystem, w: FloatArray) -> FloatArray:
-    """``||I - X(j w)||_F`` (an upper bound of the spectral norm), r > 1."""
-    H = sys.transfer_fast(1j * w)
-    with np.errstate(all="ignore"):
-        G = np.eye(sys.r)[None] - H * np.exp(-1j * w * sys.tau)[:, None, None]
-        return np.linalg.norm(G, axis=(1, 2))
+    out = []
+    first = np.searchsorted(sid, np.arange(len(ws) + 1))
+    for c in range(len(ws)):
+        i0, i1 = int(first[c]), int(first[c + 1])
+        wc, vc, kc = w[i0:i1], val[i0:i1], kind[i0 : i1 - 1]
+        cc = np.full(wc.size, c)
+        inc = np.angle(vc[1:] * np.conj(vc[:-1]))
+        pas = np.nonzero(kc == 1)[0]
+        if pas.size:
+            ends = np.unique(np.concatenate([pas, pas + 1]))
+            arg = loops.passive_args(wc[ends], cc[ends])
+            inc[pas] = arg[np.searchsorted(ends, pas + 1)] - arg[np.searchsorted(ends, pas)]
+        inc[~np.isfinite(inc)] = 0.0
+        tail = -float(loops.passive_args(wc[-1:], cc[-1:])[0])
+        out.append(
+            Certificate(
+                float(np.sum(inc)) + tail,
+                tail,
+                float(wc[-1]),
+                wc,
+                vc,
+                int(np.sum(kc == 3)),
+                int(pas.size),
+                int(np.sum(kc == 2)),
+                not np.any(kc == 0),
+            )
+        )
+    return out

@@ -85,6 +85,7 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -96,15 +97,17 @@ from ._checks import check_integer, check_omega_max
 from ._delay_system import DelaySystem, as_delay_system, single_threaded_blas
 from ._phase_sampling import (
     MAX_SAMPLES,
+    Certificate,
     Sampler,
     band_end,
-    certified_phase,
+    certification_grid,
+    certified_phases,
     initial_grid,
     phase_change,
     refine,
 )
 
-__all__ = ["WindingResult", "rhp_count"]
+__all__ = ["WindingResult", "rhp_count", "rhp_counts"]
 
 
 @dataclass(frozen=True)
@@ -188,13 +191,13 @@ def _reference(
     z_open: int,
     z_p: int,
     scale: float,
+    pf: Any,
 ) -> _Reference:
     """The factored form unless asked for ``direct``, or the delay-free
-    eigenvectors are ill-conditioned, or the delay-free loop has roots on the
-    axis (its linear factors' phase is then not continuous)."""
+    eigenvectors are ill-conditioned (``pf`` None), or the delay-free loop has
+    roots on the axis (its linear factors' phase is then not continuous)."""
     axis_tol = 1e-10 * scale
     on_axis = bool(np.any(np.abs(p.real) <= axis_tol))
-    pf = sys.partial_fractions()
     if not (direct or pf is None or on_axis):
         return _Reference("factored", p0, None, z_p, ())
     notes = []
@@ -258,11 +261,30 @@ def _status(
     return status, msg
 
 
-def _count(sys: DelaySystem, omega_max: float | None, n_points: int | None, direct: bool) -> WindingResult:
-    """:func:`rhp_count` on a validated system (the steps -- reference, band,
-    grid, bisection, phase -- are in :mod:`chatterlab.frequency._phase_sampling`)."""
+@dataclass(frozen=True)
+class _Pending:
+    """A count prepared up to its phase: the system, what is sampled, the band."""
+
+    sys: DelaySystem
+    ref: _Reference
+    F: Sampler
+    W: float
+    poles: NDArray[np.complex128]
+    p: NDArray[np.complex128]
+    scale: float
+    z_open: int
+    z_p: int
+
+
+def _prepare(sys: DelaySystem, omega_max: float | None, direct: bool) -> WindingResult | _Pending:
+    """The reference, the sampled factor and the band of one count, or the
+    result itself when nothing has to be sampled (no delay) or the band does
+    not close."""
     p0 = sys.open_loop_poles()
-    p = sys.delay_free_poles()
+    pf = sys.partial_fractions() if sys.has_delay and not direct else None
+    # the delay-free poles: the eigenvalues of the decomposition the partial
+    # fractions come from (one eigendecomposition), else computed alone
+    p = pf[0] if pf is not None else sys.delay_free_poles()
     scale = max(
         float(np.max(np.abs(p0))) if p0.size else 1.0, float(np.max(np.abs(p))) if p.size else 1.0, 1e-300
     )
@@ -284,7 +306,7 @@ def _count(sys: DelaySystem, omega_max: float | None, n_points: int | None, dire
             winding=float(z_open - z_p),
             proven=not marginal,
         )
-    ref = _reference(sys, direct, p0, p, z_open, z_p, scale)
+    ref = _reference(sys, direct, p0, p, z_open, z_p, scale, pf)
     logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1]) if len(sys.coeffs) == 3 else 0.0
     F = Sampler(sys, ref.mode, ref.ref, logdetM)
     poles = np.concatenate([p, p0])
@@ -294,10 +316,12 @@ def _count(sys: DelaySystem, omega_max: float | None, n_points: int | None, dire
             return _failed(z_open, z_p, W, "|f - 1| does not decay; is M singular?")
     else:
         W = float(omega_max)
-    pieces, n0, passive = initial_grid(sys, ref.mode, W, poles, scale, n_points)
-    if n0 > MAX_SAMPLES:
-        return _failed(z_open, z_p, W, f"{n0} samples needed up to {W:.4g} rad/s; pass a smaller omega_max")
-    cert = certified_phase(F, np.unique(np.concatenate(pieces)), W) if ref.mode == "factored" else None
+    return _Pending(sys, ref, F, W, poles, p, scale, z_open, z_p)
+
+
+def _finish(pd: _Pending, cert: Certificate | None, n_points: int | None) -> WindingResult:
+    """The count from the proven phase (``cert``), or else from the sampled one."""
+    sys, ref, F, W, z_open, z_p = pd.sys, pd.ref, pd.F, pd.W, pd.z_open, pd.z_p
     if cert is not None:
         w, val, unresolved, total, tail, W = cert.w, cert.val, cert.unresolved, cert.total, 0.0, cert.W
         proven_note = (
@@ -305,6 +329,11 @@ def _count(sys: DelaySystem, omega_max: float | None, n_points: int | None, dire
             f" passive tail beyond {W:.4g} rad/s)"
         )
     else:
+        pieces, n0, passive = initial_grid(sys, ref.mode, W, pd.poles, pd.scale, n_points)
+        if n0 > MAX_SAMPLES:
+            return _failed(
+                z_open, z_p, W, f"{n0} samples needed up to {W:.4g} rad/s; pass a smaller omega_max"
+            )
         w, val, passive_iv, unresolved = refine(F, np.unique(np.concatenate(pieces)), passive)
         total, tail = phase_change(w, val, passive_iv, passive, sys.tau)
         proven_note = "increments sampled (wrapped below pi/4), not proven"
@@ -334,6 +363,34 @@ def _count(sys: DelaySystem, omega_max: float | None, n_points: int | None, dire
         winding=winding,
         proven=cert is not None and status == "converged",
     )
+
+
+def _count_many(
+    systems: list[DelaySystem], omega_max: float | None, n_points: int | None, direct: bool
+) -> list[WindingResult]:
+    """:func:`rhp_counts` on validated systems (the steps -- reference, band,
+    grid, bisection, phase -- are in :mod:`chatterlab.frequency._phase_sampling`).
+
+    In factored form the phase is certified (:func:`certified_phases`, all the
+    systems' intervals bisected together) from the first samples
+    :func:`certification_grid`: the bounds place every further sample, so the
+    dense grid of the sampled route is not laid.  Without a certificate
+    (no partial fractions, a tail bound that does not close, the direct mode)
+    each count samples its phase from :func:`initial_grid`."""
+    pend = [_prepare(sys, omega_max, direct) for sys in systems]
+    todo = [i for i, pd in enumerate(pend) if isinstance(pd, _Pending) and pd.ref.mode == "factored"]
+    certs = certified_phases(
+        [
+            (pd.sys, certification_grid(pd.p, pd.W), pd.W)
+            for pd in (pend[i] for i in todo)
+            if isinstance(pd, _Pending)
+        ]
+    )
+    cert_of = dict(zip(todo, certs, strict=True))
+    return [
+        pd if isinstance(pd, WindingResult) else _finish(pd, cert_of.get(i), n_points)
+        for i, pd in enumerate(pend)
+    ]
 
 
 def rhp_count(
@@ -385,8 +442,25 @@ def rhp_count(
     .. [2] C. A. Desoer, Y.-T. Wang, IEEE Trans. Autom. Control 25(2),
        187-196, 1980.
     """
-    sys = as_delay_system(system)
+    return rhp_counts([system], omega_max=omega_max, n_points=n_points, direct=direct)[0]
+
+
+def rhp_counts(
+    systems: Sequence[DelaySystem | ClosedLoop],
+    *,
+    omega_max: float | None = None,
+    n_points: int | None = None,
+    direct: bool = False,
+) -> list[WindingResult]:
+    """:func:`rhp_count` of several systems, each result the one it would
+    give alone, computed together: one BLAS setting, the certified phases
+    bisected in one pass over all the systems' intervals
+    (:func:`chatterlab.frequency._phase_sampling.certified_phases`), and what
+    the systems share (the same open-loop structure, the same delay-free
+    loop: :func:`chatterlab.frequency._delay_system.loop_systems`) computed
+    once.  Used by the lobe diagram's checks."""
+    syss = [as_delay_system(s) for s in systems]
     check_omega_max(omega_max)
     check_integer(n_points, "n_points", 2)
     with single_threaded_blas():
-        return _count(sys, omega_max, n_points, direct)
+        return _count_many(syss, omega_max, n_points, direct)

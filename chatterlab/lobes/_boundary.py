@@ -58,6 +58,7 @@ References
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -67,6 +68,7 @@ LOG_SPAN = 9.0  #: decades of width searched below the width ceiling
 _X_MAX = 1.0 + 1e-9  #: beta / beta_max accepted (the ceiling itself included)
 _FOLD_REL = 1e-13  #: folds are located to this relative frequency
 _CLUSTER = 1e-2  #: |Im x| / |Re x| of a resultant root treated as a scattered root of a cluster
+_BISECT_DEPTH = 4  #: levels of the fold bisection evaluated in one batch
 
 
 @dataclass(frozen=True)
@@ -86,11 +88,19 @@ def delayed_factors(Dl_O: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u[:, :r] * sv[:r], vt[:r]
 
 
-def make_ops(H: Any, Dl_P: np.ndarray, Dl_V: np.ndarray, Dl_O: np.ndarray, omega: np.ndarray) -> Ops:
-    """Operators H A and H U at the frequencies ``omega`` (rad/s)."""
+def make_ops(
+    H: Any,
+    Dl_P: np.ndarray,
+    Dl_V: np.ndarray,
+    Dl_O: np.ndarray,
+    omega: np.ndarray,
+    factors: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Ops:
+    """Operators H A and H U at the frequencies ``omega`` (rad/s);
+    ``factors``: :func:`delayed_factors` of ``Dl_O`` when already known."""
     Hw = H(omega)
     A = Dl_P[None] + 1j * omega[:, None, None] * Dl_V[None]
-    Uo, Vt = delayed_factors(Dl_O)
+    Uo, Vt = delayed_factors(Dl_O) if factors is None else factors
     return Ops(omega, Hw @ A, Hw @ Uo, Vt)
 
 
@@ -163,31 +173,148 @@ def _real_poly_roots(c: np.ndarray) -> np.ndarray:
     return out
 
 
-def widths_rank1(ops: Ops, beta_max: float | np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+def widths_rank1(
+    ops: Ops, beta_max: float | np.ndarray, screen: bool = True
+) -> tuple[list[np.ndarray], np.ndarray]:
     """All boundary widths x = beta / beta_max in (10^-LOG_SPAN, 1] at each
     frequency, for a rank-one delayed term, plus the smallest relative
     distance of a complex root of Q from the real segment (for refinement).
 
-    Returns (list of sorted x per frequency, near-real proximity (N,))."""
+    Frequencies where :func:`_no_root_near_segment` proves that Q has no root
+    near [-0.05, 1.05] (most of a grid: there the loop gain stays small up
+    to the ceiling) have no width and proximity inf, without the companion
+    matrix; every other frequency takes the route below, each row's
+    arithmetic the same whatever the other rows are.  ``screen=False``
+    skips that test (the caller knows every frequency has a width near).
+
+    Returns (list of sorted x per frequency, near-real proximity (N,): exact
+    where it is below 0.05, the only use made of it; inf or >= 0.05 above)."""
+    N = ops.omega.size
     bm = np.broadcast_to(np.asarray(beta_max, dtype=float), ops.omega.shape)[:, None, None]
     HA = ops.HA * bm
     HAO = HA + bm * (ops.HU @ ops.Vt)
-    lam = np.linalg.eigvals(HA)
-    mu = np.linalg.eigvals(HAO)
-    pA = _poly_from_roots(lam)
-    pB = _poly_from_roots(mu)
-    d = pB - pA
-    Q = (_conv_conj(d, d) - _conv_conj(pA, pA)).real
+    out: list[np.ndarray] = [_EMPTY] * N
+    prox = np.full(N, np.inf)
+    if not screen:
+        rows = np.arange(N)
+    elif HA.shape[-1] <= 3:
+        coarse = _q_coefficients(_char_poly(HA), _char_poly(HAO))
+        rows = np.nonzero(~_no_root_near_segment(coarse))[0]
+    else:
+        rows = np.arange(N)
+    if rows.size == 0:
+        return out, prox
+    lam = np.linalg.eigvals(HA[rows])
+    mu = np.linalg.eigvals(HAO[rows])
+    Q = _q_coefficients(_poly_from_roots(lam), _poly_from_roots(mu))
+    if screen and HA.shape[-1] > 3:
+        keep = ~_no_root_near_segment(Q)
+        rows, Q = rows[keep], Q[keep]
+        if rows.size == 0:
+            return out, prox
     roots = _real_poly_roots(Q)
     xlo = 10.0**-LOG_SPAN
     with np.errstate(invalid="ignore"):
         near_real = np.abs(roots.imag) <= 1e-7 * np.maximum(np.abs(roots.real), xlo)
         inside = (roots.real > xlo) & (roots.real <= _X_MAX)
-    out = _polish_rows(Q, roots, near_real & inside)
+    for i, x in zip(rows, _polish_rows(Q, roots, near_real & inside), strict=True):
+        out[i] = x
     with np.errstate(invalid="ignore"):
         cand = ~near_real & (roots.real > -0.05) & (roots.real < 1.05)
-        prox = np.where(cand, np.abs(roots.imag) / np.maximum(np.abs(roots.real), 0.05), np.inf)
-    return out, np.min(prox, axis=1)
+        pr = np.where(cand, np.abs(roots.imag) / np.maximum(np.abs(roots.real), 0.05), np.inf)
+    prox[rows] = np.min(pr, axis=1)
+    return out, prox
+
+
+_EMPTY = np.zeros(0)
+_EMPTY.flags.writeable = False  #: the widths of a frequency without any (shared, read-only)
+
+
+def _q_coefficients(pA: np.ndarray, pB: np.ndarray) -> np.ndarray:
+    """Q = |p_B - p_A|^2 - |p_A|^2 on the real axis (ascending, (N, 2m+1))
+    from the coefficients of p_A and p_B = p_AO."""
+    d = pB - pA
+    return (_conv_conj(d, d) - _conv_conj(pA, pA)).real
+
+
+def _char_poly(X: np.ndarray) -> np.ndarray:
+    """Coefficients (ascending) of det(I + x X) for a stack of m x m
+    matrices, m <= 3, in closed form: 1, the trace, the sum of the principal
+    2 x 2 minors, the determinant (the elementary symmetric functions of the
+    eigenvalues [1], without computing them)."""
+    N, m = X.shape[0], X.shape[-1]
+    c = np.zeros((N, m + 1), dtype=complex)
+    c[:, 0] = 1.0
+    c[:, 1] = np.trace(X, axis1=1, axis2=2)
+    if m >= 2:
+        a, b = X[:, 0, 0], X[:, 1, 1]
+        c2 = a * b - X[:, 0, 1] * X[:, 1, 0]
+        if m == 3:
+            e = X[:, 2, 2]
+            c2 = c2 + a * e - X[:, 0, 2] * X[:, 2, 0] + b * e - X[:, 1, 2] * X[:, 2, 1]
+            c[:, 3] = (
+                a * (b * e - X[:, 1, 2] * X[:, 2, 1])
+                - X[:, 0, 1] * (X[:, 1, 0] * e - X[:, 1, 2] * X[:, 2, 0])
+                + X[:, 0, 2] * (X[:, 1, 0] * X[:, 2, 1] - b * X[:, 2, 0])
+            )
+        c[:, 2] = c2
+    return c
+
+
+#: discs that cover the region where a root of Q matters, R = [-0.05, 1.05] x
+#: [-0.0525, 0.0525] (the real roots in (1e-9, 1] and the complex ones with
+#: proximity below 0.05): four centres on the real axis, radius 1.01 hypot(h, 0.0525)
+_DISC_H = 1.1 / 8
+_DISCS = -0.05 + _DISC_H * np.arange(1, 8, 2)
+_DISC_R = 1.01 * float(np.hypot(_DISC_H, 0.0525))
+_SCREEN_MARGIN = 1e-6
+
+
+def _no_root_near_segment(q: np.ndarray) -> np.ndarray:
+    """Rows of real polynomials (ascending coefficients) proven to have no
+    root in any of the discs ``_DISCS`` (radius ``_DISC_R``), which cover
+    the region R where :func:`widths_rank1` uses a root.
+
+    The test is the one :func:`_real_poly_roots` would face: each row scaled
+    to max |c| = 1 and its negligible leading coefficients dropped.  Shifted
+    to a disc's centre, c(x0 + y) = sum_k e_k y^k, and |c| >= |e_0| -
+    sum_{k>=1} |e_k| r^k on the disc; the row passes when that exceeds
+    ``_SCREEN_MARGIN`` sum_k |c_k| 1.2^k on every disc.  The margin covers what
+    separates this polynomial from the one whose companion matrix would be
+    solved: the round-off between the two routes to Q (~1e-15, closed-form
+    coefficients or eigenvalues), a leading coefficient on the other side of
+    the 1e-8 cut (<= 1e-8 per coefficient, times sum 1.2^k < 12 on the discs,
+    |x| <= 1.2), the companion eigenvalues' backward error (~1e-16 in these
+    units) and the round-off of the shift itself (~1e-15): a polynomial that
+    far from this one has no root there either."""
+    N, d1 = q.shape
+    scale = np.max(np.abs(q), axis=1, keepdims=True)
+    ok = np.all(np.isfinite(q), axis=1) & (scale[:, 0] > 0)
+    c = q / np.where(scale > 0, scale, 1.0)
+    big = np.abs(c) > 1e-8
+    deg = np.where(big.any(axis=1), d1 - 1 - np.argmax(big[:, ::-1], axis=1), 0)
+    c = np.where(np.arange(d1)[None, :] <= deg[:, None], c, 0.0)
+    with np.errstate(invalid="ignore", over="ignore"):
+        need = _SCREEN_MARGIN * (np.abs(c) @ (1.2 ** np.arange(d1)))
+        e = np.abs(c @ _shift_matrix(d1)).reshape(N, _DISCS.size, d1)  # |e_k| at each disc
+        lower = e[:, :, 0] - e[:, :, 1:] @ (_DISC_R ** np.arange(1, d1))
+        ok &= np.all(lower > need[:, None], axis=1)
+    return ok
+
+
+def _shift_matrix(d1: int) -> np.ndarray:
+    """(d1, n_discs d1): c @ S gives, for each disc centre x0, the coefficients
+    of c(x0 + y) in y (ascending): e_k = sum_j c_j binom(j, k) x0^(j - k)."""
+    if d1 not in _SHIFTS:
+        j = np.arange(d1)
+        binom = np.array([[math.comb(int(a), int(b)) for b in j] for a in j], dtype=float)  # (j, k)
+        expo = j[:, None] - j[None, :]
+        S = [np.where(expo >= 0, binom * float(x0) ** np.maximum(expo, 0), 0.0) for x0 in _DISCS]
+        _SHIFTS[d1] = np.concatenate(S, axis=1)
+    return _SHIFTS[d1]
+
+
+_SHIFTS: dict[int, np.ndarray] = {}
 
 
 def _polish_rows(q: np.ndarray, roots: np.ndarray, take: np.ndarray) -> list[np.ndarray]:
@@ -202,7 +329,7 @@ def _polish_rows(q: np.ndarray, roots: np.ndarray, take: np.ndarray) -> list[np.
     counts = take.sum(axis=1)
     width = int(counts.max(initial=0))
     if width == 0:
-        return [np.zeros(0) for _ in range(n)]
+        return [_EMPTY] * n
     # the selected roots packed left, sorted, NaN-padded: x (n, width)
     key = np.where(take, roots.real, np.inf)
     x = np.sort(key, axis=1)[:, :width]
@@ -229,7 +356,8 @@ def _polish_rows(q: np.ndarray, roots: np.ndarray, take: np.ndarray) -> list[np.
         with np.errstate(invalid="ignore"):
             done = np.all((np.abs(step) <= 1e-15 * np.abs(x[rows])) | ~valid[rows], axis=1)
         active[rows[done]] = False
-    return [np.sort(x[i, : counts[i]]) for i in range(n)]
+    x = np.sort(np.where(valid, x, np.inf), axis=1)  # each row's polished roots, sorted, inf-padded
+    return [x[i, : counts[i]] if counts[i] else _EMPTY for i in range(n)]
 
 
 def _sylvester_det(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -417,28 +545,55 @@ def refine_folds(
     folds = int(np.sum(cA != cB))
     new_w: list[np.ndarray] = []
     new_x: list[np.ndarray] = []
-    for _ in range(max_rounds):
-        if A.size == 0:
-            break
-        M = 0.5 * (A + B)
-        xm, pm = widths(make(M), beta_max)
-        cm = np.array([x.size for x in xm])
-        new_w.append(M)
-        new_x.extend(xm)
-        # keep the half (or halves) where the count changes; a proximity-only
-        # interval (the count the same at both ends and the midpoint) gets its
-        # midpoint, once: it used to be kept whole, and so re-evaluated at the
-        # same midpoint up to max_rounds times, adding nothing (the grid is the
-        # same), which made a loop with persistent near-real complex roots of
-        # the resultant (close or coincident eigenvalues of N) 48x slower
-        goL = cm != cA
-        goR = cm != cB
-        keepA = np.concatenate([A[goL], M[goR]])
-        keepB = np.concatenate([M[goL], B[goR]])
-        kcA = np.concatenate([cA[goL], cm[goR]])
-        kcB = np.concatenate([cm[goL], cB[goR]])
-        sel = (keepB - keepA) > _FOLD_REL * keepB
-        A, B, cA, cB = keepA[sel], keepB[sel], kcA[sel], kcB[sel]
+    levels = 0
+    while A.size and levels < max_rounds:
+        # the next ``depth`` levels of every interval's bisection, all at once:
+        # the midpoints of the complete binary tree below it (node n has the
+        # children 2n + 1, 2n + 2), evaluated in one batch; then the bisection
+        # is walked level by level exactly as one midpoint per round would be
+        # (the same points, the same decisions), and the points it does not
+        # visit are dropped.  A row's widths do not depend on the other rows.
+        depth = min(_BISECT_DEPTH, max_rounds - levels)
+        nodes = 2**depth - 1
+        lo = np.empty((A.size, nodes))
+        hi = np.empty((A.size, nodes))
+        mid = np.empty((A.size, nodes))
+        lo[:, 0], hi[:, 0] = A, B
+        for n in range(nodes):
+            mid[:, n] = 0.5 * (lo[:, n] + hi[:, n])
+            if 2 * n + 2 < nodes:
+                lo[:, 2 * n + 1], hi[:, 2 * n + 1] = lo[:, n], mid[:, n]
+                lo[:, 2 * n + 2], hi[:, 2 * n + 2] = mid[:, n], hi[:, n]
+        flat = mid.ravel()
+        xt, _ = widths(make(flat), beta_max)
+        ct = np.array([x.size for x in xt]).reshape(mid.shape)
+        item = np.arange(A.size)
+        node = np.zeros(A.size, int)
+        for _level in range(depth):
+            if A.size == 0:
+                break
+            M = mid[item, node]
+            cm = ct[item, node]
+            new_w.append(M)
+            new_x.extend(xt[k] for k in item * nodes + node)
+            # keep the half (or halves) where the count changes; a proximity-only
+            # interval (the count the same at both ends and the midpoint) gets its
+            # midpoint, once: it used to be kept whole, and so re-evaluated at the
+            # same midpoint up to max_rounds times, adding nothing (the grid is the
+            # same), which made a loop with persistent near-real complex roots of
+            # the resultant (close or coincident eigenvalues of N) 48x slower
+            goL = cm != cA
+            goR = cm != cB
+            keepA = np.concatenate([A[goL], M[goR]])
+            keepB = np.concatenate([M[goL], B[goR]])
+            kcA = np.concatenate([cA[goL], cm[goR]])
+            kcB = np.concatenate([cm[goL], cB[goR]])
+            kitem = np.concatenate([item[goL], item[goR]])
+            knode = np.concatenate([2 * node[goL] + 1, 2 * node[goR] + 2])
+            sel = (keepB - keepA) > _FOLD_REL * keepB
+            A, B, cA, cB = keepA[sel], keepB[sel], kcA[sel], kcB[sel]
+            item, node = kitem[sel], knode[sel]
+            levels += 1
     if new_w:
         w = np.concatenate([w, *new_w])
         xs = xs + new_x
@@ -460,7 +615,8 @@ def link(xs: list[np.ndarray]) -> list[list[tuple[int, int]]]:
     from scipy.optimize import linear_sum_assignment
 
     n = len(xs)
-    chain_of: list[np.ndarray] = [np.full(x.size, -1) for x in xs]
+    none = np.zeros(0, int)
+    chain_of: list[np.ndarray] = [np.full(x.size, -1) if x.size else none for x in xs]
     chains: list[list[tuple[int, int]]] = []
     for j in range(xs[0].size):
         chain_of[0][j] = len(chains)
@@ -468,6 +624,8 @@ def link(xs: list[np.ndarray]) -> list[list[tuple[int, int]]]:
     ends: list[tuple[int, int, int]] = []  # (freq index, kind 0=end/1=start, chain) at unmatched points
     for i in range(1, n):
         a, b = xs[i - 1], xs[i]
+        if a.size == 0 and b.size == 0:
+            continue  # most of a grid: no width on either side
         if a.size and b.size:
             if a.size == b.size:
                 ra, rb = np.arange(a.size), np.arange(b.size)

@@ -330,13 +330,15 @@ class Boundary:
         best = np.full(nT, np.inf)
         info = np.zeros((nT, 9))  # k, w0, w1, h0, h1, b0, b1, psi0, psi1
         r = np.arange(nT)
-        for c in cand:
+        first = np.full((nT, 2), -1)  # (branch, interval) refined in the first pass
+        for ci, c in enumerate(cand):
             j = np.argmin(c.bc, axis=1)
             bmin = c.bc[r, j]
             upd = bmin < best
             if np.any(upd):
                 best[upd] = bmin[upd]
                 info[upd] = c.info(r[upd], j[upd])
+                first[upd] = np.stack([np.full(int(upd.sum()), ci), j[upd]], axis=1)
         b_lim = np.full(nT, np.inf)
         chatter = np.full(nT, np.nan)
         h = np.nonzero(np.isfinite(best))[0]
@@ -344,10 +346,13 @@ class Boundary:
             w, beta, ok = _refine_rows(plant, T[h], info[h])
             b_lim[h] = np.where(ok, beta, best[h])
             chatter[h] = w / (2 * np.pi)
-            # second pass: every interval that could hold a lower crossing
+            # second pass: every interval that could hold a lower crossing (not
+            # the one just refined: the same rows give the same result)
             rows, infos = [], []
-            for c in cand:
+            for ci, c in enumerate(cand):
                 ri, ji = np.nonzero(c.has & (c.lb < b_lim[:, None] * (1 - 1e-12)))
+                again = (first[ri, 0] == ci) & (first[ri, 1] == ji)
+                ri, ji = ri[~again], ji[~again]
                 if ri.size:
                     rows.append(ri)
                     infos.append(c.info(ri, ji))

@@ -12,8 +12,7 @@ import numpy as np
 
 from ..frequency._bounds import Band, PoleResidue
 from ..process._loop import ClosedLoop
-from ..structure._complex import modal_response
-from ._boundary import Ops, make_ops, nu, widths_rank1
+from ._boundary import Ops, delayed_factors, make_ops, nu, widths_rank1
 
 __all__ = ["Plant"]
 
@@ -54,6 +53,14 @@ class Plant:
         self.residues = residues
         self.measured_band = measured_band
         self.grid = None if grid is None else np.asarray(grid, dtype=float)
+        self._factors: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def factors(self) -> tuple[np.ndarray, np.ndarray]:
+        """D_O = U V^T (:func:`chatterlab.lobes._boundary.delayed_factors`), once per plant."""
+        if self._factors is None:
+            self._factors = delayed_factors(self.Dl_O)
+        return self._factors
 
     @classmethod
     def from_loop(cls, loop: ClosedLoop) -> Plant:
@@ -61,16 +68,16 @@ class Plant:
         coordinates in pole-residue form, and its CE matrices (at the loop's
         width: a loop at b = 1 m makes beta the width in m)."""
         cm = loop.frozen.complex_modes
-        keep = np.arange(cm.lam.size)
         J = loop.J
-
-        def H(omega: np.ndarray) -> np.ndarray:
-            G = modal_response(cm, J, J.T, 1j * np.asarray(omega, float), keep, False)
-            return np.transpose(G, (2, 0, 1))
-
         Jphi = J @ cm.phi
         m = J.shape[0]
+        # the complex-mode superposition J phi diag(1/(s - lam)) phi^T J^T (all
+        # modes, no residual), evaluated as one matrix product over the modes
         pr = PoleResidue(cm.lam, Jphi, Jphi.T, np.zeros((m, m)))
+
+        def H(omega: np.ndarray) -> np.ndarray:
+            return pr(1j * np.asarray(omega, float))
+
         return cls(H, cm.lam, loop.Dl_P, loop.Dl_V, loop.Dl_O, pr)
 
     def with_terms_o(self) -> Plant:
@@ -88,7 +95,7 @@ class Plant:
 
 
 def _ops(plant: Plant, omega: np.ndarray) -> Ops:
-    return make_ops(plant.H, plant.Dl_P, plant.Dl_V, plant.Dl_O, omega)
+    return make_ops(plant.H, plant.Dl_P, plant.Dl_V, plant.Dl_O, omega, plant.factors)
 
 
 _nu = nu
@@ -148,8 +155,8 @@ def _widths_between(ops: Ops, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarra
     beta, z) like :func:`_solve_beta`."""
     if ops.Vt.shape[0] != 1:
         return _solve_beta(ops, lo, hi, n_grid=24)
-    xs, _ = widths_rank1(ops, hi)
-    fi = np.concatenate([np.full(x.size, i) for i, x in enumerate(xs)]).astype(int)
+    xs, _ = widths_rank1(ops, hi, screen=False)
+    fi = np.repeat(np.arange(len(xs)), [x.size for x in xs])
     beta = np.concatenate(xs) * hi[fi] if fi.size else np.zeros(0)
     keep = beta >= lo[fi]
     fi, beta = fi[keep], beta[keep]

@@ -64,19 +64,28 @@ def _verify(
     check says whether its count is ``proven`` (every phase increment bounded,
     see :func:`chatterlab.frequency._phase_sampling.certified_phase`) or only
     sampled."""
-    from ..frequency._winding import rhp_count
+    from ..frequency._delay_system import loop_systems
+    from ..frequency._winding import rhp_counts
 
-    out = []
+    where = []
+    loops = []
     for j, kind in _check_speeds(d, count):
         if kind == "ceiling":
             b, expect = d.width_max, "stable"
         else:
             b = float(d.b_lim[j]) * (1 - VERIFY_OFFSET if kind == "below" else 1 + VERIFY_OFFSET)
             expect = "stable" if kind == "below" else "unstable"
-        loop = closed_loop_unwarned(
-            frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings
+        where.append((j, kind, b, expect))
+        loops.append(
+            closed_loop_unwarned(frozen, width=b, delay=float(d.delay[j]), terms=d.terms, couplings=couplings)
         )
-        w = rhp_count(loop)
+    # the checks' systems share the structure's open-loop roots (and, without
+    # proportional or velocity feedback, the delay-free loop's decomposition),
+    # and their phases are certified together: each count is the one
+    # rhp_count(loop) gives alone
+    counts = rhp_counts(loop_systems(loops))
+    out = []
+    for (j, kind, b, expect), w in zip(where, counts, strict=True):
         if w.status != "converged":
             verdict = "undetermined"
         else:
