@@ -60,16 +60,20 @@ try:
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from chatterlab.frequency import ToolStructure, sdm_monodromy  # noqa: E402
+from chatterlab.frequency import sdm_monodromy  # noqa: E402
 from chatterlab.lobes import milling_lobes  # noqa: E402
-from chatterlab.process import Milling  # noqa: E402
+from chatterlab.process import (
+    Milling,  # noqa: E402
+    milling_loop,  # noqa: E402
+)
+from chatterlab.structure import Structure  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LOADED = 0.5
 
 
-def structure() -> ToolStructure:
-    return ToolStructure.single_dof(0.03993, 2 * np.pi * 922.0, 0.011)
+def structure() -> Structure:
+    return Structure.single_dof(0.03993, 2 * np.pi * 922.0, 0.011)
 
 
 def cutter(immersion: float) -> Milling:
@@ -94,7 +98,7 @@ def timed(f: Any, f_small: Any) -> tuple[Any, float, int]:
     return out, dt, peak
 
 
-def sdm_grid(st: ToolStructure, m: Milling, rpm: np.ndarray, depths: np.ndarray) -> np.ndarray:
+def sdm_grid(st: Structure, m: Milling, rpm: np.ndarray, depths: np.ndarray) -> np.ndarray:
     """The peers' way: the spectral radius of SDM m = 40 on a (speed, depth)
     grid, the boundary read between the first unstable grid depth and the one
     below it (linear interpolation of rho - 1)."""
@@ -102,7 +106,7 @@ def sdm_grid(st: ToolStructure, m: Milling, rpm: np.ndarray, depths: np.ndarray)
     for i, r in enumerate(rpm):
         prev_a, prev_f = 0.0, -1.0
         for a in depths:
-            ev = np.linalg.eigvals(sdm_monodromy(st, m, float(r), float(a), 40))
+            ev = np.linalg.eigvals(sdm_monodromy(milling_loop(st, m), float(r), float(a), 40))
             f = float(np.max(np.abs(ev))) - 1.0
             if f >= 0:
                 out[i] = prev_a + (a - prev_a) * (-prev_f) / (f - prev_f)
@@ -112,7 +116,7 @@ def sdm_grid(st: ToolStructure, m: Milling, rpm: np.ndarray, depths: np.ndarray)
 
 
 def _one_speed(rpm: float, immersion: float) -> dict[str, float]:
-    L = milling_lobes(structure(), cutter(immersion), np.array([rpm]), depth_max=0.01)
+    L = milling_lobes(milling_loop(structure(), cutter(immersion)), np.array([rpm]), depth_max=0.01)
     return {"a_lim": float(L.a_lim[0])}
 
 
@@ -160,17 +164,19 @@ def run(n_speeds: int, grid_depths: int, repeat: int) -> dict[str, Any]:
         t_sds: list[float] = []
         for _ in range(repeat):
             t = time.perf_counter()
-            sp = milling_lobes(st, m, rpm, depth_max=0.01, rtol=1e-8)
+            sp = milling_lobes(milling_loop(st, m), rpm, depth_max=0.01, rtol=1e-8)
             t_sps.append(time.perf_counter() - t)
             t = time.perf_counter()
-            sd = milling_lobes(st, m, rpm, method="sdm", steps=40, rtol=1e-4)
+            sd = milling_lobes(milling_loop(st, m), rpm, method="sdm", steps=40, rtol=1e-4)
             t_sds.append(time.perf_counter() - t)
         t_sp, t_sd = min(t_sps), min(t_sds)
         _, _, mem_sp = timed(
-            lambda: None, lambda m=m, few=few: milling_lobes(st, m, few, depth_max=0.01, rtol=1e-8)
+            lambda: None,
+            lambda m=m, few=few: milling_lobes(milling_loop(st, m), few, depth_max=0.01, rtol=1e-8),
         )
         _, _, mem_sd = timed(
-            lambda: None, lambda m=m, few=few: milling_lobes(st, m, few, method="sdm", steps=40, rtol=1e-4)
+            lambda: None,
+            lambda m=m, few=few: milling_lobes(milling_loop(st, m), few, method="sdm", steps=40, rtol=1e-4),
         )
         est = float(np.nanmax(sp.error / sp.a_lim))
         print(
@@ -179,7 +185,7 @@ def run(n_speeds: int, grid_depths: int, repeat: int) -> dict[str, Any]:
             f" own error estimate <= {est:.1e} relative"
         )
         sub = np.arange(0, n_speeds, 10)
-        ref = milling_lobes(st, m, rpm[sub], depth_max=0.01, rtol=1e-11, degree=28)
+        ref = milling_lobes(milling_loop(st, m), rpm[sub], depth_max=0.01, rtol=1e-11, degree=28)
         with np.errstate(invalid="ignore"):  # inf - inf where both say stable to 10 mm
             dev = float(np.nanmax(np.abs(sp.a_lim[sub] - ref.a_lim) / ref.a_lim))
             e_sd = np.abs(sd.a_lim[sub] - ref.a_lim) / ref.a_lim

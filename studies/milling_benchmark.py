@@ -34,17 +34,17 @@ from typing import Any
 
 import numpy as np
 
-from chatterlab.frequency import ToolStructure
 from chatterlab.lobes import LobeDiagram, milling_lobes
-from chatterlab.process import Milling
+from chatterlab.process import Milling, milling_loop
+from chatterlab.structure import Structure
 
 MASS, FN, ZETA = 0.03993, 922.0, 0.011
 KT, KN = 6e8, 2e8
 DEPTH_MAX = 0.01
 
 
-def tool() -> ToolStructure:
-    return ToolStructure.single_dof(MASS, 2 * np.pi * FN, ZETA)
+def tool() -> Structure:
+    return Structure.single_dof(MASS, 2 * np.pi * FN, ZETA)
 
 
 def cutter(immersion: float, teeth: int = 2, pitch: tuple[float, ...] = ()) -> Milling:
@@ -61,15 +61,17 @@ def compute(n_speeds: int = 201, n_sdm: int | None = None, n_pitch: int | None =
     for imm in (0.05, 1.0):
         m = cutter(imm)
         out[imm] = {
-            "spectral": milling_lobes(tool(), m, rpm, depth_max=DEPTH_MAX),
-            "sdm": milling_lobes(tool(), m, rpm_sdm, method="sdm", steps=40, rtol=1e-4, depth_max=DEPTH_MAX),
-            "zoa": milling_lobes(tool(), m, rpm, method="zoa", depth_max=DEPTH_MAX),
+            "spectral": milling_lobes(milling_loop(tool(), m), rpm, depth_max=DEPTH_MAX),
+            "sdm": milling_lobes(
+                milling_loop(tool(), m), rpm_sdm, method="sdm", steps=40, rtol=1e-4, depth_max=DEPTH_MAX
+            ),
+            "zoa": milling_lobes(milling_loop(tool(), m), rpm, method="zoa", depth_max=DEPTH_MAX),
         }
     rpm_p = np.linspace(6000.0, 20000.0, n_pitch or max(n_speeds // 2, 3))
     out["pitch_rpm"] = rpm_p
-    out["uniform"] = milling_lobes(tool(), cutter(0.25, 4), rpm_p, depth_max=DEPTH_MAX)
+    out["uniform"] = milling_lobes(milling_loop(tool(), cutter(0.25, 4)), rpm_p, depth_max=DEPTH_MAX)
     var = cutter(0.25, 4, tuple(np.radians([70.0, 110.0, 70.0, 110.0])))
-    out["variable"] = milling_lobes(tool(), var, rpm_p, depth_max=DEPTH_MAX)
+    out["variable"] = milling_lobes(milling_loop(tool(), var), rpm_p, depth_max=DEPTH_MAX)
     return out
 
 

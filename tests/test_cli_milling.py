@@ -16,7 +16,7 @@ from conftest import assert_clean_error
 import chatterlab as cl
 from chatterlab.cli import main
 from chatterlab.frequency import multipliers
-from chatterlab.lobes import milling_lobes, milling_of, tool_structure
+from chatterlab.lobes import milling_lobes, milling_loop_of
 
 ROOT = Path(__file__).resolve().parents[1]
 ONE = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
@@ -25,7 +25,8 @@ ONE = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
 @pytest.fixture(scope="module")
 def bench():
     m = cl.load_model(ONE)
-    return m, tool_structure(cl.assemble(m).at()), milling_of(m)
+    loop = milling_loop_of(cl.assemble(m).at())
+    return m, loop, loop.milling
 
 
 def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
@@ -34,7 +35,7 @@ def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
     code = main(["lobes", str(ONE), "--speed", "8000", "20000", "--points", "7", "--width-max", "10",
                  "--out", str(out)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
-    ref = milling_lobes(S, mill, np.linspace(8000.0, 20000.0, 7), depth_max=0.01)
+    ref = milling_lobes(S, np.linspace(8000.0, 20000.0, 7), depth_max=0.01)
     with open(out) as fh:
         rows = list(csv.reader(fh))
     head, body = rows[0], rows[1:]
@@ -63,7 +64,7 @@ def test_roots_json_is_the_floquet_result(bench, tmp_path, capsys):
     )
     assert code == 0, capsys.readouterr().err
     d = json.loads(out.read_text())
-    ref = multipliers(S, mill, 18000.0, 2e-3)
+    ref = multipliers(S, 18000.0, 2e-3)
     assert d["kind"] == "milling" and d["stable"] is False and d["critical"]["type"] == ref.kind
     assert d["spectral_radius"] == ref.spectral_radius
 
@@ -73,7 +74,7 @@ def test_simulate_above_and_below_the_limit(bench, capsys):
     2 mm saturates on a period-two orbit, the one at 1 mm settles on the forced periodic motion, and
     the linear run at 2 mm grows at ln|mu| per period."""
     m, S, mill = bench
-    a_lim = milling_lobes(S, mill, np.array([18000.0]), depth_max=0.01).a_lim[0]
+    a_lim = milling_lobes(S, np.array([18000.0]), depth_max=0.01).a_lim[0]
     assert 1e-3 < a_lim < 2e-3
     main(["simulate", str(ONE), "--width", "2", "--speed", "18000", "--revolutions", "60"])
     assert "flip chatter" in capsys.readouterr().out.splitlines()[0]
@@ -81,7 +82,7 @@ def test_simulate_above_and_below_the_limit(bench, capsys):
     assert capsys.readouterr().out.splitlines()[0].endswith(": stable")
     main(["simulate", str(ONE), "--width", "2", "--speed", "18000", "--revolutions", "60", "--linear"])
     out = capsys.readouterr().out
-    mu = multipliers(S, mill, 18000.0, 2e-3).spectral_radius
+    mu = multipliers(S, 18000.0, 2e-3).spectral_radius
     g = float(out.split("growth per period")[1].split()[0])
     # Newmark at 150 steps per period: phase error (w h)^2 / 12 ~ 2e-4 per period; the fit's own spread
     # over the last 60 periods is reported as growth_error ~1e-3 (docs/time-domain.md)

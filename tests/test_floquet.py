@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from chatterlab.errors import InputError
-from chatterlab.frequency import SpectralMonodromy, ToolStructure, multipliers, sdm_monodromy
+from chatterlab.frequency import SpectralMonodromy, multipliers, sdm_monodromy
 from chatterlab.lobes import milling_lobes
-from chatterlab.process import Milling
+from chatterlab.process import Milling, milling_loop
+from chatterlab.structure import Structure
 
 KT, KN = 6e8, 2e8
 WN = 2 * np.pi * 922.0
@@ -23,14 +24,14 @@ MASS = 0.03993
 ZETA = 0.011
 
 
-def one_dof() -> ToolStructure:
-    return ToolStructure.single_dof(MASS, WN, ZETA)
+def one_dof() -> Structure:
+    return Structure.single_dof(MASS, WN, ZETA)
 
 
-def two_dof(fy: float = 922.0) -> ToolStructure:
+def two_dof(fy: float = 922.0) -> Structure:
     k = MASS * WN**2
     ky = MASS * (2 * np.pi * fy) ** 2
-    return ToolStructure.modal([WN, 2 * np.pi * fy], [ZETA, ZETA], [k, ky], [[1, 0], [0, 1]], "2-DOF")
+    return Structure.modal([WN, 2 * np.pi * fy], [ZETA, ZETA], [k, ky], ("x", "y"), "2-DOF")
 
 
 def cutter(immersion: float, teeth: int = 2, **kw: object) -> Milling:
@@ -46,25 +47,30 @@ def top(mu: np.ndarray) -> complex:
 )
 def test_sdm_converges_at_order_two_toward_the_spectral_reference(immersion, rpm, depth):
     st, m = one_dof(), cutter(immersion)
-    ref = SpectralMonodromy(st, m, rpm, 24).at(depth)[0]
+    ref = SpectralMonodromy(milling_loop(st, m), rpm, 24).at(depth)[0]
     steps = np.array([40, 80, 160, 320])
-    err = [abs(top(np.linalg.eigvals(sdm_monodromy(st, m, rpm, depth, s))) - ref) for s in steps]
+    err = [
+        abs(top(np.linalg.eigvals(sdm_monodromy(milling_loop(st, m), rpm, depth, s))) - ref) for s in steps
+    ]
     slope = np.polyfit(np.log(steps), np.log(err), 1)[0]
     # first-order SDM is second order in the step (Insperger, Stepan & Turi 2008); the next
     # term of the error is O(h^3), i.e. a relative O(h) = O(1/40) change of the fitted slope
     assert slope == pytest.approx(-2.0, abs=0.15), (slope, err)
     # and the reference is converged far below the finest SDM error
-    ref2 = SpectralMonodromy(st, m, rpm, 30).at(depth)[0]
+    ref2 = SpectralMonodromy(milling_loop(st, m), rpm, 30).at(depth)[0]
     assert abs(ref2 - ref) < 1e-3 * min(err)
 
 
 def test_spectral_converges_geometrically():
     st, m = one_dof(), cutter(1.0)
     rpm, depth = 12000.0, 1e-3
-    ref = SpectralMonodromy(st, m, rpm, 30, elements=4).at(depth)[0]
+    ref = SpectralMonodromy(milling_loop(st, m), rpm, 30, elements=4).at(depth)[0]
     degrees = np.array([6, 8, 10, 12])
     err = np.array(
-        [abs(SpectralMonodromy(st, m, rpm, int(p), elements=4).at(depth)[0] - ref) for p in degrees]
+        [
+            abs(SpectralMonodromy(milling_loop(st, m), rpm, int(p), elements=4).at(depth)[0] - ref)
+            for p in degrees
+        ]
     )
     # geometric: log(err) falls linearly in the degree, at least a decade per 2 degrees here
     # (an algebraic order q would give a ratio (12/10)^q, i.e. q > 12 for the same fall)
@@ -86,8 +92,8 @@ def test_constant_coefficients_are_the_turning_engine(structure):
     np.testing.assert_allclose(m.zoa(), [[KN, KT], [-KT, KN]], rtol=1e-15)
     rpm = np.array([3000.0, 4100.0, 5200.0, 7700.0, 12000.0])
     dmax = 0.01 if structure.n == 1 else 1e-3  # the 2-DOF limits are 20-200 um
-    fl = milling_lobes(structure, m, rpm, method="spectral", depth_max=dmax)
-    zo = milling_lobes(structure, m, rpm, method="zoa", depth_max=dmax)
+    fl = milling_lobes(milling_loop(structure, m), rpm, method="spectral", depth_max=dmax)
+    zo = milling_lobes(milling_loop(structure, m), rpm, method="zoa", depth_max=dmax)
     assert np.all(np.isfinite(fl.a_lim))
     # the Floquet limits are refined to rtol 1e-8 and converged (their own check) to < 1e-8;
     # the engine's boundary is refined to ~1e-9 relative: 1e-7 leaves a margin of 10 on both
@@ -101,8 +107,8 @@ def test_constant_coefficients_are_the_turning_engine(structure):
 def test_zoa_misses_the_flip_lobes_at_low_immersion():
     st, m = one_dof(), cutter(0.05)
     rpm = np.linspace(13000.0, 17000.0, 9)
-    fl = milling_lobes(st, m, rpm, method="spectral", depth_max=0.01)
-    zo = milling_lobes(st, m, rpm, method="zoa", depth_max=0.01)
+    fl = milling_lobes(milling_loop(st, m), rpm, method="spectral", depth_max=0.01)
+    zo = milling_lobes(milling_loop(st, m), rpm, method="zoa", depth_max=0.01)
     flip = fl.kind == "flip"
     assert np.count_nonzero(flip) >= 3, fl.kind
     # where the Floquet limit is a flip, ZOA (which has no period doubling) claims a depth at
@@ -120,9 +126,9 @@ def test_lobes_sdm_and_spectral_agree_within_the_sdm_error():
     # two speeds, one on a Hopf and one near a flip lobe (four speeds at 80/160 steps took 265 s of the
     # suite's 650 s; at 50/100 steps the extrapolation's error is 3-10 % of its bound, measured)
     rpm = np.array([6000.0, 14000.0])
-    sp = milling_lobes(st, m, rpm, method="spectral", depth_max=0.01)
-    s50 = milling_lobes(st, m, rpm, method="sdm", steps=50, depth_max=0.01)
-    s100 = milling_lobes(st, m, rpm, method="sdm", steps=100, depth_max=0.01)
+    sp = milling_lobes(milling_loop(st, m), rpm, method="spectral", depth_max=0.01)
+    s50 = milling_lobes(milling_loop(st, m), rpm, method="sdm", steps=50, depth_max=0.01)
+    s100 = milling_lobes(milling_loop(st, m), rpm, method="sdm", steps=100, depth_max=0.01)
     # SDM's error falls 4x per doubling: Richardson's extrapolation removes the h^2 term, the
     # rest is O(h^3): bounded by the change from 50 to 100 steps divided by 4
     rich = (4 * s100.a_lim - s50.a_lim) / 3
@@ -142,34 +148,34 @@ def test_variable_pitch_spectral_converges_and_matches_sdm(immersion):
     st = two_dof(1100.0)
     rpm, depth = 9000.0, 2e-4
     assert not m.uniform and len(set(np.round(m.delays(rpm), 12))) == 2
-    mus = [top(SpectralMonodromy(st, m, rpm, deg).at(depth)) for deg in (10, 14, 18, 22)]
+    mus = [top(SpectralMonodromy(milling_loop(st, m), rpm, deg).at(depth)) for deg in (10, 14, 18, 22)]
     err = np.abs(np.diff(mus))
     # geometric: each 4 degrees gain more than two decades until round-off (cond(U) ~ 1e4: 1e-12)
     assert err[1] < max(1e-2 * err[0], 1e-12) and err[2] < max(1e-2 * err[1], 1e-12), err
     ref = mus[-1]
-    mu = [top(np.linalg.eigvals(sdm_monodromy(st, m, rpm, depth, s))) for s in (200, 400)]
+    mu = [top(np.linalg.eigvals(sdm_monodromy(milling_loop(st, m), rpm, depth, s))) for s in (200, 400)]
     rich = (4 * mu[1] - mu[0]) / 3
     # SDM's h^2 term removed, the rest bounded by the change it made (the extrapolation's own size)
     assert abs(rich - ref) < abs(mu[1] - mu[0]) / 4, (abs(rich - ref), abs(mu[1] - mu[0]))
 
 
 def test_multipliers_result_and_its_check():
-    r = multipliers(one_dof(), cutter(0.05), 15000.0, 8.3e-3)
+    r = multipliers(milling_loop(one_dof(), cutter(0.05)), 15000.0, 8.3e-3)
     assert r.method == "spectral" and r.kind in ("flip", "hopf", "fold")
     assert r.error < 1e-9
     assert r.spectral_radius == abs(r.critical) and r.stable == (r.spectral_radius < 1)
-    s = multipliers(one_dof(), cutter(0.05), 15000.0, 8.3e-3, method="sdm", steps=40)
+    s = multipliers(milling_loop(one_dof(), cutter(0.05)), 15000.0, 8.3e-3, method="sdm", steps=40)
     assert abs(s.critical - r.critical) <= 2 * s.error  # SDM's check (40 vs 80 steps) bounds its error
     with pytest.raises(InputError, match="method"):
-        multipliers(one_dof(), cutter(0.05), 15000.0, 1e-3, method="nope")  # type: ignore[arg-type]
+        multipliers(milling_loop(one_dof(), cutter(0.05)), 15000.0, 1e-3, method="nope")  # type: ignore[arg-type]
 
 
 def test_zero_depth_is_the_free_structure():
     st, m = one_dof(), cutter(0.3)
     rpm = 8000.0
     T = m.period(rpm)
-    mu = SpectralMonodromy(st, m, rpm).at(0.0)
-    lam = np.linalg.eigvals(st.A)
+    mu = SpectralMonodromy(milling_loop(st, m), rpm).at(0.0)
+    lam = np.linalg.eigvals(st.state_matrix)
     expect = np.sort(np.abs(np.exp(lam * T)))[::-1]
     np.testing.assert_allclose(np.abs(mu[:2]), expect, rtol=1e-10)
 
@@ -196,7 +202,8 @@ def test_study_milling_benchmark_runs_and_variable_pitch_raises_the_lobe():
     assert u.speed[k] == 9500.0 and v.a_lim[k] > 3 * u.a_lim[k], (u.a_lim, v.a_lim)
 
 
-def chain(n: int = 12) -> ToolStructure:
+def chain(n: int = 12):
+    """A 12-mass chain under a half-immersion cutter, its tool point on the last two masses."""
     k, mm = 4e7, 0.05
     K = np.zeros((n, n))
     for i in range(n):
@@ -209,33 +216,40 @@ def chain(n: int = 12) -> ToolStructure:
     J = np.zeros((2, n))
     J[0, -1] = 1.0
     J[1, -2] = 0.6
-    return ToolStructure(M, 1e-5 * K + 20 * M, K, J, "chain")
+    return milling_loop(Structure(M, 1e-5 * K + 20 * M, K, name="chain"), cutter(0.5), J)
 
 
 def test_reduction_keeps_the_static_compliance_and_all_modes_give_the_structure():
+    from chatterlab.lobes import reduce_structure
+
     st = chain()
     H0 = st.frf(np.array([0.0]))[0].real
     for fmax in (300.0, 2000.0):
-        red, err = st.reduce(fmax)
-        assert red.n < st.n
+        red, info = reduce_structure(st, fmax)
+        assert red.n < st.n and red.milling is st.milling
         # Ritz basis with the static residual: the compliance at the tool is exact (round-off of
         # K^-1 with cond(K) ~ 4 n^2 / pi^2 ~ 60: 1e-13 relative)
         np.testing.assert_allclose(
             red.frf(np.array([0.0]))[0].real, H0, rtol=0, atol=1e-12 * np.abs(H0).max()
         )
-        assert 0 < err < 0.1
-    full, err = st.reduce(1e6)  # every mode kept: the same response
-    assert full.n == st.n and err < 1e-10
+        assert 0 < info.frf_error < 0.1
+    # every mode kept: the same structure, nothing to reduce
+    full, info = reduce_structure(st, 1e6)
+    assert full.n == st.n and info.frf_error < 1e-10
 
 
 @pytest.mark.parametrize(
     "make,words",
     [
-        (lambda: ToolStructure.modal([WN], [ZETA], [-1e6], [[1.0, 0.0]]), ["mode 1 stiffness", "> 0"]),
-        (lambda: ToolStructure.modal([WN], [ZETA], [1e6, 2e6], [[1.0, 0.0]]), ["one value per mode"]),
-        (lambda: ToolStructure.single_dof(MASS, WN, ZETA, direction="z"), ["direction"]),  # type: ignore[arg-type]
-        (lambda: milling_lobes(one_dof(), cutter(0.5), np.array([-100.0])), ["rpm", "> 0"]),
-        (lambda: milling_lobes(one_dof(), cutter(0.5), np.array([1e4]), method="x"), ["method"]),  # type: ignore[arg-type]
+        (lambda: Structure.modal([WN], [ZETA], [-1e6]), ["mode 1 stiffness", "> 0"]),
+        (lambda: Structure.modal([WN], [ZETA], [1e6, 2e6]), ["one value per mode"]),
+        (lambda: milling_loop(Structure.single_dof(MASS, WN, ZETA, "z"), cutter(0.5)), ["'x' or 'y'", "J"]),
+        (lambda: milling_loop(one_dof(), cutter(0.5), np.ones((3, 1))), ["2 x 1"]),
+        (lambda: milling_lobes(milling_loop(one_dof(), cutter(0.5)), np.array([-100.0])), ["rpm", "> 0"]),
+        (
+            lambda: milling_lobes(milling_loop(one_dof(), cutter(0.5)), np.array([1e4]), method="x"),
+            ["method"],
+        ),  # type: ignore[arg-type]
     ],
 )
 def test_bad_input_one_line(make, words):
@@ -258,8 +272,9 @@ def test_helix_at_one_helical_pitch_is_the_constant_coefficient_delay_equation()
     m = Milling.from_immersion(4, 0.01, KT, KN, 0.5, "down", helix=np.radians(45.0))
     a_star = np.pi * 0.01 / (4 * np.tan(np.radians(45.0)))
     rpm = 9000.0
-    r = multipliers(st, m, rpm, a_star)
-    B = st.J.T @ m.zoa() @ st.J
+    r = multipliers(milling_loop(st, m), rpm, a_star)
+    J = milling_loop(st, m).J
+    B = J.T @ m.zoa() @ J
     tau = m.tooth_period(rpm)
     roots = characteristic_roots(
         make_system(st.M, st.C, st.K, DP=-a_star * B, DO=a_star * B, tau=tau), count=4
@@ -273,15 +288,15 @@ def test_helix_at_one_helical_pitch_is_the_constant_coefficient_delay_equation()
 def test_helix_lobes():
     st = one_dof()
     rpm = np.array([8000.0, 14000.0])
-    straight = milling_lobes(st, cutter(0.5), rpm)
-    tiny = milling_lobes(st, cutter(0.5, helix=np.radians(1e-4)), rpm)
+    straight = milling_lobes(milling_loop(st, cutter(0.5)), rpm)
+    tiny = milling_lobes(milling_loop(st, cutter(0.5, helix=np.radians(1e-4))), rpm)
     # a lag of 2 a tan(1e-4 deg) / D < 1e-6 rad changes H by less than 1e-6 relative
     np.testing.assert_allclose(tiny.a_lim, straight.a_lim, rtol=1e-5)
     assert list(tiny.kind) == list(straight.kind)
-    h = milling_lobes(st, cutter(0.5, helix=np.radians(30.0)), rpm)
+    h = milling_lobes(milling_loop(st, cutter(0.5, helix=np.radians(30.0))), rpm)
     for i in range(rpm.size):  # the limit is where the multiplier of the helical cutter crosses 1
-        assert multipliers(st, cutter(0.5, helix=np.radians(30.0)), rpm[i], h.a_lim[i]).spectral_radius == (
-            pytest.approx(1.0, abs=1e-7)
-        )
+        assert multipliers(
+            milling_loop(st, cutter(0.5, helix=np.radians(30.0))), rpm[i], h.a_lim[i]
+        ).spectral_radius == (pytest.approx(1.0, abs=1e-7))
     with pytest.raises(InputError, match="helix"):
-        milling_lobes(st, cutter(0.5, helix=0.3), rpm, method="sdm")
+        milling_lobes(milling_loop(st, cutter(0.5, helix=0.3)), rpm, method="sdm")

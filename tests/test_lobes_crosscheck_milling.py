@@ -25,18 +25,19 @@ import numpy as np
 import pytest
 from test_milling_limit_complete import KN, KT, MASS, WN, ZETA, sdm_extrapolated
 
-from chatterlab.frequency import SpectralMonodromy, ToolStructure
+from chatterlab.frequency import SpectralMonodromy
 from chatterlab.lobes import milling_lobes
-from chatterlab.process import Milling
+from chatterlab.process import Milling, milling_loop
+from chatterlab.structure import Structure
 
 #: 1-DOF, a_e/D = 0.05: Hopf and flip lobes, the flip lens of issue 18 (18100-18298 rpm) and its tip
 ONE_DOF_RPM = [5000.0, 8000.0, 10000.0, 12000.0, 15000.0, 18150.0, 18250.0, 18298.05, 18298.25, 22000.0]
 
 
 def test_one_dof_limits_against_the_semi_discretisation():
-    st = ToolStructure.single_dof(MASS, WN, ZETA)
+    st = Structure.single_dof(MASS, WN, ZETA)
     mill = Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down")
-    ml = milling_lobes(st, mill, ONE_DOF_RPM, depth_max=0.01)
+    ml = milling_lobes(milling_loop(st, mill), ONE_DOF_RPM, depth_max=0.01)
     assert set(ml.basis) == {"complete"}
     assert {"hopf", "flip"} <= set(ml.kind)
     bad = []
@@ -47,7 +48,7 @@ def test_one_dof_limits_against_the_semi_discretisation():
                 bad.append((r, "inf", top))
             continue
         # nothing unstable below: the brute-force scan of the spectral radius (200 depths)
-        sm = SpectralMonodromy(st, mill, r)
+        sm = SpectralMonodromy(milling_loop(st, mill), r)
         if any(sm.radius(x) >= 1.0 for x in a * np.arange(1, 200) / 200):
             bad.append((r, a, k, "unstable below"))
         below, b1 = sdm_extrapolated(r, a * (1 - 1e-3))
@@ -57,8 +58,8 @@ def test_one_dof_limits_against_the_semi_discretisation():
     assert not bad, bad
 
 
-def _brute(st: ToolStructure, mill: Milling, rpm: float, a: float, top: float) -> list[str]:
-    sm = SpectralMonodromy(st, mill, rpm)
+def _brute(st: Structure, mill: Milling, rpm: float, a: float, top: float) -> list[str]:
+    sm = SpectralMonodromy(milling_loop(st, mill), rpm)
     if not np.isfinite(a):
         rho = [sm.radius(x) for x in top * np.arange(1, 201) / 200]
         return [] if max(rho) < 1.0 else [f"{rpm}: inf but rho {max(rho)}"]
@@ -75,16 +76,16 @@ def _brute(st: ToolStructure, mill: Milling, rpm: float, a: float, top: float) -
 def test_two_dof_and_variable_pitch_against_a_brute_force_scan(tool):
     k = MASS * WN**2
     if tool == "2dof":
-        st = ToolStructure.modal([WN, WN], [ZETA, ZETA], [k, k], [[1, 0], [0, 1]], "2-DOF")
+        st = Structure.modal([WN, WN], [ZETA, ZETA], [k, k], ("x", "y"), "2-DOF")
         mill = Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down")
         # Hopf, the flip lens at 18635-18700 rpm (tip 18635.49) and inf at 25000 rpm
         rpm = [10000.0, 15000.0, 18635.5869, 18640.0, 18700.0, 20000.0, 25000.0]
     else:
-        st = ToolStructure.single_dof(MASS, WN, ZETA)
+        st = Structure.single_dof(MASS, WN, ZETA)
         mill = Milling.from_immersion(3, 0.02, KT, KN, 0.1, "down", pitch=(1.9, 2.3, 2 * np.pi - 4.2))
         # fold lobes (5200, 6400), a flip near a lens tip (5606.26), Hopf (5100, 5700)
         rpm = [5100.0, 5200.0, 5606.2606, 5700.0, 6400.0]
-    ml = milling_lobes(st, mill, rpm, depth_max=0.01, check=False)
+    ml = milling_lobes(milling_loop(st, mill), rpm, depth_max=0.01, check=False)
     assert set(ml.basis) == {"complete"}
     if tool == "pitch":
         assert {"fold", "flip", "hopf"} <= set(ml.kind), ml.kind

@@ -20,9 +20,10 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import brentq
 
-from chatterlab.frequency import SpectralMonodromy, ToolStructure
+from chatterlab.frequency import SpectralMonodromy
 from chatterlab.lobes import milling_lobes
-from chatterlab.process import Milling
+from chatterlab.process import Milling, milling_loop
+from chatterlab.structure import Structure
 
 WN, ZETA, MASS, KT, KN = 2 * np.pi * 922.0, 0.011, 0.03993, 6e8, 2e8
 
@@ -62,8 +63,8 @@ def sdm_extrapolated(rpm: float, a: float, mc: int = 20) -> tuple[float, float]:
     return e2, abs(e2 - e1)
 
 
-def one_dof() -> tuple[ToolStructure, Milling]:
-    return ToolStructure.single_dof(MASS, WN, ZETA), Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down")
+def one_dof() -> tuple[Structure, Milling]:
+    return Structure.single_dof(MASS, WN, ZETA), Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down")
 
 
 def sdm_edge(rpm: float, lo: float, hi: float) -> tuple[float, float]:
@@ -79,7 +80,7 @@ def test_issue_18_flip_band_between_scan_depths_is_the_limit():
     the old search printed 7.457 mm (Hopf).  The limit is the band's lower edge, as the
     independent SDM puts it, to the SDM's own error bar plus the spectral check's error."""
     st, mill = one_dof()
-    ml = milling_lobes(st, mill, [18298.05], depth_max=0.01)
+    ml = milling_lobes(milling_loop(st, mill), [18298.05], depth_max=0.01)
     assert ml.kind[0] == "flip" and ml.basis[0] == "complete"
     edge, bar = sdm_edge(18298.05, 1.75e-3, 1.905e-3)
     assert abs(ml.a_lim[0] - edge) <= 3 * bar + ml.error[0] + 1e-9 * edge, (ml.a_lim[0], edge, bar)
@@ -94,8 +95,8 @@ def test_flip_lens_near_its_tip_is_found():
     1 % of its depth; its edges are the exact flip depths, confirmed by the SDM on both sides."""
     st, mill = one_dof()
     rpm = 18298.25
-    ml = milling_lobes(st, mill, [rpm], depth_max=0.01, check=False)
-    edges = SpectralMonodromy(st, mill, rpm).unit_depths(-1.0, 0.01)
+    ml = milling_lobes(milling_loop(st, mill), [rpm], depth_max=0.01, check=False)
+    edges = SpectralMonodromy(milling_loop(st, mill), rpm).unit_depths(-1.0, 0.01)
     assert edges.size == 2 and edges[1] - edges[0] < 0.05 * edges[0]
     assert ml.kind[0] == "flip" and ml.a_lim[0] == pytest.approx(edges[0], rel=1e-12)
     lo, bar_lo = sdm_extrapolated(rpm, edges[0] * (1 - 2e-2))
@@ -103,11 +104,11 @@ def test_flip_lens_near_its_tip_is_found():
     assert lo < 1.0 - 3 * bar_lo and mid > 1.0 + 3 * bar_mid, (lo, mid)
 
 
-def _dense_check(st: ToolStructure, mill: Milling, rpm: float, a_lim: float, n: int) -> None:
+def _dense_check(st: Structure, mill: Milling, rpm: float, a_lim: float, n: int) -> None:
     """The brute-force route: the spectral radius on n uniform depths in (0, a_lim) is below 1
     at every one (nothing unstable below the limit at that resolution), and above 1 just past
     the limit (the limit is a crossing, not a touch)."""
-    sm = SpectralMonodromy(st, mill, rpm)
+    sm = SpectralMonodromy(milling_loop(st, mill), rpm)
     rho = np.array([sm.radius(a) for a in a_lim * np.arange(1, n) / n])
     assert np.all(rho < 1.0), a_lim * np.nonzero(rho >= 1.0)[0][:3] / n
     # one part in 1e4 past the limit: |mu| moves by slope * 1e-4 a_lim (slope ~1e3 1/m, a ~1e-3 m),
@@ -115,15 +116,15 @@ def _dense_check(st: ToolStructure, mill: Milling, rpm: float, a_lim: float, n: 
     assert sm.radius(a_lim * (1 + 1e-4)) > 1.0
 
 
-def _two_dof() -> tuple[ToolStructure, Milling]:
+def _two_dof() -> tuple[Structure, Milling]:
     k = MASS * WN**2
-    st = ToolStructure.modal([WN, WN], [ZETA, ZETA], [k, k], [[1, 0], [0, 1]], "2-DOF")
+    st = Structure.modal([WN, WN], [ZETA, ZETA], [k, k], ("x", "y"), "2-DOF")
     return st, Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down")
 
 
-def _variable_pitch() -> tuple[ToolStructure, Milling]:
+def _variable_pitch() -> tuple[Structure, Milling]:
     mill = Milling.from_immersion(3, 0.02, KT, KN, 0.1, "down", pitch=(1.9, 2.3, 2 * np.pi - 4.2))
-    return ToolStructure.single_dof(MASS, WN, ZETA), mill
+    return Structure.single_dof(MASS, WN, ZETA), mill
 
 
 @pytest.mark.parametrize(
@@ -139,7 +140,7 @@ def _variable_pitch() -> tuple[ToolStructure, Milling]:
 )
 def test_narrow_bands_near_lens_tips_on_2dof_and_variable_pitch(tool, rpm, band, kind):
     st, mill = _two_dof() if tool == "2dof" else _variable_pitch()
-    ml = milling_lobes(st, mill, [rpm], depth_max=0.01, check=False)
+    ml = milling_lobes(milling_loop(st, mill), [rpm], depth_max=0.01, check=False)
     assert ml.kind[0] == kind and ml.basis[0] == "complete", (ml.kind, ml.a_lim)
     a = float(ml.a_lim[0])
     if band is not None:  # the band's lower edge, to the 4 digits quoted
@@ -154,9 +155,9 @@ def test_an_undecided_speed_is_undetermined_with_a_lower_bound(monkeypatch):
     import chatterlab.lobes._milling_search as search
 
     st, mill = one_dof()
-    full = milling_lobes(st, mill, [5000.0], depth_max=0.01, check=False)
+    full = milling_lobes(milling_loop(st, mill), [5000.0], depth_max=0.01, check=False)
     monkeypatch.setattr(search, "MAX_TANGENTS", -40)  # the budget is MAX_TANGENTS + scan
-    ml = milling_lobes(st, mill, [5000.0], depth_max=0.01, check=False)
+    ml = milling_lobes(milling_loop(st, mill), [5000.0], depth_max=0.01, check=False)
     assert ml.basis[0] == "undetermined" and ml.kind[0] == "undetermined"
     assert ml.a_lim[0] == ml.certified[0] and ml.a_lim[0] < full.a_lim[0]
     assert "undetermined at 1 speed" in ml.summary()

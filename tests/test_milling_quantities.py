@@ -13,7 +13,7 @@ import pytest
 import chatterlab as cl
 from chatterlab.errors import InputError
 from chatterlab.frequency import multipliers
-from chatterlab.lobes import milling_lobes, milling_of, tool_structure
+from chatterlab.lobes import milling_lobes, milling_loop_of
 from chatterlab.quantities import QuantityTask
 from chatterlab.sweep import Grid, sweep
 
@@ -28,7 +28,7 @@ def test_a_lim_over_speed_and_immersion_is_the_traced_limit():
     res = sweep(task, g, outputs=task.outputs, backend="serial", progress=False)
     for j, ae in enumerate((0.05, 1.0)):
         m = model.with_parameter("process.radial_immersion", ae)
-        ref = milling_lobes(tool_structure(cl.assemble(m).at()), milling_of(m), np.array([9000.0, 18000.0]),
+        ref = milling_lobes(milling_loop_of(cl.assemble(m).at()), np.array([9000.0, 18000.0]),
                             depth_max=0.01)  # fmt: skip
         # the same computation at each point (Brent to rtol 1e-8): equal to round-off
         np.testing.assert_allclose(np.asarray(res.data["a_lim"])[:, j], ref.a_lim, rtol=1e-12)
@@ -38,7 +38,7 @@ def test_spectral_radius_is_the_floquet_multiplier():
     model = cl.load_model(ONE)
     task = QuantityTask(model, "spectral-radius", fixed={"width": 2e-3})
     out = task(speed=18000.0)
-    r = multipliers(tool_structure(cl.assemble(model).at()), milling_of(model), 18000.0, 2e-3)
+    r = multipliers(milling_loop_of(cl.assemble(model).at()), 18000.0, 2e-3)
     assert out["spectral_radius"] == r.spectral_radius and out["kind"] == 2.0 and out["stable"] == 0.0
 
 

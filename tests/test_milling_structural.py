@@ -12,7 +12,7 @@ import numpy as np
 from conftest import turning_text
 
 import chatterlab as cl
-from chatterlab.lobes import milling_lobes, milling_of, reduce_structure, tool_structure
+from chatterlab.lobes import milling_lobes, milling_loop_of, reduce_structure
 
 ROOT = Path(__file__).resolve().parents[1]
 ONE = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
@@ -37,8 +37,7 @@ def test_rigid_tool_on_a_spring_is_the_modal_benchmark():
     modal = cl.load_model(ONE)
     rpm = np.array([9000.0, 18000.0])
     a = [
-        milling_lobes(tool_structure(cl.assemble(m).at()), milling_of(m), rpm, depth_max=0.01)
-        for m in (structural, modal)
+        milling_lobes(milling_loop_of(cl.assemble(m).at()), rpm, depth_max=0.01) for m in (structural, modal)
     ]
     # the same 1-DOF equation in other coordinates: equal to Brent's tolerance (rtol 1e-8)
     np.testing.assert_allclose(a[0].a_lim, a[1].a_lim, rtol=2e-8)
@@ -47,7 +46,7 @@ def test_rigid_tool_on_a_spring_is_the_modal_benchmark():
 
 def test_beam_tool_is_reduced_with_its_error_stated():
     fz = cl.assemble(cl.load_model(BEAM)).at()
-    S = tool_structure(fz)
+    S = milling_loop_of(fz)
     R, info = reduce_structure(S)
     assert R.n < S.n and info.kept == 3 and info.rigid == 1  # the planar tool's axis held rigid
     # the reported error is the reduced FRF's against the full structure's, both directions
@@ -55,8 +54,8 @@ def test_beam_tool_is_reduced_with_its_error_stated():
     err = np.max(np.abs(S.frf(w) - R.frf(w))) / np.max(np.abs(S.frf(w)))
     assert info.frf_error == err and err < 1e-3
     # the first bending modes are kept exactly (a Ritz basis holding them)
-    lam_full = np.sort(np.abs(np.linalg.eigvals(S.A).imag))
-    lam_red = np.sort(np.abs(np.linalg.eigvals(R.A).imag))
+    lam_full = np.sort(np.abs(np.linalg.eigvals(S.state_matrix).imag))
+    lam_red = np.sort(np.abs(np.linalg.eigvals(R.state_matrix).imag))
     f1 = lam_full[lam_full > 0][0]
     assert abs(lam_red[lam_red > 0][0] - f1) < 1e-6 * f1
 
@@ -87,7 +86,7 @@ b = "ground"
 model = "milling"
 """
     mat = cl.loads_model(matrices + text)
-    r = [multipliers(tool_structure(cl.assemble(m).at()), milling_of(m), 12000.0, 1e-3) for m in (mat, modal)]
+    r = [multipliers(milling_loop_of(cl.assemble(m).at()), 12000.0, 1e-3) for m in (mat, modal)]
     # the modal file's modal mass is k / w^2 = M to within one rounding of (2 pi 922)^2: a few ulp
     assert abs(r[0].spectral_radius - r[1].spectral_radius) < 1e-12
     assert r[0].kind == r[1].kind

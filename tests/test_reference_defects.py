@@ -16,7 +16,7 @@ import chatterlab as cl
 from chatterlab.errors import UnitWarning
 from chatterlab.frequency import multipliers
 from chatterlab.frequency._floquet_sdm import matched_change, sdm_multipliers
-from chatterlab.lobes import lobes, milling_of, tool_structure
+from chatterlab.lobes import lobes, milling_loop_of
 from chatterlab.process._cutting import feedback
 from chatterlab.structure import FRF
 
@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def bench():
     m = cl.load_model(ROOT / "studies" / "milling" / "benchmark_1dof.toml")
-    return tool_structure(cl.assemble(m).at()), milling_of(m)
+    loop = milling_loop_of(cl.assemble(m).at())
+    return loop, loop.milling
 
 
 # ----------------------------------------------------------------------------- SDM's error
@@ -42,7 +43,7 @@ def test_matched_change_pairs_a_conjugate_pair_by_distance():
 def test_sdm_error_of_a_complex_critical_pair_is_not_twice_its_imaginary_part(bench):
     """The issue's point (20000 rpm, 2 mm): the error came out 2 |Im mu| = 1.55."""
     S, mill = bench
-    mu, err = sdm_multipliers(S, mill, 20000.0, 2e-3, 20)
+    mu, err = sdm_multipliers(S, 20000.0, 2e-3, 20)
     assert abs(mu[0].imag) > 0.7 and mu[0].imag > 0  # a complex pair, Im >= 0 member first
     assert err < 1e-3, err
 
@@ -54,8 +55,8 @@ def test_multipliers_sdm_reports_the_matched_error(bench):
     size of the true error against the spectral reference (0.5..1.5 of it, as
     derived below for p = 1..2)."""
     S, mill = bench
-    m = multipliers(S, mill, 20000.0, 2e-3, method="sdm", steps=40)
-    ref = multipliers(S, mill, 20000.0, 2e-3, degree=24).mu
+    m = multipliers(S, 20000.0, 2e-3, method="sdm", steps=40)
+    ref = multipliers(S, 20000.0, 2e-3, degree=24).mu
     true = matched_change(complex(m.mu[0]), ref)
     assert 0.5 <= m.error / true <= 1.5, (m.error, true)
 
@@ -67,8 +68,8 @@ def test_sdm_error_is_the_size_of_its_true_error(bench, rpm, depth):
     |e(m) - e(2m)|, between (1 - 2^-p)|e| and (1 + 2^-p)|e|: 0.5..1.5 of the true error
     (measured 0.74-0.77 here: p = 2)."""
     S, mill = bench
-    mu, err = sdm_multipliers(S, mill, rpm, depth, 20)
-    ref = multipliers(S, mill, rpm, depth, degree=24).mu
+    mu, err = sdm_multipliers(S, rpm, depth, 20)
+    ref = multipliers(S, rpm, depth, degree=24).mu
     true = matched_change(complex(mu[0]), ref)
     assert 0.5 <= err / true <= 1.5, (err, true)
 

@@ -97,16 +97,16 @@ def _helix_cost(mill: Any, depth: float) -> None:
 def _structure(
     model: Any, position: float | None, args: argparse.Namespace | None = None
 ) -> tuple[Any, Any, str]:
-    from ..lobes._milling_model import milling_of, reduce_structure, tool_structure
+    from ..lobes._milling_model import milling_loop_of, reduce_structure
     from ..structure._assembly import assemble
 
     fz = assemble(model).at(position)
-    S = tool_structure(fz)
+    S = milling_loop_of(fz)
     note = ""
     if not model.modes and not model.is_matrix_model:  # a structural model: keep the modes that matter
         S, info = reduce_structure(S)
         note = info.note()
-    return S, milling_of(model), note
+    return S, S.milling, note
 
 
 def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -> Any:
@@ -130,7 +130,7 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -
     if note:
         print(note)
     ml = compute(
-        S, mill, rpm, method=method, depth_max=wmax, scan=check_count(args.scan, "--scan", 2),
+        S, rpm, method=method, depth_max=wmax, scan=check_count(args.scan, "--scan", 2),
         steps=check_count(args.steps, "--steps", 2),
     )  # fmt: skip
     return ml
@@ -212,7 +212,7 @@ def milling_verdict(args: argparse.Namespace, model: Any) -> Any:
     a = width_m(args)
     S, mill, note = _structure(model, args.position, args)
     _helix_cost(mill, a)
-    r = multipliers(S, mill, float(rpm), a, method="sdm" if method == "sdm" else "spectral", steps=args.steps)
+    r = multipliers(S, float(rpm), a, method="sdm" if method == "sdm" else "spectral", steps=args.steps)
     return _MultiplierTable(r, args.count, note)
 
 

@@ -69,13 +69,11 @@ from typing import Literal
 import numpy as np
 
 from ..errors import InputError, check_nonneg
-from ..process import Milling
+from ..process._loop import ClosedLoop
 from ._floquet_sdm import sdm_monodromy, sdm_multipliers
 from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, SpectralMonodromy
-from ._floquet_structure import ToolStructure
 
 __all__ = [
-    "ToolStructure",
     "Multipliers",
     "SpectralMonodromy",
     "multipliers",
@@ -151,11 +149,11 @@ class Multipliers:
     meta: dict[str, float] = field(default_factory=dict)
 
 
-def chatter_frequency(mu: complex, T: float, structure: ToolStructure) -> float:
+def chatter_frequency(mu: complex, T: float, loop: ClosedLoop) -> float:
     """The member of the family (arg mu + 2 pi k)/T nearest a structural
     pole's frequency (rad/s -> Hz)."""
     base = abs(np.angle(mu)) / T
-    poles = np.abs(np.linalg.eigvals(structure.A).imag)
+    poles = np.abs(np.linalg.eigvals(loop.state_matrix).imag)
     poles = poles[poles > 0]
     if poles.size == 0:
         return base / (2 * np.pi)
@@ -167,8 +165,7 @@ def chatter_frequency(mu: complex, T: float, structure: ToolStructure) -> float:
 
 # ============================================================================ entry point
 def multipliers(
-    structure: ToolStructure,
-    milling: Milling,
+    loop: ClosedLoop,
     rpm: float,
     depth: float,
     *,
@@ -182,8 +179,9 @@ def multipliers(
 
     Parameters
     ----------
-    structure : ToolStructure
-    milling : Milling
+    loop : ClosedLoop
+        The structure under the cutter (:func:`chatterlab.process.milling_loop`;
+        ``loop.process`` is the :class:`~chatterlab.process.Milling`).
     rpm : float
         Spindle speed, rpm.
     depth : float
@@ -210,23 +208,22 @@ def multipliers(
     """
     t0 = time.perf_counter()
     a = check_nonneg(depth, "depth of cut a_p", "m")
+    milling = loop.milling
     if method == "spectral":
-        sm = SpectralMonodromy(structure, milling, rpm, degree, elements, depth=a, depth_hint=a)
+        sm = SpectralMonodromy(loop, rpm, degree, elements, depth=a, depth_hint=a)
         mu = sm.at(a)
         f_hz = sm.critical(a)[1]
         err = float("nan")
         if check:
-            sm2 = SpectralMonodromy(
-                structure, milling, rpm, degree + CHECK_DEGREE, depth=a, depth_hint=a, mesh=sm.mesh
-            )
+            sm2 = SpectralMonodromy(loop, rpm, degree + CHECK_DEGREE, depth=a, depth_hint=a, mesh=sm.mesh)
             err = float(abs(sm2.at(a)[0] - mu[0]))
         res = f"degree {degree} x {sm.n_sub} elements"
         T = sm.period
     elif method == "sdm":
-        mu, err = sdm_multipliers(structure, milling, rpm, a, steps, check)
+        mu, err = sdm_multipliers(loop, rpm, a, steps, check)
         res = f"{steps} steps"
         T = milling.period(rpm)
-        f_hz = chatter_frequency(complex(mu[0]), T, structure)
+        f_hz = chatter_frequency(complex(mu[0]), T, loop)
     else:
         raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
     mu = mu[np.abs(mu) > 1e-300]

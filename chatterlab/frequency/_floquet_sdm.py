@@ -8,8 +8,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import InputError, check_count, check_nonneg
-from ..process import Milling
-from ._floquet_structure import ToolStructure
+from ..process._loop import ClosedLoop
 
 __all__ = ["sdm_monodromy", "sdm_multipliers", "matched_change"]
 
@@ -25,9 +24,7 @@ def _sdm_steps(A_i: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.n
     return E[:d, :d], E[:d, d : 2 * d], E[:d, 2 * d :]
 
 
-def sdm_monodromy(
-    structure: ToolStructure, milling: Milling, rpm: float, depth: float, steps: int = 40
-) -> np.ndarray:
+def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -> np.ndarray:
     """Monodromy matrix of first-order semi-discretisation (Insperger, Stepan
     & Turi 2008), ``steps`` steps per period, built as a product of dense
     step matrices (as the method's authors do).
@@ -39,13 +36,14 @@ def sdm_monodromy(
     spectral method takes it).
     """
     m = check_count(steps, "steps", 2)
+    milling = loop.milling
     if milling.helix > 0:
         raise InputError("sdm: helix is not supported; use method='spectral'")
     a = check_nonneg(depth, "depth of cut a_p", "m")
-    A = structure.A
+    A = loop.state_matrix
     d = A.shape[0]
-    n = structure.n
-    Ub, Jr, W = structure.cut_basis
+    n = loop.n
+    Ub, Jr, W = loop.cut_basis
     rho = Jr.shape[0]
     T = milling.period(rpm)
     dt = T / m
@@ -127,8 +125,7 @@ def _ranked(mu: np.ndarray) -> np.ndarray:
 
 
 def sdm_multipliers(
-    structure: ToolStructure,
-    milling: Milling,
+    loop: ClosedLoop,
     rpm: float,
     depth: float,
     steps: int = 40,
@@ -145,9 +142,9 @@ def sdm_multipliers(
     (1 - 2^-p) e(m): the error estimate is 3/4 (p = 2) to 1/2 (p = 1) of
     the true error of the ``steps`` result, and a close bound on that of
     the doubled-steps one (e(2m) = e(m) / 2^p)."""
-    mu = _ranked(np.linalg.eigvals(sdm_monodromy(structure, milling, rpm, depth, steps)))
+    mu = _ranked(np.linalg.eigvals(sdm_monodromy(loop, rpm, depth, steps)))
     err = float("nan")
     if check:
-        mu2 = np.linalg.eigvals(sdm_monodromy(structure, milling, rpm, depth, 2 * steps))
+        mu2 = np.linalg.eigvals(sdm_monodromy(loop, rpm, depth, 2 * steps))
         err = matched_change(complex(mu[0]), mu2)
     return mu, err

@@ -13,7 +13,7 @@ import scipy.linalg as sla
 
 from ..errors import InputError, check_count
 from ..process import Milling
-from ._floquet_structure import ToolStructure
+from ..process._loop import ClosedLoop
 
 __all__ = ["SpectralMonodromy", "CHECK_DEGREE", "DEGREE", "ELEMENT_SPAN"]
 
@@ -112,8 +112,10 @@ class SpectralMonodromy:
 
     Parameters
     ----------
-    structure, milling, rpm
-        The problem.
+    loop, rpm
+        The problem: the structure under the cutter (a milling
+        :class:`~chatterlab.process.ClosedLoop`, ``loop.process`` the cutter)
+        and the spindle speed (rpm).
     degree : int
         Polynomial degree p of each sub-element (>= 2).
     elements : int, optional
@@ -129,8 +131,7 @@ class SpectralMonodromy:
 
     def __init__(
         self,
-        structure: ToolStructure,
-        milling: Milling,
+        loop: ClosedLoop,
         rpm: float,
         degree: int = DEGREE,
         elements: int | None = None,
@@ -140,11 +141,12 @@ class SpectralMonodromy:
         span: float = ELEMENT_SPAN,
     ) -> None:
         p = check_count(degree, "degree", 2)
-        self.structure, self.milling, self.rpm, self.degree = structure, milling, float(rpm), p
+        milling = loop.milling
+        self.structure, self.milling, self.rpm, self.degree = loop, milling, float(rpm), p
         self.helix_depth = depth if milling.helix > 0 else None
         if milling.helix > 0 and depth is None:
             raise InputError("milling with a helix angle: give the depth of cut a_p (depth, m)")
-        A = structure.A
+        A = loop.state_matrix
         d = A.shape[0]
         om = self._mesh_omega(depth, depth_hint)
         if mesh is None:
@@ -185,7 +187,7 @@ class SpectralMonodromy:
         unscaled: continuity across each free gap, collocation at nodes 1..p."""
         structure, milling, mesh, p = self.structure, self.milling, self.mesh, self.degree
         rpm = self.rpm
-        A = structure.A
+        A = structure.state_matrix
         d = A.shape[0]
         n = structure.n
         Ub, Jr, W = structure.cut_basis
@@ -199,7 +201,7 @@ class SpectralMonodromy:
             raise InputError(
                 f"spectral elements: {S} elements x {nn} nodes x {d} states = {N} unknowns exceed {MAX_UNKNOWNS};"
                 " a period this long holds many vibrations of the highest mode: reduce the structure to the modes"
-                " that matter (ToolStructure.reduce(freq_max)), lower the degree, or raise the spindle speed"
+                " that matter (chatterlab.lobes.reduce_structure), lower the degree, or raise the spindle speed"
             )
         U0 = np.zeros((N, N))
         U1 = np.zeros((N, N))
@@ -285,7 +287,7 @@ class SpectralMonodromy:
     def _block_size(self) -> int:
         """The rows of one element when U is block lower-bidiagonal, else 0."""
         U0, U1, p, S = self.U0, self.U1, self.degree, self.mesh.a.size
-        d = self.structure.A.shape[0]
+        d = self.structure.state_matrix.shape[0]
         N = U0.shape[0]
         nn = p + 1
         # block lower-bidiagonal U (every delayed value in the previous period: a uniform pitch)
@@ -332,7 +334,7 @@ class SpectralMonodromy:
         b = getattr(self, "block", 0)
         if not b:
             return sla.solve(self.U0 + a * self.U1, Vc, check_finite=False)
-        d = self.structure.A.shape[0]
+        d = self.structure.state_matrix.shape[0]
         X = np.empty_like(Vc)
         for s in range(self.U0.shape[0] // b):
             sl = slice(s * b, (s + 1) * b)
@@ -449,7 +451,7 @@ class SpectralMonodromy:
         mesh = self.mesh
         T = self.period
         st = self.structure
-        d = st.A.shape[0]
+        d = st.state_matrix.shape[0]
         n = st.n
         if mesh.a.size == 0 or mu == 0:
             return float(abs(np.angle(mu)) / T / (2 * np.pi))
@@ -468,9 +470,9 @@ class SpectralMonodromy:
                 before = np.nonzero(mesh.b <= tk)[0]
                 if before.size:
                     s_ = int(before[-1])
-                    xs[k] = sla.expm(st.A * (tk - mesh.b[s_])) @ nodes[s_, p]
+                    xs[k] = sla.expm(st.state_matrix * (tk - mesh.b[s_])) @ nodes[s_, p]
                 else:  # before the first element: from the last one of the previous period
-                    xs[k] = sla.expm(st.A * (tk + T - mesh.b[-1])) @ nodes[-1, p] / mu
+                    xs[k] = sla.expm(st.state_matrix * (tk + T - mesh.b[-1])) @ nodes[-1, p] / mu
         lam = np.log(complex(mu)) / T
         r = (st.J @ xs[:, :n].T).T  # (samples, 2) tool displacement
         per = r * np.exp(-lam * (t - mesh.t0))[:, None]

@@ -213,7 +213,7 @@ def loop_band(fb: ClosedLoop, tol: float = 1e-4) -> float:
     needs no samples there."""
     from ..structure._complex import modal_response
 
-    cm = fb.frozen.complex_modes
+    cm = fb.structure.complex_modes
     wn = np.abs(cm.lam)
     wmax = 3.0 * float(wn.max())
     w = np.geomspace(max(1e-3 * float(wn.min()), 1e-3), wmax, 400)

@@ -17,7 +17,7 @@ from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_
 from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary, lobes
 from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
 from ._milling import milling_lobes, zoa_plant
-from ._milling_model import Reduction, is_milling, milling_of, reduce_structure, tool_structure
+from ._milling_model import Reduction, is_milling, milling_loop_of, milling_of, reduce_structure
 
 __all__ = [
     "Lobe",
@@ -42,7 +42,7 @@ __all__ = [
     "is_milling",
     "milling_of",
     "reduce_structure",
-    "tool_structure",
+    "milling_loop_of",
     "milling_lobes",
     "zoa_plant",
 ]

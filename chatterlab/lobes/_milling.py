@@ -63,11 +63,10 @@ from ..errors import InputError, check_count, check_positive, check_speed
 from ..frequency import (
     DEGREE,
     PoleResidue,
-    ToolStructure,
     classify,
 )
 from ..frequency._delay_system import single_threaded
-from ..process import Milling
+from ..process import ClosedLoop
 from ._diagram import Plant, lobes
 from ._milling_search import floquet_limit
 from ._result import LobeDiagram
@@ -78,18 +77,18 @@ METHODS = ("spectral", "sdm", "zoa")
 
 
 # ============================================================================ ZOA
-def zoa_plant(structure: ToolStructure, milling: Milling) -> Plant:
-    """The averaged milling process on ``structure`` as a lobe-engine Plant.
+def zoa_plant(loop: ClosedLoop) -> Plant:
+    """The averaged milling process of a milling loop as a lobe-engine Plant.
 
     With the CE convention of the engine (force on the tool
     = -(Dl_P r + Dl_O r(t - T)) per unit width), the ZOA force
     F = -a_p H0 [r(t) - r(t - tau)] is Dl_P = H0, Dl_O = -H0 per metre of a_p.
     """
-    A = structure.A
-    n = structure.n
+    A = loop.state_matrix
+    n = loop.n
     d = A.shape[0]
     # the cut's coordinates r = Ub (Jr q): a rank-deficient J (a 1-DOF tool) stays regular
-    Ub, Jr, W = structure.cut_basis
+    Ub, Jr, W = loop.cut_basis
     rho = Jr.shape[0]
     B = np.zeros((d, rho))
     B[n:] = W
@@ -97,20 +96,18 @@ def zoa_plant(structure: ToolStructure, milling: Milling) -> Plant:
     Cm[:, :n] = Jr
     p, S = np.linalg.eig(A)
     pr = PoleResidue(p, Cm @ S, np.linalg.solve(S, B.astype(complex)), np.zeros((rho, rho)))
-    H0 = Ub.T @ milling.zoa() @ Ub
-    Z = structure
+    H0 = Ub.T @ loop.milling.zoa() @ Ub
 
     def H(omega: np.ndarray) -> np.ndarray:
-        from ..structure import dynamic_receptance
-
-        return dynamic_receptance(Z.M, Z.C, Z.K, np.atleast_1d(np.asarray(omega, dtype=float)), Jr)
+        return loop.structure.receptance(omega, Jr)
 
     return Plant(H, p, H0, np.zeros((rho, rho)), -H0, pr)
 
 
-def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max: float) -> LobeDiagram:
+def _zoa(loop: ClosedLoop, rpm: np.ndarray, depth_max: float) -> LobeDiagram:
     """The zeroth-order approximation: the averaged cut's D-subdivision lobes,
     the cutter its process (speed in rpm, delay the tooth period)."""
+    milling = loop.milling
     if not milling.uniform:
         raise InputError(
             "method 'zoa' handles a uniform pitch only (one delay); use method='spectral' for a variable pitch"
@@ -119,10 +116,10 @@ def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max:
         None,
         rpm,
         width_max=depth_max,
-        plant=zoa_plant(structure, milling),
+        plant=zoa_plant(loop),
         process=milling,
         verify=0,
-        name=structure.name,
+        name=loop.name,
     )
     n = rpm.size
     return replace(
@@ -136,8 +133,7 @@ def _zoa(structure: ToolStructure, milling: Milling, rpm: np.ndarray, depth_max:
 
 @single_threaded
 def milling_lobes(
-    structure: ToolStructure,
-    milling: Milling,
+    loop: ClosedLoop,
     rpm: np.ndarray,
     *,
     method: Literal["spectral", "sdm", "zoa"] = "spectral",
@@ -153,10 +149,11 @@ def milling_lobes(
 
     Parameters
     ----------
-    structure : ToolStructure
-        The structure at the tool (M, C, K and the map J to (x, y)).
-    milling : Milling
-        Cutter and cut (immersion, coefficients, pitch, helix).
+    loop : ClosedLoop
+        The structure under the cutter (:func:`chatterlab.process.milling_loop`,
+        or :func:`chatterlab.lobes.milling_loop_of` for a model file):
+        ``loop.process`` is the :class:`~chatterlab.process.Milling` (cutter and
+        cut: immersion, coefficients, pitch, helix).
     rpm : array (n,)
         Spindle speeds, rpm.
     method : {"spectral", "sdm", "zoa"}
@@ -185,9 +182,10 @@ def milling_lobes(
         critical multiplier's type; ``basis`` what each verdict rests on.
     """
     t0 = time.perf_counter()
-    rpm, depth_max, scan = _checked(structure, milling, rpm, method, depth_max, scan)
+    rpm, depth_max, scan = _checked(loop, rpm, method, depth_max, scan)
+    milling = loop.milling
     if method == "zoa":
-        return replace(_zoa(structure, milling, rpm, depth_max), elapsed=time.perf_counter() - t0)
+        return replace(_zoa(loop, rpm, depth_max), elapsed=time.perf_counter() - t0)
     n = rpm.size
     a_lim = np.full(n, np.inf)
     kind = np.full(n, "", dtype=object)
@@ -201,7 +199,7 @@ def milling_lobes(
     certified = np.full(n, np.nan)
     for i, r in enumerate(rpm):
         a, err[i], mu, f_hz, cnt, n_ref, basis[i], certified[i] = floquet_limit(
-            structure, milling, r, method, depth_max, scan, rtol, degree, elements, steps, check, target
+            loop, r, method, depth_max, scan, rtol, degree, elements, steps, check, target
         )
         evals += cnt
         refined += n_ref
@@ -234,7 +232,7 @@ def milling_lobes(
         width_max=depth_max,
         terms="pdo",
         position=None,
-        model=structure.name,
+        model=loop.name,
         elapsed=time.perf_counter() - t0,
         meta={"refined": refined, "target_rtol": target} if method == "spectral" else {},
         method=method,
@@ -259,7 +257,7 @@ def _resolution(method: str, degree: int, elements: int | None, steps: int) -> s
 
 
 def _checked(
-    structure: ToolStructure, milling: Milling, rpm: np.ndarray, method: str, depth_max: float, scan: int
+    loop: ClosedLoop, rpm: np.ndarray, method: str, depth_max: float, scan: int
 ) -> tuple[np.ndarray, float, int]:
     """The arguments of :func:`milling_lobes` checked: (rpm, depth_max, scan)."""
     if method not in METHODS:
@@ -271,9 +269,9 @@ def _checked(
         check_speed(v, "rpm", "rpm")
     depth_max = check_positive(depth_max, "depth_max", "m")
     scan = check_count(scan, "scan", 2)
-    if not structure.stable():
-        raise InputError(f"{structure.name}: the structure without cutting is unstable; check its damping")
-    if milling.helix > 0 and method == "sdm":  # (zoa averages the helix away)
+    if not loop.stable():
+        raise InputError(f"{loop.name}: the structure without cutting is unstable; check its damping")
+    if loop.milling.helix > 0 and method == "sdm":  # (zoa averages the helix away)
         raise InputError(
             f"milling_lobes: method {method!r} takes no helix angle; use method='spectral' or helix=0"
         )

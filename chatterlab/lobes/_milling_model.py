@@ -4,11 +4,12 @@ A model with ``[process] kind = "milling"`` and a ``model = "milling"``
 coupling (docs/model-format.md) holds a cutter description
 (:class:`chatterlab.model.MillingCut`) and a structure.  The Floquet methods
 (:mod:`chatterlab.frequency._floquet`, :mod:`chatterlab.lobes._milling`)
-take a :class:`~chatterlab.process.Milling` and a
-:class:`~chatterlab.frequency.ToolStructure` (M, C, K and the map J from the
-coordinates to the tool's x, y relative to the workpiece): this module is
-the one place that turns the first into the second, so the CLI and Python
-users reach the same numbers from a model file.
+take a milling :class:`~chatterlab.process.ClosedLoop` (the structure's M,
+C, K, the map J from its coordinates to the tool's x, y relative to the
+workpiece, and the :class:`~chatterlab.process.Milling` cutter as its
+process): this module is the one place that turns a model file into it
+(:func:`milling_loop_of`), so the CLI and Python users reach the same numbers
+from a model file.
 
 The structure is the frozen configuration's independent coordinates:
 M = A*, C = B*, K = C* (Eq. 2.23 without feedback) and J the first two rows
@@ -19,7 +20,7 @@ Modal reduction (:func:`reduce_structure`).  The spectral Floquet method
 resolves the highest pole of the structure (its elements are sized by
 omega_max L), so a beam model's axial and high bending modes, which the cut
 barely excites, would cost most of the work.  The structure is therefore
-reduced (:meth:`ToolStructure.reduce`) by a Rayleigh-Ritz projection on the
+reduced (:meth:`chatterlab.structure.Structure.reduce`) by a Rayleigh-Ritz projection on the
 undamped modes below f_keep augmented by the static residual of the tool
 point (modal truncation augmentation; Dickens, Nakagawa & Wittbrodt,
 Comput. Struct. 62 (1997) 985-998): the kept modes stay exact, the tool
@@ -30,20 +31,19 @@ the truncated modes, whose error on the tool-point FRF over
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
 from ..errors import InputError
-from ..frequency import ToolStructure
-from ..process import Milling
+from ..process import ClosedLoop, Milling, milling_loop
 
 #: a direction of the cut this many times stiffer (static compliance) than the other is held rigid
 RIGID_RATIO = 1e2
 
-__all__ = ["milling_of", "tool_structure", "is_milling", "reduce_structure", "Reduction"]
+__all__ = ["milling_of", "milling_loop_of", "is_milling", "reduce_structure", "Reduction"]
 
 
 def is_milling(model: Any) -> bool:
@@ -73,10 +73,11 @@ def milling_of(model: Any) -> Milling:
     )
 
 
-def tool_structure(frozen: Any, coupling: str | None = None) -> ToolStructure:
-    """The frozen structure seen by the cutter of its ``model = "milling"``
-    coupling (``coupling`` names it when there are several), unreduced
-    (see :func:`reduce_structure`)."""
+def milling_loop_of(frozen: Any, coupling: str | None = None) -> ClosedLoop:
+    """The frozen structure under the cutter of its model's ``model =
+    "milling"`` coupling (``coupling`` names it when there are several), as
+    the milling :class:`~chatterlab.process.ClosedLoop` the Floquet methods
+    take; unreduced (see :func:`reduce_structure`)."""
     cms = [
         c
         for c in frozen.couplings()
@@ -92,7 +93,7 @@ def tool_structure(frozen: Any, coupling: str | None = None) -> ToolStructure:
     J = np.asarray(cm.J, dtype=float)[:2]
     if not np.any(J):
         raise InputError(f"{frozen.model.source}: the milling coupling's tool point does not move")
-    return ToolStructure(frozen.A, frozen.B, frozen.C, J, name=str(frozen.model.source))
+    return milling_loop(frozen.structure, milling_of(frozen.model), J, frozen=frozen)
 
 
 @dataclass(frozen=True)
@@ -126,10 +127,11 @@ class Reduction:
         )
 
 
-def reduce_structure(S: ToolStructure, f_keep: float | None = None) -> tuple[ToolStructure, Reduction]:
-    """The structure on its undamped modes below ``f_keep`` (Hz) and the
-    static residual of the tool point (:meth:`ToolStructure.reduce`), with
-    what was kept and the truncation error.
+def reduce_structure(S: ClosedLoop, f_keep: float | None = None) -> tuple[ClosedLoop, Reduction]:
+    """A milling loop whose structure is reduced to its undamped modes below
+    ``f_keep`` (Hz) and the static residual of the tool point
+    (:meth:`chatterlab.structure.Structure.reduce`), with what was kept and
+    the truncation error.
 
     Default ``f_keep``: 4 x the highest natural frequency among the modes
     that carry at least 5 % of the tool point's static compliance (its
@@ -147,7 +149,7 @@ def reduce_structure(S: ToolStructure, f_keep: float | None = None) -> tuple[Too
     rigid = int(np.count_nonzero(stiff & (np.abs(g) > 0)))
     if np.any(stiff):
         Uf = U[:, ~stiff]
-        S = ToolStructure(S.M, S.C, S.K, Uf @ (Uf.T @ S.J), name=S.name)
+        S = replace(S, J=Uf @ (Uf.T @ S.J))
     if f_keep is None:
         contrib = np.sum((S.J @ Phi) ** 2, axis=0) / lam  # static compliance carried by each mode
         f_keep = 4.0 * float(f[contrib >= 0.05 * contrib.sum()].max())
@@ -155,7 +157,8 @@ def reduce_structure(S: ToolStructure, f_keep: float | None = None) -> tuple[Too
     full = float(full_S.omega_max)
     if kept >= S.n - S.J.shape[0] and not rigid:  # nothing to gain
         return S, Reduction(S.n, S.n, 0, float(f_keep), 0.0, full, full)
-    R, _ = S.reduce(f_keep)
+    red, T = S.structure.reduce(f_keep, S.J.T)
+    R = replace(S, structure=red, J=S.J @ T, force=T.T @ S.force, frozen=None)
     # the error of everything done here, against the full structure and both directions
     w = 2 * np.pi * np.linspace(0.0, f_keep / 2, 400)
     H, Hr = full_S.frf(w), R.frf(w)

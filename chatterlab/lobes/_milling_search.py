@@ -21,11 +21,10 @@ from ..frequency import (
     CHECK_DEGREE,
     ELEMENT_SPAN,
     SpectralMonodromy,
-    ToolStructure,
     chatter_frequency,
     sdm_monodromy,
 )
-from ..process import Milling
+from ..process import ClosedLoop
 
 __all__ = ["Certified", "certified_crossing", "floquet_limit"]
 
@@ -273,20 +272,18 @@ def certified_crossing(
 
 
 def _helix_rho(
-    structure: ToolStructure, milling: Milling, rpm: float, degree: int, elements: int | None, span: float
+    loop: ClosedLoop, rpm: float, degree: int, elements: int | None, span: float
 ) -> Callable[[float], float]:
     def rho(a: float) -> float:
-        sm = SpectralMonodromy(structure, milling, rpm, degree, elements, depth=a, depth_hint=0.0, span=span)
+        sm = SpectralMonodromy(loop, rpm, degree, elements, depth=a, depth_hint=0.0, span=span)
         return sm.radius(a)
 
     return rho
 
 
-def _sdm_top(
-    structure: ToolStructure, milling: Milling, rpm: float, steps: int
-) -> Callable[[float], complex]:
+def _sdm_top(loop: ClosedLoop, rpm: float, steps: int) -> Callable[[float], complex]:
     def mu_at(a: float) -> complex:
-        ev = np.linalg.eigvals(sdm_monodromy(structure, milling, rpm, a, steps))
+        ev = np.linalg.eigvals(sdm_monodromy(loop, rpm, a, steps))
         return complex(ev[np.argmax(np.abs(ev))])
 
     return mu_at
@@ -297,8 +294,7 @@ def _abs_of(f: Callable[[float], complex]) -> Callable[[float], float]:
 
 
 def floquet_limit(
-    structure: ToolStructure,
-    milling: Milling,
+    loop: ClosedLoop,
     r: float,
     method: str,
     depth_max: float,
@@ -321,9 +317,10 @@ def floquet_limit(
     ``"scan"`` (helix or SDM: the first crossing seen on the scan, a band
     narrower than the scan step between stable scan depths can be missed).
     a is inf (mu and the frequency nan) when no crossing is found."""
+    milling = loop.milling
     helix = milling.helix > 0
     if method == "spectral" and not helix:
-        return _complete_limit(structure, milling, r, depth_max, scan, rtol, degree, elements, check, target)
+        return _complete_limit(loop, r, depth_max, scan, rtol, degree, elements, check, target)
     T = milling.period(float(r))
     rho: Callable[[float], float]
     mu_at: Callable[[float], complex]
@@ -332,20 +329,16 @@ def floquet_limit(
     err = np.nan
     for attempt in range(4):
         if method == "spectral":
-            rho = _helix_rho(structure, milling, float(r), degree, elements, span)
+            rho = _helix_rho(loop, float(r), degree, elements, span)
         else:
-            mu_at = _sdm_top(structure, milling, float(r), steps)
+            mu_at = _sdm_top(loop, float(r), steps)
             rho = _abs_of(mu_at)
         a, cnt, slope = _first_crossing(rho, depth_max, scan, rtol)
         evals += cnt
         if method != "spectral" or not check or not np.isfinite(a):
             break
-        sm = SpectralMonodromy(
-            structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
-        )
-        sm2 = SpectralMonodromy(
-            structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh, depth=a, depth_hint=0.0
-        )
+        sm = SpectralMonodromy(loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span)
+        sm2 = SpectralMonodromy(loop, float(r), degree + CHECK_DEGREE, mesh=sm.mesh, depth=a, depth_hint=0.0)
         if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
             da = max(1e-6 * a, 10 * rtol * a)
             slope = (rho(a + da) - rho(a - da)) / (2 * da)
@@ -360,19 +353,16 @@ def floquet_limit(
         return a, err, complex(np.nan, 0.0), np.nan, evals, refined, "scan", np.nan
     if method == "spectral":
         if not check:
-            sm = SpectralMonodromy(
-                structure, milling, float(r), degree, elements, depth=a, depth_hint=0.0, span=span
-            )
+            sm = SpectralMonodromy(loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span)
         mu, freq = sm.critical(a)
     else:
         mu = mu_at(a)
-        freq = chatter_frequency(mu, T, structure)
+        freq = chatter_frequency(mu, T, loop)
     return a, err, mu, freq, evals, refined, "scan", np.nan
 
 
 def _complete_limit(
-    structure: ToolStructure,
-    milling: Milling,
+    loop: ClosedLoop,
     r: float,
     depth_max: float,
     scan: int,
@@ -389,12 +379,12 @@ def _complete_limit(
     evals = refined = 0
     err = np.nan
     for attempt in range(4):
-        sm = SpectralMonodromy(structure, milling, float(r), degree, elements, span=span)
+        sm = SpectralMonodromy(loop, float(r), degree, elements, span=span)
         c = certified_crossing(sm, depth_max, scan, rtol)
         evals += c.evaluations
         if not check or c.status != "crossing":
             break
-        sm2 = SpectralMonodromy(structure, milling, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
+        sm2 = SpectralMonodromy(loop, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
         err = abs(sm2.radius(c.depth) - 1.0) / abs(c.slope) if c.slope else np.inf
         evals += 1
         if err <= target * c.depth or elements is not None or attempt == 3:

@@ -67,7 +67,7 @@ class Plant:
         """The plant of a closed loop: its structure's FRF between the CE
         coordinates in pole-residue form, and its CE matrices (at the loop's
         width: a loop at b = 1 m makes beta the width in m)."""
-        cm = loop.frozen.complex_modes
+        cm = loop.structure.complex_modes
         J = loop.J
         Jphi = J @ cm.phi
         m = J.shape[0]

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from ._cutting import Feedback, ce_maps, feedback
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
-from ._loop import TERMS, ClosedLoop, closed_loop, coupling_matrix, delay_for
+from ._loop import TERMS, ClosedLoop, closed_loop, coupling_matrix, delay_for, milling_loop
 from ._milling import Milling
 
 __all__ = [
     "ClosedLoop",
     "closed_loop",
+    "milling_loop",
     "coupling_matrix",
     "Feedback",
     "feedback",

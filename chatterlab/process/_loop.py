@@ -32,17 +32,26 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from ..errors import InputError, check_delay, check_speed, check_width, warn_width
 from ..model._items import Process
 from ..structure._assembly import FrozenSystem
+from ..structure._structure import Structure
 
-__all__ = ["ClosedLoop", "closed_loop", "closed_loop_unwarned", "coupling_matrix", "delay_for", "TERMS"]
+__all__ = [
+    "ClosedLoop",
+    "closed_loop",
+    "closed_loop_unwarned",
+    "milling_loop",
+    "coupling_matrix",
+    "delay_for",
+    "TERMS",
+]
 
 #: which feedback terms are on: the paper's cases (a) none, (b) proportional +
 #: ideal derivative, (c) all three; "o": the delayed term only
@@ -62,29 +71,41 @@ def coupling_matrix(
 
 @dataclass(frozen=True, eq=False)
 class ClosedLoop:
-    """The frozen structure under the cutting process at one (b, T).
+    """The structure under the cutting process at one (b, T).
 
     Attributes
     ----------
-    frozen : FrozenSystem
-        The structure at its configuration (names, points, modes).
-    J : ndarray, shape (3 m, n)
-        Stacked CE maps: the relative displacements of the m coupling
-        elements in CE axes from the independent coordinates.
-    Dl_P, Dl_V, Dl_O : ndarray, shape (3 m, 3 m)
-        Block-diagonal CE matrices at width b, so that
-        D(s) = -J^T (Dl_P + s Dl_V + Dl_O e^{-sT}) J.
+    structure : Structure
+        M, C, K on the structure's coordinates (a frozen RDFEM configuration's
+        independent ones: :attr:`FrozenSystem.structure`).
+    J : ndarray, shape (p, n)
+        The process's coordinates r = J q: the stacked relative displacements
+        of the m coupling elements in CE axes (p = 3 m), or a milling tool's
+        (x, y) relative to the workpiece (p = 2).
+    Dl_P, Dl_V, Dl_O : ndarray, shape (p, p)
+        The process's matrices on r at width b, so that
+        D(s) = -J^T (Dl_P + s Dl_V + Dl_O e^{-sT}) J (for milling the
+        time-averaged cut: Dl_P = b H0, Dl_O = -b H0, Eq. 2 of
+        :mod:`chatterlab.process._milling`).
     force : ndarray, shape (n,)
         Static (desired) CE forces as generalised forces, N.
     width : float
-        Width of cut b, m.
+        Width of cut b (milling: axial depth a_p), m.
     delay : float or None
-        T, s (None when no delayed term is on).
+        T, s (None when no delayed term is on, or for a milling loop not yet
+        at a speed).
     terms : str
         ``"none"``, ``"pd"``, ``"pdo"`` or ``"o"`` (delayed only).
+    frozen : FrozenSystem or None
+        The model's configuration the structure comes from (points, names,
+        positions), when there is one.
+    process : Milling or None
+        A periodic process (the rotating cutter, whose directional matrices
+        the Floquet methods integrate over a period); None for a constant
+        one (turning, shaping, a given delay).
     """
 
-    frozen: FrozenSystem
+    structure: Structure
     J: np.ndarray
     Dl_P: np.ndarray
     Dl_V: np.ndarray
@@ -93,44 +114,90 @@ class ClosedLoop:
     width: float
     delay: float | None
     terms: str
+    frozen: FrozenSystem | None = None
+    process: Any = None
 
     # ------------------------------------------------------------- the structure
     @property
     def M(self) -> np.ndarray:
         """Mass matrix M (A* of Eq. 2.16), kg, (n, n)."""
-        return self.frozen.A
+        return self.structure.M
 
     @property
     def C(self) -> np.ndarray:
         """Damping matrix C (B* of Eq. 2.17), N s/m, (n, n)."""
-        return self.frozen.B
+        return self.structure.C
 
     @property
     def K(self) -> np.ndarray:
         """Stiffness matrix K (C* of Eq. 2.18), N/m, (n, n)."""
-        return self.frozen.C
+        return self.structure.K
 
     @property
     def n(self) -> int:
         return int(self.J.shape[1])
 
     @property
+    def name(self) -> str:
+        """The structure's label (the model file)."""
+        return self.structure.name
+
+    @property
     def position(self) -> float | None:
-        return self.frozen.position
+        return self.frozen.position if self.frozen is not None else None
+
+    @property
+    def state_matrix(self) -> np.ndarray:
+        """First-order matrix of the free structure, x = (q, q'), (2n, 2n)."""
+        return self.structure.state_matrix
+
+    @property
+    def omega_max(self) -> float:
+        """Largest |Im| of the free structure's poles, rad/s."""
+        return self.structure.omega_max
+
+    def stable(self) -> bool:
+        """The structure without the process is asymptotically stable."""
+        return self.structure.stable()
+
+    def frf(self, omega: np.ndarray) -> np.ndarray:
+        """The structure's receptance between the process's coordinates,
+        J (K - w^2 M + j w C)^-1 J^T, m/N, shape (len(w), p, p)."""
+        return self.structure.receptance(omega, self.J)
+
+    @cached_property
+    def cut_basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Ub, Jr, W): r = Ub (Jr q) with Jr (rho, n) of full row rank, and
+        W = M^-1 Jr^T (n, rho): the process's coordinates on the rank they
+        have (a 1-DOF milling tool moves along one of its two axes)."""
+        U, s, Vt = np.linalg.svd(self.J, full_matrices=False)
+        rho = int(np.sum(s > 1e-12 * max(s[0], 1e-300)))
+        Ub = U[:, :rho]
+        Jr = s[:rho, None] * Vt[:rho]
+        W = np.linalg.solve(self.M, Jr.T)
+        return Ub, Jr, W
 
     # ------------------------------------------------------------- the process
     def Dl(self, s: complex | np.ndarray) -> np.ndarray:
-        """The CE matrices P + s V + O e^{-sT}, shape (..., 3m, 3m), so
+        """The CE matrices P + s V + O e^{-sT}, shape (..., p, p), so
         that D(s) = -J^T Dl(s) J."""
+        self._needs_delay()
         return coupling_matrix(s, self.Dl_P, self.Dl_V, self.Dl_O, self.delay)
 
     def D(self, s: complex | np.ndarray) -> np.ndarray:
-        """D(s) on the independent coordinates, shape (..., n, n) (Eq. 2.23)."""
+        """D(s) on the structure's coordinates, shape (..., n, n) (Eq. 2.23)."""
+        self._needs_delay()
         return coupling_matrix(s, self.DP, self.DV, self.DO, self.delay)
 
     def __call__(self, s: complex | np.ndarray) -> np.ndarray:
         """D(s): see :meth:`D`."""
         return self.D(s)
+
+    def _needs_delay(self) -> None:
+        if self.delay is None and np.any(self.Dl_O):
+            raise InputError(
+                "this loop has a delayed term but no delay yet: loop.at(speed=...) or at(delay=...)"
+            )
 
     @cached_property
     def DP(self) -> np.ndarray:
@@ -171,24 +238,98 @@ class ClosedLoop:
         """No feedback at all (case a, or all CE matrices zero)."""
         return not (np.any(self.Dl_P) or np.any(self.Dl_V) or np.any(self.Dl_O))
 
-    def at(self, *, width: float | None = None, delay: float | None = None) -> ClosedLoop:
-        """The same loop at another width b (m) and/or delay T (s): the CE
-        matrices scale with b (Eq. 3.5)."""
+    @property
+    def milling(self) -> Any:
+        """The periodic process (a :class:`~chatterlab.process.Milling`), or
+        an :class:`~chatterlab.errors.InputError` for a constant one."""
+        if self.process is None:
+            raise InputError("this closed loop has no periodic (milling) process")
+        return self.process
+
+    def at(
+        self, *, width: float | None = None, delay: float | None = None, speed: float | None = None
+    ) -> ClosedLoop:
+        """The same loop at another width b (m) and/or delay T (s) (or, with
+        a process, speed: its kinematics give T): the process's matrices
+        scale with b (Eq. 3.5)."""
         f = 1.0 if width is None else check_width(width) / self.width
+        if speed is not None:
+            if delay is not None:
+                raise InputError("give either speed or delay, not both")
+            if self.process is None:
+                raise InputError(
+                    "a constant loop is moved to another speed by closed_loop(frozen, speed=...)"
+                )
+            delay = float(self.process.delay(check_speed(speed, unit=self.process.speed_unit)))
         T = self.delay if delay is None else check_delay(delay)
-        if T is None and np.any(self.Dl_O):
-            raise InputError("the delayed feedback term needs a delay")
-        return ClosedLoop(
-            self.frozen,
-            self.J,
-            f * self.Dl_P,
-            f * self.Dl_V,
-            f * self.Dl_O,
-            f * self.force,
-            self.width if width is None else float(width),
-            T if np.any(self.Dl_O) else None,
-            self.terms,
+        return replace(
+            self,
+            Dl_P=f * self.Dl_P,
+            Dl_V=f * self.Dl_V,
+            Dl_O=f * self.Dl_O,
+            force=f * self.force,
+            width=self.width if width is None else float(width),
+            delay=T if np.any(self.Dl_O) else None,
         )
+
+
+def milling_loop(
+    structure: Any,
+    milling: Any,
+    J: Any = None,
+    *,
+    width: float = 1.0,
+    frozen: FrozenSystem | None = None,
+) -> ClosedLoop:
+    """A structure under a milling cutter: the closed loop the Floquet
+    methods integrate (:func:`chatterlab.frequency.multipliers`,
+    :func:`chatterlab.lobes.milling_lobes`).
+
+    Parameters
+    ----------
+    structure : Structure
+        M, C, K of the tool side (any coordinates).
+    milling : Milling
+        The cutter and the cut (its periodic directional matrices).
+    J : array, shape (2, n), optional
+        The tool's displacement (x, y) relative to the workpiece from the
+        coordinates (feed along +x, see :mod:`chatterlab.process._milling`).
+        Default: the coordinates named ``"x"`` and ``"y"`` (a
+        :meth:`Structure.single_dof` is named ``"x"``).
+    width : float
+        The axial depth a_p, m, of the constant (time-averaged) part; the
+        Floquet methods take the depth as their own argument.
+    """
+    if not isinstance(structure, Structure):
+        raise InputError(
+            f"milling_loop: structure must be a Structure (got {type(structure).__name__});"
+            " Structure(M, C, K), Structure.single_dof(...) or frozen.structure"
+        )
+    n = structure.n
+    if J is None:
+        rows = []
+        for axis in ("x", "y"):
+            row = np.zeros(n)
+            if axis in structure.names:
+                row[structure.names.index(axis)] = 1.0
+            rows.append(row)
+        J = np.array(rows)
+        if not np.any(J):
+            raise InputError(
+                f"milling_loop: {structure.name} has no coordinate named 'x' or 'y': give J (2 x {n}),"
+                " the map from its coordinates to the tool's (x, y)"
+            )
+    J = np.atleast_2d(np.asarray(J, dtype=float))
+    if J.shape != (2, n) or not np.all(np.isfinite(J)):
+        raise InputError(f"structure J must be a finite 2 x {n} matrix mapping q to (x, y) (got {J.shape})")
+    if not np.any(J):
+        raise InputError(f"{structure.name}: the tool point does not move (J = 0)")
+    width = check_width(width, "depth of cut a_p")
+    H0 = width * milling.zoa()
+    T = milling.tooth_period(milling.rpm) if milling.rpm else None
+    return ClosedLoop(
+        structure, J, H0, np.zeros((2, 2)), -H0, np.zeros(n), float(width), T, "pdo", frozen, milling
+    )
 
 
 def delay_for(
@@ -288,4 +429,4 @@ def closed_loop_unwarned(
     T = delay_for(frozen.model.process, speed=speed, delay=delay) if np.any(O) else None
     if np.any(O) and T is None:
         raise InputError("the delayed feedback term needs a delay: give speed or delay")
-    return ClosedLoop(frozen, J, P, V, O, J.T @ F, float(width), T, terms)
+    return ClosedLoop(frozen.structure, J, P, V, O, J.T @ F, float(width), T, terms, frozen)

@@ -333,7 +333,7 @@ class QuantityTask:
         up to ``width_max``)."""
         from ..frequency._floquet import multipliers
         from ..lobes._milling import milling_lobes
-        from ..lobes._milling_model import is_milling, milling_of, reduce_structure, tool_structure
+        from ..lobes._milling_model import is_milling, milling_loop_of, reduce_structure
 
         mdl = sy.model
         if not is_milling(mdl):
@@ -343,16 +343,15 @@ class QuantityTask:
             )
 
         def structure() -> Any:
-            S = tool_structure(fz)
+            S = milling_loop_of(fz)
             return S if (mdl.modes or mdl.is_matrix_model) else reduce_structure(S)[0]
 
         S = _cached(("tool", self.key, pkey, pos), structure)
-        mill = milling_of(mdl)
         rpm = float(vals.get("speed", mdl.process.speed))
         if "delay" in vals:
             raise InputError("milling quantities take the spindle speed (speed, rpm), not a delay")
         if self.quantity == "spectral-radius":
-            r = multipliers(S, mill, rpm, vals["width"])
+            r = multipliers(S, rpm, vals["width"])
             rho, err = float(r.spectral_radius), float(r.error)
             verdict = 1.0 if rho + err < 1.0 else 0.0 if rho - err > 1.0 else float("nan")
             return {
@@ -361,7 +360,7 @@ class QuantityTask:
                 "kind": KIND_CODES.get(r.kind, -1.0),
                 "error": err,
             }
-        ml = milling_lobes(S, mill, np.array([rpm]), depth_max=self.width_max)
+        ml = milling_lobes(S, np.array([rpm]), depth_max=self.width_max)
         return {
             "a_lim": float(ml.a_lim[0]),
             "chatter_frequency": float(ml.chatter_hz[0]),

@@ -30,6 +30,7 @@ from ._rcsa import (
     rotations_from_translations,
     tool_model,
 )
+from ._structure import Structure
 
 __all__ = [
     "beam_local_stiffness",
@@ -45,6 +46,7 @@ __all__ = [
     "dynamic_receptance",
     "modal_response",
     "taylor_terms",
+    "Structure",
     "System",
     "FrozenSystem",
     "CouplingMatrices",

@@ -36,9 +36,10 @@ import numpy as np
 from ..errors import InputError
 from ..model._geometry import body_centre, point_xy
 from ..model._items import DIRECTIONS, GROUND, Coupling, Model, PointRef
-from ._complex import ComplexModes, complex_modes
+from ._complex import ComplexModes
 from ._elements import beam_point_matrix, rigid_point_matrix, rotation3
 from ._moving import MovingReduction, _ContactRows
+from ._structure import Structure
 
 __all__ = ["System", "FrozenSystem", "CouplingMatrices"]
 
@@ -401,9 +402,15 @@ class FrozenSystem:
         return self.system.model
 
     @cached_property
+    def structure(self) -> Structure:
+        """The configuration as the engines take a structure: M = A*, C = B*,
+        K = C* (Eq. 2.16-2.18) on the independent coordinates, named."""
+        return Structure(self.A, self.B, self.C, self.names, str(self.model.source))
+
+    @property
     def complex_modes(self) -> ComplexModes:
         """Complex modes of s^2 A* + s B* + C* (computed once per configuration)."""
-        return complex_modes(self.A, self.B, self.C)
+        return self.structure.complex_modes
 
     @property
     def names(self) -> tuple[str, ...]:
