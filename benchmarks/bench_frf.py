@@ -19,7 +19,8 @@ b = 2 mm, v = 0.5 m/s, T = 1.5 s), by
   eigen-decomposition of the first-order (state-space) matrix and a
   pole-residue sum, about ten lines (``state_space_pole_residue`` below;
   open loop only: a delay is not a finite state space); (c) python-control's
-  ``frequency_response`` of the same 72-state ``control.ss`` (open loop).
+  own evaluation of the same 72-state ``control.ss`` at j w, taken through
+  ``FRF.from_control`` (chatterlab's one route in from python-control).
 
 Accuracy of every route against one reference: the per-frequency solve with
 the matrices formed and the residual computed in extended precision
@@ -286,9 +287,12 @@ def main() -> None:
             except ImportError:
                 print("   python-control not installed: (c) skipped")
             else:
+                from chatterlab.structure import FRF
+
                 sys_c = control.ss(*state_space(fz, rows), np.zeros((len(POINTS), len(POINTS))))
+                # python-control evaluates its own state space at j w; FRF.from_control is the one route in
                 routes[f"(c) python-control {control.__version__} freq. response"] = (
-                    lambda sys_c=sys_c: sys_c.frequency_response(om).complex,
+                    lambda sys_c=sys_c: FRF.from_control(sys_c, om).data,
                     None,
                 )
         for fn, setup in routes.values():

@@ -130,8 +130,8 @@ def _with_frf(args: argparse.Namespace, frf: Path) -> Any:
 def _model_text(args: argparse.Namespace, frf: Path) -> str:
     from ..io._frf_files import read_frf
 
-    table = read_frf(frf, units=args.frf_units, quantity=args.frf_quantity, point=args.frf_point)
-    coords = list(dict.fromkeys(table.outputs))
+    record = read_frf(frf, units=args.frf_units, quantity=args.frf_quantity, point=args.frf_point)
+    coords = list(dict.fromkeys(record.outputs))
     milling = args.teeth is not None or args.kt is not None or args.immersion is not None
     if milling == (args.kf is not None):
         raise InputError(

@@ -92,7 +92,9 @@ def lscf_poles(
     band: tuple[float, float] | None = None,
     max_damping: float = 0.5,
 ) -> list[tuple[int, np.ndarray]]:
-    """pLSCF poles for every order 1..max_order (see :mod:`chatterlab.structure._fit`).
+    """pLSCF poles for every order 1..max_order (see :mod:`chatterlab.structure._fit`)
+    of the receptance ``H`` (n_freq, n_out, n_in), one matrix per frequency
+    (``FRF.matrices``).
 
     Returns a list of (order, physical poles): Im > 0, Re < 0, damping ratio
     below ``max_damping`` and natural frequency inside ``band`` (rad/s,

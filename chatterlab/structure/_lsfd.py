@@ -39,7 +39,9 @@ def lsfd(
     upper: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Residues and residual terms for fixed poles (one real weighted least
-    squares per entry).
+    squares per entry).  ``H`` (and ``weights``) is the receptance as one
+    matrix per frequency, (n_freq, n_out, n_in): ``FRF.matrices``, the
+    layout of the fit's batched least squares.
 
     Returns (R (m, n_out, n_in) complex, LR (n_out, n_in), UR (n_out, n_in),
     weighted residual (n_freq, n_out, n_in) complex)."""
