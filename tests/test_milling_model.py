@@ -31,14 +31,20 @@ def test_down_milling_angles_are_insperger_stepan():
 
 
 def test_coupling_is_the_average_of_the_periodic_matrix():
-    """The model's averaged directional matrix (closed form of the integral)
-    equals the process's (chatterlab.process.Milling.zoa, written separately)
-    and the mean of H(t) over a period by quadrature."""
+    """A milling model's coupling feeds the frequency-domain engines the
+    cutter's averaged directional matrix (chatterlab.process.Milling.zoa, its
+    closed form) at the depth of cut, D_P = a_p H0 and D_O = -a_p H0 in the
+    feed/normal plane, and that is the mean of H(t) over a period by quadrature."""
+    from chatterlab.process import closed_loop
+
     m = cl.load_model(TWO)
-    H0_model = np.array(m.couplings[0].DP)[:2, :2]
     mill = _cutter(m)
-    np.testing.assert_allclose(H0_model, mill.zoa(), rtol=1e-13, atol=1e-13 * np.abs(H0_model).max())
-    np.testing.assert_allclose(-np.array(m.couplings[0].DO)[:2, :2], H0_model, rtol=0, atol=0)
+    a_p = 2e-3
+    loop = closed_loop(cl.assemble(m).at(), width=a_p, speed=10000.0)
+    np.testing.assert_array_equal(loop.Dl_P[:2, :2], a_p * mill.zoa())
+    np.testing.assert_array_equal(loop.Dl_O[:2, :2], -a_p * mill.zoa())
+    assert not np.any(loop.Dl_P[2]) and not np.any(loop.Dl_P[:, 2]) and not np.any(loop.Dl_V)
+    H0_model = loop.Dl_P[:2, :2] / a_p
     # midpoint rule over one tooth period of the piecewise-smooth H(t): error ~ jumps * dt / period,
     # two jumps of |H| <= (Kt + Kn) per period at 2e5 points: < 1e-5 relative
     rpm = 10000.0

@@ -57,20 +57,7 @@ def milling_of(model: Any) -> Milling:
     :class:`~chatterlab.process.Milling` (SI units, radians)."""
     if not is_milling(model):
         raise InputError(f'{model.source}: its [process] is not milling (kind = "milling")')
-    c = model.process.milling
-    return Milling(
-        c.teeth,
-        c.diameter,
-        c.Kt,
-        c.Kn,
-        c.entry,
-        c.exit,
-        pitch=c.pitch,
-        helix=c.helix,
-        Kte=c.Kte,
-        Kne=c.Kne,
-        rpm=model.process.speed,
-    )
+    return Milling.from_cut(model.process.milling, model.process.speed)
 
 
 def milling_loop_of(frozen: Any, coupling: str | None = None) -> ClosedLoop:

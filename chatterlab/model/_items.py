@@ -11,7 +11,6 @@ All quantities are SI: m, kg, kg m^2, N/m, N m/rad, N s/m, s, rad.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -239,8 +238,8 @@ class MillingCut:
     """The cutter and the cut of a milling process (``[process] kind =
     "milling"``), SI units and radians.  The analyses turn it into
     :class:`chatterlab.process.Milling` (periodic directional matrices,
-    delays); :meth:`average_directional` is the zeroth-order average that
-    the ``model = "milling"`` coupling feeds to the frequency-domain engines.
+    delays, the zeroth-order average that the ``model = "milling"`` coupling
+    feeds to the frequency-domain engines).
 
     Angles follow Insperger & Stepan (2004): a tooth's angle phi is measured
     from +y, clockwise towards +x (the feed direction, CE axis 1);
@@ -259,26 +258,6 @@ class MillingCut:
     Kne: float = 0.0  #: N/m
     runout: tuple[float, ...] = ()  #: radial offset of each tooth, m (time domain only)
     feed_per_tooth: float = 0.0  #: f_z, m (time domain only: the static chip)
-
-    def average_directional(self) -> np.ndarray:
-        """H0 = (N / 2 pi) int_entry^exit H(phi) dphi (N/m^2, 2x2): the mean of
-        the directional matrix over a revolution (Altintas & Budak 1995),
-        with H(phi) = [K_t (cos, -sin) + K_n (sin, cos)] (sin, cos)^T.
-
-        The same closed form as :meth:`chatterlab.process.Milling.zoa`, written
-        here because the model (layer 2) may not import the process (layer 4)
-        and the reader must give the coupling its matrices;
-        tests/test_milling_model.py checks that the two agree to 1e-13."""
-
-        def primitive(p: float) -> np.ndarray:
-            s2, half, q = math.sin(p) ** 2 / 2, p / 2, math.sin(2 * p) / 4
-            kt, kn = self.Kt, self.Kn
-            return np.array(
-                [[kt * s2 + kn * (half - q), kt * (half + q) + kn * s2],
-                 [-kt * (half - q) + kn * s2, -kt * s2 + kn * (half + q)]]
-            )  # fmt: skip
-
-        return self.teeth / (2 * math.pi) * (primitive(self.exit) - primitive(self.entry))
 
 
 # ---------------------------------------------------------------- speed <-> delay
@@ -493,6 +472,8 @@ class Model:
     constraints: tuple[Constraint, ...] = ()
     points: tuple[Point, ...] = ()
     couplings: tuple[Coupling, ...] = ()
+    #: [[absorber]] tuned vibration absorbers (:class:`chatterlab.model.Absorber`)
+    absorbers: tuple[Any, ...] = ()
     process: Process | None = None
     movable: Movable | None = None
     matrices: MatrixBlock | None = None

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -225,7 +224,7 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
     forces = (f1, f2, f3)
     angle = math.radians(it.num("angle_deg", 0.0))
     params: tuple[tuple[str, float], ...] = ()
-    if model_kind == "milling":  # the averaged directional matrix is set from [process] (milling_couplings)
+    if model_kind == "milling":  # its averaged directional matrix comes from [process] (process.ce_maps)
         zero = ((0.0, 0.0, 0.0),) * 3
         return Coupling(iid, a, b, zero, zero, zero, width_ref, forces, angle, model_kind, params)
     if model_kind == "matrices":
@@ -262,10 +261,9 @@ def _read_coupling(src: str, iid: str, t: Any, ctx: _RefContext) -> Coupling:
 
 
 def milling_couplings(src: str, couplings: list[Coupling], process: Process | None) -> list[Coupling]:
-    """``model = "milling"`` couplings get the zeroth-order (averaged)
-    feedback of the cutter in [process]: F = -a_p H0 [dw(t) - dw(t - tau)]
-    on the tool, i.e. D_P = H0 and D_O = -H0 per metre of a_p in the
-    feed (CE axis 1) / normal (CE axis 2) plane (Altintas & Budak 1995)."""
+    """``model = "milling"`` couplings need the cutter of a milling [process]
+    (whose time-averaged feedback the process layer gives them:
+    :func:`chatterlab.process.ce_maps`); a milling process needs one."""
     out = []
     for c in couplings:
         if c.kind == "milling":
@@ -277,11 +275,6 @@ def milling_couplings(src: str, couplings: list[Coupling], process: Process | No
                     item=f'[[coupling]] "{c.id}"',
                     field="model",
                 )
-            H0 = process.milling.average_directional()
-            P = np.zeros((3, 3))
-            P[:2, :2] = H0
-            as_rows = lambda A: tuple(tuple(float(x) for x in r) for r in A)  # noqa: E731
-            c = replace(c, DP=as_rows(P), DO=as_rows(-P))
         out.append(c)
     if process is not None and process.kind == "milling" and not any(c.kind == "milling" for c in out):
         raise ModelError(

@@ -37,6 +37,7 @@ def ce_maps(system: Any, width: float, couplings: list[str] | None = None) -> tu
     width b.  ``couplings`` selects CEs by id (default: all)."""
     maps = [(c, Jc) for c, Jc in system.coupling_maps if couplings is None or c.id in couplings]
     m = len(maps)
+    H0 = _milling_zoa(system.model) if any(c.kind == "milling" for c, _ in maps) else None
     J = np.zeros((3 * m, system.n))
     P = np.zeros((3 * m, 3 * m))
     V = np.zeros_like(P)
@@ -46,8 +47,24 @@ def ce_maps(system: Any, width: float, couplings: list[str] | None = None) -> tu
         sl = slice(3 * k, 3 * k + 3)
         f = width / c.width_ref
         J[sl] = Jc
-        P[sl, sl] = f * np.array(c.DP)
-        V[sl, sl] = f * np.array(c.DV)
-        O[sl, sl] = f * np.array(c.DO)
+        if c.kind == "milling":  # the cutter's time-averaged feedback, per metre of a_p
+            assert H0 is not None
+            P[3 * k : 3 * k + 2, 3 * k : 3 * k + 2] = width * H0
+            O[3 * k : 3 * k + 2, 3 * k : 3 * k + 2] = -width * H0
+        else:
+            P[sl, sl] = f * np.array(c.DP)
+            V[sl, sl] = f * np.array(c.DV)
+            O[sl, sl] = f * np.array(c.DO)
         F[sl] = f * np.array(c.forces)
     return J, P, V, O, F
+
+
+def _milling_zoa(model: Any) -> np.ndarray:
+    """H0 of the model's cutter (N/m^2, 2x2): a ``model = "milling"``
+    coupling feeds the frequency-domain engines the zeroth-order (averaged)
+    cut, F = -a_p H0 [dw(t) - dw(t - tau)] on the tool: D_P = H0 and
+    D_O = -H0 per metre of a_p in the feed (CE axis 1) / normal (CE axis 2)
+    plane (Altintas & Budak 1995; :meth:`chatterlab.process.Milling.zoa`)."""
+    from ._milling import Milling
+
+    return Milling.from_cut(model.process.milling).zoa()

@@ -69,7 +69,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -241,6 +241,24 @@ class Milling:
         object.__setattr__(self, "_angles", tuple(lag))
 
     # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_cut(cls, cut: Any, rpm: float = 0.0) -> Milling:
+        """The cutter a model file describes (:class:`chatterlab.model.MillingCut`,
+        ``[process] kind = "milling"``) at its default spindle speed ``rpm``."""
+        return cls(
+            cut.teeth,
+            cut.diameter,
+            cut.Kt,
+            cut.Kn,
+            cut.entry,
+            cut.exit,
+            pitch=cut.pitch,
+            helix=cut.helix,
+            Kte=cut.Kte,
+            Kne=cut.Kne,
+            rpm=rpm,
+        )
+
     @classmethod
     def from_immersion(
         cls,
