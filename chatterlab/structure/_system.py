@@ -51,7 +51,8 @@ class CouplingMatrices:
     ``J`` maps q_i to the CE's relative displacement dw = w_a - w_b in CE
     axes (3, n_i).  The CE's contribution to D(s) of Eq. (2.23), at width b,
     is ``-(b / width_ref) J^T (DP + s DV + DO e^{-sT}) J``; its static force is
-    ``(b / width_ref) J^T forces``.
+    ``(b / width_ref) J^T forces`` (the closed loop computes them:
+    :func:`chatterlab.process.closed_loop`).
     """
 
     id: str
@@ -62,17 +63,6 @@ class CouplingMatrices:
     forces: np.ndarray
     width_ref: float
     coupling: Coupling
-
-    def scaled(self, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(DP, DV, DO) of the CE (3, 3) at width b (m)."""
-        f = width / self.width_ref
-        return f * self.DP, f * self.DV, f * self.DO
-
-    def global_feedback(self, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The CE's contribution to D_P, D_V, D_O of Eq. (2.23) in reduced
-        coordinates (each (n_i, n_i)), at width b (m): E = D q."""
-        DP, DV, DO = self.scaled(width)
-        return (-self.J.T @ DP @ self.J, -self.J.T @ DV @ self.J, -self.J.T @ DO @ self.J)
 
 
 @dataclass(frozen=True, eq=False)
