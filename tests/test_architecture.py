@@ -43,6 +43,7 @@ LAYERS = {
     "time": 5,
     "lobes": 6,
     "quantities": 7,
+    "design": 7,  # sensitivities of the limit, absorbers (issue 23): above lobes
     "cli": 8,
     "__init__": 9,
 }

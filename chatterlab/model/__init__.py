@@ -12,6 +12,7 @@ and the geometric checks.
 
 from __future__ import annotations
 
+from ._absorber import Absorber
 from ._geometry import (
     TrackPosition,
     body_centre,
@@ -69,6 +70,7 @@ __all__ = [
     "MatrixBlock",
     "Mode",
     "Model",
+    "Absorber",
     "DIRECTIONS",
     "GROUND",
     "load_model",

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ChatterlabError, ModelError
+from ._absorber import read_absorbers
 from ._fields import _Ids, _Item
 from ._frf import read_frf_table
 from ._items import Mode, Model
@@ -62,6 +63,7 @@ _LISTS = (
     "constraint",
     "coupling",
     "mode",
+    "absorber",
 )
 _TABLES = ("model", "movable", "process", "matrices", "frf", "variant")
 
@@ -376,6 +378,7 @@ def _build_model(
     process = _read_process(src, raw["process"]) if "process" in raw else None
     couplings = milling_couplings(src, couplings, process)
     _check_stroke(src, process, movable)
+    absorbers = read_absorbers(src, raw, ids, ctx)
 
     model = Model(
         name=name,
@@ -390,6 +393,7 @@ def _build_model(
         constraints=tuple(constraints),
         points=tuple(points),
         couplings=tuple(couplings),
+        absorbers=tuple(absorbers),
         process=process,
         movable=movable,
         matrices=matrices,

@@ -13,6 +13,7 @@ stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 from __future__ import annotations
 
 from ._atlas import plot_atlas
+from ._design import plot_lobes_compare, plot_sensitivity
 from ._fit import plot_modal_fit, plot_stabilisation
 from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
@@ -30,6 +31,8 @@ __all__ = [
     "touching_width",
     "track_loci",
     "plot_lobes",
+    "plot_lobes_compare",
+    "plot_sensitivity",
     "plot_atlas",
     "plot_histories",
     "plot_cases",

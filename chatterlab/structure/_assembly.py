@@ -106,7 +106,7 @@ def assemble(model: Model) -> System:
         _elements=MappingProxyType(elements),
         index=MappingProxyType(index),
     )
-    sysm = _springs_into(sysm)
+    sysm = _absorbers_into(_springs_into(sysm))
     _check_constraints(sysm)
     _check_mass(sysm)
     return sysm
@@ -263,6 +263,49 @@ def _springs_into(sy: System) -> System:
     return replace(sy, K=K, L=L)
 
 
+def _absorbers_into(sy: System) -> System:
+    """Add each [[absorber]] (chatterlab.model._absorber): one independent
+    coordinate ``ID.u`` after all others (the absorber's displacement along
+    its unit direction e), the mass m on it and, across e, on the host
+    point's motion (the absorber is guided rigidly across e), and the spring
+    k and damper c on u - e . w_P, w_P the host point's (x, y) motion."""
+    absorbers = sy.model.absorbers
+    if not absorbers:
+        return sy
+    n0, na = sy.n, len(absorbers)
+    n = n0 + na
+    M, L, K = (np.zeros((n, n)) for _ in range(3))
+    M[:n0, :n0], L[:n0, :n0], K[:n0, :n0] = sy.M, sy.L, sy.K
+    for j, ab in enumerate(absorbers):
+        P = sy.point_map(ab.at)[:2]  # the host point's (x, y), over the first n0 coordinates
+        e = np.array(ab.direction)
+        rel = np.zeros(n)
+        rel[n0 + j] = 1.0
+        rel[:n0] -= e @ P  # u - e . w_P
+        across = np.zeros(n)
+        across[:n0] = np.array([-e[1], e[0]]) @ P
+        M[n0 + j, n0 + j] += ab.mass
+        M += ab.mass * np.outer(across, across)
+        K += ab.stiffness * np.outer(rel, rel)
+        L += ab.damping * np.outer(rel, rel)
+    for X in (M, L, K):
+        X[:] = 0.5 * (X + X.T)
+        X.setflags(write=False)
+    names = (*sy.names, *(f"{ab.id}.u" for ab in absorbers))
+    rows = np.zeros((sy._const_rows.shape[0], n))
+    rows[:, :n0] = sy._const_rows
+    return replace(
+        sy,
+        names=names,
+        index=MappingProxyType({nm: k for k, nm in enumerate(names)}),
+        i=np.concatenate([sy.i, np.arange(n0, n)]).astype(int),
+        M=M,
+        L=L,
+        K=K,
+        _const_rows=rows,
+    )
+
+
 def _check_constraints(sy: System) -> None:
     if len(sy.d) == 0:
         return
@@ -358,4 +401,4 @@ def _assemble_matrices(model: Model) -> System:
             field="given",
         )
     # springs between named-coordinate points add to L and K (e.g. a joint added to an imported model)
-    return _springs_into(sysm) if model.springs else sysm
+    return _absorbers_into(_springs_into(sysm) if model.springs else sysm)

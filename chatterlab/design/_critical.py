@@ -1,0 +1,317 @@
+"""The critical point of the stability boundary and the exact derivative
+of the limit width there.
+
+On the boundary of the lobe diagram (:mod:`chatterlab.lobes._diagram`)
+
+    det X = 0,   X(b, w, z) = I + b H(w) (A(w) + z O),   z = e^{-j w T},        (1)
+
+with H = J Z^-1 J^T the structure's FRF between the coupling-element (CE)
+coordinates, Z(w) = K - w^2 M + j w C, A = P + j w V and O the CE matrices at
+b = 1 m.  (By the matrix determinant lemma (1) is the loop condition of the
+lobe engine, det(I + z N(b)) = 0 with N = b V^T (I + b H A)^-1 H U, |nu| = 1
+for an eigenvalue nu of N, times the factor det(I + b H A), which does not
+vanish at a boundary point of the delayed loop: the two have the same zeros
+and, through them, the same implicit derivatives.)  At a boundary point one
+eigenvalue lambda of X is zero; for a simple eigenvalue with right and left
+eigenvectors u, y its derivative along any change dX is [1]
+
+    d lambda = y^H dX u / (y^H u).                                            (2)
+
+lambda(b, x, p) = 0 is one complex -- two real -- equations in the width b
+and one more real unknown x, so by the implicit function theorem
+
+    db/dp = -Im(lambda_p conj(lambda_x)) / Im(lambda_b conj(lambda_x)).        (3)
+
+Which x depends on the limit:
+
+* **b_lim at a speed** (fixed delay T): x = w, the chatter frequency, with
+  z = e^{-j w T} following it, lambda_x = lambda_w - j T z lambda_z; a field
+  that changes the process kinematics changes T at the same speed
+  (lambda_p gains lambda_T dT/dp, lambda_T = -j w z lambda_z);
+* **a minimum over speeds** -- the bottom of a lobe, the minimum over a
+  speed range when it lies inside the range, and the absolute minimum over
+  all speeds: min over T of b is a min over the branch b(w) with the phase
+  of z free, so by the envelope theorem db_min/dp is (3) at the minimiser
+  with x = theta, z = e^{j theta}, lambda_x = j z lambda_z, w held;
+* **a static root** (w = 0, z = 1): X is real and db/dp = -lambda_p / lambda_b.
+
+Every lambda_* is (2) of a closed-form dX: with the FRF factors
+G_R = Z^-1 J^T and G_L = J Z^-1,
+
+    dX/db = H (A + z O),   dX/dw|_z = b [H' (A + z O) + j H V],   dX/dz = b H O,
+    H' = -G_L (-2 w M + j C) G_R,
+    dX/dp = b [(dJ G_R + G_L dJ^T - G_L dZ G_R)(A + z O) + H (dP + j w dV + z dO)],
+    dZ = dK - w^2 dM + j w dC,
+
+so (3) is a *linear* function of the derivatives of the matrices,
+db/dp = sum over blocks of S_X : dX/dp, with real "sensitivity matrices"
+S_M, S_C, S_K, S_J, S_P, S_V, S_O, S_T computed once per critical point
+(:attr:`CriticalPoint.S`); a field then costs one elementwise product.
+
+References
+----------
+.. [1] J. H. Wilkinson, *The Algebraic Eigenvalue Problem*, Oxford, 1965,
+   ch. 2, sec. 5-10 (first-order perturbation of a simple eigenvalue).
+.. [2] J. Nocedal, S. J. Wright, *Numerical Optimization*, 2nd ed., Springer,
+   2006, sec. 12.8 (the envelope theorem / sensitivity of an optimal value).
+.. [3] T. Insperger, G. Stepan, *Semi-Discretization for Time-Delay
+   Systems*, Springer, 2011, sec. 1.3 (D-subdivision boundaries).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._matrices import LoopMatrices
+
+__all__ = ["CriticalPoint", "at_delay", "at_frequency", "branch_minimum", "static_point"]
+
+_EPS = float(np.finfo(float).eps)
+#: a second eigenvalue of X this close to 0 (relative to 1 = X's value without the cut):
+#: two boundaries coincide there and the limit has no derivative
+DEGENERATE = 1e-6
+
+
+@dataclass(frozen=True)
+class _Eval:
+    """X and the pieces of its derivatives at (b, w, z)."""
+
+    b: float
+    w: float
+    z: complex
+    GR: np.ndarray  # Z^-1 J^T (n, p)
+    GL: np.ndarray  # J Z^-1 (p, n)
+    H: np.ndarray  # (p, p)
+    A: np.ndarray  # P + j w V
+    lam: complex  # the eigenvalue of X nearest 0
+    second: float  # |second nearest|
+    y: np.ndarray  # left eigenvector (y^H X = lam y^H), scaled so that y^H u = 1
+    u: np.ndarray  # right eigenvector
+
+
+def _evaluate(L: LoopMatrices, b: float, w: float, z: complex) -> _Eval:
+    from scipy.linalg import eig
+
+    Z = L.K - w * w * L.M + 1j * w * L.C
+    GR = np.linalg.solve(Z, L.J.T.astype(complex))
+    GL = np.linalg.solve(Z.T, L.J.T.astype(complex)).T
+    H = L.J @ GR
+    A = L.P + 1j * w * L.V
+    X = np.eye(H.shape[0]) + b * H @ (A + z * L.O)
+    vals, vl, vr = eig(X, left=True, right=True)
+    order = np.argsort(np.abs(vals))
+    k = int(order[0])
+    u = vr[:, k]
+    y = vl[:, k]
+    yu = np.vdot(y, u)
+    second = float(np.abs(vals[order[1]])) if vals.size > 1 else np.inf
+    return _Eval(b, w, z, GR, GL, H, A, complex(vals[k]), second, y / np.conj(yu), u)
+
+
+def _d(e: _Eval, Y: np.ndarray) -> complex:
+    """(2): y^H Y u / (y^H u)."""
+    return complex(np.conj(e.y) @ Y @ e.u)
+
+
+def _lam_b(L: LoopMatrices, e: _Eval) -> complex:
+    return _d(e, e.H @ (e.A + e.z * L.O))
+
+
+def _lam_w(L: LoopMatrices, e: _Eval) -> complex:
+    """d lambda / dw at fixed z."""
+    Hw = -e.GL @ (-2 * e.w * L.M + 1j * L.C) @ e.GR
+    return e.b * _d(e, Hw @ (e.A + e.z * L.O) + 1j * e.H @ L.V)
+
+
+def _lam_z(L: LoopMatrices, e: _Eval) -> complex:
+    return e.b * _d(e, e.H @ L.O)
+
+
+@dataclass(frozen=True)
+class CriticalPoint:
+    """A point of the boundary where the limit is attained, with what its
+    derivative needs.
+
+    Attributes
+    ----------
+    kind : {"speed", "bottom", "static"}
+        b_lim at a fixed delay (x = w), a minimum over delays (x = theta,
+        the phase of z, with w held: envelope theorem), or a root at s = 0.
+    b, w, z, T
+        Width (m), chatter frequency (rad/s), z = e^{-j w T} on the unit
+        circle, the delay (s; nan for a minimum over delays).
+    index : int
+        The speed's index in the study's delays (kind "speed"), else -1.
+    residual : float
+        |lambda| at the point after Newton's method (of order 1e-15).
+    degenerate : bool
+        A second eigenvalue of X vanishes too: two boundaries meet here
+        (a symmetric structure), and the limit has no derivative.
+    S : LoopMatrices
+        The sensitivity matrices: db/dp = sum over blocks of S_X : dX/dp.
+    """
+
+    kind: str
+    b: float
+    w: float
+    z: complex
+    T: float
+    index: int
+    residual: float
+    degenerate: bool
+    S: LoopMatrices
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.w / (2 * np.pi)
+
+    def derivative(self, d: LoopMatrices) -> float:
+        """db/dp for the derivatives ``d`` of the loop's matrices, m per unit of p."""
+        if self.degenerate:
+            return float("nan")
+        return float(sum(np.sum(s * x) for s, x in zip(self.S.blocks(), d.blocks(), strict=True)))
+
+
+def _sensitivity_matrices(L: LoopMatrices, e: _Eval, kind: str, index: int, T: float) -> LoopMatrices:
+    """S of :class:`CriticalPoint` at an evaluated point (module docstring)."""
+    b, w, z = e.b, e.w, e.z
+    lb = _lam_b(L, e)
+    v1 = (e.A + z * L.O) @ e.u  # (A + z O) u
+    yH = np.conj(e.y)
+    r = yH @ e.GL  # y^H J Z^-1
+    s = e.GR @ v1  # Z^-1 J^T (A + z O) u
+    g = yH @ e.H  # y^H H
+    rs = np.outer(r, s)
+    G = {  # d lambda = b sum G_X : dX  (the part from each block)
+        "M": w * w * rs,
+        "C": -1j * w * rs,
+        "K": -rs,
+        "J": np.outer(yH, s) + np.outer(v1, r),
+        "P": np.outer(g, e.u),
+        "V": 1j * w * np.outer(g, e.u),
+        "O": z * np.outer(g, e.u),
+    }
+    lz = _lam_z(L, e)
+    GT = np.zeros(L.T.size, dtype=complex)
+    if kind == "static":
+        scale = -1.0 / lb.real
+        parts = {k: (b * v).real * scale for k, v in G.items()}
+        return LoopMatrices(**parts, T=GT.real)
+    if kind == "speed":
+        lx = _lam_w(L, e) + lz * (-1j * T * z)
+        if 0 <= index < GT.size:
+            GT[index] = lz * (-1j * w * z)  # lambda_T (already carries the factor b)
+    else:
+        lx = 1j * z * lz
+    den = float(np.imag(lb * np.conj(lx)))
+    parts = {k: -np.imag(b * v * np.conj(lx)) / den for k, v in G.items()}
+    return LoopMatrices(**parts, T=-np.imag(GT * np.conj(lx)) / den)
+
+
+def _newton(
+    L: LoopMatrices, b: float, x: float, z_of: object, lx_of: object, iters: int = 40
+) -> tuple[_Eval, float]:
+    """Newton's method on lambda(b, x) = 0 in the real unknowns (b, x)."""
+    e = None
+    for _ in range(iters):
+        w, z = z_of(x)  # type: ignore[operator]
+        e = _evaluate(L, b, w, z)
+        a = _lam_b(L, e)
+        c = lx_of(e, x)  # type: ignore[operator]
+        Jm = np.array([[a.real, c.real], [a.imag, c.imag]])
+        try:
+            db, dx = np.linalg.solve(Jm, [-e.lam.real, -e.lam.imag])
+        except np.linalg.LinAlgError:
+            break
+        # a Newton step is capped at 5 % of the width: it must stay on its branch
+        cap = 0.05 * abs(b)
+        if abs(db) > cap:
+            f = cap / abs(db)
+            db, dx = db * f, dx * f
+        b, x = b + db, x + dx
+        if abs(db) <= 4 * _EPS * abs(b) and abs(dx) <= 4 * _EPS * max(abs(x), 1.0):
+            break
+    w, z = z_of(x)  # type: ignore[operator]
+    e = _evaluate(L, b, w, z)
+    return e, x
+
+
+def at_delay(L: LoopMatrices, T: float, b: float, w: float, index: int = -1) -> CriticalPoint:
+    """The boundary point at delay T nearest (b, w), b_lim's critical point
+    at that speed (``index`` into ``L.T``, for a process field's dT/dp)."""
+
+    def z_of(x: float) -> tuple[float, complex]:
+        return x, complex(np.exp(-1j * x * T))
+
+    def lx_of(e: _Eval, x: float) -> complex:
+        return _lam_w(L, e) + _lam_z(L, e) * (-1j * T * e.z)
+
+    e, _ = _newton(L, b, w, z_of, lx_of)
+    return _point(L, e, "speed", index, T)
+
+
+def at_frequency(L: LoopMatrices, w: float, b: float, theta: float) -> _Eval:
+    """The boundary width at a fixed frequency w (the phase theta of z free),
+    from (b, theta)."""
+
+    def z_of(x: float) -> tuple[float, complex]:
+        return w, complex(np.exp(1j * x))
+
+    def lx_of(e: _Eval, x: float) -> complex:
+        return 1j * e.z * _lam_z(L, e)
+
+    e, _ = _newton(L, b, theta, z_of, lx_of)
+    return e
+
+
+def _slope(L: LoopMatrices, e: _Eval) -> float:
+    """db/dw along the branch with the phase of z free (the curve b(w))."""
+    lb, lw = _lam_b(L, e), _lam_w(L, e)
+    lt = 1j * e.z * _lam_z(L, e)
+    return float(-np.imag(lw * np.conj(lt)) / np.imag(lb * np.conj(lt)))
+
+
+def branch_minimum(L: LoopMatrices, b: float, w: float, z: complex, iters: int = 60) -> CriticalPoint:
+    """The local minimum of the branch b(w) through (b, w, z): db/dw = 0 by
+    the secant method on the exact slope (each trial frequency solved for
+    b and the phase by Newton's method)."""
+    theta = float(np.angle(z))
+    e0 = at_frequency(L, w, b, theta)
+    g0 = _slope(L, e0)
+    w1 = w * (1 + 1e-7)
+    e1 = at_frequency(L, w1, e0.b, float(np.angle(e0.z)))
+    g1 = _slope(L, e1)
+    w0 = w
+    for _ in range(iters):
+        if g1 == g0:
+            break
+        w2 = w1 - g1 * (w1 - w0) / (g1 - g0)
+        w2 = min(max(w2, w1 * 0.98), w1 * 1.02)  # small steps: stay on the branch near the start
+        e2 = at_frequency(L, w2, e1.b, float(np.angle(e1.z)))
+        w0, g0, e0 = w1, g1, e1
+        w1, g1, e1 = w2, _slope(L, e2), e2
+        if abs(w1 - w0) <= 8 * _EPS * w1:
+            break
+    return _point(L, e1, "bottom", -1, float("nan"))
+
+
+def static_point(L: LoopMatrices, b: float) -> CriticalPoint:
+    """A real root at s = 0 (w = 0, z = 1): Newton on the real eigenvalue."""
+    e = _evaluate(L, b, 0.0, 1.0 + 0j)
+    for _ in range(40):
+        lb = _lam_b(L, e).real
+        if lb == 0:
+            break
+        db = -e.lam.real / lb
+        b += db
+        e = _evaluate(L, b, 0.0, 1.0 + 0j)
+        if abs(db) <= 4 * _EPS * abs(b):
+            break
+    return _point(L, e, "static", -1, float("nan"))
+
+
+def _point(L: LoopMatrices, e: _Eval, kind: str, index: int, T: float) -> CriticalPoint:
+    S = _sensitivity_matrices(L, e, kind, index, T)
+    return CriticalPoint(kind, e.b, e.w, e.z, T, index, abs(e.lam), e.second < DEGENERATE, S)

@@ -1,0 +1,183 @@
+"""Which model fields a design study varies, their values and units.
+
+A field is addressed by its parameter path (``spring.holder.c1``,
+``beam.table.I``, ``coupling.cut.Kf``; docs/model-format.md, "parameter
+paths"), the same paths ``Model.with_parameter``, ``--set`` and the sweep
+engine use.  :func:`design_fields` lists the default set of a model: every
+number written in the file for a body, beam, spring, coupling, absorber or
+mode, and the damping of every joint direction that has a stiffness (a
+designer's "damp this joint" is a field the file leaves at its default 0).
+Geometry (centres, offsets, distances, angles), reference widths and the
+process kinematics are not in the default set: their paths may be given
+explicitly.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+from ..errors import InputError
+from ..model import Model
+
+__all__ = ["design_fields", "field_value", "field_unit"]
+
+#: the fields of each list table a design study varies by default (when the file writes them)
+_DESIGN = {
+    "body": ("mass", "inertia"),
+    "beam": ("E", "G", "nu", "rho", "A", "I", "kappa", "eta"),
+    "spring": ("c1", "c2", "c6", "d1", "d2", "d6"),
+    "absorber": ("mass", "stiffness", "frequency_hz", "damping", "damping_ratio"),
+    "mode": ("frequency_hz", "damping_ratio", "stiffness", "mass"),
+}
+#: coupling fields that are geometry or a reference, not a cutting coefficient
+_NOT_COEFFICIENTS = ("width_ref", "angle_deg", "force_angle_deg", "normal_angle_deg")
+
+#: units of the fields, by (kind, field); "1" for a ratio
+_UNITS = {
+    ("body", "mass"): "kg",
+    ("body", "inertia"): "kg m^2",
+    ("beam", "E"): "Pa",
+    ("beam", "G"): "Pa",
+    ("beam", "nu"): "1",
+    ("beam", "rho"): "kg/m^3",
+    ("beam", "A"): "m^2",
+    ("beam", "I"): "m^4",
+    ("beam", "kappa"): "1",
+    ("beam", "eta"): "N s/m^2",
+    ("spring", "c1"): "N/m",
+    ("spring", "c2"): "N/m",
+    ("spring", "c6"): "N m/rad",
+    ("spring", "d1"): "N s/m",
+    ("spring", "d2"): "N s/m",
+    ("spring", "d6"): "N m s/rad",
+    ("spring", "angle_deg"): "deg",
+    ("coupling", "Kf"): "N/m^2",
+    ("coupling", "Kv"): "N s/m^2",
+    ("coupling", "width_ref"): "m",
+    ("coupling", "angle_deg"): "deg",
+    ("coupling", "force_angle_deg"): "deg",
+    ("coupling", "normal_angle_deg"): "deg",
+    ("absorber", "mass"): "kg",
+    ("absorber", "stiffness"): "N/m",
+    ("absorber", "frequency_hz"): "Hz",
+    ("absorber", "damping"): "N s/m",
+    ("absorber", "damping_ratio"): "1",
+    ("absorber", "angle_deg"): "deg",
+    ("mode", "frequency_hz"): "Hz",
+    ("mode", "damping_ratio"): "1",
+    ("mode", "stiffness"): "N/m",
+    ("mode", "mass"): "kg",
+    ("process", "return_speed"): "m/s",
+    ("process", "run_in"): "m",
+    ("process", "cut"): "m",
+    ("process", "coast"): "m",
+    ("process", "delay"): "s",
+}
+#: defaults of fields a file may leave out (docs/model-format.md), by (kind, field)
+_DEFAULTS = {
+    ("spring", "c1"): 0.0,
+    ("spring", "c2"): 0.0,
+    ("spring", "c6"): 0.0,
+    ("spring", "d1"): 0.0,
+    ("spring", "d2"): 0.0,
+    ("spring", "d6"): 0.0,
+    ("spring", "angle_deg"): 0.0,
+    ("beam", "kappa"): 5.0 / 6.0,
+    ("beam", "eta"): 0.0,
+    ("coupling", "angle_deg"): 0.0,
+    ("coupling", "force_angle_deg"): 0.0,
+    ("coupling", "normal_angle_deg"): 0.0,
+    ("coupling", "Kv"): 0.0,
+    ("absorber", "damping"): 0.0,
+}
+
+
+def _raw(model: Model) -> dict[str, Any]:
+    return dict(json.loads(model.raw)) if model.raw else {}
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(float(v))
+
+
+def design_fields(model: Model) -> list[str]:
+    """The default fields of a design study of ``model`` (module docstring),
+    in file order."""
+    raw = _raw(model)
+    out: list[str] = []
+    for kind in ("body", "beam", "spring", "coupling", "absorber", "mode"):
+        items = raw.get(kind, [])
+        for it in items if isinstance(items, list) else []:
+            if not isinstance(it, dict) or "id" not in it:
+                continue
+            iid = it["id"]
+            if kind == "coupling":
+                names = [k for k, v in it.items() if _number(v) and k not in _NOT_COEFFICIENTS]
+            else:
+                names = [k for k in _DESIGN[kind] if _number(it.get(k))]
+            if kind == "spring":  # the damping of every direction that has a stiffness
+                names += [f"d{j}" for j in (1, 2, 6) if _number(it.get(f"c{j}")) and f"d{j}" not in it]
+            out += [f"{kind}.{iid}.{k}" for k in names]
+    return out
+
+
+def _split(path: str) -> tuple[str, str | None, str]:
+    parts = str(path).split(".")
+    if len(parts) == 3:
+        return parts[0], parts[1], parts[2]
+    if len(parts) == 2:
+        return parts[0], None, parts[1]
+    raise InputError(
+        f"field '{path}' is not a parameter path: write KIND.ID.FIELD (e.g. spring.holder.c1) or"
+        " TABLE.FIELD (e.g. process.return_speed)"
+    )
+
+
+def field_value(model: Model, path: str) -> float:
+    """The number a field holds in ``model`` (its default when the file
+    leaves it out); an :class:`InputError` naming the field when it is not a
+    number of the model."""
+    kind, iid, name = _split(path)
+    raw = _raw(model)
+    if iid is None:
+        table = raw.get(kind)
+        value = table.get(name) if isinstance(table, dict) else None
+        where = f"[{kind}]"
+    else:
+        items = raw.get(kind, [])
+        item = next(
+            (
+                it
+                for it in (items if isinstance(items, list) else [])
+                if isinstance(it, dict) and it.get("id") == iid
+            ),
+            None,
+        )
+        if item is None:
+            known = (
+                [str(it.get("id")) for it in items if isinstance(it, dict)] if isinstance(items, list) else []
+            )
+            raise InputError(
+                f"field '{path}': {model.source} has no [[{kind}]] with id '{iid}'"
+                f" (known: {', '.join(known) or 'none'}); check the path"
+            )
+        value = item.get(name, _DEFAULTS.get((kind, name)))
+        where = f'[[{kind}]] "{iid}"'
+    if value is None:
+        raise InputError(
+            f"field '{path}': {where} of {model.source} has no field '{name}' and it has no default;"
+            " write it in the file or choose another field"
+        )
+    if not _number(value):
+        raise InputError(
+            f"field '{path}' is not a number (got {value!r}); a sensitivity needs a numeric field"
+        )
+    return float(value)
+
+
+def field_unit(path: str) -> str:
+    """The field's unit (``""`` when not known: a matrix entry's or a coefficient's)."""
+    kind, _, name = _split(path)
+    return _UNITS.get((kind, name), "")

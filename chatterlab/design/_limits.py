@@ -1,0 +1,137 @@
+"""The critical points of a lobe diagram, polished on the loop's matrices:
+b_lim at each speed, the minimum over the speed range, the absolute
+minimum over all speeds, and every lobe bottom in the range
+(:class:`Limits`).  The lobe engine (:func:`chatterlab.lobes.lobes`) finds
+them; here each is solved again to round-off on the equation of
+:mod:`chatterlab.design._critical`, which is the one its derivatives come
+from.
+
+The minimum over a speed range [v1, v2] is either a lobe bottom inside the
+range -- a local minimum of its branch b(w), the same for every lobe k of
+the branch, at the delay T = (2 pi k - arg z) / w -- or the limit at an end
+of the range (a lobe that falls towards the end): the grid minimum of the
+diagram is polished to the bottom of its lobe, and if that bottom's delay is
+outside the range, to the nearer end.  A cusp (two lobes crossing) is a
+local maximum of the envelope, never its minimum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ._critical import CriticalPoint, at_delay, branch_minimum, static_point
+from ._matrices import LoopMatrices
+
+__all__ = ["Limits", "limits_of", "lobe_bottoms"]
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Critical points of one diagram (None where the limit is inf)."""
+
+    speeds: tuple[CriticalPoint | None, ...]
+    minimum: CriticalPoint | None
+    minimum_speed: float  #: speed (process unit) of the minimum over the range
+    minimum_at: str  #: "bottom" (a lobe bottom inside the range), "end" (a range end), "static", "" (inf)
+    absolute: CriticalPoint | None
+
+
+def _z_of(H: np.ndarray, L: LoopMatrices, b: float, w: float) -> complex:
+    """The z on (nearest to) the unit circle with det(I + b H (A + z O)) = 0,
+    from the pencil (I + b H A) v = -z (b H O) v."""
+    from scipy.linalg import eigvals
+
+    A = L.P + 1j * w * L.V
+    lhs = np.eye(H.shape[0]) + b * H @ A
+    rhs = -b * H @ L.O
+    z = eigvals(lhs, rhs)
+    z = z[np.isfinite(z) & (z != 0)]
+    if z.size == 0:
+        raise InputError("the boundary point has no delayed root: the coupling elements have no delayed term")
+    return complex(z[np.argmin(np.abs(np.log(np.abs(z))))])
+
+
+def _H(L: LoopMatrices, w: float) -> np.ndarray:
+    Z = L.K - w * w * L.M + 1j * w * L.C
+    return np.asarray(L.J @ np.linalg.solve(Z, L.J.T.astype(complex)))
+
+
+def limits_of(diagram: Any, L: LoopMatrices, *, speeds: bool = True) -> Limits:
+    """The polished critical points of ``diagram`` (a
+    :class:`chatterlab.lobes.LobeDiagram` computed by D-subdivision) on the
+    loop's matrices ``L`` (whose ``T`` are the diagram's delays).
+    ``speeds=False`` skips the per-speed points (only the minima)."""
+    T = np.asarray(diagram.delay, dtype=float)
+    b = np.asarray(diagram.b_lim, dtype=float)
+    f = np.asarray(diagram.chatter_hz, dtype=float)
+    pts: list[CriticalPoint | None] = [None] * T.size
+
+    def at(j: int) -> CriticalPoint | None:
+        if pts[j] is None and np.isfinite(b[j]):
+            pts[j] = static_point(L, b[j]) if f[j] == 0 else at_delay(L, T[j], b[j], 2 * np.pi * f[j], j)
+        return pts[j]
+
+    if speeds:
+        for j in range(T.size):
+            at(j)
+    # the minimum over the range
+    minimum, where, vmin = None, "", float("nan")
+    if np.any(np.isfinite(b)):
+        j = int(np.nanargmin(b))
+        cp = at(j)
+        assert cp is not None
+        if cp.kind == "static":
+            minimum, where, vmin = cp, "static", float(diagram.speed[j])
+        else:
+            bottom = branch_minimum(L, cp.b, cp.w, cp.z)
+            k = np.round((bottom.w * T[j] + np.angle(bottom.z)) / (2 * np.pi))
+            Tb = (2 * np.pi * k - np.angle(bottom.z)) / bottom.w
+            lo, hi = int(np.argmin(T)), int(np.argmax(T))
+            if T[lo] <= Tb <= T[hi]:
+                minimum, where = bottom, "bottom"
+                vmin = float(diagram.speed_of(Tb))
+            else:
+                end = at(lo if Tb < T[lo] else hi)
+                minimum, where = end, "end"
+                vmin = float(diagram.speed[lo if Tb < T[lo] else hi])
+    absolute = _absolute(diagram, L)
+    return Limits(tuple(pts), minimum, vmin, where, absolute)
+
+
+def _absolute(diagram: Any, L: LoopMatrices) -> CriticalPoint | None:
+    a = diagram.absolute_minimum
+    width, fa = float(a["width"]), float(a["chatter_hz"])
+    if not np.isfinite(width):
+        return None
+    if fa == 0:
+        return static_point(L, width)
+    w = 2 * np.pi * fa
+    z = _z_of(_H(L, w), L, width, w)
+    return branch_minimum(L, width, w, z)
+
+
+def lobe_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[CriticalPoint]:
+    """Every distinct local minimum of the boundary's branches that a lobe
+    of ``diagram`` shows as an interior minimum (each polished by
+    :func:`~chatterlab.design._critical.branch_minimum`), lowest first;
+    minima closer than ``rel`` in frequency are one."""
+    found: list[CriticalPoint] = []
+    for lobe in diagram.lobes:
+        wd = np.asarray(lobe.width, dtype=float)
+        fr = np.asarray(lobe.frequency_hz, dtype=float)
+        if wd.size < 3:
+            continue
+        inner = np.nonzero((wd[1:-1] <= wd[:-2]) & (wd[1:-1] <= wd[2:]))[0] + 1
+        for i in inner:
+            w = 2 * np.pi * fr[i]
+            if w <= 0 or any(abs(cp.w - w) <= 1e-3 * w for cp in found):
+                continue
+            z = _z_of(_H(L, w), L, wd[i], w)
+            cp = branch_minimum(L, wd[i], w, z)
+            if not any(abs(c.w - cp.w) <= rel * cp.w for c in found):
+                found.append(cp)
+    return sorted(found, key=lambda c: c.b)
