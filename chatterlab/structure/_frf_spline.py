@@ -68,7 +68,9 @@ def spline_values(sp: Any, x: np.ndarray, H: np.ndarray, w: np.ndarray, inside: 
     return out
 
 
-def spline_error(x: np.ndarray, H: np.ndarray, slope: np.ndarray, w: np.ndarray, inside: np.ndarray) -> np.ndarray:
+def spline_error(
+    x: np.ndarray, H: np.ndarray, slope: np.ndarray, w: np.ndarray, inside: np.ndarray
+) -> np.ndarray:
     """The leading-order spline error over the interval holding each w
     (n_w, n_out, n_in); ``slope``: :func:`slope_errors`."""
     n = x.size
