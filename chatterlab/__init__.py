@@ -26,8 +26,8 @@ if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, 
     from .frequency import Stability, frequencies, frf, loop_determinant, stability
     from .lobes import LobeDiagram
     from .model import Model, load_model, loads_model
-    from .process import Feedback, feedback
-    from .structure import FRF, CouplingMatrices, FrozenSystem, Modes, System, assemble, modes
+    from .process import ClosedLoop, closed_loop, milling_loop
+    from .structure import FRF, FrozenSystem, Modes, Structure, System, assemble, modes
     from .sweep import Grid, SweepResult
     from .time import Simulation, simulate
 
@@ -38,9 +38,9 @@ _HOME = {
     **dict.fromkeys(("Stability", "frequencies", "frf", "loop_determinant", "stability"), "frequency"),
     "LobeDiagram": "lobes",
     **dict.fromkeys(("Model", "load_model", "loads_model"), "model"),
-    **dict.fromkeys(("Feedback", "feedback"), "process"),
+    **dict.fromkeys(("ClosedLoop", "closed_loop", "milling_loop"), "process"),
     **dict.fromkeys(
-        ("FRF", "CouplingMatrices", "FrozenSystem", "Modes", "System", "assemble", "modes"), "structure"
+        ("FRF", "FrozenSystem", "Modes", "Structure", "System", "assemble", "modes"), "structure"
     ),
     **dict.fromkeys(("Grid", "SweepResult"), "sweep"),
     **dict.fromkeys(("Simulation", "simulate"), "time"),
@@ -91,7 +91,7 @@ __all__ = [
     "loads_model",
     "System",
     "FrozenSystem",
-    "CouplingMatrices",
+    "Structure",
     "assemble",
     # analyses and their results
     "Modes",
@@ -100,8 +100,9 @@ __all__ = [
     "frf",
     "frequencies",
     "loop_determinant",
-    "Feedback",
-    "feedback",
+    "ClosedLoop",
+    "closed_loop",
+    "milling_loop",
     "Stability",
     "stability",
     "LobeDiagram",

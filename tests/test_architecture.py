@@ -230,11 +230,11 @@ def test_every_public_name_resolves_to_its_subpackage_object():
     code = (
         "import chatterlab as cl\n"
         "print(cl.frequency.frf.__name__, cl.time.simulate.__name__, cl.model.load_model.__name__,"
-        " cl.structure.assemble.__name__, cl.process.feedback.__name__, cl.io.read_netcdf.__name__,"
+        " cl.structure.assemble.__name__, cl.process.closed_loop.__name__, cl.io.read_netcdf.__name__,"
         " cl.quantities.__name__, cl.plot.__name__)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.split() == ["frf", "simulate", "load_model", "assemble", "feedback", "read_netcdf",
+    assert out.split() == ["frf", "simulate", "load_model", "assemble", "closed_loop", "read_netcdf",
                            "chatterlab.quantities", "chatterlab.plot"]  # fmt: skip
     assert chatterlab._SUBPACKAGES <= set(dir(chatterlab))
     assert set(chatterlab._HOME) <= set(chatterlab.__all__)

@@ -108,7 +108,7 @@ def test_invalid_grid_axis_is_refused_before_anything_runs(capsys, tmp_path, spe
 
 def test_library_entry_points_share_the_checks(turning):
     import chatterlab as cl
-    from chatterlab.process._cutting import delay_for
+    from chatterlab.process import delay_for
     from chatterlab.process._kinematics import kinematics_for
     from chatterlab.quantities._tasks import AtlasTask, QuantityTask
 

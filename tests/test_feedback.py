@@ -1,4 +1,4 @@
-"""The cutting process as feedback (chatterlab.process._cutting) against the paper.
+"""The cutting process as feedback in the closed loop (chatterlab.process._loop) against the paper.
 
 Oracles: Eqs. 3.7-3.9 with the Table 3 coefficients ("grasso" CE of the
 traverse shaper), the definition D(s) = -(b/b_ref) J^T Dl(s) J of Eq. 2.23
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import chatterlab as cl
-from chatterlab.process._cutting import Feedback, delay_for, feedback
+from chatterlab.process import ClosedLoop, closed_loop, delay_for
 
 # Table 3 (b = 2 mm)
 K1, K2, K3, K4, K5, K6, K7, K8 = 625.4, 2097.0, 3.8e6, -703.0, 1.6e6, 1355.0, 3.8e6, 1.6e6
@@ -80,7 +80,7 @@ def test_shaper_ce_matrices_are_eqs_3_7_to_3_9(shaper):
     np.testing.assert_array_equal(cm.DP, DP_PAPER)
     np.testing.assert_array_equal(cm.DO, DO_PAPER)
     np.testing.assert_array_equal(cm.forces, [3260.0, 1240.0, 0.0])  # F_z, F_y (Eq. 3.10)
-    fb = feedback(shaper, width=0.002, speed=0.5, terms="pdo")
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms="pdo")
     np.testing.assert_array_equal(fb.Dl_V, DV_PAPER)
     np.testing.assert_array_equal(fb.Dl_P, DP_PAPER)
     np.testing.assert_array_equal(fb.Dl_O, DO_PAPER)
@@ -91,11 +91,11 @@ def test_shaper_ce_scales_linearly_with_width(shaper, b):
     """Every matrix and the static force scale with b/b_ref (one product:
     1e-15 relative)."""
     f = b / 0.002
-    fb = feedback(shaper, width=b, speed=0.5, terms="pdo")
+    fb = closed_loop(shaper, width=b, speed=0.5, terms="pdo")
     np.testing.assert_allclose(fb.Dl_V, f * DV_PAPER, rtol=1e-15, atol=0)
     np.testing.assert_allclose(fb.Dl_P, f * DP_PAPER, rtol=1e-15, atol=0)
     np.testing.assert_allclose(fb.Dl_O, f * DO_PAPER, rtol=1e-15, atol=0)
-    ref = feedback(shaper, width=0.002, speed=0.5, terms="pdo")
+    ref = closed_loop(shaper, width=0.002, speed=0.5, terms="pdo")
     for X, Xr in ((fb.DP, ref.DP), (fb.DV, ref.DV), (fb.DO, ref.DO)):
         np.testing.assert_allclose(X, f * Xr, rtol=1e-14, atol=1e-14 * np.abs(Xr).max())
     np.testing.assert_allclose(fb.force, f * ref.force, rtol=1e-14, atol=1e-12)
@@ -107,7 +107,7 @@ def test_global_feedback_is_minus_Jt_Dl_J(shaper):
     relative displacement tool - rfe5 in CE axes (angle 0: global axes),
     built here from the point maps.  J^T X J sums over the CE coordinates:
     1e-12 of the largest entry (measured: identical, the same products)."""
-    fb = feedback(shaper, width=0.002, speed=0.5, terms="pdo")
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms="pdo")
     J = shaper.point("tool") - shaper.point("rfe5")
     np.testing.assert_allclose(fb.J, J, rtol=0, atol=1e-14)
     scale = np.abs(fb.DP).max()
@@ -128,18 +128,10 @@ def test_global_feedback_is_minus_Jt_Dl_J(shaper):
     np.testing.assert_allclose(fb.force, J.T @ np.array([3260.0, 1240.0, 0.0]), rtol=1e-14, atol=1e-9)
 
 
-def test_coupling_global_feedback_matches(shaper):
-    """CouplingMatrices.global_feedback gives the same three matrices."""
-    (cm,) = shaper.couplings()
-    fb = feedback(shaper, width=0.003, speed=0.5)
-    for X, Y in zip(cm.global_feedback(0.003), (fb.DP, fb.DV, fb.DO), strict=True):
-        np.testing.assert_allclose(X, Y, rtol=1e-14, atol=1e-14 * np.abs(Y).max())
-
-
 def test_delayed_matrix_is_rank_one_and_factored(shaper):
     """Only the chip thickness is regenerated: D_O has rank 1 and the factors
     satisfy U V^T = D_O, both to round-off bounds derived below."""
-    fb = feedback(shaper, width=0.002, speed=0.5, terms="pdo")
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms="pdo")
     assert fb.U.shape == (shaper.n, 1) and fb.V.shape == (shaper.n, 1)
     eps, k = np.finfo(float).eps, fb.J.shape[0]
     # D_O = -J^T O J with O = Dl_O of rank one: the computed O (one rounding
@@ -166,8 +158,8 @@ def test_delayed_matrix_is_rank_one_and_factored(shaper):
 def test_terms_switch_the_paper_cases(shaper, terms, on):
     """Cases (a) none, (b) pd, (c) pdo, and delayed-only: the switched-off
     matrices are zero, the others as in case (c)."""
-    full = feedback(shaper, width=0.002, speed=0.5, terms="pdo")
-    fb = feedback(shaper, width=0.002, speed=0.5, terms=terms)
+    full = closed_loop(shaper, width=0.002, speed=0.5, terms="pdo")
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms=terms)
     for key, X, Xf in (("P", fb.DP, full.DP), ("V", fb.DV, full.DV), ("O", fb.DO, full.DO)):
         if key in on:
             np.testing.assert_array_equal(X, Xf)
@@ -190,7 +182,7 @@ def test_regenerative_preset(fa, na):
     unit width, so the result does not depend on width_ref (1e-14)."""
     kf, kv, b = 2.0e9, 3.0e5, 1.3e-3
     fz = cl.assemble(cl.loads_model(regenerative_text(fa, na, kf, kv))).at()
-    fb = feedback(fz, width=b, delay=0.02, terms="pdo")
+    fb = closed_loop(fz, width=b, delay=0.02, terms="pdo")
     f = np.array([np.cos(np.radians(fa)), np.sin(np.radians(fa)), 0.0])
     n = np.array([np.cos(np.radians(na)), np.sin(np.radians(na)), 0.0])
     ref = kf * b * np.outer(f, n)
@@ -210,7 +202,7 @@ def test_regenerative_sdof_equation_of_motion():
     on tool.x and nothing else."""
     fz = cl.assemble(cl.loads_model(regenerative_text(0.0, 0.0))).at()
     b = 0.4e-3
-    fb = feedback(fz, width=b, delay=0.02)
+    fb = closed_loop(fz, width=b, delay=0.02)
     kfb = 2.0e9 * b
     ix = fz.names.index("tool.x")
     assert fb.DP[ix, ix] == pytest.approx(-kfb, rel=1e-15)
@@ -227,22 +219,22 @@ def test_shaping_delay_is_one_stroke_cycle(shaper):
     proc = shaper.model.process
     L = proc.run_in + proc.cut + proc.coast
     assert L == pytest.approx(0.6, rel=1e-15)
-    assert feedback(shaper, width=0.002, speed=0.5).delay == pytest.approx(1.5, rel=1e-15)
+    assert closed_loop(shaper, width=0.002, speed=0.5).delay == pytest.approx(1.5, rel=1e-15)
     assert delay_for(proc, speed=0.5) == pytest.approx(1.5, rel=1e-15)
     for v in (0.1, 0.25, 1.0, 3.0):
         assert delay_for(proc, speed=v) == pytest.approx(L / v + L / 2.0, rel=1e-15)
         assert proc.speed_for_delay(delay_for(proc, speed=v)) == pytest.approx(v, rel=1e-14)
     # the default speed is the file's (0.5 m/s), an explicit delay wins
     assert delay_for(proc) == pytest.approx(1.5, rel=1e-15)
-    assert feedback(shaper, width=0.002, delay=0.7).delay == 0.7
+    assert closed_loop(shaper, width=0.002, delay=0.7).delay == 0.7
     assert proc.min_delay == pytest.approx(0.3, rel=1e-15)
 
 
 @pytest.mark.parametrize("rpm", [60.0, 1000.0, 3000.0, 12345.0])
 def test_turning_delay_is_one_revolution(rpm):
     fz = cl.assemble(cl.loads_model(regenerative_text())).at()
-    assert feedback(fz, width=1e-3, speed=rpm).delay == pytest.approx(60.0 / rpm, rel=1e-15)
-    assert feedback(fz, width=1e-3).delay == pytest.approx(0.02, rel=1e-15)  # the file's 3000 rpm
+    assert closed_loop(fz, width=1e-3, speed=rpm).delay == pytest.approx(60.0 / rpm, rel=1e-15)
+    assert closed_loop(fz, width=1e-3).delay == pytest.approx(0.02, rel=1e-15)  # the file's 3000 rpm
 
 
 # ----------------------------------------------------------------------------- bad input
@@ -251,7 +243,7 @@ def test_turning_delay_is_one_revolution(rpm):
 @pytest.mark.parametrize("width", [0.0, -1e-3, float("nan"), float("inf"), "2", True])
 def test_bad_width(shaper, width):
     with pytest.raises(cl.InputError, match="width"):
-        feedback(shaper, width=width, speed=0.5)
+        closed_loop(shaper, width=width, speed=0.5)
 
 
 @pytest.mark.parametrize(
@@ -259,16 +251,16 @@ def test_bad_width(shaper, width):
 )
 def test_bad_delay_or_speed(shaper, kw):
     with pytest.raises(cl.InputError, match="delay|speed"):
-        feedback(shaper, width=0.002, **kw)
+        closed_loop(shaper, width=0.002, **kw)
 
 
 def test_other_bad_arguments(shaper):
     with pytest.raises(cl.InputError, match="either speed or delay"):
-        feedback(shaper, width=0.002, speed=0.5, delay=1.5)
+        closed_loop(shaper, width=0.002, speed=0.5, delay=1.5)
     with pytest.raises(cl.InputError, match="terms"):
-        feedback(shaper, width=0.002, speed=0.5, terms="pid")
+        closed_loop(shaper, width=0.002, speed=0.5, terms="pid")
     with pytest.raises(cl.InputError, match="unknown coupling 'chip'"):
-        feedback(shaper, width=0.002, speed=0.5, couplings=["chip"])
+        closed_loop(shaper, width=0.002, speed=0.5, couplings=["chip"])
 
 
 def test_model_without_coupling_or_process():
@@ -278,13 +270,13 @@ def test_model_without_coupling_or_process():
     no_coupling = text.split("[[coupling]]")[0] + '[process]\nkind = "turning"\nrpm = 3000.0\n'
     fz = cl.assemble(cl.loads_model(no_coupling)).at()
     with pytest.raises(cl.InputError, match=r"no \[\[coupling\]\]"):
-        feedback(fz, width=1e-3, delay=0.01)
+        closed_loop(fz, width=1e-3, delay=0.01)
     no_process = text.split("[process]")[0]
     fz = cl.assemble(cl.loads_model(no_process)).at()
     with pytest.raises(cl.InputError, match=r"no \[process\]"):
-        feedback(fz, width=1e-3, speed=3000.0)
+        closed_loop(fz, width=1e-3, speed=3000.0)
     with pytest.raises(cl.InputError, match="needs a delay"):
-        feedback(fz, width=1e-3)
+        closed_loop(fz, width=1e-3)
     # without the delayed term no delay is needed
-    fb = feedback(fz, width=1e-3, terms="pd")
-    assert isinstance(fb, Feedback) and fb.delay is None
+    fb = closed_loop(fz, width=1e-3, terms="pd")
+    assert isinstance(fb, ClosedLoop) and fb.delay is None

@@ -197,9 +197,9 @@ def test_unstable_delay_free_loop_with_long_delay_is_answered_fast(shaper_path):
     assert st.verdict == "unstable" and st.abscissa > 1000.0
     # the root is a root: |det Delta| relative to its scale is round-off
     from chatterlab.frequency import make_system
-    from chatterlab.process import feedback
+    from chatterlab.process import closed_loop
 
-    fb = feedback(fz, width=200.0, speed=0.5)
+    fb = closed_loop(fz, width=200.0, speed=0.5)
     sys_ = make_system(fz.A, fz.B, fz.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=fb.delay)
     # the reported abscissa is a root: the smallest singular value of
     # Delta(lambda) at the best root near it is round-off of its largest

@@ -30,7 +30,7 @@ from chatterlab.frequency._roots import make_system
 from chatterlab.frequency._stability import stability
 from chatterlab.frequency._winding import rhp_count
 from chatterlab.lobes._diagram import lobes
-from chatterlab.process._cutting import feedback
+from chatterlab.process import closed_loop
 
 REL = 1e-6
 
@@ -44,7 +44,7 @@ def _abscissa(frozen, b: float, T: float) -> float:
 
 
 def _rhp(frozen, b: float, T: float, terms: str = "pdo") -> int:
-    fb = feedback(frozen, width=b, delay=T, terms=terms)
+    fb = closed_loop(frozen, width=b, delay=T, terms=terms)
     w = rhp_count(make_system(frozen.A, frozen.B, frozen.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T))
     assert w.status == "converged", w.message
     return w.count

@@ -17,7 +17,7 @@ from chatterlab.errors import UnitWarning
 from chatterlab.frequency import multipliers
 from chatterlab.frequency._floquet_sdm import matched_change, sdm_multipliers
 from chatterlab.lobes import lobes, milling_loop_of
-from chatterlab.process._cutting import feedback
+from chatterlab.process import closed_loop
 from chatterlab.structure import FRF
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,4 +128,4 @@ def test_lobes_own_checks_raise_no_unit_warning():
     assert np.nanmin(d.b_lim) > 0.1
     assert not [w for w in got if issubclass(w.category, UnitWarning)], [str(w.message) for w in got]
     with pytest.warns(UnitWarning, match="did you mean"):  # a user's width still warns
-        feedback(fz, width=0.5, delay=0.02)
+        closed_loop(fz, width=0.5, delay=0.02)

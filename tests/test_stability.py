@@ -28,7 +28,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 import chatterlab as cl
 from chatterlab.frequency._stability import MARGINAL_TOL, Stability, stability
-from chatterlab.process._cutting import feedback
+from chatterlab.process import closed_loop
 
 M, K, ZETA, KF = 1.0, 1.0e7, 0.03, 2.0e9
 C = float(2 * ZETA * np.sqrt(K * M))
@@ -253,7 +253,7 @@ def oriented_minimum(fz: cl.FrozenSystem) -> float:
     """K_f min over w of Re[n^T H(jw) f] (1/m) for the rank-1 CE, refined by
     bounded Brent around the best of a log grid (relative accuracy ~1e-8,
     far finer than the 0.8 factor it is used with)."""
-    fb = feedback(fz, width=1.0, delay=1.0)
+    fb = closed_loop(fz, width=1.0, delay=1.0)
     # at b = 1 m the CE matrix is Dl_P = K_f f n^T (|f| = |n| = 1): its SVD
     # gives K_f and the two directions (signs cancel in f n^T); the oriented
     # receptance is Phi = n^T J G J^T f

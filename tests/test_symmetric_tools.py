@@ -43,7 +43,7 @@ from chatterlab.frequency._roots import make_system
 from chatterlab.frequency._stability import stability
 from chatterlab.frequency._winding import rhp_count
 from chatterlab.lobes._diagram import lobes
-from chatterlab.process._cutting import feedback
+from chatterlab.process import closed_loop
 
 K = 1.0e7  # N/m
 ZETA = 0.02
@@ -167,7 +167,7 @@ def _frozen(text: str) -> cl.FrozenSystem:
 
 
 def _rhp(fz: cl.FrozenSystem, b: float, T: float):
-    fb = feedback(fz, width=b, delay=T)
+    fb = closed_loop(fz, width=b, delay=T)
     return rhp_count(make_system(fz.A, fz.B, fz.C, DP=fb.DP, DV=fb.DV, DO=(fb.U, fb.V), tau=T))
 
 

@@ -7,14 +7,19 @@ python-control structures (``_control``), a measured FRF as the structure
 (``_measured``), milling lobes by Floquet multipliers (``_milling``,
 ``_milling_search``, a model file in their terms: ``_milling_model``).
 
-The diagram is computed by :func:`lobes` (``from chatterlab.lobes import lobes``).
+The diagram is computed by :func:`lobes` (``from chatterlab.lobes import lobes``,
+or ``chatterlab.lobes(...)``: the subpackage is callable), the one entry point
+for every structure and process (``_entry``).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from ._confirm import Confirmation, confirm
 from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_lti, lti_plant
-from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary, lobes
+from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary
+from ._entry import lobes
 from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
 from ._milling import milling_lobes, zoa_plant
 from ._milling_model import Reduction, is_milling, milling_loop_of, milling_of, reduce_structure
@@ -46,3 +51,14 @@ __all__ = [
     "milling_lobes",
     "zoa_plant",
 ]
+
+
+class _CallableModule(__import__("types").ModuleType):
+    """``chatterlab.lobes(...)`` is :func:`lobes`: the subpackage and its entry
+    point share a name, and the call reads as the style guide writes it."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> LobeDiagram:
+        return lobes(*args, **kwargs)
+
+
+__import__("sys").modules[__name__].__class__ = _CallableModule

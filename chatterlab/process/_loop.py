@@ -49,6 +49,7 @@ __all__ = [
     "closed_loop_unwarned",
     "milling_loop",
     "coupling_matrix",
+    "ce_maps",
     "delay_for",
     "TERMS",
 ]
@@ -403,8 +404,6 @@ def closed_loop_unwarned(
     argument-principle checks just above and below b_lim, at its width
     ceiling), which no user typed.  The unit warning belongs at the user's
     edge only: :func:`closed_loop` and the analyses that take a user's width."""
-    from ._cutting import ce_maps
-
     if terms not in TERMS:
         raise InputError(f"terms must be one of {', '.join(TERMS)} (got {terms!r})")
     width = check_width(width)
@@ -430,3 +429,44 @@ def closed_loop_unwarned(
     if np.any(O) and T is None:
         raise InputError("the delayed feedback term needs a delay: give speed or delay")
     return ClosedLoop(frozen.structure, J, P, V, O, J.T @ F, float(width), T, terms, frozen)
+
+
+# ---------------------------------------------------------------------------- the coupling elements
+def ce_maps(system: Any, width: float, couplings: list[str] | None = None) -> tuple[np.ndarray, ...]:
+    """The coupling elements stacked over *all* coordinates: J (3m, n)
+    mapping q to the CE relative displacements in CE axes, the block-diagonal
+    D_P, D_V, D_O (3m, 3m) at width b, and the desired forces P0 (3m,) at
+    width b.  ``couplings`` selects CEs by id (default: all)."""
+    maps = [(c, Jc) for c, Jc in system.coupling_maps if couplings is None or c.id in couplings]
+    m = len(maps)
+    H0 = _milling_zoa(system.model) if any(c.kind == "milling" for c, _ in maps) else None
+    J = np.zeros((3 * m, system.n))
+    P = np.zeros((3 * m, 3 * m))
+    V = np.zeros_like(P)
+    O = np.zeros_like(P)
+    F = np.zeros(3 * m)
+    for k, (c, Jc) in enumerate(maps):
+        sl = slice(3 * k, 3 * k + 3)
+        f = width / c.width_ref
+        J[sl] = Jc
+        if c.kind == "milling":  # the cutter's time-averaged feedback, per metre of a_p
+            assert H0 is not None
+            P[3 * k : 3 * k + 2, 3 * k : 3 * k + 2] = width * H0
+            O[3 * k : 3 * k + 2, 3 * k : 3 * k + 2] = -width * H0
+        else:
+            P[sl, sl] = f * np.array(c.DP)
+            V[sl, sl] = f * np.array(c.DV)
+            O[sl, sl] = f * np.array(c.DO)
+        F[sl] = f * np.array(c.forces)
+    return J, P, V, O, F
+
+
+def _milling_zoa(model: Any) -> np.ndarray:
+    """H0 of the model's cutter (N/m^2, 2x2): a ``model = "milling"``
+    coupling feeds the frequency-domain engines the zeroth-order (averaged)
+    cut, F = -a_p H0 [dw(t) - dw(t - tau)] on the tool: D_P = H0 and
+    D_O = -H0 per metre of a_p in the feed (CE axis 1) / normal (CE axis 2)
+    plane (Altintas & Budak 1995; :meth:`chatterlab.process.Milling.zoa`)."""
+    from ._milling import Milling
+
+    return Milling.from_cut(model.process.milling).zoa()
