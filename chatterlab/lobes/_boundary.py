@@ -111,12 +111,44 @@ def nu(ops: Ops, beta: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
     HU = ops.HU if idx is None else ops.HU[idx]
     m = HA.shape[-1]
     Mx = np.eye(m) + beta[..., None, None] * HA[:, None]
+    if HU.shape[-1] == 1 and m <= 3:
+        # rank one: nu = beta V^T (I + beta H A)^-1 H U by the adjugate
+        y = np.broadcast_to(HU[:, None, :, 0], Mx.shape[:-1])
+        return beta[..., None] * (_solve_small(Mx, y) @ ops.Vt[0])[..., None]
     X = np.linalg.solve(Mx, np.broadcast_to(HU[:, None], Mx.shape[:-1] + (HU.shape[-1],)))
     Nm = beta[..., None, None] * (ops.Vt @ X)
     if Nm.shape[-1] == 1:
         return Nm[..., 0, :]
     ev = np.linalg.eigvals(Nm)
     return np.take_along_axis(ev, np.argsort(np.abs(ev), axis=-1), axis=-1)
+
+
+def _solve_small(M: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """x = M^-1 y for stacks of m x m matrices, m <= 3, by the adjugate
+    (Cramer's rule): x = adj(M) y / det(M), a few dozen flops per matrix
+    instead of a LAPACK call each.  For the well-conditioned I + beta H A of
+    the boundary (no delay-free instability below the ceiling) its error is
+    that of Gaussian elimination, ~cond(M) eps [Higham, Accuracy and
+    Stability of Numerical Algorithms, 2nd ed., 2002, sec. 1.10.1]."""
+    m = M.shape[-1]
+    if m == 1:
+        return y / M[..., 0, :]
+    if m == 2:
+        a, b, c, d = M[..., 0, 0], M[..., 0, 1], M[..., 1, 0], M[..., 1, 1]
+        det = a * d - b * c
+        return (
+            np.stack([d * y[..., 0] - b * y[..., 1], a * y[..., 1] - c * y[..., 0]], axis=-1) / det[..., None]
+        )
+    a, b, c = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
+    d, e, f = M[..., 1, 0], M[..., 1, 1], M[..., 1, 2]
+    g, h, i = M[..., 2, 0], M[..., 2, 1], M[..., 2, 2]
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g  # cofactors of the first row
+    det = a * A + b * B + c * C
+    y0, y1, y2 = y[..., 0], y[..., 1], y[..., 2]
+    x0 = A * y0 + (c * h - b * i) * y1 + (b * f - c * e) * y2
+    x1 = B * y0 + (a * i - c * g) * y1 + (c * d - a * f) * y2
+    x2 = C * y0 + (b * g - a * h) * y1 + (a * e - b * d) * y2
+    return np.stack([x0, x1, x2], axis=-1) / det[..., None]
 
 
 # ---------------------------------------------------------------------------- widths at one frequency
@@ -204,9 +236,12 @@ def widths_rank1(
         rows = np.arange(N)
     if rows.size == 0:
         return out, prox
-    lam = np.linalg.eigvals(HA[rows])
-    mu = np.linalg.eigvals(HAO[rows])
-    Q = _q_coefficients(_poly_from_roots(lam), _poly_from_roots(mu))
+    if HA.shape[-1] <= 3:
+        Q = _q_coefficients(_char_poly(HA[rows]), _char_poly(HAO[rows]))
+    else:
+        lam = np.linalg.eigvals(HA[rows])
+        mu = np.linalg.eigvals(HAO[rows])
+        Q = _q_coefficients(_poly_from_roots(lam), _poly_from_roots(mu))
     if screen and HA.shape[-1] > 3:
         keep = ~_no_root_near_segment(Q)
         rows, Q = rows[keep], Q[keep]

@@ -407,7 +407,11 @@ def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[
 
         def f(w: float) -> float:
             ops = _ops(plant, np.array([w]))
-            _, bb, _ = _solve_beta(ops, np.array([bmin / 2]), np.array([bmin * 2]), n_grid=8)
+            lo, hi = np.array([bmin / 2]), np.array([bmin * 2])
+            if ops.Vt.shape[0] == 1:  # rank one: every width in [lo, hi], the roots of Q
+                _, bb, _ = _widths_between(ops, lo, hi)
+            else:
+                _, bb, _ = _solve_beta(ops, lo, hi, n_grid=8)
             return float(bb.min()) if bb.size else np.inf
 
         a, c = sorted((float(sg.omega[j - 1]), float(sg.omega[j + 1])))
