@@ -21,8 +21,7 @@ from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.errors import InputError
-from chatterlab.frequency import ToolStructure
-from chatterlab.structure import FRF, dynamic_receptance, receptance
+from chatterlab.structure import FRF, Structure, dynamic_receptance, receptance
 
 EPS = np.finfo(float).eps
 MASS, STIFF, DAMP = 2.0, 2.0e7, 400.0
@@ -57,7 +56,7 @@ def shaper(shaper_path):
 def modelled(shaper) -> FRF:
     """A closed-loop FRF of the shaper: two outputs, one input, the loop's facts."""
     w = 2 * np.pi * np.linspace(60.0, 100.0, 81)
-    fb = cl.feedback(shaper, width=2e-3, speed=0.5)
+    fb = cl.closed_loop(shaper, width=2e-3, speed=0.5)
     return cl.frf(shaper, w, inputs="rfe5.x", outputs=["rfe5.x", "rfe5.y"], feedback=fb)
 
 
@@ -249,18 +248,18 @@ def test_dynamic_receptance_is_the_closed_form_of_one_dof():
 
 
 def test_dynamic_receptance_of_a_modal_structure_is_its_modal_sum():
-    # ToolStructure.modal: diagonal M, C, K in modal coordinates and J = shapes^T, so
+    # Structure.modal: diagonal M, C, K in modal coordinates; with the shapes as J (2 x modes),
     # J Z^-1 J^T = sum_r s_r s_r^T / (k_r - m_r w^2 + j c_r w): per mode the 1-DOF bound
     wn = 2 * np.pi * np.array([500.0, 920.0, 1400.0])
     zeta, k = np.array([0.02, 0.011, 0.05]), np.array([2e7, 3e7, 5e7])
     S = np.array([[1.0, 0.2], [0.3, -0.8], [-0.5, 0.4]])
-    st = ToolStructure.modal(wn, zeta, k, S)
+    st = Structure.modal(wn, zeta, k)
     w = 2 * np.pi * np.linspace(1.0, 2000.0, 1500)
     m, c = k / wn**2, 2 * zeta * k / wn
     d = k[:, None] - m[:, None] * w**2 + 1j * c[:, None] * w  # (mode, freq)
     ref = np.einsum("ra,rb,rk->kab", S, S, 1 / d)
-    got = st.frf(w)
-    assert np.array_equal(got, dynamic_receptance(st.M, st.C, st.K, w, st.J))  # the one function
+    got = st.receptance(w, S.T)
+    assert np.array_equal(got, dynamic_receptance(st.M, st.C, st.K, w, S.T))  # the one function
     terms = np.einsum(
         "ra,rb,rk->kab",
         np.abs(S),

@@ -307,7 +307,15 @@ def _frf_cut(model: Any, frf: FRF, c: Any) -> tuple[list[str], tuple[np.ndarray,
             f" response and reference (outputs {list(frf.outputs)}, inputs {list(frf.inputs)})"
         )
     sel = np.ix_(axes, axes)
-    return coords, tuple(np.asarray(X, dtype=float)[sel] for X in (c.DP, c.DV, c.DO))
+    mats: tuple[Any, ...] = (c.DP, c.DV, c.DO)
+    if c.kind == "milling":
+        # a model = "milling" coupling carries no matrices (since d9d55eb they come from the cutter):
+        # the zeroth-order average H0, 0, -H0 per metre of a_p, in the feed/normal axes, at width_ref
+        H0, _, _ = zoa_matrices(Milling.from_cut(model.process.milling))
+        D = np.zeros((3, 3))
+        D[:2, :2] = c.width_ref * H0
+        mats = (D, np.zeros((3, 3)), -D)
+    return coords, tuple(np.asarray(X, dtype=float)[sel] for X in mats)
 
 
 def model_frf_summary(model: Any) -> dict[str, Any]:
