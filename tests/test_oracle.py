@@ -128,9 +128,11 @@ def response(
     terms: str = "pdo",
 ) -> Out:
     """chatterlab.frf (receptance, direct solve), open loop (width None) or
-    closed by chatterlab.feedback at (width, speed or delay)."""
+    closed by the cut at (width, speed or delay)."""
     fz = cl.assemble(load(model)).at(position)
-    fb = None if width is None else cl.feedback(fz, width=width, speed=speed, delay=delay, terms=terms)  # type: ignore[arg-type]
+    # 63e1fc1: chatterlab.feedback; since 3600882 the closed loop, chatterlab.closed_loop
+    close = cl.closed_loop if hasattr(cl, "closed_loop") else cl.feedback
+    fb = None if width is None else close(fz, width=width, speed=speed, delay=delay, terms=terms)  # type: ignore[arg-type]
     h = cl.frf(fz, 2 * np.pi * np.asarray(frequency_hz, float), inputs=inputs, outputs=outputs, feedback=fb)
     return {"H": h.data, "_frozen": fz, "_feedback": fb}
 
