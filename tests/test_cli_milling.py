@@ -65,8 +65,14 @@ def test_roots_json_is_the_floquet_result(bench, tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     d = json.loads(out.read_text())
     ref = multipliers(S, 18000.0, 2e-3)
-    assert d["kind"] == "milling" and d["stable"] is False and d["critical"]["type"] == ref.kind
+    # the one roots contract (docs/cli.md): the roots are the Floquet exponents ln(mu)/T
+    assert d["kind"] == "roots" and d["process"] == "milling" and d["verdict"] == "unstable"
+    assert d["chatterlab"] == cl.__version__ and d["critical"]["type"] == ref.kind
     assert d["spectral_radius"] == ref.spectral_radius
+    assert d["abscissa_per_s"] == pytest.approx(np.log(ref.spectral_radius) / ref.period, rel=1e-12)
+    assert d["roots"][0]["real_per_s"] == pytest.approx(d["abscissa_per_s"], rel=1e-12)
+    turning = set(json.loads(_turning_roots_json(tmp_path, capsys)))
+    assert turning <= set(d), turning - set(d)  # every field of the contract is there
 
 
 def test_simulate_above_and_below_the_limit(bench, capsys):
@@ -125,14 +131,25 @@ def test_nonlinear_without_feed_is_refused(tmp_path, capsys):
 
 def test_a_multiplier_within_its_error_of_one_is_undetermined():
     """|mu| - 1 smaller than the convergence check: neither stable nor chatter is claimed."""
-    from types import SimpleNamespace
+    from chatterlab.frequency import Multipliers
 
-    from chatterlab.cli._milling import _MultiplierTable
+    def r(error: float) -> Multipliers:
+        return Multipliers(mu=np.array([1j * (1.0 - 1e-12)]), critical=1j * (1.0 - 1e-12), kind="hopf",
+                           spectral_radius=1.0 - 1e-12, stable=True, error=error, frequency_hz=1.0,
+                           method="spectral", resolution="", period=1.0, rpm=1.0, depth=1e-3)  # fmt: skip
 
-    r = SimpleNamespace(spectral_radius=1.0 - 1e-12, error=1e-10, stable=True, kind="hopf", critical=1j,
-                        method="spectral", resolution="", rpm=1.0, depth=1e-3, period=1.0, frequency_hz=1.0,
-                        mu=np.array([1j]))  # fmt: skip
-    t = _MultiplierTable(r, 1, "")
-    assert t.verdict().startswith("undetermined") and t.to_dict()["stable"] is None
-    r.error = 1e-14
-    assert t.verdict().startswith("stable") and t.to_dict()["stable"] is True
+    assert r(1e-10).verdict == "undetermined" and r(1e-10).to_dict()["verdict"] == "undetermined"
+    assert r(1e-14).verdict == "stable" and r(1e-14).verdict_line().startswith("stable")
+
+
+def _turning_roots_json(tmp_path, capsys) -> str:
+    out = tmp_path / "turning.json"
+    shaper = ROOT / "studies" / "traverse_shaper" / "model.toml"
+    assert (
+        main(
+            ["roots", str(shaper), "--width", "0.2", "--speed", "0.5", "--format", "json", "--out", str(out)]
+        )
+        == 0
+    )
+    capsys.readouterr()
+    return out.read_text()

@@ -137,28 +137,24 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -
 
 
 class _MultiplierTable:
-    """``roots`` output for a milling cut: the multipliers and the verdict."""
+    """``roots`` output for a milling cut: the multipliers (the first
+    ``count``), the reduction note, and the one ``roots`` JSON contract
+    (:meth:`chatterlab.frequency.Multipliers.to_dict`)."""
 
     def __init__(self, r: Any, count: int, note: str) -> None:
         self.r, self.count, self.note = r, count, note
 
     def undetermined(self) -> bool:
         """|mu| within its own convergence error of 1: neither claim is proven."""
-        return abs(self.r.spectral_radius - 1.0) <= self.r.error
+        return bool(self.r.verdict == "undetermined")
 
     def verdict(self) -> str:
-        r = self.r
-        if self.undetermined():
-            return f"undetermined: |mu| = {r.spectral_radius:.9f} is within its convergence error {r.error:.1e} of 1"
-        if r.stable:
-            return f"stable: every |mu| < 1 (spectral radius {r.spectral_radius:.6f}, error {r.error:.1e})"
-        kind = {"hopf": "Hopf (quasi-periodic) chatter", "flip": "flip (period-doubling) chatter"}.get(
-            r.kind, r.kind
-        )
-        return f"unstable: {kind}, |mu| = {r.spectral_radius:.6f} (error {r.error:.1e})"
+        return str(self.r.verdict_line())
 
     def table(self) -> str:
         import numpy as np
+
+        from ..frequency._floquet import classify
 
         r = self.r
         lines = [
@@ -169,31 +165,16 @@ class _MultiplierTable:
             lines.append(self.note)
         lines.append("    |mu|        arg mu [deg]   type")
         for mu in r.mu[: self.count]:
-            from ..frequency._floquet import classify
-
             lines.append(f"  {abs(mu):10.6f}  {np.degrees(np.angle(mu)):12.4f}   {classify(complex(mu))}")
         lines.append(f"critical: {self.verdict()}; chatter frequency {r.frequency_hz:.2f} Hz")
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
-        import numpy as np
-
-        r = self.r
-        return {
-            "kind": "milling",
-            "method": r.method,
-            "resolution": r.resolution,
-            "rpm": r.rpm,
-            "depth_m": r.depth,
-            "period_s": r.period,
-            "stable": None if self.undetermined() else bool(r.stable),
-            "spectral_radius": float(r.spectral_radius),
-            "error": float(r.error),
-            "critical": {"re": float(np.real(r.critical)), "im": float(np.imag(r.critical)), "type": r.kind},
-            "chatter_frequency_hz": float(r.frequency_hz),
-            "multipliers": [{"re": float(m.real), "im": float(m.imag)} for m in r.mu[: self.count]],
-            "reduction": self.note,
-        }
+        d = self.r.to_dict()
+        d["roots"] = d["roots"][: self.count]
+        d["multipliers"] = d["multipliers"][: self.count]
+        d["reduction"] = self.note
+        return d
 
 
 def milling_verdict(args: argparse.Namespace, model: Any) -> Any:

@@ -64,11 +64,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from ..errors import InputError, check_nonneg
+from ..io import Result
 from ..process._loop import ClosedLoop
 from ._floquet_sdm import sdm_monodromy, sdm_multipliers
 from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, SpectralMonodromy
@@ -102,7 +103,7 @@ def classify(mu: complex) -> str:
 
 
 @dataclass(frozen=True, eq=False)
-class Multipliers:
+class Multipliers(Result):
     """Floquet multipliers of milling at one (rpm, a_p).
 
     Attributes
@@ -147,6 +148,136 @@ class Multipliers:
     depth: float
     elapsed: float = 0.0
     meta: dict[str, float] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ verdict
+    @property
+    def verdict(self) -> str:
+        """``"stable"`` (every |mu| < 1 by more than the convergence error),
+        ``"unstable"`` or ``"undetermined"`` (|mu| within its error of 1:
+        neither claim is proven)."""
+        if abs(self.spectral_radius - 1.0) <= self.error:
+            return "undetermined"
+        return "stable" if self.spectral_radius < 1.0 else "unstable"
+
+    @property
+    def exponents(self) -> np.ndarray:
+        """Floquet exponents ln(mu) / T (1/s, principal branch): the growth
+        rates of the periodic loop, as the characteristic roots are those of
+        a constant one."""
+        mu = np.asarray(self.mu, dtype=complex)
+        return np.log(mu) / self.period
+
+    def table(self) -> str:
+        """The multipliers and the verdict, as the command line prints them."""
+        lines = [
+            f"Floquet multipliers ({self.method}, {self.resolution}) at a_p = {self.depth * 1e3:g} mm,"
+            f" {self.rpm:g} rpm (period {self.period * 1e3:.6g} ms)"
+        ]
+        lines.append("    |mu|        arg mu [deg]   type")
+        for mu in self.mu:
+            lines.append(f"  {abs(mu):10.6f}  {np.degrees(np.angle(mu)):12.4f}   {classify(complex(mu))}")
+        lines.append(f"critical: {self.verdict_line()}; chatter frequency {self.frequency_hz:.2f} Hz")
+        return "\n".join(lines)
+
+    def verdict_line(self) -> str:
+        """The verdict in words, with the spectral radius and its error."""
+        r, e = self.spectral_radius, self.error
+        if self.verdict == "undetermined":
+            return f"undetermined: |mu| = {r:.9f} is within its convergence error {e:.1e} of 1"
+        if self.verdict == "stable":
+            return f"stable: every |mu| < 1 (spectral radius {r:.6f}, error {e:.1e})"
+        kind = {"hopf": "Hopf (quasi-periodic) chatter", "flip": "flip (period-doubling) chatter"}.get(
+            self.kind, self.kind
+        )
+        return f"unstable: {kind}, |mu| = {r:.6f} (error {e:.1e})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``chatterlab roots --format json`` contract of every process
+        (docs/cli.md): the roots are the Floquet exponents ln(mu)/T, their
+        real parts the growth rates; milling adds the multipliers."""
+        from .._version import __version__
+
+        lam = self.exponents
+        c = complex(self.critical)
+        return {
+            "chatterlab": __version__,
+            "kind": "roots",
+            "process": "milling",
+            "verdict": self.verdict,
+            "abscissa_per_s": float(np.log(self.spectral_radius) / self.period),
+            "agree": None,
+            "message": self.verdict_line(),
+            "width_m": self.depth,
+            "delay_s": self.period,
+            "terms": "pdo",
+            "position_m": self.meta.get("position_m"),
+            "method": self.method,
+            "status": "converged" if np.isfinite(self.spectral_radius) else "not_converged",
+            "roots": [
+                {
+                    "real_per_s": float(z.real),
+                    "imag_rad_s": float(z.imag),
+                    "frequency_hz": float(abs(z.imag) / (2 * np.pi)),
+                    "damping_ratio": float(-z.real / abs(z)) if z != 0 else float("nan"),
+                }
+                for z in lam
+            ],  # fmt: skip
+            "winding": None,
+            "speed_rpm": self.rpm,
+            "period_s": self.period,
+            "resolution": self.resolution,
+            "spectral_radius": float(self.spectral_radius),
+            "error": float(self.error),
+            "critical": {"re": c.real, "im": c.imag, "type": self.kind},
+            "chatter_frequency_hz": float(self.frequency_hz),
+            "multipliers": [{"re": float(m.real), "im": float(m.imag)} for m in self.mu],
+        }
+
+    def to_json(self, path: Any = None, *, indent: int | None = 2) -> str:
+        """Strict JSON of :meth:`to_dict`, written to ``path`` when given."""
+        from ..io import json_text, text_out
+
+        text = json_text(self.to_dict(), indent)
+        if path is not None:
+            with text_out(path) as fh:
+                fh.write(text + "\n")
+        return text
+
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The multipliers (index ``multiplier``, largest first) with their
+        modulus, angle and exponent; the verdict and the cut as attributes."""
+        mu = np.asarray(self.mu, dtype=complex)
+        lam = self.exponents
+        return (
+            {"multiplier": (np.arange(mu.size), "1", "multiplier, largest modulus first")},
+            {
+                "abs": (np.abs(mu), "1", "|mu|"),
+                "arg": (np.angle(mu), "rad", "arg mu"),
+                "exponent_real": (lam.real, "1/s", "Re ln(mu) / T (growth rate)"),
+                "exponent_imag": (lam.imag, "rad/s", "Im ln(mu) / T (principal branch)"),
+            },
+            {
+                "title": "chatterlab Floquet multipliers",
+                "verdict": self.verdict,
+                "kind": self.kind,
+                "spectral_radius": float(self.spectral_radius),
+                "error": float(self.error),
+                "chatter_frequency_hz": float(self.frequency_hz),
+                "method": self.method,
+                "resolution": self.resolution,
+                "period_s": self.period,
+                "speed_rpm": self.rpm,
+                "depth_m": self.depth,
+            },
+        )
+
+    def plot(self, ax: Any = None, *, title: str | None = None, **style: Any) -> Any:
+        """The multipliers and the unit circle (:func:`chatterlab.plot.plot_multipliers`);
+        returns the Axes."""
+        from ..plot import plot_multipliers
+
+        head = title or f"{self.verdict}: a_p = {self.depth * 1e3:g} mm, {self.rpm:g} rpm"
+        return plot_multipliers(self, ax=ax, title=head, **style)
 
 
 def chatter_frequency(mu: complex, T: float, loop: ClosedLoop) -> float:

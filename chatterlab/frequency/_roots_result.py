@@ -11,9 +11,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from ..io import Result
 
 __all__ = ["RootsResult", "make_result", "TooLarge"]
 
@@ -22,7 +25,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class RootsResult:
+class RootsResult(Result):
     """Rightmost characteristic roots of a delay system.
 
     Attributes
@@ -100,6 +103,35 @@ class RootsResult:
 
     def __str__(self) -> str:
         return self.table()
+
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The roots (index ``root``, 0 the rightmost) with their real part,
+        angular frequency, frequency and damping ratio; the search as attributes."""
+        lam = np.asarray(self.roots, dtype=complex)
+        return (
+            {"root": (np.arange(lam.size), "1", "root, rightmost first")},
+            {
+                "real_part": (lam.real, "1/s", "Re lambda (growth rate)"),
+                "imag_part": (lam.imag, "rad/s", "Im lambda"),
+                "frequency": (np.asarray(self.frequency_hz, float), "Hz", "Im lambda / 2 pi"),
+                "damping_ratio": (np.asarray(self.damping_ratio, float), "1", "-Re lambda / |lambda|"),
+            },
+            {
+                "title": "chatterlab characteristic roots",
+                "abscissa_per_s": float(self.abscissa),
+                "method": self.method,
+                "status": self.status,
+                "message": self.message,
+                "band_top_rad_s": float(self.band_top),
+                "complete_above_per_s": float(self.complete_above),
+            },
+        )
+
+    def plot(self, ax: Any = None, *, title: str | None = None, **style: Any) -> Any:
+        """The roots in the complex plane (:func:`chatterlab.plot.plot_roots`); returns the Axes."""
+        from ..plot import plot_roots
+
+        return plot_roots(self, ax=ax, title=title, **style)
 
 
 def make_result(

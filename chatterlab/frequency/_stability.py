@@ -17,11 +17,13 @@ instead of guessing.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
+from ..io import Result
 from ..process._loop import ClosedLoop, closed_loop
 from ..structure._assembly import FrozenSystem
 
@@ -32,7 +34,7 @@ MARGINAL_TOL = 1e-7
 
 
 @dataclass(frozen=True, eq=False)
-class Stability:
+class Stability(Result):
     """Result of :func:`stability`.
 
     Attributes
@@ -62,6 +64,7 @@ class Stability:
     delay: float | None
     terms: str
     position: float | None
+    process: str = ""  #: the model's process kind (turning, shaping, delay, milling); "" without one
 
     @property
     def chatter_hz(self) -> float:
@@ -75,6 +78,7 @@ class Stability:
         return {
             "chatterlab": __version__,
             "kind": "roots",
+            "process": self.process or None,
             "verdict": self.verdict,
             "abscissa_per_s": self.abscissa,
             "agree": self.agree,
@@ -115,6 +119,40 @@ class Stability:
             self.roots.table(),
         ]
         return "\n".join(lines)
+
+    def to_json(self, path: Any = None, *, indent: int | None = 2) -> str:
+        """Strict JSON of :meth:`to_dict` (the contract of ``chatterlab roots
+        --format json``, docs/cli.md), written to ``path`` when given."""
+        from ..io import json_text, text_out
+
+        text = json_text(self.to_dict(), indent)
+        if path is not None:
+            with text_out(path) as fh:
+                fh.write(text + "\n")
+        return text
+
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The roots' arrays (:meth:`RootsResult.dataset_parts`) with the
+        verdict, the cut and the argument-principle count as attributes."""
+        coords, data, attrs = self.roots.dataset_parts()
+        d = self.to_dict()
+        attrs = {**attrs, "title": "chatterlab stability verdict", "verdict": self.verdict,
+                 "agree": str(self.agree), "verdict_message": self.message, "width_m": self.width,
+                 "delay_s": float("nan") if self.delay is None else self.delay, "terms": self.terms,
+                 "position_m": float("nan") if self.position is None else self.position,
+                 "winding": json.dumps(d["winding"])}  # fmt: skip
+        return coords, data, attrs
+
+    def plot(self, ax: Any = None, *, title: str | None = None, **style: Any) -> Any:
+        """The rightmost roots in the complex plane, titled with the verdict
+        (:func:`chatterlab.plot.plot_roots`); returns the Axes."""
+        from ..plot import plot_roots
+
+        head = (
+            title
+            or f"{self.verdict}: rightmost Re = {self.abscissa:.4g} 1/s, width {self.width * 1e3:.4g} mm"
+        )
+        return plot_roots(self.roots, ax=ax, title=head, **style)
 
 
 def stability(
@@ -202,7 +240,20 @@ def stability(
         # bound and the argument principle did not run or did not converge
         verdict = "undetermined"
         msg += "; no root found right of the axis, but the band searched is not proven complete"
-    return Stability(verdict, absc, r, w, agree, msg, float(width), fb.delay, terms, frozen.position)
+    proc = frozen.model.process
+    return Stability(
+        verdict,
+        absc,
+        r,
+        w,
+        agree,
+        msg,
+        float(width),
+        fb.delay,
+        terms,
+        frozen.position,
+        proc.kind if proc else "",
+    )
 
 
 def loop_band(fb: ClosedLoop, tol: float = 1e-4) -> float:

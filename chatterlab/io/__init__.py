@@ -48,6 +48,7 @@ if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, 
         write_netcdf,
     )
     from ._netcdf_csv import write_csv
+    from ._result import Result
 
 #: public name -> the module that holds it, imported on first use
 _HOME = {
@@ -96,6 +97,7 @@ _HOME = {
         "_netcdf",
     ),
     "write_csv": "_netcdf_csv",
+    "Result": "_result",
 }
 
 
@@ -130,6 +132,7 @@ __all__ = [
     "read_dataset",
     "read_netcdf",
     "write_csv",
+    "Result",
     "write_dataset",
     "write_netcdf",
     "FRF_SUFFIXES",

@@ -15,9 +15,12 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+
+from ..io import Result
 
 __all__ = ["Lobe", "LobeDiagram", "count_failed"]
 
@@ -42,7 +45,7 @@ class Lobe:
 
 
 @dataclass(frozen=True, eq=False)
-class LobeDiagram:
+class LobeDiagram(Result):
     """The stability limit against speed: b_lim (or a_lim) for every process.
 
     Attributes
@@ -295,7 +298,7 @@ class LobeDiagram:
             ("error", "m", np.asarray(self.error, float), "estimated error of the limit"),
         ]  # fmt: skip
 
-    def to_csv(self, path: Any) -> None:
+    def to_csv(self, path: Any) -> Path:
         """One row per speed, SI with ``name [unit]`` headers like every
         chatterlab CSV: ``speed [unit]``, then :meth:`columns` (``kind`` and
         ``status`` as words, the limit named ``b_lim`` or ``a_lim``), then what
@@ -338,19 +341,13 @@ class LobeDiagram:
                         row.append(g(vals[k]))
                 row += [str(self.basis[k]), g(self.width_max), g(self.scan_step), g(lo), g(hi)]
                 w.writerow(row)
+        return Path(path)
 
-    def to_xarray(self, attrs: dict[str, Any] | None = None) -> Any:
-        """The diagram as an :class:`xarray.Dataset`: speed as coordinate;
-        :meth:`columns` as data; summary numbers and checks as attributes."""
-        from ..io import make_dataset
-
-        return make_dataset(*self.dataset_parts(attrs))
-
-    def dataset_parts(
-        self, attrs: dict[str, Any] | None = None
-    ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
-        """``(coords, data, attrs)`` of :meth:`to_xarray` and :meth:`to_netcdf`
-        (the specifications :func:`chatterlab.io.make_dataset` takes)."""
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """``(coords, data, attrs)``: the speed as coordinate, :meth:`columns`
+        as data, the summary numbers and checks as attributes (the
+        specifications of :func:`chatterlab.io.make_dataset`; the files and
+        the dataset of :class:`chatterlab.io.Result` come from them)."""
         a = {
             "title": "chatterlab stability lobe diagram",
             "model": self.model,
@@ -375,21 +372,11 @@ class LobeDiagram:
             "claim": _claim_text(self),
         }
         a.update({k: v for k, v in self.meta.items() if isinstance(v, (int, float, str))})
-        a.update(attrs or {})
         return (
             {"speed": (self.speed, self.speed_unit, self.speed_name)},
             {name: (vals, unit, what) for name, unit, vals, what in self.columns()},
             a,
         )
-
-    def to_netcdf(self, path: Any, attrs: dict[str, Any] | None = None) -> Any:
-        """Labelled netCDF-4 file of :meth:`to_xarray` (the model text as
-        an attribute when the caller passes it), written atomically by
-        :func:`chatterlab.io.write_netcdf` (the same file, without importing
-        xarray).  Returns the path written."""
-        from ..io import write_netcdf
-
-        return write_netcdf(path, *self.dataset_parts(attrs))
 
     def plot(self, ax: Any = None, *, title: str | None = None, **style: Any) -> Any:
         """The lobe diagram (the limit in mm against speed, the unstable side

@@ -18,6 +18,7 @@ from ._fit import plot_modal_fit, plot_stabilisation
 from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
+from ._roots import plot_multipliers, plot_roots
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
 from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
@@ -40,6 +41,8 @@ __all__ = [
     "plot_time_response",
     "plot_outputs",
     "plot_mode_shapes",
+    "plot_roots",
+    "plot_multipliers",
     "plot_frequencies",
     "plot_sweep",
     "plot_stability_map",
