@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Any
 
 from ._confirm import Confirmation, confirm
-from ._control import closed_loop_lti, coupling_matrices, frf_to_control, lobes_lti, lti_plant
+from ._control import closed_loop_lti, coupling_matrices, lobes_lti, lti_plant
 from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary
 from ._entry import lobes
 from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
@@ -33,7 +33,6 @@ __all__ = [
     "boundary",
     "Confirmation",
     "confirm",
-    "frf_to_control",
     "lti_plant",
     "lobes_lti",
     "closed_loop_lti",

@@ -4,7 +4,6 @@ The one way in each direction is the FRF's: :meth:`FRF.to_control
 <chatterlab.structure.FRF.to_control>` and :meth:`FRF.from_control
 <chatterlab.structure.FRF.from_control>`; here
 
-* :func:`frf_to_control` -- ``frf.to_control()`` under its 0.2 name;
 * :func:`lti_plant` -- a python-control LTI system (``StateSpace`` or
   ``TransferFunction``) standing in for the structure: its inputs are the
   forces at the coupling element (on point a, in CE axes) and its outputs
@@ -25,17 +24,11 @@ import numpy as np
 
 from ..errors import InputError, check_delay, check_width
 from ..model._items import Coupling, Process
+from ..process import coupling_matrix
 from ..structure import FRF
 from ._diagram import LobeDiagram, Plant, lobes
 
-__all__ = ["frf_to_control", "lti_plant", "lobes_lti", "closed_loop_lti", "coupling_matrices"]
-
-
-def frf_to_control(frf: FRF) -> Any:
-    """``control.FrequencyResponseData`` of an FRF (omega in rad/s):
-    :meth:`FRF.to_control <chatterlab.structure.FRF.to_control>`, the one
-    route (this name is kept for the scripts of 0.2)."""
-    return frf.to_control()
+__all__ = ["lti_plant", "lobes_lti", "closed_loop_lti", "coupling_matrices"]
 
 
 def coupling_matrices(coupling: Coupling) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -178,8 +171,7 @@ def closed_loop_lti(
     w = np.asarray(omega, dtype=float)
     H = lti_plant(lti, DP=P, DV=V, DO=O, width_ref=width_ref).H(w)
     f = width / width_ref
-    e = np.exp(-1j * w * delay) if delay is not None and np.any(O) else np.zeros(w.size)
-    Dl = f * (P[None] + 1j * w[:, None, None] * V[None] + e[:, None, None] * O[None])
+    Dl = f * coupling_matrix(1j * w, P, V, O, delay if np.any(O) else None)
     Hcl = np.linalg.solve(np.eye(m)[None] + H @ Dl, H)
     names = tuple(f"ce.{k + 1}" for k in range(m))
     return FRF(

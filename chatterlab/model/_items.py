@@ -436,9 +436,9 @@ class Mode:
 @dataclass(frozen=True, eq=False)
 class FrfSource:
     """A measured FRF as a model's structure (``[frf]``): the file as named
-    in the model, its resolved path, and what was read from it (a
-    :class:`chatterlab.io.FRFTable`: frequencies, receptance in m/N,
-    output/input coordinate names)."""
+    in the model, its resolved path, and what was read from it (what
+    :func:`chatterlab.io.read_frf` returns: plain arrays of the frequencies,
+    the receptance in m/N and the output/input coordinate names)."""
 
     file: str
     path: str
