@@ -64,6 +64,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._sweep",
         "a chatter quantity over a grid of widths, speeds, positions or model parameters",
     ),
+    "sensitivity": (
+        "chatterlab.cli._sensitivity",
+        "exact sensitivities of the stability limit to model fields, ranked (what to stiffen or damp)",
+    ),
     "example": (
         "chatterlab.cli._example",
         "copy a bundled example (model, FRF) into this folder; alone: list them",

@@ -5,6 +5,14 @@ vibration absorbers (``_absorber``)."""
 
 from __future__ import annotations
 
+from ._absorber import (
+    AbsorberDesign,
+    den_hartog_tuning,
+    real_part_tuning,
+    tune_absorbers,
+    with_absorber,
+    without_absorbers,
+)
 from ._critical import CriticalPoint
 from ._fields import design_fields, field_unit, field_value
 from ._limits import Limits, limits_of, lobe_bottoms
@@ -12,6 +20,12 @@ from ._matrices import FieldDerivative, LoopMatrices, field_derivative, loop_mat
 from ._sensitivity import Sensitivity, sensitivity
 
 __all__ = [
+    "tune_absorbers",
+    "AbsorberDesign",
+    "with_absorber",
+    "without_absorbers",
+    "den_hartog_tuning",
+    "real_part_tuning",
     "sensitivity",
     "Sensitivity",
     "CriticalPoint",
