@@ -68,6 +68,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._sensitivity",
         "exact sensitivities of the stability limit to model fields, ranked (what to stiffen or damp)",
     ),
+    "absorber": (
+        "chatterlab.cli._design",
+        "tune vibration absorbers to maximise the minimum chatter-free width; lobes before and after",
+    ),
     "example": (
         "chatterlab.cli._example",
         "copy a bundled example (model, FRF) into this folder; alone: list them",

@@ -289,7 +289,8 @@ class AbsorberDesign:
         if best is not None:
             agree = sum(abs(s["width"] - self.width) <= 1e-6 * self.width for s in self.starts)
             lines.append(
-                f"  {len(self.starts)} starts ({', '.join(s['label'] for s in self.starts)}); {agree} reach the optimum"
+                f"  {len(self.starts)} start{'s' if len(self.starts) != 1 else ''}"
+                f" ({', '.join(s['label'] for s in self.starts)}); {agree} reach the optimum"
                 f" to 1e-6; {self.evaluations} evaluations, {self.elapsed:.1f} s"
             )
         ok = self.after.verified
@@ -434,8 +435,9 @@ def _host_modes(
 ) -> list[tuple[float, float]]:
     """(host mode frequency Hz, modal mass kg at the absorber's point and
     direction) per absorber: of the bare structure's undamped modes within a
-    factor 2 of the chatter frequency f_c, the one the absorber sees most
-    (the largest mass-normalised amplitude e . P phi at its point)."""
+    factor 2 of the chatter frequency f_c that the absorber sees (a
+    mass-normalised amplitude e . P phi at its point of at least 1 % of the
+    largest there), the one nearest f_c."""
     from scipy.linalg import eigh
 
     fz = assemble(bare).at(position)
@@ -450,7 +452,8 @@ def _host_modes(
         ab = next(a for a in model.absorbers if a.id == aid)
         P = fz.expand(fz.system.point_map(ab.at, fz.position))[:2]
         amp = np.array(ab.direction) @ P @ phi[:, band]
-        j = int(np.argmax(np.abs(amp)))
+        seen = np.abs(amp) >= 0.01 * np.abs(amp).max()
+        j = int(np.argmin(np.where(seen, np.abs(f[band] - f_c), np.inf)))
         if amp[j] == 0:
             raise InputError(
                 f'[[absorber]] "{aid}": its point does not move along its direction in any mode near the chatter'

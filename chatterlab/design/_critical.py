@@ -61,6 +61,7 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -91,15 +92,20 @@ class _Eval:
     u: np.ndarray  # right eigenvector
 
 
-def _evaluate(L: LoopMatrices, b: float, w: float, z: complex) -> _Eval:
+def _evaluate(L: LoopMatrices, b: float, w: float, z: complex) -> _Eval | None:
+    """X at (b, w, z) and its eigenvalue nearest 0 (None where X is not finite)."""
     from scipy.linalg import eig
 
+    if not (np.isfinite(b) and np.isfinite(w) and np.isfinite(z)):
+        return None
     Z = L.K - w * w * L.M + 1j * w * L.C
     GR = np.linalg.solve(Z, L.J.T.astype(complex))
     GL = np.linalg.solve(Z.T, L.J.T.astype(complex)).T
     H = L.J @ GR
     A = L.P + 1j * w * L.V
     X = np.eye(H.shape[0]) + b * H @ (A + z * L.O)
+    if not np.all(np.isfinite(X)):
+        return None
     vals, vl, vr = eig(X, left=True, right=True)
     order = np.argsort(np.abs(vals))
     k = int(order[0])
@@ -151,6 +157,9 @@ class CriticalPoint:
         (a symmetric structure), and the limit has no derivative.
     S : LoopMatrices
         The sensitivity matrices: db/dp = sum over blocks of S_X : dX/dp.
+    converged : bool
+        A branch minimum: the slope db/dw reached zero (False: the lowest
+        point found, not a minimum; its derivative is not the minimum's).
     """
 
     kind: str
@@ -162,6 +171,7 @@ class CriticalPoint:
     residual: float
     degenerate: bool
     S: LoopMatrices
+    converged: bool = True
 
     @property
     def frequency_hz(self) -> float:
@@ -210,32 +220,40 @@ def _sensitivity_matrices(L: LoopMatrices, e: _Eval, kind: str, index: int, T: f
     return LoopMatrices(**parts, T=-np.imag(GT * np.conj(lx)) / den)
 
 
+#: |lambda| (X is I + ... : of order 1 away from the boundary) at which Newton's method has found it
+_SOLVED = 1e-9
+
+
 def _newton(
-    L: LoopMatrices, b: float, x: float, z_of: object, lx_of: object, iters: int = 40
-) -> tuple[_Eval, float]:
-    """Newton's method on lambda(b, x) = 0 in the real unknowns (b, x)."""
-    e = None
+    L: LoopMatrices, b: float, x: float, z_of: Any, lx_of: Any, iters: int = 40
+) -> tuple[_Eval | None, float]:
+    """Newton's method on lambda(b, x) = 0 in the real unknowns (b, x); None
+    when it does not reach |lambda| < _SOLVED (no boundary point near the start)."""
     for _ in range(iters):
-        w, z = z_of(x)  # type: ignore[operator]
+        w, z = z_of(x)
         e = _evaluate(L, b, w, z)
+        if e is None:
+            return None, x
         a = _lam_b(L, e)
-        c = lx_of(e, x)  # type: ignore[operator]
+        c = lx_of(e, x)
         Jm = np.array([[a.real, c.real], [a.imag, c.imag]])
         try:
             db, dx = np.linalg.solve(Jm, [-e.lam.real, -e.lam.imag])
         except np.linalg.LinAlgError:
-            break
+            return None, x
         # a Newton step is capped at 5 % of the width: it must stay on its branch
         cap = 0.05 * abs(b)
         if abs(db) > cap:
             f = cap / abs(db)
             db, dx = db * f, dx * f
+        if not (np.isfinite(db) and np.isfinite(dx)) or b + db <= 0:
+            return None, x
         b, x = b + db, x + dx
         if abs(db) <= 4 * _EPS * abs(b) and abs(dx) <= 4 * _EPS * max(abs(x), 1.0):
             break
-    w, z = z_of(x)  # type: ignore[operator]
+    w, z = z_of(x)
     e = _evaluate(L, b, w, z)
-    return e, x
+    return (e if e is not None and abs(e.lam) < _SOLVED else None), x
 
 
 def at_delay(L: LoopMatrices, T: float, b: float, w: float, index: int = -1) -> CriticalPoint:
@@ -249,12 +267,17 @@ def at_delay(L: LoopMatrices, T: float, b: float, w: float, index: int = -1) -> 
         return _lam_w(L, e) + _lam_z(L, e) * (-1j * T * e.z)
 
     e, _ = _newton(L, b, w, z_of, lx_of)
+    if e is None:
+        raise ArithmeticError(
+            f"no boundary point near b = {b:.6g} m, {w / (2 * np.pi):.6g} Hz at T = {T:.6g} s: the lobe"
+            " engine's limit is not a root of the loop's determinant"
+        )
     return _point(L, e, "speed", index, T)
 
 
-def at_frequency(L: LoopMatrices, w: float, b: float, theta: float) -> _Eval:
+def at_frequency(L: LoopMatrices, w: float, b: float, theta: float) -> _Eval | None:
     """The boundary width at a fixed frequency w (the phase theta of z free),
-    from (b, theta)."""
+    from (b, theta); None when there is none near it."""
 
     def z_of(x: float) -> tuple[float, complex]:
         return w, complex(np.exp(1j * x))
@@ -270,37 +293,55 @@ def _slope(L: LoopMatrices, e: _Eval) -> float:
     """db/dw along the branch with the phase of z free (the curve b(w))."""
     lb, lw = _lam_b(L, e), _lam_w(L, e)
     lt = 1j * e.z * _lam_z(L, e)
-    return float(-np.imag(lw * np.conj(lt)) / np.imag(lb * np.conj(lt)))
+    den = float(np.imag(lb * np.conj(lt)))
+    return float(-np.imag(lw * np.conj(lt)) / den) if den != 0 else float("nan")
 
 
-def branch_minimum(L: LoopMatrices, b: float, w: float, z: complex, iters: int = 60) -> CriticalPoint:
+def branch_minimum(L: LoopMatrices, b: float, w: float, z: complex, iters: int = 80) -> CriticalPoint:
     """The local minimum of the branch b(w) through (b, w, z): db/dw = 0 by
     the secant method on the exact slope (each trial frequency solved for
-    b and the phase by Newton's method)."""
-    theta = float(np.angle(z))
-    e0 = at_frequency(L, w, b, theta)
+    b and the phase by Newton's method), steps of at most 0.5 % and halved
+    while a trial frequency has no width near the previous one (the branch
+    folds back there).  ``converged`` is False when no zero of the slope is
+    reached (the point is then the lowest one found)."""
+    e0 = at_frequency(L, w, b, float(np.angle(z)))
+    if e0 is None:
+        raise ArithmeticError(f"no boundary point near b = {b:.6g} m at {w / (2 * np.pi):.6g} Hz")
     g0 = _slope(L, e0)
-    w1 = w * (1 + 1e-7)
+    w0, w1 = w, w * (1 + 1e-7)
     e1 = at_frequency(L, w1, e0.b, float(np.angle(e0.z)))
+    if e1 is None or not np.isfinite(g0):
+        return _point(L, e0, "bottom", -1, float("nan"), converged=False)
     g1 = _slope(L, e1)
-    w0 = w
+    converged = False
     for _ in range(iters):
-        if g1 == g0:
+        if not (np.isfinite(g1) and np.isfinite(g0)) or g1 == g0:
             break
         w2 = w1 - g1 * (w1 - w0) / (g1 - g0)
-        w2 = min(max(w2, w1 * 0.98), w1 * 1.02)  # small steps: stay on the branch near the start
-        e2 = at_frequency(L, w2, e1.b, float(np.angle(e1.z)))
-        w0, g0, e0 = w1, g1, e1
-        w1, g1, e1 = w2, _slope(L, e2), e2
-        if abs(w1 - w0) <= 8 * _EPS * w1:
+        w2 = min(max(w2, w1 * 0.995), w1 * 1.005)
+        e2 = None
+        for _ in range(30):  # back towards w1 while there is no width near e1's
+            e2 = at_frequency(L, w2, e1.b, float(np.angle(e1.z)))
+            if e2 is not None and abs(e2.b - e1.b) <= 0.1 * e1.b:
+                break
+            e2 = None
+            w2 = w1 + 0.5 * (w2 - w1)
+        if e2 is None:
             break
-    return _point(L, e1, "bottom", -1, float("nan"))
+        w0, g0 = w1, g1
+        w1, g1, e1 = w2, _slope(L, e2), e2
+        if abs(w1 - w0) <= 8 * _EPS * w1 or (np.isfinite(g1) and abs(g1) * w1 <= 1e-12 * e1.b):
+            converged = True
+            break
+    return _point(L, e1, "bottom", -1, float("nan"), converged=converged)
 
 
 def static_point(L: LoopMatrices, b: float) -> CriticalPoint:
     """A real root at s = 0 (w = 0, z = 1): Newton on the real eigenvalue."""
     e = _evaluate(L, b, 0.0, 1.0 + 0j)
     for _ in range(40):
+        if e is None:
+            break
         lb = _lam_b(L, e).real
         if lb == 0:
             break
@@ -309,9 +350,13 @@ def static_point(L: LoopMatrices, b: float) -> CriticalPoint:
         e = _evaluate(L, b, 0.0, 1.0 + 0j)
         if abs(db) <= 4 * _EPS * abs(b):
             break
+    if e is None or abs(e.lam) >= _SOLVED:
+        raise ArithmeticError(f"no static root near b = {b:.6g} m")
     return _point(L, e, "static", -1, float("nan"))
 
 
-def _point(L: LoopMatrices, e: _Eval, kind: str, index: int, T: float) -> CriticalPoint:
+def _point(
+    L: LoopMatrices, e: _Eval, kind: str, index: int, T: float, converged: bool = True
+) -> CriticalPoint:
     S = _sensitivity_matrices(L, e, kind, index, T)
-    return CriticalPoint(kind, e.b, e.w, e.z, T, index, abs(e.lam), e.second < DEGENERATE, S)
+    return CriticalPoint(kind, e.b, e.w, e.z, T, index, abs(e.lam), e.second < DEGENERATE, S, converged)

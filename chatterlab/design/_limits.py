@@ -36,7 +36,9 @@ class Limits:
     speeds: tuple[CriticalPoint | None, ...]
     minimum: CriticalPoint | None
     minimum_speed: float  #: speed (process unit) of the minimum over the range
-    minimum_at: str  #: "bottom" (a lobe bottom inside the range), "end" (a range end), "static", "" (inf)
+    #: "bottom" (a lobe bottom inside the range), "end" (a range end), "static", "grid" (the
+    #: diagram's lowest speed: no bottom of its branch found), "" (inf)
+    minimum_at: str
     absolute: CriticalPoint | None
 
 
@@ -72,7 +74,10 @@ def limits_of(diagram: Any, L: LoopMatrices, *, speeds: bool = True) -> Limits:
 
     def at(j: int) -> CriticalPoint | None:
         if pts[j] is None and np.isfinite(b[j]):
-            pts[j] = static_point(L, b[j]) if f[j] == 0 else at_delay(L, T[j], b[j], 2 * np.pi * f[j], j)
+            try:
+                pts[j] = static_point(L, b[j]) if f[j] == 0 else at_delay(L, T[j], b[j], 2 * np.pi * f[j], j)
+            except ArithmeticError:  # the engine's point is not solved again here: no derivative
+                pts[j] = None
         return pts[j]
 
     if speeds:
@@ -83,11 +88,14 @@ def limits_of(diagram: Any, L: LoopMatrices, *, speeds: bool = True) -> Limits:
     if np.any(np.isfinite(b)):
         j = int(np.nanargmin(b))
         cp = at(j)
-        assert cp is not None
-        if cp.kind == "static":
+        if cp is None:
+            pass
+        elif cp.kind == "static":
             minimum, where, vmin = cp, "static", float(diagram.speed[j])
         else:
             bottom = branch_minimum(L, cp.b, cp.w, cp.z)
+            if not bottom.converged:  # no minimum of the branch found: the grid's point stands
+                return Limits(tuple(pts), cp, float(diagram.speed[j]), "grid", _absolute(diagram, L))
             k = np.round((bottom.w * T[j] + np.angle(bottom.z)) / (2 * np.pi))
             Tb = (2 * np.pi * k - np.angle(bottom.z)) / bottom.w
             lo, hi = int(np.argmin(T)), int(np.argmax(T))
@@ -108,10 +116,17 @@ def _absolute(diagram: Any, L: LoopMatrices) -> CriticalPoint | None:
     if not np.isfinite(width):
         return None
     if fa == 0:
-        return static_point(L, width)
+        try:
+            return static_point(L, width)
+        except ArithmeticError:
+            return None
     w = 2 * np.pi * fa
     z = _z_of(_H(L, w), L, width, w)
-    return branch_minimum(L, width, w, z)
+    try:
+        cp = branch_minimum(L, width, w, z)
+    except ArithmeticError:
+        return None
+    return cp if cp.converged else None
 
 
 def lobe_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[CriticalPoint]:
@@ -131,7 +146,10 @@ def lobe_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[Criti
             if w <= 0 or any(abs(cp.w - w) <= 1e-3 * w for cp in found):
                 continue
             z = _z_of(_H(L, w), L, wd[i], w)
-            cp = branch_minimum(L, wd[i], w, z)
-            if not any(abs(c.w - cp.w) <= rel * cp.w for c in found):
+            try:
+                cp = branch_minimum(L, wd[i], w, z)
+            except ArithmeticError:
+                continue
+            if cp.converged and not any(abs(c.w - cp.w) <= rel * cp.w for c in found):
                 found.append(cp)
     return sorted(found, key=lambda c: c.b)

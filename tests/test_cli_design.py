@@ -1,0 +1,136 @@
+"""``chatterlab sensitivity`` and ``chatterlab absorber``: the tables, files and
+plots they promise, and bad input refused in one line with status 2.
+
+The numbers are the library's (tests/test_design_sensitivity.py and
+tests/test_design_absorber.py hold the oracles); here the command line must
+print and write the same numbers: the 1-DOF tool's elasticity of b_min with
+respect to K_f is exactly -1 (b_min is proportional to 1/K_f), and the
+elasticity with respect to the damping c is 1 + zeta / (1 + zeta) ... written
+out from b = 2 k zeta (1 + zeta) / K_f: (c/b) db/dc = (1 + 2 zeta)/(1 + zeta).
+"""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+from conftest import assert_clean_error, turning_text
+
+from chatterlab.cli._main import main
+
+M, K, C, KF = 1.0, 1.0e7, 189.7, 2.0e9
+ZETA = C / (2 * np.sqrt(K * M))
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture
+def tool(tmp_path):
+    p = tmp_path / "tool.toml"
+    p.write_text(turning_text(mass=M, stiffness=K, damping=C, Kf=KF))
+    return str(p)
+
+
+def test_sensitivity_table_csv_and_plot(capsys, tmp_path, tool):
+    out_csv, png = tmp_path / "s.csv", tmp_path / "s.png"
+    code, out, err = run(
+        capsys, "sensitivity", tool, "--speed", "9000", "14000", "--points", "30", "--out", str(out_csv),
+        "--plot", str(png),
+    )  # fmt: skip
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("sensitivity of the minimum over the speed range")
+    # default fields: the body's mass and inertia, the spring's c1 and d1, the coupling's Kf
+    rows = {r["field"]: r for r in csv.DictReader(open(out_csv))}
+    assert set(rows) == {
+        "body.tool.mass",
+        "body.tool.inertia",
+        "spring.holder.c1",
+        "spring.holder.d1",
+        "coupling.cut.Kf",
+    }
+    el = {f: float(r["elasticity_minimum [-]"]) for f, r in rows.items()}
+    # the elasticities of the closed form b = 2 k zeta (1 + zeta) / K_f (1e-12: its exact derivatives)
+    assert el["coupling.cut.Kf"] == pytest.approx(-1.0, rel=1e-12)
+    assert el["spring.holder.d1"] == pytest.approx((1 + 2 * ZETA) / (1 + ZETA), rel=1e-12)
+    assert el["body.tool.inertia"] == 0.0  # the rotation is held: the inertia does nothing
+    # ranked by p db/dp: the damping first, K_f last, in the table as in the file
+    assert "spring.holder.d1" in lines[3] and "coupling.cut.Kf" in lines[7]
+    assert [r["field"] for r in csv.DictReader(open(out_csv))][0] == "spring.holder.d1"
+    assert png.stat().st_size > 0
+
+
+def test_sensitivity_of_chosen_fields_by_unit(capsys, tool):
+    code, out, err = run(
+        capsys, "sensitivity", tool, "--speed", "9000", "14000", "--points", "20", "--fields", "spring.holder.c1",
+        "body.tool.mass", "--by", "unit", "--limit", "absolute",
+    )  # fmt: skip
+    assert code == 0, err
+    assert "absolute minimum (all speeds)" in out and "per unit change" in out
+    assert "2 fields" in out
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--fields", "spring.nope.c1"], ["spring.nope.c1", "no [[spring]] with id 'nope'"]),
+        (["--fields", "spring.holder.c7"], ["spring.holder.c7", "no field 'c7'"]),
+        (["--count", "0"], ["--count"]),
+        (["--out", "s.json"], ["--out"]),
+        (["--width-max", "-1"], ["--width-max"]),
+    ],
+)
+def test_sensitivity_bad_input(capsys, tool, extra, words, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, "sensitivity", tool, "--speed", "9000", "14000", "--points", "10", *extra)
+    assert_clean_error(code, err, *words)
+
+
+def test_absorber_added_at_a_point(capsys, tmp_path, tool):
+    png, out_csv = tmp_path / "a.png", tmp_path / "a.csv"
+    code, out, err = run(
+        capsys, "absorber", tool, "--speed", "3000", "15000", "--points", "40", "--at", "tip", "--direction", "x",
+        "--mass", "0.05", "--starts", "1", "--verify", "2", "--objective", "absolute", "--plot", str(png),
+        "--out", str(out_csv),
+    )  # fmt: skip
+    assert code == 0, err
+    assert "tva: mass 0.05 kg" in out
+    assert "checks agree" in out and "FAILED" not in out
+    tuned = float(out.split("tuned: ")[1].split(" mm")[0])
+    bare = float(out.split("without the absorbers: ")[1].split(" mm")[0])
+    dh = float(out.split("Den Hartog's tuning")[1].split("): ")[1].split(" mm")[0])
+    assert tuned > dh > bare  # tuned above Den Hartog's, both above the bare tool's 0.309 mm
+    assert bare == pytest.approx(2 * K * ZETA * (1 + ZETA) / KF * 1e3, rel=1e-3)  # printed to 4 digits
+    assert png.stat().st_size > 0
+    header = next(csv.reader(open(out_csv)))
+    assert header[0].startswith("speed") and "b_lim [m]" in header
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--at", "tip", "--direction", "x"], ["--at needs --mass"]),
+        (["--at", "tip", "--direction", "x", "--mass", "-0.1"], ["--mass", "> 0"]),
+        (["--at", "nowhere", "--direction", "x", "--mass", "0.05"], ["'nowhere' is not a point"]),
+        (
+            ["--at", "tip", "--direction", "x", "--mass", "0.05", "--frequency", "500", "400"],
+            ["--frequency LO HI", "empty"],
+        ),
+        (
+            ["--at", "tip", "--direction", "x", "--mass", "0.05", "--damping", "0.3", "0.1"],
+            ["--damping LO HI", "empty"],
+        ),
+        (["--at", "tip", "--direction", "x", "--mass", "0.05", "--mass-max", "0"], ["--mass-max", "> 0"]),
+        (["--mass", "0.05"], ["--mass", "--at"]),
+        ([], ["no [[absorber]]"]),
+        (["--at", "tip", "--direction", "x", "--mass", "0.05", "--starts", "0"], ["--starts"]),
+    ],
+)
+def test_absorber_bad_input(capsys, tool, extra, words):
+    code, _, err = run(capsys, "absorber", tool, "--speed", "3000", "15000", "--points", "10", *extra)
+    assert_clean_error(code, err, *words)
