@@ -57,7 +57,7 @@ except ImportError:  # run from a checkout without installing
 
 from chatterlab.frequency._frf import frequencies, frf
 from chatterlab.frequency._stability import stability
-from chatterlab.process._cutting import Feedback, feedback
+from chatterlab.process import ClosedLoop, closed_loop
 
 ROOT = Path(__file__).resolve().parents[1]
 POINTS = ["rfe5.x", "rfe5.y", "tool.x", "tool.y"]
@@ -112,7 +112,7 @@ def peak_error(a: np.ndarray, ref: np.ndarray) -> float:
 
 
 def reference(
-    fz: cl.FrozenSystem, rows: np.ndarray, s: np.ndarray, fb: Feedback | None, chunk: int = 250
+    fz: cl.FrozenSystem, rows: np.ndarray, s: np.ndarray, fb: ClosedLoop | None, chunk: int = 250
 ) -> tuple[np.ndarray, float]:
     """rows Z(s)^-1 rows^T with Z formed, and the residual computed, in
     extended precision; two steps of iterative refinement on the float64 LU.
@@ -144,7 +144,7 @@ def reference(
 # --------------------------------------------------------------------------- competitors
 
 
-def numpy_batched(fz: cl.FrozenSystem, rows: np.ndarray, s: np.ndarray, fb: Feedback | None) -> np.ndarray:
+def numpy_batched(fz: cl.FrozenSystem, rows: np.ndarray, s: np.ndarray, fb: ClosedLoop | None) -> np.ndarray:
     """(a) A batched numpy solve, chunked to ~20 MB stacks."""
     out = np.empty((rows.shape[0], rows.shape[0], s.size), dtype=complex)
     chunk = 1000
@@ -220,7 +220,7 @@ def main() -> None:
     om = frequencies(1.0, 300.0, npts)
     s = 1j * om
     rows = np.array([fz.dof(p) for p in POINTS])
-    fb = feedback(fz, width=0.002, speed=0.5, terms="pdo")
+    fb = closed_loop(fz, width=0.002, speed=0.5, terms="pdo")
     print(
         f"traverse shaper: {fz.n} coordinates ({2 * fz.n} states), {len(POINTS)} x {len(POINTS)} receptance,"
         f" {om.size} frequencies 1-300 Hz; closed loop (c): b = 2 mm, v = 0.5 m/s, T = {fb.delay:.3g} s;"
@@ -256,23 +256,21 @@ def main() -> None:
         print(f"   {'route':44s} {'min s':>8s} {'median s':>8s} {'speed-up':>9s} {'error':>10s}")
         routes: dict[str, tuple[Callable[[], np.ndarray], Callable[[], None] | None]] = {
             "chatterlab direct": (
-                lambda f_b=f_b: frf(fz, om, inputs=POINTS, outputs=POINTS, feedback=f_b).data,
+                lambda f_b=f_b: frf(f_b, om, inputs=POINTS, outputs=POINTS).data,
                 None,
             ),
             "(a) numpy batched solve": (lambda f_b=f_b: numpy_batched(fz, rows, s, f_b), None),
             "chatterlab modal, cold (eig included)": (
-                lambda f_b=f_b: frf(fz, om, inputs=POINTS, outputs=POINTS, feedback=f_b, method="modal").data,
+                lambda f_b=f_b: frf(f_b, om, inputs=POINTS, outputs=POINTS, method="modal").data,
                 drop,
             ),
             "chatterlab modal, warm (cached modes)": (
-                lambda f_b=f_b: frf(fz, om, inputs=POINTS, outputs=POINTS, feedback=f_b, method="modal").data,
+                lambda f_b=f_b: frf(f_b, om, inputs=POINTS, outputs=POINTS, method="modal").data,
                 None,
             ),
             "chatterlab <= 0.1 modal (4 x fmax + residual)": (
                 lambda f_b=f_b: (
-                    frf(
-                        fz, om, inputs=POINTS, outputs=POINTS, feedback=f_b, method="modal", modes_above=4.0
-                    ).data
+                    frf(f_b, om, inputs=POINTS, outputs=POINTS, method="modal", modes_above=4.0).data
                 ),
                 None,
             ),

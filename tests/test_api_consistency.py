@@ -40,8 +40,11 @@ def test_frf_peaks_by_name_and_feedback_of_the_wrong_kind(frozen):
     assert F.peaks(output="rfe5.y", input="rfe5.y") == F.peaks(output=1, input=1)
     with pytest.raises(InputError, match="output 'rfe5.z' is not one of"):
         F.peaks(output="rfe5.z")
-    with pytest.raises(InputError, match="feedback must be a Feedback.*terms="):
-        cl.frf(frozen, omega, inputs="rfe5.x", outputs="rfe5.x", feedback="pdo")
+    # a wrong type is a one-line InputError that says what to pass, never an AttributeError
+    with pytest.raises(InputError, match="FrozenSystem .*ClosedLoop"):
+        cl.frf("pdo", omega, inputs="rfe5.x", outputs="rfe5.x")
+    with pytest.raises(InputError, match=r"assembled System: give system.at\(position\)"):
+        cl.frf(frozen.system, omega, inputs="rfe5.x", outputs="rfe5.x")
 
 
 def test_simulate_takes_one_output_name(frozen):

@@ -103,7 +103,7 @@ def test_modes_csv_and_variant(capsys, tmp_path):
     )
     assert code == 0
     rows = out_csv.read_text().strip().splitlines()
-    assert rows[0].startswith("mode,frequency [Hz]")
+    assert rows[0].startswith("mode [1],frequency [Hz]")
     assert abs(float(rows[2].split(",")[1]) / 80.56 - 1) < 5e-3  # printed Table 2, mode 2
 
 

@@ -56,7 +56,7 @@ def test_turning_from_a_file_without_a_model(tap, tmp_path, capsys):
     head, rows = _read_csv(out)
     col = head.index("b_lim [m]")
     got = np.array([float(r[col]) for r in rows])
-    assert {r[head.index("status")] for r in rows} == {"boundary in the measured band (outside it unknown)"}
+    assert {r[head.index("claim")] for r in rows} == {"boundary in the measured band (outside it unknown)"}
     ref = lobes_measured(
         FRF.read(tap),
         np.linspace(2000.0, 6000.0, 21),

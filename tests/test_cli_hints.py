@@ -131,10 +131,10 @@ def test_python_api_warns_for_a_width_in_mm_and_the_cli_shows_only_its_own(capsy
 
     fz = cl.assemble(cl.load_model(SHAPER)).at(0.85)
     with pytest.warns(UnitWarning, match=r"width = 2 m is above 0.1 m and 1000 times.*did you mean 0.002"):
-        cl.feedback(fz, width=2.0, speed=0.5)
+        cl.closed_loop(fz, width=2.0, speed=0.5)
     with warnings.catch_warnings():
         warnings.simplefilter("error", UnitWarning)
-        cl.feedback(fz, width=2e-3, speed=0.5)  # 2 mm in m: no warning
+        cl.closed_loop(fz, width=2e-3, speed=0.5)  # 2 mm in m: no warning
     code, _, err = run(
         capsys, "roots", SHAPER, "--width", "200", "--speed", "0.5", "--no-winding", "--count", "1"
     )

@@ -41,11 +41,12 @@ def test_lobes_csv_is_the_api_result(bench, tmp_path, capsys):
     head, body = rows[0], rows[1:]
     # SI, name [unit], no comment line: what every chatterlab CSV is (pandas reads it as it is)
     # one column scheme for every lobe diagram (tests/test_lobes.py), the limit named a_lim
-    assert head == ["speed [rpm]", "delay [s]", "a_lim [m]", "chatter frequency [Hz]", "kind", "lobe [-]",
-                    "status", "certified to [m]", "|mu| [-]", "arg mu [rad]", "error [m]", "basis",
-                    "searched below [m]", "scan step [m]", "band low [Hz]", "band high [Hz]"]  # fmt: skip
+    assert head == ["speed [rpm]", "delay [s]", "a_lim [m]", "chatter_frequency [Hz]", "lobe [1]",
+                    "certified [m]", "multiplier_abs [1]", "multiplier_arg [rad]", "error [m]",
+                    "width_max [m]", "scan_step [m]", "band_low [Hz]", "band_high [Hz]", "kind", "claim",
+                    "basis"]  # fmt: skip
     col = {h: i for i, h in enumerate(head)}
-    assert {(float(r[col["searched below [m]"]]), float(r[col["scan step [m]"]])) for r in body} == {
+    assert {(float(r[col["width_max [m]"]]), float(r[col["scan_step [m]"]])) for r in body} == {
         (ref.width_max, ref.scan_step)
     }
     got = np.array([float(r[col["a_lim [m]"]]) for r in body])

@@ -47,7 +47,7 @@ from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.frequency._frf import FRF, frequencies, frf, loop_determinant
-from chatterlab.process._cutting import feedback
+from chatterlab.process import closed_loop
 
 # ----------------------------------------------------------------------------- models
 
@@ -252,10 +252,10 @@ def test_closed_loop_modal_woodbury_matches_direct(shaper, terms):
     9.0e-9, 8.3e-10): 1e-6 of the peak, the bound of the open-loop
     truncation test below."""
     om = frequencies(1.0, 300.0, 2000)
-    fb = feedback(shaper, width=0.002, speed=0.5, terms=terms)
-    direct = frf(shaper, om, inputs=CONTACT, outputs=CONTACT, feedback=fb)
-    every = frf(shaper, om, inputs=CONTACT, outputs=CONTACT, feedback=fb, method="modal")
-    trunc = frf(shaper, om, inputs=CONTACT, outputs=CONTACT, feedback=fb, method="modal", modes_above=8.0)
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms=terms)
+    direct = frf(fb, om, inputs=CONTACT, outputs=CONTACT)
+    every = frf(fb, om, inputs=CONTACT, outputs=CONTACT, method="modal")
+    trunc = frf(fb, om, inputs=CONTACT, outputs=CONTACT, method="modal", modes_above=8.0)
     assert direct.closed_loop and direct.terms == terms and direct.width == 0.002
     assert peak_relative_error(every.data, direct.data) < 2 * round_off_bound(shaper, om, CONTACT, fb)
     assert peak_relative_error(trunc.data, direct.data) < 1e-6
@@ -266,12 +266,12 @@ def test_closed_loop_modal_woodbury_matches_direct(shaper, terms):
 
 def test_closed_loop_pd_equals_the_modified_structure(shaper):
     """Without the delay, closing the loop is the same as solving with
-    B* - D_V and C* - D_P (Eq. 2.1): frf(feedback=pd) against an open-loop
+    B* - D_V and C* - D_P (Eq. 2.1): frf(closed loop pd) against an open-loop
     solve of that modified structure computed here.  Same arithmetic up to
     the order of the operations: 1e-10 of the peak (measured 1.5e-12)."""
     om = frequencies(1.0, 300.0, 600)
-    fb = feedback(shaper, width=0.002, speed=0.5, terms="pd")
-    h = frf(shaper, om, inputs=CONTACT, outputs=CONTACT, feedback=fb)
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms="pd")
+    h = frf(fb, om, inputs=CONTACT, outputs=CONTACT)
     rows = np.array([shaper.dof(p) for p in CONTACT])
     ref = np.empty_like(h.data)
     for k, w in enumerate(om):
@@ -336,8 +336,8 @@ def test_python_control_state_space_of_the_shaper_matches(shaper):
     ours = frf(shaper, om, inputs=CONTACT, outputs=CONTACT)
     theirs = state_space(shaper.B, shaper.C).frequency_response(om).complex
     assert peak_relative_error(theirs, ours.data) < 1e-8
-    fb = feedback(shaper, width=0.002, speed=0.5, terms="pd")
-    ours_cl = frf(shaper, om, inputs=CONTACT, outputs=CONTACT, feedback=fb)
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms="pd")
+    ours_cl = frf(fb, om, inputs=CONTACT, outputs=CONTACT)
     theirs_cl = state_space(shaper.B - fb.DV, shaper.C - fb.DP).frequency_response(om).complex
     assert peak_relative_error(theirs_cl, ours_cl.data) < 1e-8
 
@@ -359,20 +359,20 @@ def test_loop_determinant_is_sylvester(shaper, terms):
     partial cancellation of the 72-term modal sum off resonance (|det| ~ 1
     here).  Measured: 8e-12 to 1.2e-11 of det, at most 0.7 of the bound."""
     om = frequencies(1.0, 300.0, 150)
-    fb = feedback(shaper, width=0.002, speed=0.5, terms=terms)
-    ours = loop_determinant(shaper, om, fb)
+    fb = closed_loop(shaper, width=0.002, speed=0.5, terms=terms)
+    ours = loop_determinant(fb, om)
     ref = np.empty(om.size, complex)
     for k, w in enumerate(om):
         s = 1j * w
         G = np.linalg.inv(s * s * shaper.A + s * shaper.B + shaper.C)
         ref[k] = np.linalg.det(np.eye(shaper.n) - G @ fb(s))
     np.testing.assert_allclose(ours, ref, rtol=1e-10)
-    direct = loop_determinant(shaper, om, fb)
+    direct = loop_determinant(fb, om)
     G, dG = skeel(shaper, om, fb.J)
     Dl = fb.Dl(1j * om)
     Minv = np.linalg.inv(np.eye(fb.J.shape[0]) + G @ Dl)
     bound = np.trace(np.abs(Minv) @ (2 * dG) @ np.abs(Dl), axis1=1, axis2=2) + 64 * np.finfo(float).eps
-    modal = loop_determinant(shaper, om, fb, method="modal")
+    modal = loop_determinant(fb, om, method="modal")
     assert np.all(np.abs(modal / direct - 1) <= bound)
     assert bound.max() < 1e-8  # and the bound says something
     # not trivially 1: the loop matters
@@ -382,10 +382,10 @@ def test_loop_determinant_is_sylvester(shaper, terms):
 def test_loop_determinant_sdof_closed_form(sdof):
     """1-DOF regenerative turning: det = 1 + K_f b (1 - e^{-jwT}) G(jw)."""
     b, T = 0.4e-3, 0.02
-    fb = feedback(sdof, width=b, delay=T)
+    fb = closed_loop(sdof, width=b, delay=T)
     om = sdof_omega()[1:]
     ref = 1 + 2.0e9 * b * (1 - np.exp(-1j * om * T)) * sdof_receptance(om)
-    np.testing.assert_allclose(loop_determinant(sdof, om, fb), ref, rtol=1e-12)
+    np.testing.assert_allclose(loop_determinant(fb, om), ref, rtol=1e-12)
 
 
 # ----------------------------------------------------------------------------- FRF object
@@ -482,7 +482,7 @@ def _peaks(frozen, fb, point: str, om: np.ndarray, mag: np.ndarray, n: int = 4) 
     out = []
     for j in k[np.argsort(-mag[k])][: 2 * n]:
         fine = np.linspace(om[j - 1], om[j + 1], 401)
-        m = np.abs(frf(frozen, fine, inputs=point, outputs=point, feedback=fb).data[0, 0])
+        m = np.abs(frf(fb, fine, inputs=point, outputs=point).data[0, 0])
         out.append((float(fine[m.argmax()] / (2 * np.pi)), float(m.max())))
     return sorted(out, key=lambda p: -p[1])[:n]
 
@@ -527,9 +527,9 @@ def test_shaper_cases_a_b_c_closed_loop_receptance(shaper):
     f1, f2 = cl.modes(shaper.system, count=2).frequency_hz
     res = {}
     for case, terms in (("a", "none"), ("b", "pd"), ("c", "pdo")):
-        fb = feedback(shaper, width=0.002, speed=0.5, terms=terms)
+        fb = closed_loop(shaper, width=0.002, speed=0.5, terms=terms)
         pts = ["rfe5.x", "rfe5.y"]
-        mag = np.abs(frf(shaper, om, inputs=pts, outputs=pts, feedback=fb).data)
+        mag = np.abs(frf(fb, om, inputs=pts, outputs=pts).data)
         res[case] = {p: _peaks(shaper, fb, p, om, mag[i, i]) for i, p in enumerate(pts)}
     print("\nshaper, b = 2 mm, v = 0.5 m/s: receptance peaks at the contact point (Hz, m/N)")
     for case in "abc":

@@ -57,7 +57,7 @@ def modelled(shaper) -> FRF:
     """A closed-loop FRF of the shaper: two outputs, one input, the loop's facts."""
     w = 2 * np.pi * np.linspace(60.0, 100.0, 81)
     fb = cl.closed_loop(shaper, width=2e-3, speed=0.5)
-    return cl.frf(shaper, w, inputs="rfe5.x", outputs=["rfe5.x", "rfe5.y"], feedback=fb)
+    return cl.frf(fb, w, inputs="rfe5.x", outputs=["rfe5.x", "rfe5.y"])
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ from chatterlab.errors import InputError
 from chatterlab.frequency._frf import frequencies, frf
 from chatterlab.lobes._control import closed_loop_lti, coupling_matrices, lobes_lti, lti_plant
 from chatterlab.lobes._diagram import lobes
-from chatterlab.process._cutting import feedback
+from chatterlab.process import closed_loop
 
 MASS, STIFF, DAMP, KF = 2.0, 2.0e7, 400.0, 2.0e9
 TURNING = turning_text(mass=MASS, stiffness=STIFF, damping=DAMP, Kf=KF)
@@ -45,8 +45,8 @@ def test_lti_lobes_equal_model_lobes(turning, form):
 def test_lti_closed_loop_equals_model_closed_loop(turning):
     m, fz = turning
     w = frequencies(300.0, 800.0, 200)
-    fb = feedback(fz, width=5e-4, speed=6000.0)
-    a = frf(fz, w, inputs="tool.x", outputs="tool.x", feedback=fb)
+    fb = closed_loop(fz, width=5e-4, speed=6000.0)
+    a = frf(fb, w, inputs="tool.x", outputs="tool.x")
     DP, DV, DO, bref = coupling_matrices(m.couplings[0])
     b = closed_loop_lti(
         control.tf([1.0], [MASS, DAMP, STIFF]),

@@ -285,23 +285,29 @@ def test_two_dof_boundary_points_have_a_root_on_the_axis(two_dof, two_dof_lobes,
 
 
 def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
-    """CSV: b_lim in m (SI, like every result file), every number the shortest
-    decimal of its double (exact after the round trip), one column scheme for
-    every process and method (the Floquet columns nan here); netCDF: float64, exact."""
+    """CSV: the naming scheme of every chatterlab file (a column is the netCDF
+    variable, ``name [unit]``), b_lim in m, every number the shortest decimal
+    of its double (exact after the round trip), the Floquet columns nan here;
+    netCDF: float64, exact."""
     d = turning_lobes
     p = tmp_path / "lobes.csv"
     d.to_csv(p)
     with open(p, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter frequency [Hz]", "kind", "lobe [-]",
-                       "status", "certified to [m]", "|mu| [-]", "arg mu [rad]", "error [m]", "basis",
-                       "searched below [m]", "scan step [m]", "band low [Hz]", "band high [Hz]"]  # fmt: skip
+    assert rows[0] == ["speed [rpm]", "delay [s]", "b_lim [m]", "chatter_frequency [Hz]", "lobe [1]",
+                       "certified [m]", "multiplier_abs [1]", "multiplier_arg [rad]", "error [m]",
+                       "width_max [m]", "scan_step [m]", "band_low [Hz]", "band_high [Hz]", "kind", "claim",
+                       "basis"]  # fmt: skip
+    col = {h: i for i, h in enumerate(rows[0])}
     # what was searched, on every row: an inf there means nothing beyond it
-    assert {tuple(r[11:]) for r in rows[1:]} == {
-        ("complete", repr(d.width_max), "nan", repr(d.band_hz[0]), repr(d.band_hz[1]))
+    assert {tuple(r[9:13]) for r in rows[1:]} == {
+        (repr(d.width_max), "nan", repr(d.band_hz[0]), repr(d.band_hz[1]))
     }
-    assert {r[6] for r in rows[1:]} == {"boundary"} and {r[4] for r in rows[1:]} == {"hopf"}
-    tab = np.array([[float(x) for x in r[:4] + [r[5], r[7]]] for r in rows[1:]])
+    assert {(r[col["kind"]], r[col["claim"]], r[col["basis"]]) for r in rows[1:]} == {
+        ("hopf", "boundary", "complete")
+    }
+    tab = np.array([[float(r[col[h]]) for h in ("speed [rpm]", "delay [s]", "b_lim [m]", "chatter_frequency [Hz]",
+                                                 "lobe [1]", "certified [m]")] for r in rows[1:]])  # fmt: skip
     assert tab.shape == (d.speed.size, 6)
     np.testing.assert_array_equal(tab[:, 0], d.speed)
     np.testing.assert_array_equal(tab[:, 1], d.delay)
@@ -309,7 +315,7 @@ def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
     np.testing.assert_array_equal(tab[:, 3], d.chatter_hz)
     np.testing.assert_array_equal(tab[:, 4], d.lobe)
     np.testing.assert_array_equal(tab[:, 5], d.b_lim)  # a proven band: certified to the limit
-    assert all(r[8] == r[9] == r[10] == "nan" for r in rows[1:])
+    assert all(r[col["multiplier_abs [1]"]] == r[col["error [m]"]] == "nan" for r in rows[1:])
 
     nc = tmp_path / "lobes.nc"
     d.to_netcdf(str(nc), attrs={"study": "round trip"})
@@ -321,7 +327,7 @@ def test_csv_and_netcdf_round_trip(turning_lobes, tmp_path):
     assert r.data["b_lim"][1] == "m"
     np.testing.assert_array_equal(r.data["chatter_frequency"][0], d.chatter_hz)
     np.testing.assert_array_equal(r.data["delay"][0], d.delay)
-    np.testing.assert_array_equal(r.data["lobe"][0], d.lobe.astype(float))
+    np.testing.assert_array_equal(r.data["lobe"][0], d.lobe)
     np.testing.assert_array_equal(r.data["claim"][0], np.zeros(d.speed.size))
     assert r.attrs["terms"] == "pdo" and r.attrs["study"] == "round trip"
     assert r.attrs["absolute_min_b_lim_m"] == d.absolute_minimum["width"]

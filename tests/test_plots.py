@@ -92,8 +92,8 @@ def test_frf_draws_the_frf_open_and_closed_loop(turning, tb):
     fn = np.sqrt(tb.STIFF / tb.MASS) / (2 * np.pi)
     w = 2 * np.pi * np.linspace(0.8 * fn, 1.2 * fn, 4001)
     op = cl.frf(turning, w, inputs=["tool.x"], outputs=["tool.x"])
-    fb = cl.feedback(turning, width=1e-3, speed=3000.0, terms="pdo")
-    cl_ = cl.frf(turning, w, inputs=["tool.x"], outputs=["tool.x"], feedback=fb)
+    fb = cl.closed_loop(turning, width=1e-3, speed=3000.0, terms="pdo")
+    cl_ = cl.frf(fb, w, inputs=["tool.x"], outputs=["tool.x"])
     ax_m, ax_p = P.plot_frf([op, cl_], peaks=1)
     mags, phases = _by_gid(ax_m, "magnitude"), _by_gid(ax_p, "phase")
     for r, m, p in zip((op, cl_), mags, phases, strict=True):
@@ -154,8 +154,8 @@ def test_nyquist_draws_the_determinant_and_zooms_on_the_origin(turning):
     from chatterlab.frequency import loop_determinant
 
     w = 2 * np.pi * np.linspace(1.0, 1500.0, 6000)
-    fb = cl.feedback(turning, width=1e-3, speed=3000.0, terms="pdo")
-    det = loop_determinant(turning, w, fb)
+    fb = cl.closed_loop(turning, width=1e-3, speed=3000.0, terms="pdo")
+    det = loop_determinant(fb, w)
     ax = P.plot_nyquist(w, det, verdict="stable")
     (line,) = _by_gid(ax, "nyquist")
     np.testing.assert_array_equal(line.get_xdata(), det.real)
@@ -193,8 +193,8 @@ def test_touching_width_is_the_closed_form_lobe_envelope(turning, tb):
         T = 60.0 / rpm
         lam = tb.KF * tb.G(w) * (1 - np.exp(-1j * w * T))
         # the convention of the docstring, against chatterlab's own determinant
-        fb = cl.feedback(turning, width=1e-3, speed=rpm, terms="pdo")
-        np.testing.assert_allclose(loop_determinant(turning, w[::997], fb), 1 + 1e-3 * lam[::997], rtol=1e-9)
+        fb = cl.closed_loop(turning, width=1e-3, speed=rpm, terms="pdo")
+        np.testing.assert_allclose(loop_determinant(fb, w[::997]), 1 + 1e-3 * lam[::997], rtol=1e-9)
         b, f = P.touching_width(w, lam)
         np.testing.assert_allclose(b, tb.tlusty(np.array([rpm]))[0], rtol=1e-5)
         ax = P.plot_loop_nyquist(w, lam, width=1e-3)
@@ -215,8 +215,8 @@ def test_loop_eigenvalues_are_the_loop_per_unit_width(turning, tb):
     from chatterlab.frequency._frf import loop_eigenvalues
 
     w = 2 * np.pi * np.linspace(300.0, 700.0, 401)
-    fb = cl.feedback(turning, width=1e-3, speed=4700.0, terms="pdo")
-    lam = loop_eigenvalues(turning, w, fb)
+    fb = cl.closed_loop(turning, width=1e-3, speed=4700.0, terms="pdo")
+    lam = loop_eigenvalues(fb, w)
     T = 60.0 / 4700.0
     # the CE's directions without cutting stiffness give lambda = 0: one locus
     one = lam[np.arange(w.size), np.argmax(np.abs(lam), axis=1)]
@@ -225,10 +225,8 @@ def test_loop_eigenvalues_are_the_loop_per_unit_width(turning, tb):
     np.testing.assert_allclose(
         one, tb.KF * tb.G(w) * (1 - np.exp(-1j * w * T)), rtol=1e-9, atol=1e-12 * np.abs(one).max()
     )
-    fb2 = cl.feedback(turning, width=2.5e-3, speed=4700.0, terms="pdo")
-    np.testing.assert_allclose(
-        np.prod(1 + 2.5e-3 * lam, axis=1), loop_determinant(turning, w, fb2), rtol=1e-9
-    )
+    fb2 = cl.closed_loop(turning, width=2.5e-3, speed=4700.0, terms="pdo")
+    np.testing.assert_allclose(np.prod(1 + 2.5e-3 * lam, axis=1), loop_determinant(fb2, w), rtol=1e-9)
     ax = P.plot_loop_nyquist(w, one, width=1e-3)
     assert "b* =" in _by_gid(ax, "touching")[0].get_label()
 
@@ -246,7 +244,7 @@ def test_shaper_loop_touches_at_the_lobe_engines_width():
     sh = cl.assemble(cl.load_model(ROOT / "studies" / "traverse_shaper" / "model.toml")).at()
     d = lobes(sh, np.array([0.5]), width_max=1e-3, verify=0)
     w = 2 * np.pi * np.linspace(74.0, 78.0, 20001)
-    lam = loop_eigenvalues(sh, w, cl.feedback(sh, width=1e-4, speed=0.5, terms="pdo"))
+    lam = loop_eigenvalues(cl.closed_loop(sh, width=1e-4, speed=0.5, terms="pdo"), w)
     b, f = P.touching_width(w, lam)
     assert b == pytest.approx(d.b_lim[0], rel=1e-4) and f == pytest.approx(d.chatter_hz[0], rel=1e-6)
 

@@ -55,18 +55,25 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, outs: Outputs) -> int:
     from ..frequency._frf import frequencies, frf
-    from ..process._cutting import feedback
+    from ..process import closed_loop
 
     fz = frozen(args)
     w = frequencies(args.fmin, args.fmax, args.points)
     fb = None
     if args.closed_loop:
-        fb = feedback(fz, width=width_m(args), speed=args.speed, delay=args.delay, terms=args.terms)
+        fb = closed_loop(fz, width=width_m(args), speed=args.speed, delay=args.delay, terms=args.terms)
     if args.nyquist and (fb is None or fb.is_zero):
         raise InputError(
             "--nyquist draws det(I - G D) of the cutting loop, which is zero here: check --terms"
         )
-    res = frf(fz, w, inputs=args.input, outputs=args.output, kind=args.kind, feedback=fb, method=args.method)
+    res = frf(
+        fb if fb is not None else fz,
+        w,
+        inputs=args.input,
+        outputs=args.output,
+        kind=args.kind,
+        method=args.method,
+    )
     if args.out or args.format or not (args.plot or args.nyquist):
         if args.format == "json":
             emit(res.to_json(), outs.path(args.out) if args.out else None)
@@ -103,6 +110,6 @@ def _nyquist(args: argparse.Namespace, outs: Outputs, fz: Any, w: Any, fb: Any) 
     # resolve every resonance and the turning of e^{-jwT} (32 points per turn)
     n_turn = int(16 * (fb.delay or 0.0) * float(w[-1] - w[0]) / np.pi) + 1
     wn = resonance_grid(fz.complex_modes.lam, float(w[0]), float(w[-1]), min(max(w.size, n_turn), 400_000))
-    det = loop_determinant(fz, wn, fb)
+    det = loop_determinant(fb, wn)
     title = f"{fz.model.name}: det(I - G D), b = {args.width:g} mm"
     savefig(plot_nyquist(wn, det, title=title), outs.path(args.nyquist))

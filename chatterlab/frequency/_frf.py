@@ -42,12 +42,12 @@ References
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from ..errors import InputError
-from ..process._cutting import Feedback
+from ..process import ClosedLoop
 from ..structure._assembly import FrozenSystem
 from ..structure._complex import ComplexModes, complex_modes, dynamic_receptance, modal_response
 from ..structure._frf import FRF
@@ -109,14 +109,31 @@ def _rows(frozen: FrozenSystem, specs: list[str] | tuple[str, ...], what: str) -
     return np.array([frozen.dof(s) for s in specs])
 
 
+def _configuration(system: Any, func: str) -> tuple[FrozenSystem, ClosedLoop | None]:
+    """(the configuration, the closed loop or None) of what an FRF engine was given."""
+    if isinstance(system, FrozenSystem):
+        return system, None
+    if isinstance(system, ClosedLoop) and system.frozen is not None:
+        return system.frozen, system
+    if isinstance(system, ClosedLoop):
+        raise InputError(
+            f"{func} between named points needs the model's configuration; this closed loop has none"
+            " (a milling_loop of bare matrices): use loop.frf(omega) for the receptance at the tool"
+        )
+    hint = " (an assembled System: give system.at(position))" if type(system).__name__ == "System" else ""
+    raise InputError(
+        f"{func} takes a FrozenSystem (assemble(model).at(position)) for the open loop or a ClosedLoop"
+        f" (closed_loop(frozen, width=..., speed=...)) for the closed one; got {type(system).__name__}{hint}"
+    )
+
+
 def frf(
-    frozen: FrozenSystem,
+    system: FrozenSystem | ClosedLoop,
     omega: np.ndarray,
     *,
     inputs: list[str] | tuple[str, ...] | str,
     outputs: list[str] | tuple[str, ...] | str,
     kind: Literal["receptance", "mobility", "accelerance"] = "receptance",
-    feedback: Feedback | None = None,
     method: Literal["direct", "modal"] = "direct",
     modes_above: float | None = None,
     residual: bool = True,
@@ -125,17 +142,16 @@ def frf(
 
     Parameters
     ----------
-    frozen : FrozenSystem
-        The configuration (``assemble(model).at(s)``).
+    system : FrozenSystem or ClosedLoop
+        The configuration (``assemble(model).at(s)``): the open-loop FRF; or
+        the structure with the cutting process in it
+        (:func:`chatterlab.process.closed_loop`): the closed-loop FRF (Eq. 2.1).
     omega : array, shape (n_freq,)
         Angular frequencies, rad/s (>= 0).
     inputs, outputs : list of str
         ``"POINT.DIR"`` specs: a force at POINT along DIR, the displacement of
         POINT along DIR.
     kind : {"receptance", "mobility", "accelerance"}
-    feedback : Feedback, optional
-        The cutting process (:func:`chatterlab.process._cutting.feedback`); None for
-        the open loop.
     method : {"direct", "modal"}
         Linear solve per frequency, or complex-mode superposition.
     modes_above : float, optional
@@ -151,6 +167,7 @@ def frf(
     -------
     FRF
     """
+    frozen, feedback = _configuration(system, "frf")
     omega = np.asarray(omega, dtype=float)
     if omega.ndim != 1 or omega.size == 0:
         raise InputError("omega must be a non-empty 1-D array of angular frequencies (rad/s)")
@@ -171,11 +188,6 @@ def frf(
     Co = _rows(frozen, outs, "outputs")
     Bi = _rows(frozen, ins, "inputs").T
     s = 1j * omega
-    if feedback is not None and not hasattr(feedback, "is_zero"):
-        raise InputError(
-            f"feedback must be a Feedback from chatterlab.feedback(frozen, width=..., speed=..., terms=...)"
-            f" (got {type(feedback).__name__} {str(feedback)[:40]!r}); the letters 'pd'/'pdo' go to its terms="
-        )
     fb = feedback if feedback is not None and not feedback.is_zero else None
     if method == "direct":
         data = _direct(frozen, Co, Bi, s, fb)
@@ -198,7 +210,7 @@ def frf(
 
 
 def _direct(
-    frozen: FrozenSystem, Co: np.ndarray, Bi: np.ndarray, s: np.ndarray, fb: Feedback | None
+    frozen: FrozenSystem, Co: np.ndarray, Bi: np.ndarray, s: np.ndarray, fb: ClosedLoop | None
 ) -> np.ndarray:
     """Co (s^2 A + s B + C - D(s))^-1 Bi on s = j w, (n_out, n_in, n_s): the
     one direct solve, in chunks of <= 20 MB of dynamic stiffness."""
@@ -252,7 +264,7 @@ def _modal(
     Co: np.ndarray,
     Bi: np.ndarray,
     s: np.ndarray,
-    fb: Feedback | None,
+    fb: ClosedLoop | None,
     modes_above: float | None,
     residual: bool,
 ) -> np.ndarray:
@@ -273,13 +285,21 @@ def _modal(
     return Gob - np.transpose(corr, (1, 2, 0))
 
 
-def loop_determinant(
-    frozen: FrozenSystem, omega: np.ndarray, fb: Feedback, *, method: str = "direct"
-) -> np.ndarray:
+def _loop_of(loop: Any, func: str) -> tuple[FrozenSystem, ClosedLoop]:
+    frozen, fb = _configuration(loop, func)
+    if fb is None:
+        raise InputError(
+            f"{func} takes the closed loop (closed_loop(frozen, width=..., speed=...)), not the structure"
+        )
+    return frozen, fb
+
+
+def loop_determinant(loop: ClosedLoop, omega: np.ndarray, *, method: str = "direct") -> np.ndarray:
     """det(I - G(jw) D(jw)) on the imaginary axis, computed in the CE
     coordinates as det(I + J G J^T Dl) (Sylvester's identity).  Its winding
     about the origin counts the closed-loop right-half-plane roots minus the
     open-loop ones (argument principle)."""
+    frozen, fb = _loop_of(loop, "loop_determinant")
     omega = np.asarray(omega, float)
     s = 1j * omega
     J = fb.J
@@ -291,9 +311,7 @@ def loop_determinant(
     return np.linalg.det(np.eye(J.shape[0]) + Gt @ fb.Dl(s))
 
 
-def loop_eigenvalues(
-    frozen: FrozenSystem, omega: np.ndarray, fb: Feedback, *, method: str = "direct"
-) -> np.ndarray:
+def loop_eigenvalues(loop: ClosedLoop, omega: np.ndarray, *, method: str = "direct") -> np.ndarray:
     """Eigenvalues lambda_i(jw) of the cutting loop per unit width, shape
     (n_freq, n_ce), 1/m: the eigenvalues of J G J^T Dl / b, so that
     det(I - G D) = prod_i (1 + b lambda_i) at the feedback's width b (and at
@@ -302,6 +320,7 @@ def loop_eigenvalues(
     :func:`chatterlab.plot.plot_loop_nyquist`.  Their order along omega is
     that of ``numpy.linalg.eigvals`` (not tracked); a CE with several
     coordinates gives several loci."""
+    frozen, fb = _loop_of(loop, "loop_eigenvalues")
     if not fb.width > 0:
         raise InputError(f"loop_eigenvalues needs a positive width (the feedback has {fb.width!r} m)")
     omega = np.asarray(omega, float)

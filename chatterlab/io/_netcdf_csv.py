@@ -8,7 +8,7 @@ import csv
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -21,14 +21,15 @@ __all__ = ["write_csv"]
 
 
 def write_csv(
-    path: str | os.PathLike[str],
+    path: str | os.PathLike[str] | IO[str],
     coords: Mapping[str, Any],
     data: Mapping[str, Any],
     *,
     block: int = 65536,
     coded: Mapping[str, tuple[np.ndarray, Sequence[str]]] | None = None,
-) -> Path:
-    """Write labelled arrays as a long-format CSV file (atomically).
+) -> Path | None:
+    """Write labelled arrays as a long-format CSV file (atomically), or to an
+    open text stream (standard output: then nothing is returned).
 
     One row per grid point in C order (last coordinate fastest); the columns
     are the coordinates then the data variables; the header names each
@@ -55,7 +56,8 @@ def write_csv(
     pathlib.Path
         The written path.
     """
-    path = Path(path)
+    stream: IO[str] | None = path if not isinstance(path, str | os.PathLike) else None
+    target = None if stream is not None else Path(path)  # type: ignore[arg-type]
     cnorm = normalise_coords(coords)
     if not cnorm:
         raise InputError("write_csv needs at least one coordinate")
@@ -80,7 +82,8 @@ def write_csv(
             raise InputError(f"write_csv: coded column {name!r} has shape {c.shape}, the grid {shape}")
         header.append(name)
         texts.append((c.reshape(-1), list(labels)))
-    with atomic_write(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+
+    def rows(fh: Any) -> None:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
         for start in range(0, size, block):
@@ -90,7 +93,14 @@ def write_csv(
             cols += [_as_python(a[start : start + len(idx)]) for a in flat]
             cols += [[lab[int(k)] for k in c[start : start + len(idx)]] for c, lab in texts]
             w.writerows(zip(*cols, strict=True))
-    return path
+
+    if target is None:  # an open text stream (standard output): written as it is
+        assert stream is not None
+        rows(stream)
+        return None
+    with atomic_write(target) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+        rows(fh)
+    return target
 
 
 def _as_python(a: np.ndarray) -> list[Any]:

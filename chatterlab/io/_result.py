@@ -54,9 +54,10 @@ class Result:
         coords, data, a = self.dataset_parts()
         return write_netcdf(path, coords, data, {**a, **(attrs or {})})
 
-    def to_csv(self, path: str | os.PathLike[str]) -> Path:
+    def to_csv(self, path: Any) -> Path | None:
         """A long-format CSV file of the variables that span every coordinate
-        (exact floats, ``name [unit]`` headers), written atomically; returns the path."""
+        (exact floats, ``name [unit]`` headers), written atomically; returns the
+        path (``None`` when ``path`` is an open text stream, e.g. standard output)."""
         from ._netcdf_csv import write_csv
 
         coords, data, _ = self.dataset_parts()

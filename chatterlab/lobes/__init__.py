@@ -14,6 +14,8 @@ for every structure and process (``_entry``).
 
 from __future__ import annotations
 
+import sys
+import types
 from typing import Any
 
 from ._confirm import Confirmation, confirm
@@ -52,7 +54,7 @@ __all__ = [
 ]
 
 
-class _CallableModule(__import__("types").ModuleType):
+class _CallableModule(types.ModuleType):
     """``chatterlab.lobes(...)`` is :func:`lobes`: the subpackage and its entry
     point share a name, and the call reads as the style guide writes it."""
 
@@ -60,4 +62,4 @@ class _CallableModule(__import__("types").ModuleType):
         return lobes(*args, **kwargs)
 
 
-__import__("sys").modules[__name__].__class__ = _CallableModule
+sys.modules[__name__].__class__ = _CallableModule

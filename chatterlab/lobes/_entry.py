@@ -102,12 +102,12 @@ def lobes(
     """
     if isinstance(source, FrozenSystem):
         _only("a frozen configuration", options, _FROZEN)
-        return _d_subdivision(source, speeds, **_width(width_max, 0.02), **options)
+        return _d_subdivision(source, speeds, width_max=_w(width_max, 0.02), **options)
     if isinstance(source, Plant):
         _only("a plant", options, _FROZEN)
         if "process" not in options:
             raise InputError("lobes of a plant: give process= (the speed -> delay kinematics)")
-        return _d_subdivision(None, speeds, plant=source, **_width(width_max, 0.02), **options)
+        return _d_subdivision(None, speeds, plant=source, width_max=_w(width_max, 0.02), **options)
     if isinstance(source, ClosedLoop):
         if source.process is None:
             raise InputError(
@@ -122,7 +122,7 @@ def lobes(
         from ._measured import lobes_measured
 
         _only("a measured FRF", options, _MEASURED)
-        return lobes_measured(source, speeds, **_width(width_max, 0.02), **options)
+        return lobes_measured(source, speeds, width_max=_w(width_max, 0.02), **options)
     from ..model import Model
 
     if isinstance(source, Model):
@@ -131,15 +131,15 @@ def lobes(
         from ._control import lobes_lti
 
         _only("a python-control LTI system", options, _LTI)
-        return lobes_lti(source, speeds, **_width(width_max, 0.02), **options)
+        return lobes_lti(source, speeds, width_max=_w(width_max, 0.02), **options)
     raise InputError(
         "lobes: source must be a Model, a FrozenSystem (system.at(s)), a milling ClosedLoop"
         f" (milling_loop(...)), a measured FRF, a Plant or a python-control LTI system; got {type(source).__name__}"
     )
 
 
-def _width(width_max: float | None, default: float) -> dict[str, float]:
-    return {"width_max": default if width_max is None else width_max}
+def _w(width_max: float | None, default: float) -> float:
+    return default if width_max is None else width_max
 
 
 def _model(model: Any, speeds: Any, width_max: float | None, position: float | None, options: dict) -> Any:
@@ -152,7 +152,7 @@ def _model(model: Any, speeds: Any, width_max: float | None, position: float | N
         _only("a model with [frf]", options, ("fmin", "fmax", "n_frequencies"))
         if position is not None:
             raise InputError("a measured FRF has one configuration: position= does not apply")
-        return lobes_model_frf(model, np.asarray(speeds, float), **_width(width_max, 0.02), **options)
+        return lobes_model_frf(model, np.asarray(speeds, float), width_max=_w(width_max, 0.02), **options)
     frozen = assemble(model).at(position)
     if model.process is not None and model.process.kind == "milling" and options.get("method") != "zoa":
         from ._milling_model import milling_loop_of, reduce_structure

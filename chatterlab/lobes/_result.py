@@ -289,7 +289,7 @@ class LobeDiagram(Result):
             ("chatter_frequency", "Hz", np.asarray(self.chatter_hz, float), "chatter frequency at the limit"),
             ("kind", "1", np.array([code.get(str(k), -1) for k in self.kind], float),
              "lobe type: 0 none, 1 Hopf, 2 flip, 3 fold, 4 undetermined"),
-            ("lobe", "1", np.asarray(self.lobe, float), "lobe number k (-1: none or not known)"),
+            ("lobe", "1", np.asarray(self.lobe, dtype=np.int64), "lobe number k (-1: none or not known)"),
             ("claim", "1", self.claim.astype(float),
              "status: " + ", ".join(f"{i} {t}" for i, t in enumerate(self.CLAIMS))),
             ("certified", "m", np.asarray(self.certified, float), "width up to which stability is established"),
@@ -298,50 +298,35 @@ class LobeDiagram(Result):
             ("error", "m", np.asarray(self.error, float), "estimated error of the limit"),
         ]  # fmt: skip
 
-    def to_csv(self, path: Any) -> Path:
-        """One row per speed, SI with ``name [unit]`` headers like every
-        chatterlab CSV: ``speed [unit]``, then :meth:`columns` (``kind`` and
-        ``status`` as words, the limit named ``b_lim`` or ``a_lim``), then what
-        was searched: ``basis``, ``searched below [m]``, ``scan step [m]``,
-        ``band low [Hz]``, ``band high [Hz]`` (an ``inf`` means no boundary
-        there, nothing more); every number as the shortest decimal that reads
-        back to the same double; written atomically."""
-        import csv
+    def to_csv(self, path: Any) -> Path | None:
+        """One row per speed, in the naming scheme of every chatterlab file
+        (a column is named as the netCDF variable, ``name [unit]``; SI;
+        every number the shortest decimal that reads back to the same
+        double): ``speed`` in the process's unit, the numeric variables of
+        :meth:`columns` (the limit named ``b_lim`` or ``a_lim``), the coded
+        ones in words (``kind``: hopf, flip, fold, undetermined or none;
+        ``claim``: the text of :attr:`CLAIMS`; ``basis``), and on every row
+        what was searched (``width_max``, ``scan_step``, ``band_low``,
+        ``band_high``: an ``inf`` means no boundary there, nothing more);
+        written atomically.  Returns the path."""
+        from ..io import write_csv
 
-        from ..io._files import text_out
-
-        def g(x: Any) -> str:
-            return repr(float(x))
-
-        cols = self.columns()
-        names = {"chatter_frequency": "chatter frequency", "multiplier_abs": "|mu|", "multiplier_arg": "arg mu",
-                 "certified": "certified to"}  # fmt: skip
-        header = [f"speed [{self.speed_unit}]"]
-        for name, unit, _, _ in cols:
-            if name in ("kind", "claim"):
-                header.append("kind" if name == "kind" else "status")
-            else:
-                header.append(f"{names.get(name, name)} [{'-' if unit == '1' else unit}]")
-        header += ["basis", "searched below [m]", "scan step [m]", "band low [Hz]", "band high [Hz]"]
-        claim = self.claim
+        n = np.asarray(self.speed).size
+        coords, data, _ = self.dataset_parts()
+        numeric = {k: v for k, v in data.items() if k not in ("kind", "claim")}
         lo, hi = self.band_hz
-        with text_out(path) as fh:
-            w = csv.writer(fh, lineterminator="\n")
-            w.writerow(header)
-            for k in range(np.asarray(self.speed).size):
-                row = [g(self.speed[k])]
-                for name, _, vals, _ in cols:
-                    if name == "kind":
-                        row.append(str(self.kind[k]) or "none")
-                    elif name == "claim":
-                        row.append(self.CLAIMS[int(claim[k])])
-                    elif name == "lobe":
-                        row.append(str(int(self.lobe[k])))
-                    else:
-                        row.append(g(vals[k]))
-                row += [str(self.basis[k]), g(self.width_max), g(self.scan_step), g(lo), g(hi)]
-                w.writerow(row)
-        return Path(path)
+        for name, unit, value in (("width_max", "m", self.width_max), ("scan_step", "m", self.scan_step),
+                                  ("band_low", "Hz", lo), ("band_high", "Hz", hi)):  # fmt: skip
+            numeric[name] = (np.full(n, float(value)), unit, name)
+        kinds = ["none", "hopf", "flip", "fold", "undetermined"]
+        kind_code = np.asarray(data["kind"][0], dtype=int)
+        bases = sorted(set(np.asarray(self.basis).astype(str)))
+        coded = {
+            "kind": (kind_code, kinds),
+            "claim": (self.claim.astype(int), list(self.CLAIMS)),
+            "basis": (np.array([bases.index(str(b)) for b in self.basis], dtype=int), bases),
+        }
+        return write_csv(path, coords, numeric, coded=coded)
 
     def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
         """``(coords, data, attrs)``: the speed as coordinate, :meth:`columns`

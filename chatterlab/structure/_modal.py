@@ -9,12 +9,14 @@ each mode, and rigid-body modes detected and named: a floating part is a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 import scipy.linalg
 
 from ..errors import InputError, ModelError
+from ..io import Result
 from ..model._items import DIRECTIONS
 from ._assembly import FrozenSystem, System
 
@@ -30,7 +32,7 @@ RIGID_TOL = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
-class Modes:
+class Modes(Result):
     """Result of :func:`modes`.
 
     Attributes
@@ -131,18 +133,43 @@ class Modes:
             lines.append(f"rigid-body mode: {r}")
         return "\n".join(lines)
 
-    def to_csv(self, path: Any) -> None:
-        """Write mode, frequency (Hz), period (s), damping ratio as CSV."""
-        import csv
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The modes (``mode`` 1..k) with frequency, angular frequency, period
+        and damping ratio, and the mass-normalised shapes over the
+        independent coordinates (``coordinate``); the model as attributes."""
+        k = np.arange(1, len(self) + 1)
+        f = self.frequency_hz
+        mdl = self.frozen.model
+        return (
+            {
+                "mode": (k, "1", "mode number"),
+                "coordinate": (np.arange(self.frozen.n), "1", "independent coordinate"),
+            },
+            {
+                "frequency": (f, "Hz", "undamped natural frequency", ("mode",)),
+                "omega": (self.omega, "rad/s", "undamped natural angular frequency", ("mode",)),
+                "period": (1.0 / f, "s", "period of the mode", ("mode",)),
+                "damping_ratio": (self.damping_ratio, "1", "modal damping ratio (estimate)", ("mode",)),
+                "shape": (self.shapes.T, "m/sqrt(kg)", "mass-normalised mode shape", ("mode", "coordinate")),
+            },
+            {
+                "title": "chatterlab modes",
+                "model": str(mdl.source),
+                "position_m": float("nan") if self.position is None else self.position,
+                "coordinates": list(self.frozen.names),
+                "rigid_body_modes": "; ".join(self.rigid),
+            },
+        )
 
-        from ..io._files import text_out
+    def to_csv(self, path: Any) -> Path | None:
+        """The modes as CSV in the naming scheme of every chatterlab file:
+        ``mode [1]``, ``frequency [Hz]``, ``omega [rad/s]``, ``period [s]``,
+        ``damping_ratio [1]``, every number exact; written atomically."""
+        from ..io import write_csv
 
-        with text_out(path) as fh:
-            w = csv.writer(fh, lineterminator="\n")
-            w.writerow(["mode", "frequency [Hz]", "period [s]", "damping ratio [-]"])
-            for k in range(len(self)):
-                f = self.frequency_hz[k]
-                w.writerow([k + 1, f"{f:.6g}", f"{1 / f:.6g}", f"{self.damping_ratio[k]:.6g}"])
+        coords, data, _ = self.dataset_parts()
+        cols = {k: v[:3] for k, v in data.items() if v[3] == ("mode",)}
+        return write_csv(path, {"mode": coords["mode"]}, cols)
 
     def drawing(self, samples: int = 17) -> dict[str, Any]:
         """The structure in the x-y plane and each mode's displacement of it,
@@ -194,10 +221,10 @@ class Modes:
 
     def plot(
         self,
-        reference: np.ndarray | None = None,
         ax: Any = None,
-        label: str = "chatterlab",
         *,
+        reference: np.ndarray | None = None,
+        label: str = "chatterlab",
         shapes: bool | None = None,
     ) -> Any:
         """The mode shapes drawn on the structure (one panel per mode, the

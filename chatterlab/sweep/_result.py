@@ -230,7 +230,9 @@ class SweepResult:
                 "status": (self.task_status, ["ok"] + ["failed"] * len(self.reasons)),
                 "reason": (self.task_status, ["", *self.reasons]),
             }
-        return write_csv(path, self.grid.coords, self._data_specs(), coded=coded)
+        out = write_csv(path, self.grid.coords, self._data_specs(), coded=coded)
+        assert out is not None  # a path was given
+        return out
 
     @classmethod
     def from_netcdf(cls, path: str | os.PathLike[str], *, mmap: bool = False) -> SweepResult:
