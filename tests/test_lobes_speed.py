@@ -273,6 +273,56 @@ def test_fold_bisection_in_batches_visits_the_same_points(cases):
     assert n1 >= 30 and n4 <= n1 // 3 + 1, (n1, n4)
 
 
+def test_nearest_width_by_newton_equals_the_long_way(cases):
+    """The envelope's re-solve: Newton on Q from the target, accepted only when
+    the disc test proves the root the nearest, gives the width and z of the
+    long way (every root of Q by its companion matrix, polished, the nearest
+    chosen): both are Newton-polished roots of one Q from other starts, so
+    they agree to the attainable accuracy of the root, ~eps sum_k |c_k x^k| /
+    |Q'(x)| (x = beta/hi) -- 1e-16 relative for a simple root, ~1e-12 next
+    to the fold at the nose of the shaper's 83 Hz branch, where Q' is small;
+    asserted to 64 times that.  Where the two widths of the fold are close it
+    declines and the long way answers."""
+    from chatterlab.lobes import _boundary as B
+    from chatterlab.lobes import _plant as P
+    from chatterlab.lobes._boundary import near_root
+
+    bd, _, _ = _grid_ops(cases["shaper"]["fz"], 1e-3)
+    sg = min(bd.segments, key=lambda s: float(s.beta.min()))  # the 83 Hz mode's, U-shaped
+    j = int(np.argmin(sg.omega))  # its nose: the fold, where two widths merge
+    # around the nose: the branch's points, and targets off them on both sides
+    sel = np.arange(max(j - 40, 0), min(j + 40, sg.omega.size))
+    w = np.concatenate([sg.omega[sel], 0.5 * (sg.omega[sel][:-1] + sg.omega[sel][1:])])
+    b = np.concatenate([sg.beta[sel], 0.5 * (sg.beta[sel][:-1] + sg.beta[sel][1:])])
+    ops = P._ops(bd.plant, w)
+    for f in (1.0, 1.001, 0.97):
+        target = b * f
+        lo, hi = target / 1.5, target * 1.5
+        fast_b, fast_z = P._nearest_width(ops, lo, hi, target)
+        _, sure = near_root(ops, hi, target / hi)
+        fi, bb, zz = P._widths_between(ops, lo, hi)
+        slow_b = np.full(w.size, np.nan)
+        slow_z = np.full(w.size, np.nan + 0j)
+        order = np.argsort(-np.abs(np.log(bb / target[fi])))
+        slow_b[fi[order]], slow_z[fi[order]] = bb[order], zz[order]
+        assert np.array_equal(np.isfinite(fast_b), np.isfinite(slow_b))
+        ok = np.isfinite(slow_b)
+        HA = ops.HA * hi[:, None, None]
+        q = B._q_coefficients(B._char_poly(HA), B._char_poly(HA + hi[:, None, None] * (ops.HU @ ops.Vt)))
+        x = slow_b / hi
+        powers = x[:, None] ** np.arange(q.shape[1])
+        dq = np.sum(q[:, 1:] * np.arange(1, q.shape[1]) * powers[:, :-1], axis=1)
+        tol_x = 64 * np.finfo(float).eps * np.sum(np.abs(q) * powers, axis=1) / np.abs(dq)
+        assert np.all(np.abs(fast_b - slow_b)[ok] <= (tol_x * hi)[ok]), np.max(
+            (np.abs(fast_b - slow_b) / (tol_x * hi))[ok]
+        )
+        # z follows its width: the same z where the widths are the same, else within dz/dbeta times the difference
+        zb = P._z_at(ops, slow_b[ok] * (1 + 1e-7), np.nonzero(ok)[0])
+        dz = np.abs(zb - slow_z[ok]) / (1e-7 * slow_b[ok])
+        assert np.all(np.abs(fast_z - slow_z)[ok] <= 2 * dz * (tol_x * hi)[ok] + 1e-13)
+        assert sure.sum() > w.size // 2 and (~sure).sum() > 0, (sure.sum(), w.size)
+
+
 def test_block_bounded_band_equals_bounding_every_interval(cases):
     """The certified band's last bad interval found block-wise is the one of
     bounding every interval of the partition (shaper, turning, random)."""

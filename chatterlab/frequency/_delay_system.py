@@ -368,18 +368,37 @@ def make_system(
     ----------
     .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
+    return _system(_structure(M, C, K), DP, DV, DO, tau)
+
+
+def _structure(M: ArrayLike, C: ArrayLike, K: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, Any]:
+    """``(M, C, K, cho)``: the structure's matrices validated (square, finite,
+    M symmetric positive definite) and the Cholesky factor of M."""
     Mm = as_real_matrix(M, "M")
     n = Mm.shape[0]
     Cm = as_real_matrix(C, "C", n)
     Km = as_real_matrix(K, "K", n)
-    DPm = np.zeros((n, n)) if DP is None else as_real_matrix(DP, "DP", n)
-    DVm = np.zeros((n, n)) if DV is None else as_real_matrix(DV, "DV", n)
     if not np.allclose(Mm, Mm.T, rtol=1e-10, atol=1e-14 * np.abs(Mm).max()):
         raise InputError("M must be symmetric positive definite (it is not symmetric)")
     try:
         cho = sla.cho_factor(Mm)
     except np.linalg.LinAlgError as exc:
         raise InputError("M must be symmetric positive definite (Cholesky failed)") from exc
+    return Mm, Cm, Km, cho
+
+
+def _system(
+    structure: tuple[FloatArray, FloatArray, FloatArray, Any],
+    DP: ArrayLike | None,
+    DV: ArrayLike | None,
+    DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None,
+    tau: float | None,
+) -> DelaySystem:
+    """:func:`make_system` on a structure already validated by :func:`_structure`."""
+    Mm, Cm, Km, cho = structure
+    n = Mm.shape[0]
+    DPm = np.zeros((n, n)) if DP is None else as_real_matrix(DP, "DP", n)
+    DVm = np.zeros((n, n)) if DV is None else as_real_matrix(DV, "DV", n)
     U, V = factor_delayed(DO, n)
     t = check_tau(tau, U.shape[1] > 0)
     Ct = Cm - DVm
@@ -398,10 +417,13 @@ def loop_system(loop: Any) -> DelaySystem:
     """The delay system of a :class:`chatterlab.process.ClosedLoop`: the one
     place where a closed loop's matrices become the characteristic equation
     Delta(s) = s^2 M + s (C - D_V) + K - D_P - U V^T e^{-sT} (Eq. 2.1, 2.23)."""
+    return _loop_system(loop, _structure(loop.M, loop.C, loop.K))
+
+
+def _loop_system(loop: Any, structure: tuple[FloatArray, FloatArray, FloatArray, Any]) -> DelaySystem:
+    """:func:`loop_system` with the loop's structure already validated."""
     DO = (loop.U, loop.V) if loop.U.shape[1] else None
-    return make_system(
-        loop.M, loop.C, loop.K, DP=loop.DP, DV=loop.DV, DO=DO, tau=loop.delay if DO is not None else None
-    )
+    return _system(structure, loop.DP, loop.DV, DO, loop.delay if DO is not None else None)
 
 
 def loop_systems(loops: Sequence[Any]) -> list[DelaySystem]:
@@ -417,7 +439,14 @@ def loop_systems(loops: Sequence[Any]) -> list[DelaySystem]:
     formed per system.  Each system is the one :func:`loop_system` builds;
     the shared values are the ones each would compute (the same input, the
     same arithmetic)."""
-    systems = [loop_system(loop) for loop in loops]
+    structures: dict[tuple[int, int, int], tuple[FloatArray, FloatArray, FloatArray, Any]] = {}
+    systems = []
+    for loop in loops:
+        # one structure's loops hold the same M, C, K arrays: validated and factored once
+        key = (id(loop.M), id(loop.C), id(loop.K))
+        if key not in structures:
+            structures[key] = _structure(loop.M, loop.C, loop.K)
+        systems.append(_loop_system(loop, structures[key]))
     opens: dict[bytes, DelaySystem] = {}
     firsts: dict[bytes, DelaySystem] = {}
     for sys in systems:

@@ -307,7 +307,9 @@ def _prepare(sys: DelaySystem, omega_max: float | None, direct: bool) -> Winding
             proven=not marginal,
         )
     ref = _reference(sys, direct, p0, p, z_open, z_p, scale, pf)
-    logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1]) if len(sys.coeffs) == 3 else 0.0
+    # det M normalises the direct mode's det(Delta); the factored mode does not use it
+    direct_mode = ref.mode == "direct" and len(sys.coeffs) == 3
+    logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1]) if direct_mode else 0.0
     F = Sampler(sys, ref.mode, ref.ref, logdetM)
     poles = np.concatenate([p, p0])
     if omega_max is None:

@@ -337,6 +337,72 @@ def _no_root_near_segment(q: np.ndarray) -> np.ndarray:
     return ok
 
 
+def no_root_in_disc(q: np.ndarray, centre: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Rows of polynomials (ascending coefficients) proven to have no root
+    in the disc |x - centre| <= radius (one disc per row): shifted to the
+    centre, c(centre + y) = sum_k e_k y^k, and |c| >= |e_0| - sum_{k>=1}
+    |e_k| r^k there, which must exceed ``_SCREEN_MARGIN`` sum_k |c_k| (|centre|
+    + r)^k (the round-off of the coefficients and of the shift, relative to
+    the polynomial's size on the disc, far below it)."""
+    N, d1 = q.shape
+    k = np.arange(d1)
+    # e_k = sum_j c_j binom(j, k) x0^(j - k), the Taylor coefficients at x0
+    binom = np.array([[math.comb(int(a), int(b)) for b in k] for a in k], dtype=float)
+    expo = k[:, None] - k[None, :]
+    with np.errstate(invalid="ignore", over="ignore"):
+        S = np.where(expo >= 0, binom * centre[:, None, None] ** np.maximum(expo, 0), 0.0)  # (N, j, k)
+        e = np.abs(np.einsum("nj,njk->nk", q, S))
+        r = radius[:, None] ** k[None, 1:]
+        lower = e[:, 0] - np.sum(e[:, 1:] * r, axis=1)
+        need = _SCREEN_MARGIN * np.sum(np.abs(q) * (np.abs(centre) + radius)[:, None] ** k[None, :], axis=1)
+        return np.isfinite(lower) & (lower > need)
+
+
+def near_root(ops: Ops, beta_max: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For a rank-one term, the root x of Q (in x = beta / beta_max, as
+    :func:`widths_rank1`) that Newton reaches from ``x0``, and whether it is
+    proven the root of Q nearest ``x0`` in log x: no other root of Q (real or
+    complex) lies in the disc about ``x0`` that holds every point at most as
+    far in log (radius 1.01 x0 (e^d - 1), d = |log(x / x0)|, and at least
+    1e-6 x0), by :func:`no_root_in_disc` on Q / (x - x*).  Newton as in
+    :func:`_polish_rows` (steps capped at 5 %, Horner on Q and Q'), at most
+    16 steps, converged when the step is below 1e-15 relative."""
+    bm = np.asarray(beta_max, dtype=float)[:, None, None]
+    HA = ops.HA * bm
+    Q = _q_coefficients(_char_poly(HA), _char_poly(HA + bm * (ops.HU @ ops.Vt)))
+    N, d1 = Q.shape
+    p = Q[:, ::-1]
+    dp = p[:, :-1] * np.arange(d1 - 1, 0, -1)
+    x = np.array(x0, dtype=float)
+    conv = np.zeros(N, bool)
+    for _ in range(16):
+        f = np.zeros(N)
+        for c in p.T:
+            f = f * x + c
+        g = np.zeros(N)
+        for c in dp.T:
+            g = g * x + c
+        with np.errstate(all="ignore"):
+            step = np.where(g != 0, f / g, 0.0)
+        step = np.clip(np.nan_to_num(step), -0.05 * np.abs(x), 0.05 * np.abs(x))
+        x = x - step
+        conv = np.abs(step) <= 1e-15 * np.abs(x)
+        if np.all(conv):
+            break
+    # deflate: Q(x) = (x - x*) q(x) + remainder (synthetic division, descending)
+    quot = np.zeros((N, d1 - 1))
+    acc = np.zeros(N)
+    for j in range(d1 - 1):
+        acc = acc * x + p[:, j]
+        quot[:, j] = acc
+    q_asc = quot[:, ::-1]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d = np.abs(np.log(x / x0))
+        radius = np.maximum(1.01 * np.abs(x0) * np.expm1(d), 1e-6 * np.abs(x0))
+    sure = conv & np.isfinite(x) & (x > 0) & no_root_in_disc(q_asc, np.asarray(x0, float), radius)
+    return x, sure
+
+
 def _shift_matrix(d1: int) -> np.ndarray:
     """(d1, n_discs d1): c @ S gives, for each disc centre x0, the coefficients
     of c(x0 + y) in y (ascending): e_k = sum_j c_j binom(j, k) x0^(j - k)."""

@@ -38,7 +38,7 @@ from ..process._loop import closed_loop_unwarned
 from ..structure._assembly import FrozenSystem
 from ._band import _band, _grid
 from ._boundary import Ops, delayed_factors, link, refine_folds, static_width
-from ._plant import Plant, _ops, _solve_beta, _widths_between, _z_at
+from ._plant import Plant, _nearest_width, _ops, _solve_beta, _widths_between, _z_at
 
 __all__ = ["Boundary", "boundary"]
 
@@ -108,16 +108,10 @@ def _refine_crossings(
         wt = np.where(hb_ != ha_, wb_ - hb_ * (wb_ - wa_) / (hb_ - ha_), 0.5 * (wa_ + wb_))
         wt = np.clip(wt, np.minimum(wa_, wb_), np.maximum(wa_, wb_))
         ops = _ops(plant, wt)
-        fi, bb, zz = _widths_between(ops, blo[idx], bhi[idx])
         frac = (wt - w0[idx]) / np.where(w1[idx] != w0[idx], w1[idx] - w0[idx], 1.0)
         target = b0[idx] + (b1[idx] - b0[idx]) * frac
         psi_guess = psi0[idx] + (psi1[idx] - psi0[idx]) * frac
-        best_b = np.full(idx.size, np.nan)
-        best_z = np.full(idx.size, np.nan + 0j)
-        dist = np.abs(np.log(bb / target[fi]))
-        ordr = np.argsort(-dist)  # later writes (smaller distance) win
-        best_b[fi[ordr]] = bb[ordr]
-        best_z[fi[ordr]] = zz[ordr]
+        best_b, best_z = _nearest_width(ops, blo[idx], bhi[idx], target)
         good = np.isfinite(best_b)
         ok[idx[~good]] = False
         active[idx[~good]] = False

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..frequency._bounds import Band, PoleResidue
 from ..process._loop import ClosedLoop
-from ._boundary import Ops, delayed_factors, make_ops, nu, widths_rank1
+from ._boundary import Ops, delayed_factors, make_ops, near_root, nu, widths_rank1
 
 __all__ = ["Plant"]
 
@@ -161,6 +161,47 @@ def _widths_between(ops: Ops, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarra
     keep = beta >= lo[fi]
     fi, beta = fi[keep], beta[keep]
     return fi, beta, _z_at(ops, beta, fi)
+
+
+def _nearest_width(
+    ops: Ops, lo: np.ndarray, hi: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """At each frequency of ``ops``, the boundary width in [lo, hi] nearest
+    ``target`` (in log beta) and its z; NaN where there is none.
+
+    What :func:`_widths_between` and a choice among its widths give, taken a
+    shorter way for a rank-one term when the answer is proven: Newton on Q
+    (the polynomial of :func:`chatterlab.lobes._boundary.widths_rank1`, in
+    x = beta/hi, steps capped at 5 %) from the target to a root x*, and then
+    Q / (x - x*) shown by the disc test of
+    :func:`chatterlab.lobes._boundary.no_root_in_disc` to have no root
+    within the disc about the target that holds every x as near in log as
+    x* (radius at least 1e-6 of the target, so a near-double root -- two
+    widths at a fold -- always takes the long way): x* is then the nearest
+    root of Q, real or not, and the long way would choose it too.  Every
+    other frequency (another root near, Newton not converged, x* outside
+    [lo, hi]) takes the long way."""
+    N = ops.omega.size
+    best_b = np.full(N, np.nan)
+    best_z = np.full(N, np.nan + 0j)
+    long_way = np.ones(N, bool)
+    if ops.Vt.shape[0] == 1 and ops.HA.shape[-1] <= 3 and N:
+        x, sure = near_root(ops, hi, target / hi)
+        beta = x * hi
+        sure &= (beta >= lo) & (x <= 1.0 + 1e-9)
+        rows = np.nonzero(sure)[0]
+        best_b[rows] = beta[rows]
+        best_z[rows] = _z_at(ops, beta[rows], rows)
+        long_way = ~sure
+    rows = np.nonzero(long_way)[0]
+    if rows.size:
+        sub = Ops(ops.omega[rows], ops.HA[rows], ops.HU[rows], ops.Vt)
+        fi, bb, zz = _widths_between(sub, lo[rows], hi[rows])
+        dist = np.abs(np.log(bb / target[rows][fi]))
+        ordr = np.argsort(-dist)  # later writes (smaller distance) win
+        best_b[rows[fi[ordr]]] = bb[ordr]
+        best_z[rows[fi[ordr]]] = zz[ordr]
+    return best_b, best_z
 
 
 def _z_at(ops: Ops, beta: np.ndarray, freq: np.ndarray) -> np.ndarray:
