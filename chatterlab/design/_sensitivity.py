@@ -287,6 +287,11 @@ def sensitivity(
 
     t0 = time.perf_counter()
     width_max = check_width(width_max, "width_max")
+    paths = list(design_fields(model) if fields is None else fields)
+    if not paths:
+        raise InputError(f"{model.source}: no fields to differentiate; name them (fields=[...], --fields)")
+    for p in paths:
+        field_value(model, p)  # every path checked before the work
     frozen = assemble(model).at(position)
     diagram = lobes(
         frozen, np.asarray(speeds, dtype=float), width_max=width_max, terms=terms,
@@ -298,11 +303,6 @@ def sensitivity(
             f" lobes are {diagram.method}: the milling limit's derivative is not implemented"
         )
     speeds = np.asarray(diagram.speed, dtype=float)
-    paths = list(design_fields(model) if fields is None else fields)
-    if not paths:
-        raise InputError(f"{model.source}: no fields to differentiate; name them (fields=[...], --fields)")
-    for p in paths:
-        field_value(model, p)  # every path checked before the work
     kw: dict[str, Any] = {
         "position": frozen.position,
         "speeds": speeds,
