@@ -56,7 +56,7 @@ def test_status_1_partial_sweep_says_why_per_point(capsys, tmp_path, turning):
     err = capsys.readouterr().err
     assert "1 task(s) failed" in err
     rows = list(csv.reader(out_csv.open()))
-    assert rows[0][-2:] == ["status", "reason"]
+    assert rows[0][-2:] == ["task_status", "reason"]
     assert [r[-2] for r in rows[1:]] == ["failed", "ok", "ok"]
     assert rows[1][-1] and rows[2][-1] == rows[3][-1] == ""
     assert main([*argv, "--out", str(out_nc)]) == 1

@@ -746,7 +746,7 @@ def test_csv_long_format(tmp_path: Path) -> None:
     r = sweep(flaky, g, outputs=OUTS, backend="serial", progress=False)
     p = r.to_csv(tmp_path / "r.csv")
     rows = list(csv.reader(p.open()))
-    assert rows[0] == ["width [m]", "speed [m/s]", "abscissa [1/s]", "freq [Hz]", "status", "reason"]
+    assert rows[0] == ["width [m]", "speed [m/s]", "abscissa [1/s]", "freq [Hz]", "task_status", "reason"]
     assert len(rows) == 1 + g.size
     for i, row in enumerate(rows[1:]):
         pt = g.point(i)
@@ -816,7 +816,7 @@ def test_plot_and_dataset(tmp_path: Path) -> None:
     assert ax.get_xlabel() == "speed [m/s]" and ax.get_ylabel() == "freq [Hz]"
     import xarray as xr
 
-    ds = r.to_dataset()
+    ds = r.to_xarray()
     assert isinstance(ds, xr.Dataset) and ds["freq"].attrs["units"] == "Hz" and ds.attrs["status"] == "ok"
     assert ds.identical(r.to_xarray())
 

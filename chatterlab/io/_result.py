@@ -46,13 +46,17 @@ class Result:
 
         return make_dataset(*self.dataset_parts())
 
-    def to_netcdf(self, path: str | os.PathLike[str], *, attrs: dict[str, Any] | None = None) -> Path:
+    def to_netcdf(
+        self, path: str | os.PathLike[str], *, attrs: dict[str, Any] | None = None, provenance: bool = True
+    ) -> Path:
         """A netCDF-4 file of :meth:`to_xarray` (``attrs`` added to the global
-        attributes, e.g. the model's text), written atomically; returns the path."""
+        attributes, e.g. the model's text; provenance -- version, time,
+        command line -- unless ``provenance=False``), written atomically;
+        returns the path."""
         from ._netcdf import write_netcdf
 
         coords, data, a = self.dataset_parts()
-        return write_netcdf(path, coords, data, {**a, **(attrs or {})})
+        return write_netcdf(path, coords, data, {**a, **(attrs or {})}, provenance=provenance)
 
     def to_csv(self, path: Any) -> Path | None:
         """A long-format CSV file of the variables that span every coordinate

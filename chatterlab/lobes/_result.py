@@ -24,6 +24,9 @@ from ..io import Result
 
 __all__ = ["Lobe", "LobeDiagram", "count_failed"]
 
+#: what a limit can rest on (:attr:`LobeDiagram.basis`), in the order of the files' codes
+BASES = ("complete", "band", "measured", "undetermined", "scan", "zoa")
+
 
 def count_failed(check: dict[str, Any]) -> bool:
     """True when a check's argument-principle count failed (its phase did not
@@ -281,6 +284,7 @@ class LobeDiagram(Result):
         the order of the CSV and the netCDF variables (one naming scheme for
         every process and method; nan where a column does not apply)."""
         mu = np.asarray(self.multiplier, complex)
+        n = mu.size
         code = {"": 0, "hopf": 1, "flip": 2, "fold": 3, "undetermined": 4}
         lim = self.limit_name
         return [
@@ -292,10 +296,16 @@ class LobeDiagram(Result):
             ("lobe", "1", np.asarray(self.lobe, dtype=np.int64), "lobe number k (-1: none or not known)"),
             ("claim", "1", self.claim.astype(float),
              "status: " + ", ".join(f"{i} {t}" for i, t in enumerate(self.CLAIMS))),
+            ("basis", "1", np.array([BASES.index(str(b)) for b in self.basis], float),
+             "what the limit rests on: " + ", ".join(f"{i} {t}" for i, t in enumerate(BASES))),
             ("certified", "m", np.asarray(self.certified, float), "width up to which stability is established"),
             ("multiplier_abs", "1", np.abs(mu), "|critical Floquet multiplier|"),
             ("multiplier_arg", "rad", np.angle(mu), "arg of the critical Floquet multiplier"),
             ("error", "m", np.asarray(self.error, float), "estimated error of the limit"),
+            ("width_max", "m", np.full(n, float(self.width_max)), "the largest width searched"),
+            ("scan_step", "m", np.full(n, float(self.scan_step)), "spacing of the depth scan (Floquet)"),
+            ("band_low", "Hz", np.full(n, float(self.band_hz[0])), "lower end of the chatter band searched"),
+            ("band_high", "Hz", np.full(n, float(self.band_hz[1])), "upper end of the chatter band searched"),
         ]  # fmt: skip
 
     def to_csv(self, path: Any) -> Path | None:
@@ -311,20 +321,14 @@ class LobeDiagram(Result):
         written atomically.  Returns the path."""
         from ..io import write_csv
 
-        n = np.asarray(self.speed).size
         coords, data, _ = self.dataset_parts()
-        numeric = {k: v for k, v in data.items() if k not in ("kind", "claim")}
-        lo, hi = self.band_hz
-        for name, unit, value in (("width_max", "m", self.width_max), ("scan_step", "m", self.scan_step),
-                                  ("band_low", "Hz", lo), ("band_high", "Hz", hi)):  # fmt: skip
-            numeric[name] = (np.full(n, float(value)), unit, name)
+        numeric = {k: v for k, v in data.items() if k not in ("kind", "claim", "basis")}
         kinds = ["none", "hopf", "flip", "fold", "undetermined"]
         kind_code = np.asarray(data["kind"][0], dtype=int)
-        bases = sorted(set(np.asarray(self.basis).astype(str)))
         coded = {
             "kind": (kind_code, kinds),
             "claim": (self.claim.astype(int), list(self.CLAIMS)),
-            "basis": (np.array([bases.index(str(b)) for b in self.basis], dtype=int), bases),
+            "basis": (np.asarray(data["basis"][0], dtype=int), list(BASES)),
         }
         return write_csv(path, coords, numeric, coded=coded)
 

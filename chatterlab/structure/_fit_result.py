@@ -5,12 +5,14 @@ residual terms, synthesis, the real-mode model ``to_model``) and its
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from ..errors import InputError
+from ..io import Result
 from ._frf import FRF
 from ._lscf import Stabilisation
 
@@ -46,7 +48,7 @@ class FitQuality:
 
 
 @dataclass(frozen=True, eq=False)
-class ModalFit:
+class ModalFit(Result):
     """A fitted modal model of a measured receptance (see :mod:`chatterlab.structure._fit`).
 
     Attributes
@@ -373,8 +375,58 @@ class ModalFit:
                 raw[key] = val
         return build_model(raw, source=f"modal fit of {self.source}")
 
+    # ------------------------------------------------------------ files
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The fitted modes (``mode`` 1..m) with their natural frequency,
+        damping ratio and standard deviations, the residues per (output,
+        input) entry (real and imaginary parts), the residual terms; the fit's
+        quality and the coordinate names as attributes."""
+        m = self.n_modes
+        R = np.asarray(self.residues, dtype=complex)
+        entry = ("mode", "output", "input")
+        q = self.quality
+        return (
+            {
+                "mode": (np.arange(1, m + 1), "1", "mode number"),
+                "output": (np.arange(len(self.outputs)), "1", "output (index into the attribute outputs)"),
+                "input": (np.arange(len(self.inputs)), "1", "input (index into the attribute inputs)"),
+            },
+            {
+                "frequency": (self.frequency_hz, "Hz", "natural frequency |lambda| / 2 pi", ("mode",)),
+                "damping_ratio": (self.damping, "1", "viscous damping ratio", ("mode",)),
+                "std_frequency": (self.std_omega / (2 * np.pi), "Hz", "standard deviation of the frequency",
+                                  ("mode",)),
+                "std_damping_ratio": (self.std_damping, "1", "standard deviation of the damping ratio", ("mode",)),
+                "residue_real": (R.real, "m/(N s)", "Re of the residue R_r", entry),
+                "residue_imag": (R.imag, "m/(N s)", "Im of the residue R_r", entry),
+                "lower_residual": (np.asarray(self.lower, float), "1/kg", "lower residual LR (of LR / s^2)",
+                                   ("output", "input")),
+                "upper_residual": (np.asarray(self.upper, float), "m/N", "upper residual UR", ("output", "input")),
+            },
+            {
+                "title": "chatterlab modal fit",
+                "source": self.source,
+                "outputs": json.dumps(list(self.outputs)),
+                "inputs": json.dumps(list(self.inputs)),
+                "error": float(q.error),
+                "weighted_error": float(q.weighted_error),
+                "band_hz": [self.band[0] / (2 * np.pi), self.band[1] / (2 * np.pi)],
+                "message": self.message,
+            },
+        )  # fmt: skip
+
+    def to_csv(self, path: Any) -> Any:
+        """The modes as CSV (``mode [1]``, ``frequency [Hz]``,
+        ``damping_ratio [1]`` and their standard deviations), exact floats;
+        returns the path (the residues are in :meth:`to_netcdf`)."""
+        from ..io import write_csv
+
+        coords, data, _ = self.dataset_parts()
+        cols = {k: v[:3] for k, v in data.items() if v[3] == ("mode",)}
+        return write_csv(path, {"mode": coords["mode"]}, cols)
+
     # ------------------------------------------------------------ plots
-    def plot(self, output: int | str = 0, input: int | str = 0, ax: Any = None) -> Any:
+    def plot(self, output: int | str = 0, input: int | str = 0, ax: Any = None, **style: Any) -> Any:
         """Measured and fitted magnitude and phase of one entry against
         frequency (Hz), with the fitted natural frequencies marked
         (:func:`chatterlab.plot.plot_modal_fit`), on ``ax`` (a pair of Axes:

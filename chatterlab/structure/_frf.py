@@ -51,6 +51,7 @@ from typing import IO, TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 
 from ..errors import InputError
+from ..io import Result
 from ._frf_spline import BAND_TOL, check_frequency, slope_errors, spline, spline_error, spline_values
 
 if TYPE_CHECKING:
@@ -118,7 +119,7 @@ def _fact(key: str, text: Any) -> Any:
 
 
 @dataclass(frozen=True, eq=False)
-class FRF:
+class FRF(Result):
     """A frequency response: ``data[o, i, k]`` is output o per unit input i
     at ``omega[k]`` (module docstring).
 
@@ -701,13 +702,13 @@ class FRF:
             ds[d].attrs.update(units="", long_name=f"{d} coordinate (POINT.DIR)")
         return ds
 
-    def to_netcdf(self, path: str | os.PathLike[str]) -> Path:
-        """A netCDF-4 file (:func:`chatterlab.io.write_frf_netcdf`; the
-        values as doubles, omega exactly: :meth:`read` gives the same FRF
-        back), written atomically; returns the path."""
-        from ..io import write_frf_netcdf
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """``(coords, data, attrs)`` of the FRF dataset (:func:`chatterlab.io.frf_parts`):
+        what :meth:`to_netcdf` writes (the values as doubles, omega exactly:
+        :meth:`read` gives the same FRF back)."""
+        from ..io import frf_parts
 
-        return write_frf_netcdf(path, self._record())
+        return frf_parts(self._record())
 
     def plot(
         self,

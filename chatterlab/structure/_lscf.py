@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..io import Result
 
 __all__ = ["Stabilisation", "lscf_poles"]
 
@@ -23,7 +24,7 @@ NEW, STABLE_FREQUENCY, STABLE = 0, 1, 2
 
 
 @dataclass(frozen=True, eq=False)
-class Stabilisation:
+class Stabilisation(Result):
     """The poles of every model order and their stability.
 
     ``orders[j]`` is the order p (the matrix polynomial degree; p n_in
@@ -43,7 +44,42 @@ class Stabilisation:
     magnitude: np.ndarray
     selected: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
 
-    def plot(self, ax: Any = None) -> Any:
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """Every physical pole of every order (``pole``), with its order,
+        natural frequency, damping ratio and stability code; the measured
+        curve (``omega``, ``magnitude``) on its own dimension."""
+        order = np.concatenate([np.full(len(p), o) for o, p in zip(self.orders, self.poles, strict=True)])
+        lam = (
+            np.concatenate([np.asarray(p, complex) for p in self.poles])
+            if self.poles
+            else np.zeros(0, complex)
+        )
+        code = np.concatenate([np.asarray(s, int) for s in self.status]) if self.status else np.zeros(0, int)
+        wn = np.abs(lam)
+        return (
+            {"pole": (np.arange(lam.size), "1", "pole")},
+            {
+                "order": (order, "1", "model order p"),
+                "frequency": (wn / (2 * np.pi), "Hz", "natural frequency |lambda| / 2 pi"),
+                "damping_ratio": (-lam.real / np.where(wn > 0, wn, 1.0), "1", "damping ratio"),
+                "status": (code, "1", "0 new, 1 stable in frequency, 2 stable in frequency and damping"),
+                "omega": (np.asarray(self.omega, float), "rad/s", "measured frequencies", ("frequency",)),
+                "magnitude": (np.asarray(self.magnitude, float), "m/N", "sum of |H| over the entries",
+                              ("frequency",)),
+            },
+            {"title": "chatterlab stabilisation diagram", "tol_frequency": self.tol_frequency,
+             "tol_damping": self.tol_damping},
+        )  # fmt: skip
+
+    def to_csv(self, path: Any) -> Any:
+        """The poles as CSV (``pole [1]``, ``order``, ``frequency``,
+        ``damping_ratio``, ``status``); returns the path."""
+        from ..io import write_csv
+
+        coords, data, _ = self.dataset_parts()
+        return write_csv(path, coords, {k: v for k, v in data.items() if len(v) == 3})
+
+    def plot(self, ax: Any = None, **style: Any) -> Any:
         """The stabilisation diagram (order against frequency in Hz) over the
         measured magnitude (:func:`chatterlab.plot.plot_stabilisation`);
         returns the Axes.  Imports matplotlib."""

@@ -8,6 +8,7 @@ each mode, and rigid-body modes detected and named: a floating part is a
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -156,7 +157,7 @@ class Modes(Result):
                 "title": "chatterlab modes",
                 "model": str(mdl.source),
                 "position_m": float("nan") if self.position is None else self.position,
-                "coordinates": list(self.frozen.names),
+                "coordinates": json.dumps(list(self.frozen.names)),
                 "rigid_body_modes": "; ".join(self.rigid),
             },
         )

@@ -12,8 +12,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from chatterlab.io._netcdf import LabelledData, make_dataset, read_netcdf, write_netcdf
-from chatterlab.io._netcdf_csv import write_csv
+from chatterlab.io import LabelledData, Result, read_netcdf, write_csv
 
 from ._grid import Grid
 
@@ -59,7 +58,7 @@ class SweepInterrupted(KeyboardInterrupt):
 
 
 @dataclass(frozen=True, eq=False)
-class SweepResult:
+class SweepResult(Result):
     """The outcome of :func:`sweep`.
 
     Attributes
@@ -184,41 +183,18 @@ class SweepResult:
             )
         }
 
-    def to_xarray(self) -> Any:
-        """The result as an :class:`xarray.Dataset`, losslessly.
-
-        Grid axes are index coordinates (``units``), outputs data variables
-        (``units``, ``long_name``), the per-point ``task_status`` a data
-        variable, and ``attrs`` plus the run status (``status``,
-        ``message``, ``n_failed``, ``reasons`` and the first failures as
-        JSON) global attributes: :meth:`from_xarray` gives the result back
-        (all but the bookkeeping of this call: ``n_computed``, ``n_resumed``,
-        ``elapsed``; only the first 100 failures are attributes, as in the
-        file).  Memory-mapped outputs stay memory maps until written.
-        """
-        return make_dataset(self.grid.coords, self._data_specs() | self._status_spec(), self.file_attrs())
-
-    def to_dataset(self) -> Any:
-        """The same as :meth:`to_xarray` (the name of chatterlab 0.1)."""
-        return self.to_xarray()
-
-    def to_netcdf(self, path: str | os.PathLike[str], *, provenance: bool = True) -> Path:
-        """Write :meth:`to_xarray` to a netCDF-4 file, atomically (see
-        :func:`chatterlab.io.write_netcdf`: the same file, without importing xarray).
-
-        Grid axes become coordinate variables, outputs data variables with
-        ``units`` and ``long_name``; ``attrs``, ``status``, ``message``,
-        ``n_failed`` (and the first failures, as JSON) become global
-        attributes, plus provenance unless ``provenance=False`` or ``attrs``
-        fixes it (e.g. ``attrs={"created": "..."}`` for reproducible bytes).
-        """
-        return write_netcdf(
-            path,
-            self.grid.coords,
-            self._data_specs() | self._status_spec(),
-            self.file_attrs(),
-            provenance=provenance,
-        )
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The result losslessly (:meth:`from_xarray` and :meth:`from_netcdf`
+        give it back): grid axes as index coordinates (``units``), outputs as
+        data variables (``units``, ``long_name``), the per-point
+        ``task_status`` a data variable, and ``attrs`` plus the run status
+        (``status``, ``message``, ``n_failed``, ``reasons`` and the first
+        failures as JSON) global attributes -- all but the bookkeeping of
+        this call (``n_computed``, ``n_resumed``, ``elapsed``; only the first
+        100 failures are attributes).  Memory-mapped outputs stay memory
+        maps until written; provenance is added to a file unless ``attrs``
+        fixes it (e.g. ``attrs={"created": "..."}`` for reproducible bytes)."""
+        return self.grid.coords, self._data_specs() | self._status_spec(), self.file_attrs()
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write a long-format CSV file: one row per grid point, header ``name [unit]``,
@@ -227,7 +203,7 @@ class SweepResult:
         coded = None
         if self.task_status is not None:
             coded = {
-                "status": (self.task_status, ["ok"] + ["failed"] * len(self.reasons)),
+                "task_status": (self.task_status, ["ok"] + ["failed"] * len(self.reasons)),
                 "reason": (self.task_status, ["", *self.reasons]),
             }
         out = write_csv(path, self.grid.coords, self._data_specs(), coded=coded)
@@ -296,7 +272,7 @@ class SweepResult:
 
     def plot(
         self,
-        output: str,
+        output: str | None = None,
         ax: Any = None,
         *,
         x: str | None = None,
@@ -306,8 +282,8 @@ class SweepResult:
 
         Parameters
         ----------
-        output : str
-            The output to plot.
+        output : str, optional
+            The output to plot (default: the first).
         ax : matplotlib Axes, optional
             Where to draw (a new figure otherwise).
         x : str, optional
@@ -323,4 +299,4 @@ class SweepResult:
         """
         from ..plot import plot_sweep
 
-        return plot_sweep(self, output, ax=ax, x=x, at=at)
+        return plot_sweep(self, output if output is not None else next(iter(self.data)), ax=ax, x=x, at=at)
