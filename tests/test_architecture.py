@@ -31,6 +31,7 @@ PKG = Path(__file__).resolve().parents[1] / "chatterlab"
 LAYERS = {
     "_version": 0,
     "_threads": 0,
+    "_progress": 0,  # the one progress bar (sweeps, diagrams, simulations)
     "_examples": 1,  # the bundled examples (imports errors only)
     "errors": 0,
     "io": 1,
@@ -44,6 +45,7 @@ LAYERS = {
     "lobes": 6,
     "quantities": 7,
     "design": 7,  # sensitivities of the limit, absorbers (issue 23): above lobes
+    "uncertainty": 7.5,  # probabilistic lobes (issue 24): on lobes, sweep and quantities, below cli
     "cli": 8,
     "__init__": 9,
 }
@@ -170,12 +172,14 @@ def test_no_import_cycle():
 @pytest.mark.parametrize(("unit", "allowed"), [("sweep", ("io", "plot")), ("io", ()), ("plot", ())])
 def test_engines_know_nothing_of_chatter(unit, allowed):
     """The sweep engine may write files (io) and draw its result (plot); io and plot use nothing else
-    (besides the layer-0 utilities: errors, _version, _threads)."""
+    (besides the layer-0 utilities: errors, _version, _threads, _progress)."""
     graph, _ = _graph()
     for mod, deps in graph.items():
         if _unit(mod) != unit:
             continue
-        foreign = {d for d in deps if _unit(d) not in (unit, "errors", "_version", "_threads", *allowed)}
+        foreign = {
+            d for d in deps if _unit(d) not in (unit, "errors", "_version", "_threads", "_progress", *allowed)
+        }
         assert not foreign, f"{mod} imports {sorted(foreign)}"
 
 
