@@ -27,8 +27,9 @@ References
 
 from __future__ import annotations
 
+import contextlib
 import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ParamSpec, TypeVar
 
@@ -288,12 +289,33 @@ def _companion(cho: Any, K: FloatArray, C: FloatArray) -> FloatArray:
     return A
 
 
-def single_threaded_blas() -> Any:
+#: how many single_threaded_blas contexts are open (the limit is the process's)
+_BLAS_DEPTH = [0]
+
+
+@contextlib.contextmanager
+def single_threaded_blas() -> Iterator[None]:
     """Single-threaded BLAS for the many small dense problems
-    (:func:`chatterlab._threads.one_blas_thread`)."""
+    (:func:`chatterlab._threads.one_blas_thread`).  Inside another such
+    context (rhp_counts called by the lobe engine, itself single-threaded)
+    every loaded BLAS is already limited, and the inner context does
+    nothing: setting the limit again costs threadpoolctl a scan of the
+    loaded libraries, ~2 ms each time."""
+    if _BLAS_DEPTH[0]:
+        _BLAS_DEPTH[0] += 1
+        try:
+            yield
+        finally:
+            _BLAS_DEPTH[0] -= 1
+        return
     from .._threads import one_blas_thread
 
-    return one_blas_thread()
+    with one_blas_thread():
+        _BLAS_DEPTH[0] += 1
+        try:
+            yield
+        finally:
+            _BLAS_DEPTH[0] -= 1
 
 
 def single_threaded(func: Callable[P, R]) -> Callable[P, R]:

@@ -40,6 +40,7 @@ from ._delay_system import DelaySystem
 
 __all__ = [
     "Sampler",
+    "band_start",
     "band_end",
     "initial_grid",
     "certification_grid",
@@ -119,6 +120,13 @@ def _tail_bound(sys: DelaySystem, mode: str, omega: float, ref_shift: float | No
     return float(np.linalg.norm(X, 2))
 
 
+def band_start(sys: DelaySystem, poles: ComplexArray, scale: float) -> float:
+    """Where :func:`band_end` starts (rad/s): 3x the largest pole frequency
+    (or 3x ``scale``, or 10/tau).  A certified phase starts there too and
+    proves its own tail (:func:`certified_phase`)."""
+    return max(3.0 * float(np.max(np.abs(poles.imag))), 3.0 * scale, 10.0 / sys.tau)
+
+
 def band_end(
     sys: DelaySystem, mode: str, ref_shift: float | None, poles: ComplexArray, scale: float
 ) -> tuple[float, bool]:
@@ -126,7 +134,7 @@ def band_end(
     1e-3`` at it and at twice it, starting from 3x the largest pole (or
     ``scale``, or 10/tau) and doubling; ``found`` is False when 60 doublings
     do not get there (``M`` singular)."""
-    W = max(3.0 * float(np.max(np.abs(poles.imag))), 3.0 * scale, 10.0 / sys.tau)
+    W = band_start(sys, poles, scale)
     for _ in range(60):
         if _tail_bound(sys, mode, W, ref_shift) < _TAIL and _tail_bound(sys, mode, 2 * W, ref_shift) < _TAIL:
             return W, True
@@ -558,31 +566,34 @@ def _certify(loops: _Loops, starts: list[tuple[FloatArray, float]]) -> list[Cert
         sid = np.insert(sid, split + 1, sid[split])
         kind = np.insert(kind, split + 1, 0)
         kind[split + np.arange(split.size)] = 0
+    # the increments of all the systems at once (those between two systems dropped)
+    C = len(ws)
+    inc = np.angle(val[1:] * np.conj(val[:-1]))
+    pas = np.nonzero(kind == 1)[0]
+    if pas.size:
+        ends = np.unique(np.concatenate([pas, pas + 1]))
+        arg = loops.passive_args(w[ends], sid[ends])
+        inc[pas] = arg[np.searchsorted(ends, pas + 1)] - arg[np.searchsorted(ends, pas)]
+    inc[~np.isfinite(inc) | (kind == -1)] = 0.0
+    first = np.searchsorted(sid, np.arange(C + 1))
+    tails = -loops.passive_args(w[first[1:] - 1], np.arange(C))
+    per = sid[:-1]
+    total = np.bincount(per, weights=inc, minlength=C) + tails
+    count = {k: np.bincount(per[kind == k], minlength=C) for k in (0, 1, 2, 3)}
     out = []
-    first = np.searchsorted(sid, np.arange(len(ws) + 1))
-    for c in range(len(ws)):
+    for c in range(C):
         i0, i1 = int(first[c]), int(first[c + 1])
-        wc, vc, kc = w[i0:i1], val[i0:i1], kind[i0 : i1 - 1]
-        cc = np.full(wc.size, c)
-        inc = np.angle(vc[1:] * np.conj(vc[:-1]))
-        pas = np.nonzero(kc == 1)[0]
-        if pas.size:
-            ends = np.unique(np.concatenate([pas, pas + 1]))
-            arg = loops.passive_args(wc[ends], cc[ends])
-            inc[pas] = arg[np.searchsorted(ends, pas + 1)] - arg[np.searchsorted(ends, pas)]
-        inc[~np.isfinite(inc)] = 0.0
-        tail = -float(loops.passive_args(wc[-1:], cc[-1:])[0])
         out.append(
             Certificate(
-                float(np.sum(inc)) + tail,
-                tail,
-                float(wc[-1]),
-                wc,
-                vc,
-                int(np.sum(kc == 3)),
-                int(pas.size),
-                int(np.sum(kc == 2)),
-                not np.any(kc == 0),
+                float(total[c]),
+                float(tails[c]),
+                float(w[i1 - 1]),
+                w[i0:i1],
+                val[i0:i1],
+                int(count[3][c]),
+                int(count[1][c]),
+                int(count[2][c]),
+                not count[0][c],
             )
         )
     return out

@@ -100,6 +100,7 @@ from ._phase_sampling import (
     Certificate,
     Sampler,
     band_end,
+    band_start,
     certification_grid,
     certified_phases,
     initial_grid,
@@ -274,6 +275,7 @@ class _Pending:
     scale: float
     z_open: int
     z_p: int
+    auto_band: bool  # W not given: band_end still to be found if the phase is sampled
 
 
 def _prepare(sys: DelaySystem, omega_max: float | None, direct: bool) -> WindingResult | _Pending:
@@ -312,13 +314,17 @@ def _prepare(sys: DelaySystem, omega_max: float | None, direct: bool) -> Winding
     logdetM = float(np.linalg.slogdet(sys.coeffs[2])[1]) if direct_mode else 0.0
     F = Sampler(sys, ref.mode, ref.ref, logdetM)
     poles = np.concatenate([p, p0])
-    if omega_max is None:
+    if omega_max is not None:
+        W = float(omega_max)
+    elif ref.mode == "factored":
+        # the certified phase proves its own tail beyond W (doubling it as
+        # needed); band_end is found only if the phase has to be sampled
+        W = band_start(sys, poles, scale)
+    else:
         W, found = band_end(sys, ref.mode, ref.ref_shift, poles, scale)
         if not found:
             return _failed(z_open, z_p, W, "|f - 1| does not decay; is M singular?")
-    else:
-        W = float(omega_max)
-    return _Pending(sys, ref, F, W, poles, p, scale, z_open, z_p)
+    return _Pending(sys, ref, F, W, poles, p, scale, z_open, z_p, omega_max is None)
 
 
 def _finish(pd: _Pending, cert: Certificate | None, n_points: int | None) -> WindingResult:
@@ -331,6 +337,10 @@ def _finish(pd: _Pending, cert: Certificate | None, n_points: int | None) -> Win
             f" passive tail beyond {W:.4g} rad/s)"
         )
     else:
+        if pd.auto_band and ref.mode == "factored":
+            W, found = band_end(sys, ref.mode, ref.ref_shift, pd.poles, pd.scale)
+            if not found:
+                return _failed(z_open, z_p, W, "|f - 1| does not decay; is M singular?")
         pieces, n0, passive = initial_grid(sys, ref.mode, W, pd.poles, pd.scale, n_points)
         if n0 > MAX_SAMPLES:
             return _failed(
@@ -416,8 +426,8 @@ def rhp_count(
         :class:`chatterlab.process.ClosedLoop`.
     omega_max : float, optional
         Upper end of the sampled band in rad/s; default: 3x the largest
-        delay-free eigenfrequency, doubled until :math:`|f - 1| < 10^{-3}`.
-        In factored form it is doubled further until the bound proves
+        delay-free eigenfrequency, doubled until :math:`|f - 1| < 10^{-3}`;
+        in factored form (certified) doubled instead until the bound proves
         :math:`\\|H\\| < 1/2` beyond it (the proven passive tail).
     n_points : int, optional
         Minimum number of initial samples (default from the step
