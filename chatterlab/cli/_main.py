@@ -72,6 +72,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._design",
         "tune vibration absorbers to maximise the minimum chatter-free width; lobes before and after",
     ),
+    "risk": (
+        "chatterlab.cli._risk",
+        "probabilistic lobes: P(chatter), quantile lobes and Sobol' indices from [uncertainty]",
+    ),
     "example": (
         "chatterlab.cli._example",
         "copy a bundled example (model, FRF) into this folder; alone: list them",

@@ -47,6 +47,7 @@ from ._tables import (
     _read_nodes,
     _read_supports,
 )
+from ._uncertainty import read_uncertainty
 
 __all__ = ["load_model", "loads_model", "build_model"]
 
@@ -342,6 +343,7 @@ def _build_model(
     frozen_raw = json.dumps(raw)
     base_dir = Path(raw.pop("__base_dir__", "."))
     files_outside = bool(raw.pop("__files_outside__", False))
+    read_uncertainty(src, raw, variant, overrides)  # [uncertainty]: checked, set aside (_uncertainty)
     _check_tables(src, raw)
     _apply_variant(src, raw, variant, overrides)
     meta = _Item(src, "[model]", raw.get("model", {}), ("name", "description", "reference"))

@@ -22,6 +22,7 @@ from ._roots import plot_multipliers, plot_roots
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
 from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
+from ._uncertainty import plot_risk, plot_sobol
 
 __all__ = [
     "plot_frf",
@@ -46,5 +47,7 @@ __all__ = [
     "plot_frequencies",
     "plot_sweep",
     "plot_stability_map",
+    "plot_risk",
+    "plot_sobol",
     "savefig",
 ]
