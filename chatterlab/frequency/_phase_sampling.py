@@ -16,12 +16,16 @@ order it takes them:
 * :func:`phase_change` sums the increments, exactly from the eigenvalues of
   :math:`H` at the ends of a passive interval, and adds the tail to infinity.
 
-In factored mode :func:`certified_phase` replaces the last two steps (and
-the heuristic passive bands): every increment is proven by a bound on
+In factored mode :func:`certified_phase` replaces the last three steps
+(and the heuristic passive bands): every increment is proven by a bound on
 ``||H||`` or on the Lipschitz constant of ``g`` from the partial fractions of
 the delay-free loop, and the tail by a monotone bound (see its docstring
-for the derivation).  :func:`refine` and :func:`phase_change` remain the
-direct mode's (and the fallback's), which is not a proof.
+for the derivation); it starts from :func:`certification_grid` (0, the
+delay-free poles' frequencies and :func:`band_start`) and its bounds place
+every other sample.  :func:`certified_phases` does it for several systems
+in one bisection.  :func:`band_end`, :func:`initial_grid`, :func:`refine`
+and :func:`phase_change` remain the direct mode's (and the fallback's),
+which is not a proof.
 
 See :mod:`chatterlab.frequency._winding` for the mathematics and references.
 """
