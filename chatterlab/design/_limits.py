@@ -111,6 +111,10 @@ def limits_of(diagram: Any, L: LoopMatrices, *, speeds: bool = True) -> Limits:
 
 
 def _absolute(diagram: Any, L: LoopMatrices) -> CriticalPoint | None:
+    """The absolute minimum: the engine's, polished, or a lower branch bottom
+    that the lobes show (the engine refines the branch with the lowest
+    *sampled* width; where two branch minima are within the sampling error of
+    each other, about 1e-6, that can be the higher one)."""
     a = diagram.absolute_minimum
     width, fa = float(a["width"]), float(a["chatter_hz"])
     if not np.isfinite(width):
@@ -123,10 +127,15 @@ def _absolute(diagram: Any, L: LoopMatrices) -> CriticalPoint | None:
     w = 2 * np.pi * fa
     z = _z_of(_H(L, w), L, width, w)
     try:
-        cp = branch_minimum(L, width, w, z)
+        cp: CriticalPoint | None = branch_minimum(L, width, w, z)
     except ArithmeticError:
-        return None
-    return cp if cp.converged else None
+        cp = None
+    if cp is not None and not cp.converged:
+        cp = None
+    for other in lobe_bottoms(diagram, L):
+        if cp is None or other.b < cp.b * (1 - 1e-12):
+            cp = other
+    return cp
 
 
 def lobe_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[CriticalPoint]:

@@ -1,0 +1,317 @@
+"""Design against chatter (issue 23), measured: the exact sensitivities
+against finite differences of the limit, and the absorber tuning against a
+brute-force grid.
+
+Run from the repository root::
+
+    python benchmarks/bench_design.py              # 5 interleaved repeats, label "current"
+    python benchmarks/bench_design.py --repeat 7 --label after
+
+What is timed, in one run, interleaved (a, b, a, b, ... then c, d, c, d, ...),
+every route with one BLAS thread (threadpoolctl):
+
+a. ``chatterlab.design.sensitivity`` on the traverse shaper
+   (``studies/traverse_shaper/model.toml`` at s = 0.85 m, 60 work speeds
+   0.1 .. 1 m/s, widths to 1 mm): the derivative of the minimum b_lim over the
+   range and of the absolute minimum for the full default table of fields
+   (106), with the lobe diagram it needs;
+b. what a user without it does: central finite differences of the same
+   minimum, one lobe diagram (``lobes(..., verify=0)``) at p - h and one at
+   p + h per field, h = (3 eps_b)^(1/3) |p| (eps_b = 1e-12, the engine's
+   relative accuracy of a limit), or h = |p|/4 for a field at 0 made
+   positive (a one-sided difference: a joint's damping cannot be negative).
+   Two diagrams per field is the *cheapest* finite difference: its accuracy
+   (recorded: the largest relative difference from (a) over the fields whose
+   elasticity exceeds 1e-3, and the difference's own error estimate) is far
+   below the exact one's, so "equal accuracy" favours (b);
+c. ``chatterlab.design.tune_absorbers`` on the 1-DOF turning tool of
+   docs/model-format.md made undamped (m = 1 kg, k = 1e7 N/m, K_f = 2e9 N/m^2)
+   with a 0.05 kg absorber at the tool, maximising the absolute minimum
+   (Sims' criterion), one start (Den Hartog's tuning), verify 2;
+d. a brute-force search of the same objective on the same model: the lobe
+   engine's absolute minimum on an 11 x 11 grid of (f_a, zeta_a) over the
+   tuner's default bounds, then zoomed on the best point (+-2 cells) level
+   after level until its best is within 1e-6 of the tuned optimum (at most
+   20 levels): "equal optimum".  Its evaluations and its final gap are recorded.
+
+The goals of issue 23: (b) / (a) >= 10 for the full table; (d) / (c) is
+recorded.  Wall-clock min and median of the repeats of this run, the CPU
+time beside them, /proc/loadavg before and after each part; the run is
+stored in ``benchmarks/results/design.json`` under ``runs[<label>]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+try:
+    import chatterlab as cl
+except ImportError:  # run from a checkout without installing
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    import chatterlab as cl
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"
+OUT = ROOT / "benchmarks" / "results" / "design.json"
+GOAL_SENSITIVITY = 10.0  #: issue 23: finite differences / exact, at least
+EPS_B = 1e-12  #: the lobe engine's relative accuracy of a limit (tests/test_lobes.py: 4e-13)
+EQUAL = 1e-6  #: "equal optimum": the brute force's best within this of the tuned one
+MAX_LEVELS = 20  #: zoom levels of the brute force at most
+
+
+def loadavg() -> str:
+    try:
+        return Path("/proc/loadavg").read_text().strip()
+    except OSError:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def source_commit() -> str:
+    src = Path(cl.__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no", "chatterlab"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        return head + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def stats(times: list[float], cpu: list[float]) -> dict[str, Any]:
+    return {
+        "min_s": min(times),
+        "median_s": float(np.median(times)),
+        "times_s": times,
+        "cpu_min_s": min(cpu),
+        "cpu_median_s": float(np.median(cpu)),
+        "cpu_s": cpu,
+    }
+
+
+def timed(f: Any) -> tuple[Any, float, float]:
+    c, t = time.process_time(), time.perf_counter()
+    out = f()
+    return out, time.perf_counter() - t, time.process_time() - c
+
+
+# ---------------------------------------------------------------- a, b: sensitivities
+def sensitivity_part(repeat: int) -> dict[str, Any]:
+    from chatterlab.design import design_fields, field_value, sensitivity
+    from chatterlab.lobes import lobes
+
+    model = cl.load_model(MODEL)
+    speeds = np.linspace(0.1, 1.0, 60)
+    kw = {"width_max": 1e-3}
+    fields = design_fields(model)
+
+    def exact() -> Any:
+        return sensitivity(model, speeds, position=0.85, per_speed=False, **kw)
+
+    def b_min(p: str, v: float) -> float:
+        d = lobes(cl.assemble(model.with_parameter(p, v)).at(0.85), speeds, verify=0, **kw)
+        return float(d.minimum["width"])
+
+    def fd() -> tuple[np.ndarray, np.ndarray]:
+        """Central differences (one-sided at 0) and their error estimates."""
+        d = np.zeros(len(fields))
+        est = np.zeros(len(fields))
+        b0 = float(lobes(cl.assemble(model).at(0.85), speeds, verify=0, **kw).minimum["width"])
+        for i, p in enumerate(fields):
+            v = field_value(model, p)
+            if v == 0:
+                h = 1.0  # N s/m: a joint damping made positive; one-sided
+                d[i] = (b_min(p, h) - b0) / h
+                est[i] = np.nan
+            else:
+                h = (3 * EPS_B) ** (1 / 3) * abs(v)
+                d[i] = (b_min(p, v + h) - b_min(p, v - h)) / (2 * h)
+                est[i] = EPS_B * 2e-4 / h  # the round-off part, with b ~ 2e-4 m
+        return d, est
+
+    ex, _, _ = timed(exact)  # warm-up
+    t_ex, c_ex, t_fd, c_fd = [], [], [], []
+    load = [loadavg()]
+    fd_out = None
+    for _ in range(repeat):
+        ex, t, c = timed(exact)
+        t_ex.append(t)
+        c_ex.append(c)
+        fd_out, t, c = timed(fd)
+        t_fd.append(t)
+        c_fd.append(c)
+        load.append(loadavg())
+    assert fd_out is not None
+    d_fd, _ = fd_out
+    el = ex.values * ex.d_minimum / ex.minimum["width"]
+    big = (np.abs(el) > 1e-3) & (ex.values != 0)
+    rel = np.abs(d_fd[big] - ex.d_minimum[big]) / np.abs(ex.d_minimum[big])
+    return {
+        "model": str(MODEL.relative_to(ROOT)),
+        "fields": len(fields),
+        "speeds": speeds.size,
+        "exact": stats(t_ex, c_ex),
+        "finite_differences": {
+            **stats(t_fd, c_fd),
+            "lobe_diagrams": 2 * len(fields) - sum(1 for p in fields if field_value(model, p) == 0) + 1,
+        },
+        "ratio_min": min(t_fd) / min(t_ex),
+        "ratio_median": float(np.median(t_fd) / np.median(t_ex)),
+        "goal": GOAL_SENSITIVITY,
+        "exact_evaluations": ex.evaluations,
+        "exact_error_estimate_max_rel": float(np.nanmax(ex.err_minimum[big] / np.abs(ex.d_minimum[big]))),
+        "fd_vs_exact_max_rel": float(rel.max()),
+        "fd_vs_exact_median_rel": float(np.median(rel)),
+        "fields_compared": int(big.sum()),
+        "minimum_m": ex.minimum["width"],
+        "loadavg": load,
+    }
+
+
+# ---------------------------------------------------------------- c, d: absorber
+def absorber_part(repeat: int) -> dict[str, Any]:
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import turning_text
+
+    from chatterlab.design import lobe_bottoms, loop_matrices, tune_absorbers, with_absorber
+    from chatterlab.design._absorber import _with_values
+    from chatterlab.lobes import lobes
+
+    host = cl.loads_model(turning_text(mass=1.0, stiffness=1e7, damping=0.0, Kf=2e9))
+    model = with_absorber(host, "tva", "tip", direction="x", mass=0.05, frequency_hz=480.0, damping_ratio=0.1)
+    speeds = np.linspace(3000.0, 15000.0, 60)
+
+    def tuner() -> Any:
+        return tune_absorbers(model, speeds, objective="absolute", starts=1, verify=2)
+
+    des, _, _ = timed(tuner)  # warm-up, and the optimum the brute force must reach
+    target = des.width
+    f_c = des.den_hartog[0]["host_hz"]  # the undamped host: the tuner's bounds are 0.6 .. 1.4 f_c
+    fn = math.sqrt(1e7) / (2 * math.pi)
+    assert abs(f_c - fn) < 1e-6 * fn
+
+    def objective(f: float, z: float) -> float:
+        k = 0.05 * (2 * math.pi * f) ** 2
+        m = _with_values(model, {"tva": (0.05, k, 2 * z * math.sqrt(k * 0.05))})
+        return float(lobes(cl.assemble(m).at(), speeds[:2], verify=0).absolute_minimum["width"])
+
+    def brute() -> tuple[float, int, int, tuple[float, float]]:
+        lo_f, hi_f, lo_z, hi_z = 0.6 * f_c, 1.4 * f_c, 0.005, 0.5
+        best, n, levels, where = -np.inf, 0, 0, (0.0, 0.0)
+        for levels in range(1, MAX_LEVELS + 1):  # noqa: B007  (the count reached is returned)
+            F = np.linspace(lo_f, hi_f, 11)
+            Z = np.linspace(lo_z, hi_z, 11)
+            vals = np.array([[objective(f, z) for z in Z] for f in F])
+            n += vals.size
+            i, j = np.unravel_index(np.argmax(vals), vals.shape)
+            if vals[i, j] > best:
+                best, where = float(vals[i, j]), (float(F[i]), float(Z[j]))
+            if best >= target * (1 - EQUAL):
+                break
+            df, dz = F[1] - F[0], Z[1] - Z[0]
+            lo_f, hi_f = max(F[i] - 2 * df, 1.0), F[i] + 2 * df
+            lo_z, hi_z = max(Z[j] - 2 * dz, 1e-4), Z[j] + 2 * dz
+        return best, n, levels, where
+
+    t_t, c_t, t_b, c_b = [], [], [], []
+    load = [loadavg()]
+    out_b = None
+    for _ in range(repeat):
+        des, t, c = timed(tuner)
+        t_t.append(t)
+        c_t.append(c)
+        out_b, t, c = timed(brute)
+        t_b.append(t)
+        c_b.append(c)
+        load.append(loadavg())
+    assert out_b is not None
+    best, n, levels, where = out_b
+    # the brute force's best design, its true minimum: the lowest of every branch bottom
+    # (the engine's absolute_minimum refines the branch with the lowest sampled width, and near
+    # an equal-ripple design -- where two bottoms are within ~1e-6 -- that can be the higher one)
+    k = 0.05 * (2 * math.pi * where[0]) ** 2
+    mb = _with_values(model, {"tva": (0.05, k, 2 * where[1] * math.sqrt(k * 0.05))})
+    true_best = min(
+        cp.b for cp in lobe_bottoms(lobes(cl.assemble(mb).at(), speeds, verify=0), loop_matrices(mb))
+    )
+    return {
+        "model": "1-DOF turning tool (m 1 kg, k 1e7 N/m, undamped) + 0.05 kg absorber, absolute minimum",
+        "tuner": {**stats(t_t, c_t), "evaluations": des.evaluations, "optimum_m": des.width,
+                  "frequency_hz": des.absorbers[0]["frequency_hz"], "damping_ratio": des.absorbers[0]["damping_ratio"],
+                  "verified": bool(des.verified)},
+        "brute_force": {**stats(t_b, c_b), "evaluations": n, "levels": levels, "best_m": best,
+                        "gap_rel": (target - best) / target, "best_design": where, "best_true_m": true_best,
+                        "gap_true_rel": (target - true_best) / target},
+        "ratio_min": min(t_b) / min(t_t),
+        "ratio_median": float(np.median(t_b) / np.median(t_t)),
+        "loadavg": load,
+    }  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--label", default="current")
+    ap.add_argument("--part", choices=["all", "sensitivity", "absorber"], default="all")
+    args = ap.parse_args()
+    from threadpoolctl import threadpool_limits
+
+    run: dict[str, Any] = {
+        "commit": source_commit(),
+        "date": time.strftime("%Y-%m-%d %H:%M:%S"),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "machine": platform.machine(),
+        "cpus": os.cpu_count(),
+        "repeat": args.repeat,
+        "blas_threads": 1,
+    }
+    with threadpool_limits(limits=1, user_api="blas"):
+        if args.part in ("all", "sensitivity"):
+            run["sensitivity"] = sensitivity_part(args.repeat)
+            s = run["sensitivity"]
+            print(
+                f"sensitivities, {s['fields']} fields of the shaper: exact {s['exact']['min_s']:.2f} s (median"
+                f" {s['exact']['median_s']:.2f}), finite differences {s['finite_differences']['min_s']:.1f} s"
+                f" (median {s['finite_differences']['median_s']:.1f}): x {s['ratio_min']:.1f} (median"
+                f" x {s['ratio_median']:.1f}; goal x {GOAL_SENSITIVITY:g}); FD vs exact: max rel"
+                f" {s['fd_vs_exact_max_rel']:.1e}, exact's own estimate {s['exact_error_estimate_max_rel']:.1e}"
+            )
+        if args.part in ("all", "absorber"):
+            run["absorber"] = absorber_part(args.repeat)
+            a = run["absorber"]
+            print(
+                f"absorber tuning: {a['tuner']['min_s']:.2f} s (median {a['tuner']['median_s']:.2f},"
+                f" {a['tuner']['evaluations']} evaluations), brute force {a['brute_force']['min_s']:.1f} s"
+                f" (median {a['brute_force']['median_s']:.1f}, {a['brute_force']['evaluations']} evaluations,"
+                f" {a['brute_force']['levels']} levels, gap {a['brute_force']['gap_rel']:.1e}, true gap"
+                f" {a['brute_force']['gap_true_rel']:.1e}):"
+                f" x {a['ratio_min']:.1f} (median x {a['ratio_median']:.1f})"
+            )
+    data = json.loads(OUT.read_text()) if OUT.exists() else {"runs": {}}
+    data.setdefault("runs", {})[args.label] = run
+    OUT.write_text(json.dumps(data, indent=1) + "\n")
+    print(f"wrote {OUT.relative_to(ROOT)} (runs: {', '.join(data['runs'])})")
+
+
+if __name__ == "__main__":
+    main()
