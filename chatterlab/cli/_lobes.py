@@ -61,7 +61,12 @@ def add_parser(sub: Any) -> None:
     )
     lo.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
     lo.add_argument(
-        "--width-max", type=float, default=20.0, metavar="B", help="largest width considered, mm (default 20)"
+        "--width-max",
+        type=float,
+        default=None,
+        metavar="B",
+        help="largest width considered, mm (default 20; milling: from the problem, 3 x the largest"
+        " zeroth-order limit)",
     )
     g = lo.add_mutually_exclusive_group()
     g.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
@@ -107,14 +112,20 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     from ..structure._assembly import assemble
 
-    if args.positions is None:
-        _engine_options_unused(args)
     model = frf_model(args) if uses_frf(args) else load(args)
     if model.process is None:
         raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
+    milling_model = model.process.kind == "milling" and model.frf is None and args.method != "zoa"
+    if args.positions is None:
+        _engine_options_unused(args, milling=milling_model)
     v = speeds(args, model.process)
-    wmax = width_max_m(args)
-    warn(args, width_slips(wmax, "--width-max"))
+    if args.width_max is None and milling_model:
+        wmax = None  # from the problem (lobes.milling_ceiling)
+    else:
+        if args.width_max is None:
+            args.width_max = 20.0
+        wmax = width_max_m(args)
+        warn(args, width_slips(wmax, "--width-max"))
     if model.frf is not None:
         if args.method not in (None, "zoa"):
             raise InputError(
@@ -133,10 +144,11 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     return _report(args, model, _diagram(args, sy, v, wmax), outs)
 
 
-def _engine_options_unused(args: argparse.Namespace) -> None:
-    """The sweep engine's options are for an atlas: a single diagram runs in
-    this process, with no checkpoint, so they are refused, not ignored (a
-    --resume after an interrupted diagram would silently compute it all)."""
+def _engine_options_unused(args: argparse.Namespace, milling: bool = False) -> None:
+    """The sweep engine's options are for an atlas: a single diagram runs
+    with no checkpoint, so they are refused, not ignored (a --resume after an
+    interrupted diagram would silently compute it all); a milling diagram
+    takes --jobs (its speeds are independent and split among processes)."""
     given = [
         opt
         for opt, val in (
@@ -144,7 +156,7 @@ def _engine_options_unused(args: argparse.Namespace) -> None:
             ("--checkpoint", args.checkpoint),
             ("--backend", args.backend != "loky"),
             ("--scheduler", args.scheduler),
-            ("--jobs", args.jobs != 2),
+            ("--jobs", args.jobs != 2 and not milling),
             ("--tls-ca-file", args.tls_ca_file),
             ("--tls-cert", args.tls_cert),
             ("--tls-key", args.tls_key),

@@ -109,9 +109,12 @@ def _structure(
     return S, S.milling, note
 
 
-def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -> Any:
-    """``lobes`` on a milling model: :func:`chatterlab.lobes.milling_lobes`."""
+def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float | None) -> Any:
+    """``lobes`` on a milling model: :func:`chatterlab.lobes.milling_lobes`
+    (``wmax`` None: the ceiling from the problem), with a progress bar and
+    --jobs processes over the speeds (default: 2 from 40 speeds up)."""
     from ..lobes._milling import milling_lobes as compute
+    from ._common import progress_bar
 
     for opt, val in (
         ("--positions", args.positions),
@@ -126,13 +129,24 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float) -
     refuse_unused(args, method)
     _speeds(rpm, "--speed")
     S, mill, note = _structure(model, args.position, args)
+    why = ""
+    if wmax is None:
+        from ..lobes._milling import milling_ceiling
+
+        wmax, why = milling_ceiling(S, rpm)
     _helix_cost(mill, wmax)
     if note:
         print(note)
+    jobs = args.jobs if args.jobs != 2 else (2 if len(rpm) >= 40 else 1)
     ml = compute(
         S, rpm, method=method, depth_max=wmax, scan=check_count(args.scan, "--scan", 2),
-        steps=check_count(args.steps, "--steps", 2),
+        steps=check_count(args.steps, "--steps", 2), jobs=jobs,
+        progress=None if getattr(args, "quiet", False) else progress_bar(f"milling lobes ({len(rpm)} speeds)"),
     )  # fmt: skip
+    if why:
+        import dataclasses
+
+        ml = dataclasses.replace(ml, meta={**ml.meta, "ceiling": why + " (--width-max sets it)"})
     return ml
 
 

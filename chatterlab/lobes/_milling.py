@@ -54,8 +54,9 @@ method ..., Commun. Nonlinear Sci. Numer. Simul. 35 (2016) 177-189.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -71,7 +72,7 @@ from ._diagram import Plant, lobes
 from ._milling_search import floquet_limit
 from ._result import LobeDiagram
 
-__all__ = ["milling_lobes", "zoa_plant"]
+__all__ = ["milling_lobes", "milling_ceiling", "zoa_plant"]
 
 METHODS = ("spectral", "sdm", "zoa")
 
@@ -137,13 +138,15 @@ def milling_lobes(
     rpm: np.ndarray,
     *,
     method: Literal["spectral", "sdm", "zoa"] = "spectral",
-    depth_max: float = 0.01,
+    depth_max: float | None = None,
     scan: int = 40,
     rtol: float = 1e-8,
     degree: int = DEGREE,
     elements: int | None = None,
     steps: int = 40,
     check: bool = True,
+    jobs: int = 1,
+    progress: Callable[[float], None] | None = None,
 ) -> LobeDiagram:
     """Milling stability lobes a_lim(rpm).
 
@@ -159,8 +162,11 @@ def milling_lobes(
     method : {"spectral", "sdm", "zoa"}
         Spectral-element Floquet (reference), first-order semi-discretisation
         or the zeroth-order approximation through the D-subdivision engine.
-    depth_max : float
-        Largest axial depth searched, m.
+    depth_max : float, optional
+        Largest axial depth searched, m.  Default: from the problem, three
+        times the largest limit of the zeroth-order approximation over the
+        speeds (:func:`milling_ceiling`; the diagram's ``meta["ceiling"]``
+        says how it was set).
     scan : int
         Depths scanned in (0, depth_max] before refining the first crossing
         (spectral, sdm).
@@ -174,6 +180,11 @@ def milling_lobes(
     check : bool
         Spectral: estimate the error of each a_lim from a degree
         + CHECK_DEGREE recomputation.
+    jobs : int
+        Speeds computed in parallel (processes; each speed is independent,
+        so the diagram is the same whatever the number).
+    progress : callable, optional
+        Called with the fraction of speeds done (a progress bar).
 
     Returns
     -------
@@ -182,10 +193,14 @@ def milling_lobes(
         critical multiplier's type; ``basis`` what each verdict rests on.
     """
     t0 = time.perf_counter()
+    ceiling_note = ""
+    if depth_max is None:
+        depth_max, ceiling_note = milling_ceiling(loop, np.atleast_1d(np.asarray(rpm, float)))
     rpm, depth_max, scan = _checked(loop, rpm, method, depth_max, scan)
-    milling = loop.milling
+    jobs = check_count(jobs, "jobs")
     if method == "zoa":
-        return replace(_zoa(loop, rpm, depth_max), elapsed=time.perf_counter() - t0)
+        d = _zoa(loop, rpm, depth_max)
+        return replace(d, elapsed=time.perf_counter() - t0, meta={**d.meta, "ceiling": ceiling_note})
     n = rpm.size
     a_lim = np.full(n, np.inf)
     kind = np.full(n, "", dtype=object)
@@ -197,10 +212,9 @@ def milling_lobes(
     refined = 0
     basis = np.full(n, "scan", dtype=object)
     certified = np.full(n, np.nan)
-    for i, r in enumerate(rpm):
-        a, err[i], mu, f_hz, cnt, n_ref, basis[i], certified[i] = floquet_limit(
-            loop, r, method, depth_max, scan, rtol, degree, elements, steps, check, target
-        )
+    args = (method, depth_max, scan, rtol, degree, elements, steps, check, target)
+    for i, out in enumerate(_limits(loop, rpm, args, jobs, progress)):
+        a, err[i], mu, f_hz, cnt, n_ref, basis[i], certified[i] = out
         evals += cnt
         refined += n_ref
         if basis[i] == "undetermined":
@@ -221,20 +235,23 @@ def milling_lobes(
         minimum = {"width": float("inf"), "speed": float("nan"), "chatter_hz": float("nan")}
     return LobeDiagram(
         speed=rpm,
-        delay=np.asarray(milling.delay(rpm), dtype=float),
+        delay=np.asarray(loop.milling.delay(rpm), dtype=float),
         b_lim=a_lim,
         chatter_hz=freq,
         lobe=np.full(n, -1),
         lobes=(),
         minimum=minimum,
         absolute_minimum={"width": float("nan"), "chatter_hz": float("nan")},
-        process=milling,
+        process=loop.milling,
         width_max=depth_max,
         terms="pdo",
         position=None,
         model=loop.name,
         elapsed=time.perf_counter() - t0,
-        meta={"refined": refined, "target_rtol": target} if method == "spectral" else {},
+        meta={
+            **({"refined": refined, "target_rtol": target} if method == "spectral" else {}),
+            "ceiling": ceiling_note,
+        },  # fmt: skip
         method=method,
         resolution=_resolution(method, degree, elements, steps),
         kind=kind.astype(str),
@@ -244,6 +261,58 @@ def milling_lobes(
         error=err,
         scan_step=depth_max / scan,
         evaluations=evals,
+    )
+
+
+def _limits(loop: ClosedLoop, rpm: np.ndarray, args: tuple, jobs: int, progress: Any) -> list[tuple]:
+    """:func:`floquet_limit` at every speed, in order: in this process, or in
+    ``jobs`` worker processes (each with one BLAS thread), chunk by chunk."""
+    n = rpm.size
+    out: list[tuple] = []
+    if jobs == 1 or n == 1:
+        for i, r in enumerate(rpm):
+            out.append(floquet_limit(loop, r, *args))
+            if progress is not None:
+                progress((i + 1) / n)
+        return out
+    from joblib import Parallel, delayed
+
+    from .._threads import one_blas_thread
+
+    chunks = np.array_split(np.arange(n), min(n, 4 * jobs))
+    with one_blas_thread(), Parallel(n_jobs=jobs, backend="loky", return_as="generator") as par:
+        done = 0
+        for part in par(delayed(_chunk)(loop, rpm[c], args) for c in chunks):
+            out.extend(part)
+            done += len(part)
+            if progress is not None:
+                progress(done / n)
+    return out
+
+
+def _chunk(loop: ClosedLoop, rpm: np.ndarray, args: tuple) -> list[tuple]:
+    from .._threads import one_blas_thread
+
+    with one_blas_thread():
+        return [floquet_limit(loop, r, *args) for r in rpm]
+
+
+def milling_ceiling(loop: ClosedLoop, rpm: np.ndarray) -> tuple[float, str]:
+    """The depth ceiling of a milling diagram from the problem itself, m, and
+    how it was set: three times the largest limit of the zeroth-order
+    approximation (the averaged cut's D-subdivision lobes, searched up to
+    1 m) over the speeds, so that Floquet limits up to well above the
+    averaged ones are found (at low immersion the averaged limits can be
+    several times off; flip lobes lie below them).  With no averaged limit
+    below 1 m at any speed the ceiling is 1 m."""
+    z = _zoa(loop, np.atleast_1d(np.asarray(rpm, float)), 1.0)
+    fin = np.asarray(z.b_lim)[np.isfinite(z.b_lim)]
+    if fin.size == 0:
+        return 1.0, "1 m: the zeroth-order approximation has no limit below 1 m at these speeds"
+    top = float(min(1.0, 3.0 * fin.max()))
+    return top, (
+        f"{top * 1e3:.4g} mm: three times the largest zeroth-order limit ({fin.max() * 1e3:.4g} mm)"
+        " over these speeds"
     )
 
 

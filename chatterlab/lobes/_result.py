@@ -425,8 +425,24 @@ def _boundary_lines(d: LobeDiagram) -> list[str]:
         lines.append(
             f"  absolute minimum (all speeds): {a['width'] * 1e3:.4g} mm at {a['chatter_hz']:.2f} Hz"
         )
+    lines += _ceiling_lines(d)
     lines += _check_lines(d)
     return lines
+
+
+def _ceiling_lines(d: LobeDiagram) -> list[str]:
+    """How the width ceiling was set, and a word when most speeds end at it."""
+    out = []
+    if d.meta.get("ceiling"):
+        out.append(f"  width ceiling {d.meta['ceiling']}")
+    inf = ~np.isfinite(d.b_lim) & (np.asarray(d.kind).astype(str) != "undetermined")
+    n = int(np.count_nonzero(inf))
+    if n > 0.5 * d.speed.size:
+        out.append(
+            f"  most speeds ({n} of {d.speed.size}) end at the ceiling {d.width_max * 1e3:g} mm: raise it"
+            " with --width-max (width_max= in Python) to see their limits"
+        )
+    return out
 
 
 def _check_lines(d: LobeDiagram) -> list[str]:
@@ -504,6 +520,7 @@ def _floquet_lines(d: LobeDiagram) -> list[str]:
             f"  undetermined at {n} speed{'s' if n != 1 else ''}: stable established only up to the {lim}"
             f" shown (a lower bound; {_mm(d.b_lim[j])} at {_speed(d, d.speed[j])})"
         )
+    lines += _ceiling_lines(d)
     lines.append(f"  {d.evaluations} evaluations, {d.elapsed:.2f} s")
     return lines
 
