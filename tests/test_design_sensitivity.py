@@ -274,3 +274,47 @@ def test_bad_fields_are_refused_in_one_line(fields, words):
     assert "\n" not in msg
     for w in words:
         assert w in msg
+
+
+SYMMETRIC = """
+[[body]]
+id = "tool"
+mass = 1.0
+inertia = 1.0e-3
+centre = [0.0, 0.0]
+[[support]]
+body = "tool"
+fix = ["rz"]
+[[spring]]
+id = "holder"
+a = "tool"
+b = "ground"
+c1 = 1.0e7
+c2 = 1.0e7
+d1 = 190.0
+d2 = 190.0
+[[coupling]]
+id = "cut"
+a = "tool"
+b = "ground"
+width_ref = 0.001
+DP = [[2.0e6, 0.0, 0.0], [0.0, 2.0e6, 0.0], [0.0, 0.0, 0.0]]
+DO = [[-2.0e6, 0.0, 0.0], [0.0, -2.0e6, 0.0], [0.0, 0.0, 0.0]]
+[process]
+kind = "turning"
+rpm = 3000.0
+"""
+
+
+def test_two_boundaries_meeting_have_no_derivative():
+    """Equal x and y modes under an isotropic cut: det X = (1 + b K_f (1 - z) G)^2, every
+    boundary point a double zero.  Stiffening x moves x's boundary only, so the minimum (the
+    lower of two equal boundaries) has two one-sided derivatives and no derivative: nan,
+    and the table says why."""
+    s = sensitivity(cl.loads_model(SYMMETRIC), np.linspace(9000.0, 14000.0, 20), fields=["spring.holder.c1"])
+    assert s.degenerate
+    assert np.isnan(s.d_minimum[0]) and np.isnan(s.d_absolute[0])
+    assert "no derivative" in s.table()
+    # the limit itself is the 1-DOF closed form with c = 190 N s/m
+    z = 190.0 / (2 * np.sqrt(K * M))
+    assert s.absolute_minimum["width"] == pytest.approx(2 * K * z * (1 + z) / KF, rel=1e3 * EPS / z)
