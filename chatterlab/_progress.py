@@ -1,14 +1,18 @@
-"""Progress of a sweep on stderr: a tqdm bar on a terminal, one line at the
-end elsewhere (a log file gets no carriage returns), nothing when disabled."""
+"""Progress of long work on stderr, the one implementation (a sweep, a lobe
+diagram's speeds, a simulation): a tqdm bar on a terminal, one line at the
+end elsewhere (a log file gets no carriage returns), nothing when disabled.
+The engines know nothing of it: they call a ``progress(fraction)`` callback,
+and the command line passes :func:`fraction_bar`'s."""
 
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 
-class _Progress:
+class Progress:
     """The progress of ``total`` points of which ``initial`` are already done
     (resumed).  ``note`` prints a line above the bar; ``close`` (idempotent:
     called on success and on an interrupt) ends the bar, or prints the one
@@ -55,3 +59,18 @@ class _Progress:
         print(
             f"{self.desc}: {pct:3d}% ({self.n}/{self.total} points, {el:.1f} s)", file=sys.stderr, flush=True
         )
+
+
+def fraction_bar(desc: str, enabled: bool = True) -> Callable[[float], None]:
+    """A ``progress(fraction)`` callback drawing a :class:`Progress` of
+    1000 steps (``fraction`` in [0, 1]; the bar closes at 1)."""
+    bar = Progress(1000, 0, enabled, desc)
+
+    def show(frac: float) -> None:
+        k = int(round(1000 * min(max(float(frac), 0.0), 1.0)))
+        if k > bar.n:
+            bar.update(k - bar.n)
+        if k >= 1000:
+            bar.close()
+
+    return show

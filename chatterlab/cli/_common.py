@@ -360,19 +360,10 @@ def outputs(
 
 
 def progress_bar(label: str) -> Callable[[float], None] | None:
-    """A one-line progress bar on a terminal's standard error (None elsewhere)."""
+    """A ``progress(fraction)`` bar on a terminal's standard error (None
+    elsewhere): :func:`chatterlab._progress.fraction_bar`, the one progress."""
     if not sys.stderr.isatty():
         return None
-    state = {"last": -1}
+    from .._progress import fraction_bar
 
-    def show(frac: float) -> None:
-        pct = int(100 * frac)
-        if pct != state["last"]:
-            state["last"] = pct
-            bar = "#" * (pct // 4)
-            sys.stderr.write(f"\r{label} [{bar:<25}] {pct:3d}%")
-            if pct >= 100:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
-
-    return show
+    return fraction_bar(label)

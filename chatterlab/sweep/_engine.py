@@ -79,6 +79,7 @@ from chatterlab._version import __version__
 from chatterlab.errors import InputError, SweepError
 from chatterlab.io._netcdf import check_attrs
 
+from .._progress import Progress
 from ._backends import _ChunkOut, _dask_runner, _loky_runner, _Payload, _serial_runner
 from ._checkpoint import (
     _CHECKPOINT_FORMAT,
@@ -94,7 +95,6 @@ from ._checkpoint import (
     _save_chunk,
 )
 from ._grid import MAX_TASKS, Axis, Grid
-from ._progress import _Progress
 from ._result import STATUS_VARIABLE, SweepInterrupted, SweepResult, TaskFailure
 from ._store import _Store
 
@@ -372,7 +372,7 @@ def _sweep_locked(
         pending = ((c, *bounds(c)) for c in range(n_chunks) if c not in done)
 
         payload = _Payload(func, grid.names, tuple(a.values for a in grid.axes), grid.shape, out_names)
-        bar = _Progress(size, n_resumed, progress, "sweep")
+        bar = Progress(size, n_resumed, progress, "sweep")
         workers = {
             "serial": "1 process",
             "loky": f"{jobs} loky workers",
@@ -477,7 +477,7 @@ def _chunk_size(
 def _collect(
     runner: Generator[_ChunkOut, None, None],
     store: _Store,
-    bar: _Progress,
+    bar: Progress,
     grid: Grid,
     bounds: Callable[[int], tuple[int, int]],
     n_chunks: int,
