@@ -133,7 +133,11 @@ def response(
     # 63e1fc1: chatterlab.feedback; since 3600882 the closed loop, chatterlab.closed_loop
     close = cl.closed_loop if hasattr(cl, "closed_loop") else cl.feedback
     fb = None if width is None else close(fz, width=width, speed=speed, delay=delay, terms=terms)  # type: ignore[arg-type]
-    h = cl.frf(fz, 2 * np.pi * np.asarray(frequency_hz, float), inputs=inputs, outputs=outputs, feedback=fb)
+    w = 2 * np.pi * np.asarray(frequency_hz, float)
+    if hasattr(cl, "closed_loop"):  # since 84a185d the FRF of the closed loop is frf(loop, ...)
+        h = cl.frf(fz if fb is None else fb, w, inputs=inputs, outputs=outputs)
+    else:
+        h = cl.frf(fz, w, inputs=inputs, outputs=outputs, feedback=fb)
     return {"H": h.data, "_frozen": fz, "_feedback": fb}
 
 

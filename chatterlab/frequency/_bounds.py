@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..structure._complex import pole_residue_sum
+
 __all__ = ["Band", "PoleResidue", "certified_band"]
 
 
@@ -43,13 +45,7 @@ class PoleResidue:
         """H(s) at the points ``s`` (any shape), shape ``s.shape + (m, m)``:
         the sum over the poles as one matrix product (N, K) @ (K, m m) of the
         factors 1/(s - p_k) with the residues L_k R_k, plus D."""
-        s = np.asarray(s, dtype=complex)
-        m = self.D.shape[0]
-        K = self.p.size
-        with np.errstate(divide="ignore", invalid="ignore"):
-            g = 1.0 / (s.reshape(-1, 1) - self.p[None, :])
-        LR = (self.L.T[:, :, None] * self.R[:, None, :]).reshape(K, m * m)
-        return (g @ LR).reshape(s.shape + (m, m)) + self.D
+        return pole_residue_sum(self.p, self.L, self.R, s) + self.D
 
 
 @dataclass(frozen=True)

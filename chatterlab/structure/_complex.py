@@ -77,6 +77,20 @@ def taylor_terms(cm: ComplexModes, rows: np.ndarray, cols: np.ndarray) -> list[n
     return [G0, G1, G2]
 
 
+def pole_residue_sum(p: np.ndarray, L: np.ndarray, R: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """sum_k L[:, k] R[k, :] / (s - p_k) at the points ``s`` (any shape),
+    shape ``s.shape + (n_rows, n_cols)``: the one modal (pole-residue) sum of
+    chatterlab, evaluated as one matrix product (N, K) @ (K, n_rows n_cols)
+    of the factors 1/(s - p_k) with the rank-one residues."""
+    s = np.asarray(s, dtype=complex)
+    K = p.size
+    nr, nc = L.shape[0], R.shape[1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = 1.0 / (s.reshape(-1, 1) - p[None, :])
+    LR = (L.T[:, :, None] * R[:, None, :]).reshape(K, nr * nc)
+    return (g @ LR).reshape(s.shape + (nr, nc))
+
+
 def modal_response(
     cm: ComplexModes, rows: np.ndarray, cols: np.ndarray, s: np.ndarray, keep: np.ndarray, residual: bool
 ) -> np.ndarray:
@@ -85,8 +99,7 @@ def modal_response(
     pr = rows @ cm.phi[:, keep]  # (nr, m)
     pc = cm.phi[:, keep].T @ cols  # (m, nc)
     lam = cm.lam[keep]
-    den = 1.0 / (s[None, :] - lam[:, None])  # (m, ns)
-    out = np.einsum("rm,mc,ms->rcs", pr, pc, den)
+    out = np.moveaxis(pole_residue_sum(lam, pr, pc, s), 0, -1)
     if residual and keep.size < cm.lam.size:
         T = taylor_terms(cm, rows, cols)
         for k in range(3):
