@@ -71,6 +71,11 @@ class ProbabilisticLobes(Result):
     samples : ndarray (R, n, n_all)
         Every sample's limit at every speed computed (:attr:`all_speeds`),
         by replicate: the data of every estimate.
+    inputs : ndarray (R, n, p)
+        Every sample's values of the uncertain fields (:attr:`paths`).
+    sample_min, sample_abs_min : ndarray (R, n)
+        Every sample's smallest limit over the speed range, and over all
+        speeds (the asymptote of its lobes; nan where the route has none).
     """
 
     speed: np.ndarray
@@ -86,6 +91,10 @@ class ProbabilisticLobes(Result):
     sobol: dict[str, tuple[Estimate, Estimate]]
     factor_names: tuple[str, ...]
     samples: np.ndarray
+    inputs: np.ndarray
+    paths: tuple[str, ...]
+    sample_min: np.ndarray
+    sample_abs_min: np.ndarray
     all_speeds: np.ndarray
     level: float
     method: str
@@ -96,7 +105,8 @@ class ProbabilisticLobes(Result):
     tol: float | None = None
     stop: str = ""
     error: float = float("nan")
-    stages: tuple[int, ...] = ()
+    stages: tuple[int, ...] = ()  #: samples after each stage of the run
+    errors: tuple[float, ...] = ()  #: the stopping rule's error after each stage
     n_failed: int = 0
     n_contradicted: int = 0
     n_unverified: int = 0
@@ -123,6 +133,7 @@ class ProbabilisticLobes(Result):
         quantile_levels: np.ndarray,
         points: np.ndarray,
         level: float,
+        inputs: np.ndarray,
         **info: Any,
     ) -> ProbabilisticLobes:
         """The estimates from the samples' outputs ``data`` (name -> (R,
@@ -163,6 +174,10 @@ class ProbabilisticLobes(Result):
             b_min_quantiles=b_q,
             sobol=sob,
             samples=b,
+            inputs=np.asarray(inputs, float),
+            paths=space.paths,
+            sample_min=bmin,
+            sample_abs_min=data["b_abs_min"][:, 0, :, 0],
             all_speeds=np.asarray(all_speeds, float),
             level=level,
             method=design.method,
@@ -334,6 +349,7 @@ class ProbabilisticLobes(Result):
             "width": (self.width, "m", "width of cut b (milling: axial depth)"),
             "quantile": (self.quantile_levels, "1", "probability level of the quantile lobe"),
             "sample": (np.arange(R * n), "1", "sample index (replicate-major)"),
+            "field": (np.arange(len(self.paths)), "1", "uncertain field (attribute fields)"),
         }
         ps = self.p_stable
         data: dict[str, Any] = {
@@ -346,6 +362,10 @@ class ProbabilisticLobes(Result):
             f"{lim}_nominal": (np.asarray(self.nominal.b_lim)[grid], "m", f"{lim} of the model as written", ("speed",)),
             f"{lim}_sample": (self.samples[:, :, grid].reshape(R * n, -1), "m", f"{lim} of each sample", ("sample", "speed")),
             "replicate": (np.repeat(np.arange(R), n), "1", "replicate of each sample", ("sample",)),
+            "inputs": (self.inputs.reshape(R * n, -1), "", "the uncertain fields' values of each sample"
+                       " (attribute fields; SI)", ("sample", "field")),
+            f"{lim}_sample_min": (self.sample_min.reshape(-1), "m", f"smallest {lim} of each sample over the"
+                                  " speed range", ("sample",)),
         }  # fmt: skip
         if self.points.size:
             coords["point"] = (np.arange(self.points.shape[0]), "1", "operating point")
@@ -393,12 +413,14 @@ class ProbabilisticLobes(Result):
             "tol": float("nan") if self.tol is None else self.tol,
             "stop": self.stop,
             "stages": list(self.stages),
+            "stage_errors": list(self.errors),
             "max_p_stable_se": float(np.nanmax(ps.se)) if np.size(ps.se) else float("nan"),
             f"min_{lim}_mean_m": float(self.b_min.value),
             f"min_{lim}_se_m": float(self.b_min.se),
             "width_max_m": float(self.nominal.width_max),
             "distributions": json.dumps(list(self.distributions)),
             "factors": json.dumps(list(self.factor_names)),
+            "fields": json.dumps(list(self.paths)),
             "n_failed": self.n_failed,
             "n_contradicted": self.n_contradicted,
             "n_verified": self.n_checked - self.n_unverified,

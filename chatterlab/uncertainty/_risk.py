@@ -194,12 +194,13 @@ def risk(
             f"checkpoint directory {str(ckpt)!r} is not empty: pass resume=True (CLI: --resume) to continue"
             " the run saved there, or give another directory"
         )
-    done, n, n_failed, stop = 0, 0, 0, ""
+    done, n, n_failed, stop, errors = 0, 0, 0, "", []
     for s, n in enumerate(stages):
         n_failed += _stage(task, arrays, done, n, all_v, s, ckpt, resume, progress, jobs, backend, scheduler,
                            security)  # fmt: skip
         done = n
         err = _target_error(arrays, n, all_v, grid_v, b_grid, pts, level, replicates)
+        errors.append(err)
         if tol is not None and err <= tol:
             stop = f"tol reached: error {err:.3g} <= {tol:g} at {replicates * n} samples"
             break
@@ -210,6 +211,7 @@ def risk(
     if ckpt is not None and not keep_checkpoint and n_failed == 0:
         shutil.rmtree(ckpt, ignore_errors=True)
     data = {k: v[:, :, :n] for k, v in arrays.items()}
+    inputs = np.stack([space.transform(design.points(r, 0, np.arange(n))) for r in range(replicates)])
     return ProbabilisticLobes.build(
         nominal=nominal,
         space=space,
@@ -222,10 +224,12 @@ def risk(
         quantile_levels=q,
         points=pts,
         level=level,
+        inputs=inputs,
         tol=tol,
         stop=stop,
         error=err,
         stages=tuple(replicates * x for x in stages[: stages.index(n) + 1]),
+        errors=tuple(errors),
         n_failed=n_failed,
         elapsed=time.perf_counter() - t0,
         checkpoint=None if ckpt is None or not ckpt.exists() else str(ckpt),
