@@ -338,7 +338,10 @@ def test_a_failed_root_count_is_reported_as_failed(capsys, turning, tmp_path, mo
     assert "the argument-principle count failed (its phase did not close" in line
     assert "; 1 could not count the roots" in txt
     assert "the argument-principle count failed at 1 check(s)" in err
-    status = [row.split(",")[5] for row in out.read_text().splitlines()[1:]]
+    import csv
+
+    with open(out, newline="") as fh:
+        status = [row["claim"] for row in csv.DictReader(fh)]
     if contradicted_too:
         assert "CHECK FAILED" in txt and "contradicts the diagram" in err
         assert status.count("contradicted by a check") == 1

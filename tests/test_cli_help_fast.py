@@ -17,7 +17,7 @@ import pytest
 
 from chatterlab.cli._main import _COMMAND_TABLE, build_parser, main
 
-HEAVY = ("numpy", "scipy", "matplotlib", "xarray", "joblib", "control", "h5py", "tqdm")
+HEAVY = ("numpy", "scipy", "matplotlib", "xarray", "joblib", "control", "h5py", "tqdm", "pint")
 
 CASES = [[flag] for flag in ("--help", "-h")] + [
     [cmd, flag] for cmd in _COMMAND_TABLE for flag in ("--help", "-h")

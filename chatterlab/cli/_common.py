@@ -86,6 +86,10 @@ def load(args: argparse.Namespace) -> Any:
         overrides=parse_set(getattr(args, "set", None)),
         files_outside=getattr(args, "allow_outside_files", False),
     )
+    if model.process is not None:
+        from ._units import resolve_speed
+
+        resolve_speed(args, model.process.speed_unit)
     warn(args, model_slips(model, args))
     return model
 
@@ -141,15 +145,14 @@ def model_args(p: argparse.ArgumentParser, optional: bool = False) -> None:
 
 def cut_args(p: argparse.ArgumentParser, required_width: bool = False) -> None:
     """Width, speed or delay, and the feedback terms of one cut."""
-    p.add_argument("--width", type=float, required=required_width, metavar="B", help="width of cut b, mm")
+    p.add_argument("--width", required=required_width, metavar="B", help="width of cut b, mm")
     g = p.add_mutually_exclusive_group()
     g.add_argument(
         "--speed",
-        type=float,
         metavar="V",
         help="cutting speed in the model's process unit (shaping: work speed m/s; turning: rpm)",
     )
-    g.add_argument("--delay", type=float, metavar="T", help="delay between passes T, s")
+    g.add_argument("--delay", metavar="T", help="delay between passes T, s")
     p.add_argument(
         "--terms",
         choices=["pdo", "pd", "o"],
@@ -167,11 +170,12 @@ def check_numbers(args: argparse.Namespace, unit: str = "") -> None:
         check_width(args.width, "--width", "mm")
     if getattr(args, "width_max", None) is not None:
         check_width(args.width_max, "--width-max", "mm")
-    speed = getattr(args, "speed", None)
+    speed = getattr(args, "speed", None)  # a speed with its unit is checked once the process is known
     if isinstance(speed, list):
         for v in speed:
-            check_speed(v, "--speed", unit)
-    elif speed is not None:
+            if not isinstance(v, str):
+                check_speed(v, "--speed", unit)
+    elif speed is not None and not isinstance(speed, str):
         check_speed(speed, "--speed", unit)
     if getattr(args, "delay", None) is not None:
         check_delay(args.delay, "--delay")

@@ -20,10 +20,10 @@ def add_parser(sub: Any) -> None:
         "--input", action="append", required=True, metavar="P.DIR", help="force input, e.g. rfe5.x"
     )
     f.add_argument("--output", action="append", required=True, metavar="P.DIR", help="response, e.g. rfe5.x")
-    f.add_argument("--fmin", type=float, default=1.0, help="lowest frequency, Hz (default 1)")
-    f.add_argument("--fmax", type=float, default=300.0, help="highest frequency, Hz (default 300)")
+    f.add_argument("--fmin", default=1.0, help="lowest frequency, Hz (default 1)")
+    f.add_argument("--fmax", default=300.0, help="highest frequency, Hz (default 300)")
     f.add_argument("--points", type=int, default=2000, help="number of frequencies (default 2000)")
-    f.add_argument("--position", type=float, metavar="S", help="slide position s, m")
+    f.add_argument("--position", metavar="S", help="slide position s, m")
     f.add_argument("--closed-loop", action="store_true", help="include the cutting process (needs --width)")
     cut_args(f)
     f.add_argument("--kind", choices=["receptance", "mobility", "accelerance"], default="receptance")

@@ -53,7 +53,6 @@ def add_parser(sub: Any) -> None:
     model_args(lo, optional=True)
     lo.add_argument(
         "--speed",
-        type=float,
         nargs=2,
         required=True,
         metavar=("MIN", "MAX"),
@@ -62,14 +61,13 @@ def add_parser(sub: Any) -> None:
     lo.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
     lo.add_argument(
         "--width-max",
-        type=float,
         default=None,
         metavar="B",
         help="largest width considered, mm (default 20; milling: from the problem, 3 x the largest"
         " zeroth-order limit)",
     )
     g = lo.add_mutually_exclusive_group()
-    g.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
+    g.add_argument("--position", metavar="S", help="slide position s, m (default: the model's)")
     g.add_argument(
         "--positions",
         type=float,
@@ -83,8 +81,8 @@ def add_parser(sub: Any) -> None:
         default="pdo",
         help="pdo: all feedback terms (default); o: delayed only",
     )
-    lo.add_argument("--fmin", type=float, help="lowest chatter frequency searched, Hz")
-    lo.add_argument("--fmax", type=float, help="highest chatter frequency searched, Hz")
+    lo.add_argument("--fmin", help="lowest chatter frequency searched, Hz")
+    lo.add_argument("--fmax", help="highest chatter frequency searched, Hz")
     lo.add_argument(
         "--verify",
         type=int,

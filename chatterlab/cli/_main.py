@@ -274,6 +274,9 @@ def _run(args: argparse.Namespace) -> int:
         from .._examples import resolve_args
 
         resolve_args(args)  # example:NAME -> the bundled file, before any command opens it
+        from ._units import resolve_units
+
+        resolve_units(args)  # 2mm, 2000N/mm^2, 12000rpm: in each option's unit (pint, only if written)
         check_numbers(args)
         # one BLAS thread: chatterlab's work is many small dense problems, and
         # on a 2-core machine with any other load, threaded BLAS oversubscribes

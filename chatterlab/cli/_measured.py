@@ -47,18 +47,12 @@ def frf_args(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--frf-point", metavar="NAME", help="point name of a file whose columns say only xx, xy, ..."
     )
-    g.add_argument(
-        "--kf", type=float, metavar="KF", help="turning without a model file: cutting coefficient, N/m^2"
-    )
-    g.add_argument(
-        "--force-angle", type=float, default=0.0, metavar="DEG", help="cutting force direction, deg"
-    )
-    g.add_argument(
-        "--normal-angle", type=float, default=0.0, metavar="DEG", help="chip-thickness normal, deg"
-    )
+    g.add_argument("--kf", metavar="KF", help="turning without a model file: cutting coefficient, N/m^2")
+    g.add_argument("--force-angle", default=0.0, metavar="DEG", help="cutting force direction, deg")
+    g.add_argument("--normal-angle", default=0.0, metavar="DEG", help="chip-thickness normal, deg")
     g.add_argument("--teeth", type=int, metavar="N", help="milling without a model file: number of teeth")
-    g.add_argument("--kt", type=float, metavar="KT", help="milling: tangential coefficient, N/m^2")
-    g.add_argument("--kn", type=float, metavar="KN", help="milling: normal (radial) coefficient, N/m^2")
+    g.add_argument("--kt", metavar="KT", help="milling: tangential coefficient, N/m^2")
+    g.add_argument("--kn", metavar="KN", help="milling: normal (radial) coefficient, N/m^2")
     g.add_argument(
         "--immersion", type=float, metavar="AE_D", help="milling: radial immersion a_e/D in (0, 1]"
     )
@@ -86,6 +80,9 @@ def frf_model(args: argparse.Namespace) -> Any:
     frf = Path(args.frf)
     if args.model is not None:
         return _with_frf(args, frf)
+    from ._units import resolve_speed
+
+    resolve_speed(args, "rpm")  # a model written from the options: a spindle (turning or milling)
     text = _model_text(args, frf)
     if args.show_model:
         print(text)
@@ -123,6 +120,10 @@ def _with_frf(args: argparse.Namespace, frf: Path) -> Any:
     model = load_model(
         args.model, variant=getattr(args, "variant", None), overrides=overrides, files_outside=True
     )
+    if model.process is not None:
+        from ._units import resolve_speed
+
+        resolve_speed(args, model.process.speed_unit)
     warn(args, model_slips(model, args))
     return model
 

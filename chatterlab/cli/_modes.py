@@ -13,7 +13,7 @@ from ._common import FORMAT_SUFFIXES, emit, load, model_args, outputs
 def add_parser(sub: Any) -> None:
     m = sub.add_parser("modes", help="natural frequencies and mode shapes at a frozen configuration")
     model_args(m)
-    m.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
+    m.add_argument("--position", metavar="S", help="slide position s, m (default: the model's)")
     m.add_argument("--count", type=int, metavar="N", help="number of lowest modes (default: all)")
     m.add_argument("--format", choices=["table", "json", "csv"], default="table")
     m.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")

@@ -111,6 +111,7 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
         k: getattr(args, k) for k in ("terms", "fmin", "fmax") if getattr(args, k) is not None
     }
     level = _pct(args.level, "--level")
+    risk_level = None if args.risk is None else _pct(args.risk, "--risk")
     eng = sweep_opts(args)
     ck = checkpoint(args)
     with resume_refusal(args):
@@ -144,7 +145,6 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     if ck is not None and not args.checkpoint and res.n_failed == 0:
         outs.then(lambda: shutil.rmtree(ck, ignore_errors=True))  # once the files below are in place
     print(res.summary())
-    risk_level = None if args.risk is None else _pct(args.risk, "--risk")
     if risk_level is not None:
         _recommend(res, risk_level)
     if args.out:

@@ -23,7 +23,7 @@ def add_parser(sub: Any) -> None:
     model_args(r)
     cut_args(r, required_width=True)
     r.add_argument("--count", type=int, default=6, metavar="K", help="number of rightmost roots (default 6)")
-    r.add_argument("--position", type=float, metavar="S", help="slide position s, m")
+    r.add_argument("--position", metavar="S", help="slide position s, m")
     r.add_argument("--format", choices=["table", "json"], default="table")
     r.add_argument("--out", metavar="FILE")
     r.add_argument("--no-winding", action="store_true", help="skip the argument-principle cross-check")

@@ -64,10 +64,8 @@ def add_parser(sub: Any) -> None:
     )
     sw.add_argument("--quantity", required=True, choices=sorted(QUANTITY_NAMES))
     cut_args(sw)
-    sw.add_argument("--position", type=float, metavar="S", help="slide position s, m (when not on the grid)")
-    sw.add_argument(
-        "--width-max", type=float, default=20.0, metavar="B", help="largest width for b-lim quantities, mm"
-    )
+    sw.add_argument("--position", metavar="S", help="slide position s, m (when not on the grid)")
+    sw.add_argument("--width-max", default=20.0, metavar="B", help="largest width for b-lim quantities, mm")
     sw.add_argument("--out", metavar="FILE.nc|FILE.csv")
     sw.add_argument("--plot", metavar="FILE.png")
     parallel_args(sw)
