@@ -1,0 +1,58 @@
+"""``chatterlab risk`` from the model file to the files (issue 24, "Done
+means"): the summary, the netCDF with the probability and the quantiles
+as labelled variables and the sample count and error as attributes, the
+CSV, both plots, the default checkpoint gone after a complete run, and a
+--resume of a kept checkpoint that computes nothing and writes the same
+numbers."""
+
+from __future__ import annotations
+
+import matplotlib
+import numpy as np
+from test_uncertainty_badinput import BASE, RISK, run
+
+from chatterlab.io import read_netcdf
+
+matplotlib.use("Agg")
+
+TABLE = """
+[uncertainty]
+"mode.x1.stiffness" = { distribution = "lognormal", cv = 0.1 }
+"mode.x1.damping_ratio" = { distribution = "normal", std = 0.003, lower = 0.0 }
+"coupling.cut.Kf" = { distribution = "uniform", low = 1.8e9, high = 2.2e9 }
+"""
+
+
+def test_risk_writes_what_it_prints(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "m.toml").write_text(BASE + TABLE)
+    argv = ["risk", "m.toml", *RISK, "--samples", "8", "--replicates", "2", "--point", "6000", "0.3",
+            "--risk", "10", "--sensitivity", "--factor", "structure=mode.*"]  # fmt: skip
+    code, out, err = run(capsys, *argv, "--out", "r.nc", "--plot", "r.png", "--plot-sobol", "s.png")
+    assert code == 0, err
+    assert "probabilistic lobes of m.toml: 8 samples (2 replicates x 4" in out
+    assert "P(chatter) at 6000 rpm, 0.3 mm" in out and "operating points with P(chatter) <= 10 %" in out
+    assert "Sobol' indices of the smallest b_lim" in out and "    structure: S1" in out
+    assert (tmp_path / "r.png").stat().st_size > 0 and (tmp_path / "s.png").stat().st_size > 0
+    assert not (tmp_path / "r.nc.ckpt").exists()  # removed once the files were in place
+    d = read_netcdf(tmp_path / "r.nc")
+    assert d.attrs["n_samples"] == 8 and d.attrs["error"] > 0 and "[uncertainty]" in d.attrs["model_text"]
+    assert d.dims["p_stable"] == ("speed", "width") and d.data["b_lim_quantile"][1] == "m"
+    assert d.dims["sobol_first_b_min"] == ("factor",) and d.data["sobol_first_b_min"][0].shape == (2,)
+    # a kept checkpoint: --resume computes nothing and gives the same numbers
+    code, _, err = run(capsys, *argv, "--out", "again.csv", "--checkpoint", "ck")
+    assert code == 0 and (tmp_path / "ck").is_dir()
+    from chatterlab.uncertainty import _task
+
+    def no_work(self, eid):
+        raise AssertionError("the resume computed a diagram")
+
+    monkeypatch.setattr(_task.LobeSampleTask, "diagram", no_work)
+    monkeypatch.setattr(_task, "_ROWS", type(_task._ROWS)())
+    code, out2, err = run(capsys, *argv, "--out", "resumed.csv", "--checkpoint", "ck", "--resume")
+    assert code == 0, err
+    assert (tmp_path / "again.csv").read_text() == (tmp_path / "resumed.csv").read_text()
+    header = (tmp_path / "again.csv").read_text().splitlines()[0]
+    assert header.startswith("speed [rpm],width [m],p_stable [1]") and "b_lim_q50 [m]" in header
+    p = np.loadtxt(tmp_path / "again.csv", delimiter=",", skiprows=1, usecols=2)
+    assert np.array_equal(p, d.data["p_stable"][0].ravel())
