@@ -67,7 +67,7 @@ except ImportError:  # run from a checkout without installing
 
 import chatterlab as cl
 from chatterlab.process._kinematics import kinematics_for
-from chatterlab.time import NewmarkOptions, newmark, simulate
+from chatterlab.time import Integration, NewmarkOptions, newmark, simulate
 from chatterlab.time._simulate import ParametricProblem, _blas_limits, _output_map
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -108,10 +108,9 @@ def throughput(system: cl.System, reps: int) -> list[dict[str, Any]]:
             sim = simulate(
                 system,
                 feedback="pdo",
-                passes=2,
-                step=step,
-                method=method,
-                options=NewmarkOptions(workers=workers),
+                integration=Integration(
+                    periods=2, step=step, method=method, scheme=NewmarkOptions(workers=workers)
+                ),
             )
             walls.append(sim.response.wall_time)
             n, h = sim.response.n_steps, sim.step
@@ -134,8 +133,7 @@ class SecondPass:
 
         kin = kinematics_for(system.model.process)
         self.kin, self.T = kin, kin.cycle
-        self.prob = ParametricProblem(system, kin, width=0.002, terms="pdo")
-        self.prob._t_end = 2 * self.T
+        self.prob = ParametricProblem(system, kin, width=0.002, terms="pdo", t_end=2 * self.T)
         self.n = self.prob.n
         self.rows = np.vstack([_output_map(system, "rfe5.x"), _output_map(system, "rfe5.y")])
         with _blas_limits():
@@ -348,7 +346,7 @@ def main() -> None:
     load0 = load()
     print(f"before: load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f} on {os.cpu_count()} cores")
     system = cl.assemble(cl.load_model(MODEL))
-    simulate(system, feedback="pdo", duration=0.05)  # warm-up (imports, modes)
+    simulate(system, feedback="pdo", integration=Integration(duration=0.05))  # warm-up (imports, modes)
     result: dict[str, Any] = {
         "benchmark": "bench_newmark",
         "date_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),

@@ -24,6 +24,7 @@ from test_time_verdicts import (
 
 import chatterlab as cl
 from chatterlab.lobes import lobes
+from chatterlab.time import Excitation, Initial, Integration
 from chatterlab.time._simulate import simulate
 
 
@@ -36,8 +37,17 @@ def _envelope_points(system, speeds, position=None):
 def _check(system, T, b, factor, output, duration, position=None, decided=True):
     roots = frozen_roots(system, factor * b, T, position)
     assert (roots.roots[0].real > 0) == (factor > 1)
-    sim = simulate(system, width=factor * b, delay=T, position=position, duration=duration, outputs=output,
-                   q0={output: 1e-6}, history="constant", forces=False, roots=roots)  # fmt: skip
+    sim = simulate(
+        system,
+        width=factor * b,
+        delay=T,
+        position=position,
+        outputs=output,
+        roots=roots,
+        integration=Integration(duration=duration),
+        initial=Initial(q0={output: 1e-06}, history="constant"),
+        excitation=Excitation(cutting_forces=False),
+    )
     assert_step_resolves_the_rightmost_root(system, sim, roots, position)
     v = sim.verdict(output)
     assert_honest(v, roots, rightmost=decided)
@@ -67,3 +77,37 @@ def test_random_structure_envelope_points_in_the_time_domain(seed, factor):
     pts = _envelope_points(sy, [2.0 / f1, 7.0 / f1])
     for T, b in pts:
         _check(sy, T, b, factor, "tip.x", 1.5)
+
+
+def test_confirmation_of_a_turning_diagram(tmp_path):
+    """lobes.confirm simulates the 1-DOF turning tool at 0.7 and 1.4 b_lim of
+    its envelope: the frequency-domain diagram (D-subdivision, an independent
+    method) says which side decays, the runs must agree; the confirmation is
+    a result of the one protocol (files that read back, a plot on the Axes
+    given)."""
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from conftest import turning_text
+
+    from chatterlab.io import Result, read_dataset
+    from chatterlab.lobes import confirm
+
+    tool = cl.assemble(cl.loads_model(turning_text()))
+    d = lobes(tool.at(None), np.array([2500.0, 3000.0, 3500.0]), width_max=0.02, verify=0)
+    conf = confirm(tool, d, count=1, periods=20, min_duration=0.3)
+    assert isinstance(conf, Result) and len(conf.rows) == 2 and conf.agrees, conf.table()
+    assert {r["classification"] for r in conf.rows} == {"stable", "unstable"}
+    ds = read_dataset(conf.to_netcdf(tmp_path / "c.nc"))
+    np.testing.assert_array_equal(ds["growth_rate"].values, [r["growth_rate"] for r in conf.rows])
+    assert ds["speed"].attrs["units"] == "rpm" and list(ds["expected"].values) == [
+        0.0,
+        1.0,
+    ]  # stable, unstable
+    assert json.loads(conf.to_json())["data"]["width"]["units"] == "m"
+    fig, ax = plt.subplots()
+    assert conf.plot(ax=ax) is ax and len(ax.collections) == 2
+    plt.close("all")

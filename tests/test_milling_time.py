@@ -36,7 +36,7 @@ from scipy.linalg import expm
 import chatterlab as cl
 from chatterlab.errors import InputError
 from chatterlab.process._milling import Milling
-from chatterlab.time import CallbackProblem, newmark
+from chatterlab.time import CallbackProblem, Initial, Integration, newmark
 from chatterlab.time._milling import MillingSimulation, default_steps_per_period, simulate_milling
 
 # ----------------------------------------------------------------------------- the benchmark
@@ -182,7 +182,9 @@ CASES = [
 def test_linear_growth_per_period_is_ln_of_the_floquet_multiplier(immersion, rpm, ap):
     mill = cutter(immersion)
     td = [
-        simulate_milling(ONE_DOF, mill, rpm, ap, nonlinear=False, steps_per_period=m, revolutions=40)
+        simulate_milling(
+            ONE_DOF, mill, rpm, ap, nonlinear=False, integration=Integration(steps_per_period=m, periods=40)
+        )
         for m in (100, 200, 400)
     ]
     sd = [sd_multiplier(mill, rpm, ap, k) for k in (40, 80, 160)]
@@ -238,7 +240,9 @@ def test_linear_growth_equals_the_spectral_floquet_reference(structure, immersio
     tolerance): the 1-DOF, the 2-DOF x/y benchmark (two pairs of multipliers
     near each other) and a three-mode modal model.  Tolerance: the time
     domain's error from m, 2m, 4m (the tail of its differences) + the fit's + the reference's."""
-    from chatterlab.frequency import ToolStructure, multipliers
+    from chatterlab.frequency import multipliers
+    from chatterlab.process import milling_loop
+    from chatterlab.structure import Structure
 
     if structure == "1dof":
         M, C, K = (np.asarray(a, dtype=float) for a in ONE_DOF)
@@ -247,10 +251,16 @@ def test_linear_growth_equals_the_spectral_floquet_reference(structure, immersio
         M, C, K, P = two_dof() if structure == "2dof" else modal_tool()
     # a negative immersion stands for up-milling
     mill = cutter(immersion) if immersion > 0 else Milling.from_immersion(2, 0.02, KT, KN, -immersion, "up")
-    ref = multipliers(ToolStructure(M, C, K, P), mill, rpm, ap)
+    ref = multipliers(milling_loop(Structure(M, C, K), mill, P), rpm, ap)
     td = [
         simulate_milling(
-            (M, C, K), mill, rpm, ap, tool_point=P, nonlinear=False, steps_per_period=k, revolutions=40
+            (M, C, K),
+            mill,
+            rpm,
+            ap,
+            tool_point=P,
+            nonlinear=False,
+            integration=Integration(steps_per_period=k, periods=40),
         )
         for k in (m, 2 * m, 4 * m)
     ]
@@ -272,7 +282,9 @@ def test_variable_pitch_growth_per_revolution_is_ln_of_the_floquet_multiplier(rp
     where they fall on its grid.  The samples are once per revolution."""
     vp = Milling.from_immersion(2, 0.02, KT, KN, 0.05, "down", pitch=(0.8 * math.pi, 1.2 * math.pi))
     td = [
-        simulate_milling(ONE_DOF, vp, rpm, ap, nonlinear=False, steps_per_period=m, revolutions=40)
+        simulate_milling(
+            ONE_DOF, vp, rpm, ap, nonlinear=False, integration=Integration(steps_per_period=m, periods=40)
+        )
         for m in (101, 202, 404)
     ]
     assert math.isclose(td[-1].sample_period, 60.0 / rpm, rel_tol=1e-12)
@@ -299,7 +311,12 @@ def test_chatter_frequency_of_a_linear_run_matches_the_multiplier_angle():
     """A growing Hopf run: the spectral peak is (arg mu / 2 pi + k) / T for some k,
     within the spectral resolution."""
     r = simulate_milling(
-        ONE_DOF, cutter(0.05), 5000.0, 3e-3, nonlinear=False, steps_per_period=200, revolutions=60
+        ONE_DOF,
+        cutter(0.05),
+        5000.0,
+        0.003,
+        nonlinear=False,
+        integration=Integration(steps_per_period=200, periods=60),
     )
     assert r.verdict == "Hopf chatter"
     T = r.sample_period
@@ -325,12 +342,10 @@ def test_second_order_convergence_with_the_tooth_entering_between_steps():
             ONE_DOF,
             mill,
             5000.0,
-            2e-3,
+            0.002,
             nonlinear=False,
-            steps_per_period=m,
-            revolutions=4,
-            q0=[0.0],
-            v0=[1e-3],
+            integration=Integration(steps_per_period=m, periods=4),
+            initial=Initial(q0=[0.0], v0=[0.001]),
         )
         ends.append(np.array([r.x[-1], r.vx[-1] / WN]))
     diffs = [np.linalg.norm(ends[i] - ends[i + 1]) for i in range(len(ends) - 1)]
@@ -357,10 +372,8 @@ def test_linear_mode_equals_the_generic_newmark_solver():
         rpm,
         ap,
         nonlinear=False,
-        steps_per_period=m,
-        revolutions=10,
-        q0=[0, 0],
-        v0=[1e-3, 2e-3],
+        integration=Integration(steps_per_period=m, periods=10),
+        initial=Initial(q0=[0, 0], v0=[0.001, 0.002]),
     )
     eps = 1e-11 * h  # right-continuous coefficients (the solver takes left limits at breakpoints)
 
@@ -412,7 +425,9 @@ def test_zero_depth_limit_is_the_forced_response_to_the_static_force():
     mill = cutter(0.05)
     rpm, ap, fz = 10000.0, 1e-10, 1e-4
     runs = [
-        simulate_milling(ONE_DOF, mill, rpm, ap, feed=fz, steps_per_period=m, revolutions=60)
+        simulate_milling(
+            ONE_DOF, mill, rpm, ap, feed=fz, integration=Integration(steps_per_period=m, periods=60)
+        )
         for m in (100, 200, 400)
     ]
     r = runs[-1]
@@ -457,7 +472,13 @@ def test_runout_on_a_rigid_tool_one_tooth_cuts_the_feed_per_revolution():
     fz = 1e-4
     for delta in (2.0 * fz, 0.5 * fz):
         r = simulate_milling(
-            ONE_DOF, mill, 10000.0, 1e-12, feed=fz, runout=[delta, 0.0], steps_per_period=100, revolutions=3
+            ONE_DOF,
+            mill,
+            10000.0,
+            1e-12,
+            feed=fz,
+            runout=[delta, 0.0],
+            integration=Integration(steps_per_period=100, periods=3),
         )
         phi = mill.tooth_angles(r.t, 10000.0)
         s = np.sin(phi[:, 0])
@@ -482,7 +503,9 @@ def test_variable_pitch_on_a_rigid_tool_each_tooth_cuts_the_feed_of_its_pitch():
     grid (Hermite), the deflection bounds the error."""
     vp = Milling.from_immersion(2, 0.02, KT, KN, 1.0, "down", pitch=(0.8 * math.pi, 1.2 * math.pi))
     fz, rpm = 1e-4, 10000.0
-    r = simulate_milling(ONE_DOF, vp, rpm, 1e-12, feed=fz, steps_per_period=101, revolutions=3)
+    r = simulate_milling(
+        ONE_DOF, vp, rpm, 1e-12, feed=fz, integration=Integration(steps_per_period=101, periods=3)
+    )
     phi = vp.tooth_angles(r.t, rpm)
     expect = 2 * fz * vp.pitches / (2 * math.pi) * np.sin(phi)
     arc = vp.in_cut(phi)
@@ -499,7 +522,9 @@ def test_below_the_limit_the_samples_converge_to_a_forced_periodic_orbit():
     feed converges (every tooth stays in the cut)."""
     mill = cutter(0.05)
     assert abs(sd_multiplier(mill, 10000.0, 2e-3, 40)) < 0.6
-    r = simulate_milling(ONE_DOF, mill, 10000.0, 2e-3, feed=1e-4, steps_per_period=100, revolutions=60)
+    r = simulate_milling(
+        ONE_DOF, mill, 10000.0, 0.002, feed=0.0001, integration=Integration(steps_per_period=100, periods=60)
+    )
     assert r.verdict == "stable", r.reason
     d = np.linalg.norm(np.diff(r.poincare[:, :2], axis=0), axis=1)
     assert d[-1] < 1e-6 * d[0]
@@ -516,8 +541,12 @@ def test_below_the_limit_the_samples_converge_to_a_forced_periodic_orbit():
 )
 def test_above_the_limit_the_tool_leaves_the_cut_and_the_orbit_saturates(rpm, ap, kind):
     mill = cutter(0.05)
-    nl = simulate_milling(ONE_DOF, mill, rpm, ap, feed=1e-4, steps_per_period=100, revolutions=120)
-    lin = simulate_milling(ONE_DOF, mill, rpm, ap, nonlinear=False, steps_per_period=100, revolutions=120)
+    nl = simulate_milling(
+        ONE_DOF, mill, rpm, ap, feed=0.0001, integration=Integration(steps_per_period=100, periods=120)
+    )
+    lin = simulate_milling(
+        ONE_DOF, mill, rpm, ap, nonlinear=False, integration=Integration(steps_per_period=100, periods=120)
+    )
     n = nl.t.size
     q3, q4 = slice(n // 2, 3 * n // 4), slice(3 * n // 4, n)
     # bounded: over the last quarter a linear orbit multiplies by exp(ln|mu| P),
@@ -558,7 +587,14 @@ def test_the_chip_is_the_minimum_over_the_recorded_passes():
     mill = cutter(0.05)
     m, fz, rho = 60, 1e-4, np.array([2e-5, -1e-5])
     r = simulate_milling(
-        ONE_DOF, mill, 10000.0, 5e-3, feed=fz, runout=rho, steps_per_period=m, revolutions=40, passes=6
+        ONE_DOF,
+        mill,
+        10000.0,
+        0.005,
+        feed=fz,
+        runout=rho,
+        passes=6,
+        integration=Integration(steps_per_period=m, periods=40),
     )
     assert 0.1 < r.fraction_out_of_cut < 0.9
     phi = mill.tooth_angles(r.t, 10000.0)
@@ -591,7 +627,13 @@ def test_second_order_with_teeth_leaving_the_material_and_edge_forces():
     ms = [100, 200, 400, 800]
     runs = [
         simulate_milling(
-            ONE_DOF, mill, 25000.0, 2e-3, feed=1e-4, runout=[5e-5, 0.0], steps_per_period=m, revolutions=60
+            ONE_DOF,
+            mill,
+            25000.0,
+            0.002,
+            feed=0.0001,
+            runout=[5e-05, 0.0],
+            integration=Integration(steps_per_period=m, periods=60),
         )
         for m in ms
     ]
@@ -614,7 +656,12 @@ def test_the_saturated_flip_orbit_converges_with_the_step():
     out = []
     for m in (200, 400, 800):
         r = simulate_milling(
-            ONE_DOF, cutter(0.05), 10000.0, 5e-3, feed=1e-4, steps_per_period=m, revolutions=120
+            ONE_DOF,
+            cutter(0.05),
+            10000.0,
+            0.005,
+            feed=0.0001,
+            integration=Integration(steps_per_period=m, periods=120),
         )
         assert r.verdict == "flip chatter"
         p = r.poincare[-20:, 0]
@@ -642,7 +689,14 @@ def test_a_diverged_linear_run_keeps_its_verdict():
     mill = cutter(1.0)
     mu = sd_multiplier(mill, 20000.0, 5e-3, 40)
     assert abs(mu) > 2 and mu.real < 0 and abs(mu.imag) < 1e-9
-    r = simulate_milling(ONE_DOF, mill, 20000.0, 5e-3, nonlinear=False, steps_per_period=100, revolutions=60)
+    r = simulate_milling(
+        ONE_DOF,
+        mill,
+        20000.0,
+        0.005,
+        nonlinear=False,
+        integration=Integration(steps_per_period=100, periods=60),
+    )
     assert r.status == "diverged" and "diverged" in r.reason
     assert r.verdict == "flip chatter"
     assert r.growth_per_period > math.log(2.0)
@@ -657,7 +711,7 @@ def test_frozen_system_with_named_tool_point_is_the_matrix_path():
     )
     frozen = cl.assemble(cl.loads_model(text)).at()
     M, C, K = (np.eye(2) * np.asarray(a)[0, 0] for a in ONE_DOF)
-    kw = dict(feed=1e-4, steps_per_period=60, revolutions=5)
+    kw = dict(feed=1e-4, integration=Integration(steps_per_period=60, periods=5))
     a = simulate_milling(frozen, cutter(0.5), 12000.0, 1e-3, tool_point=("tx", "ty"), **kw)
     b = simulate_milling((M, C, K), cutter(0.5), 12000.0, 1e-3, tool_point=np.eye(2), **kw)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-14 * np.max(np.abs(b.x)))
@@ -666,7 +720,7 @@ def test_frozen_system_with_named_tool_point_is_the_matrix_path():
 
 def test_short_run_is_undetermined_and_the_default_step_follows_the_period_error():
     mill = cutter(0.05)
-    r = simulate_milling(ONE_DOF, mill, 10000.0, 2e-3, feed=1e-4, revolutions=5)
+    r = simulate_milling(ONE_DOF, mill, 10000.0, 0.002, feed=0.0001, integration=Integration(periods=5))
     assert r.verdict == "undetermined" and "too short" in r.reason
     m = default_steps_per_period(ONE_DOF, mill, 10000.0, 2e-3)
     assert r.steps_per_period == m
@@ -679,7 +733,14 @@ def test_csv_and_plot(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
-    r = simulate_milling(ONE_DOF, cutter(0.05), 10000.0, 2e-3, feed=1e-4, steps_per_period=40, revolutions=3)
+    r = simulate_milling(
+        ONE_DOF,
+        cutter(0.05),
+        10000.0,
+        0.002,
+        feed=0.0001,
+        integration=Integration(steps_per_period=40, periods=3),
+    )
     assert isinstance(r, MillingSimulation)
     p = tmp_path / "mill.csv"
     r.to_csv(p)
@@ -696,9 +757,82 @@ def test_csv_and_plot(tmp_path):
     assert ds.attrs["verdict"] == r.verdict
     axes = r.plot()
     assert len(axes) == 3
+    import json
+
     import matplotlib.pyplot as plt
 
+    mine = [plt.figure().add_subplot() for _ in range(3)]
+    assert list(r.plot(ax=mine, lw=1.5)) == mine  # drawn where asked, the style passed on
+    assert mine[0].get_lines()[0].get_linewidth() == 1.5
+    np.testing.assert_array_equal(mine[1].get_lines()[0].get_ydata(), r.Fx)
+    one = r.plot(["x", "Fx"])  # the shared TimeHistory.plot for named histories
+    assert [ln.get_label() for ln in one.get_lines()] == ["x", "Fx"]
+    back = json.loads(r.to_json(tmp_path / "mill.json"))
+    np.testing.assert_array_equal(back["data"]["x"]["values"], r.x)
+    assert back["attrs"]["verdict"] == r.verdict
     plt.close("all")
+
+
+def test_the_cut_gives_the_grid_and_the_delays():
+    """The speed becomes the grid and the delays in one place, the process:
+    h is its tooth period over m, the Poincare period its period, and the
+    time module converts no speed itself (no 60 / (N n) or 2 pi / Omega in its
+    source)."""
+    import re
+    from pathlib import Path
+
+    import chatterlab.time as tm
+
+    vp = Milling.from_immersion(3, 0.02, KT, KN, 0.5, "down", pitch=(1.5, 2.0, 2 * math.pi - 3.5))
+    for mill, m in ((cutter(0.05), 50), (vp, 41)):
+        r = simulate_milling(
+            ONE_DOF, mill, 9000.0, 1e-3, feed=1e-4, integration=Integration(steps_per_period=m, periods=3)
+        )
+        assert r.h == mill.tooth_period(9000.0) / m
+        assert r.sample_period == pytest.approx(mill.period(9000.0), rel=1e-14)
+        assert r.tooth_passing_frequency == 1.0 / mill.tooth_period(9000.0)
+    src = "\n".join(p.read_text() for p in Path(tm.__file__).parent.glob("*.py"))
+    for conversion in (
+        r"60(\.0)?\s*/",
+        r"/\s*60(\.0)?\b",
+        r"(2\.0 \* math\.pi|TWO_PI|2 \* math\.pi)\s*/\s*omega",
+    ):
+        assert not re.search(conversion, src), conversion
+
+
+def test_a_milling_run_is_the_core_run():
+    """The milling run goes through the Newmark core's loop: its progress
+    callback (Integration.progress, the core's) is called per chunk, and a
+    KeyboardInterrupt from it stops the run with the steps done kept
+    (status "interrupted"), as for every time integration."""
+    seen: list[float] = []
+
+    def progress(f: float) -> None:
+        seen.append(f)
+        if len(seen) == 3:
+            raise KeyboardInterrupt
+
+    r = simulate_milling(
+        ONE_DOF, cutter(0.05), 10000.0, 2e-3, feed=1e-4,
+        integration=Integration(steps_per_period=40, periods=10, progress=progress),
+    )  # fmt: skip
+    assert r.status == "interrupted" and 0 < seen[-1] < 1
+    assert r.t.size - 1 == round(seen[-1] * 10 * 2 * 40)
+    assert np.all(np.isfinite(r.x)) and r.verdict == "undetermined"
+
+
+def test_the_0_2_keywords_still_work_and_warn():
+    mill = cutter(0.05)
+    with pytest.warns(DeprecationWarning, match="revolutions= -> integration=Integration"):
+        old = simulate_milling(ONE_DOF, mill, 10000.0, 2e-3, feed=1e-4, steps_per_period=40, revolutions=3)
+    new = simulate_milling(
+        ONE_DOF, mill, 10000.0, 2e-3, feed=1e-4, integration=Integration(steps_per_period=40, periods=3)
+    )
+    np.testing.assert_array_equal(old.x, new.x)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'revolution'"):
+        simulate_milling(ONE_DOF, mill, 10000.0, 2e-3, revolution=3)
+    with pytest.raises(InputError, match="history"):
+        simulate_milling(ONE_DOF, mill, 10000.0, 2e-3, initial=Initial(history="constant"))
 
 
 @pytest.mark.parametrize(

@@ -499,7 +499,7 @@ def test_growth_rate_equals_chatterlab_roots(g):
 
     m, wn, T = 1.0, 2 * np.pi * 5, 0.05
     k, c = wn**2, 2 * 0.02 * wn
-    res = roots_mod.characteristic_roots([[m]], [[c]], [[k]], DO=[[g]], tau=T, count=3)
+    res = roots_mod.characteristic_roots(roots_mod.make_system([[m]], [[c]], [[k]], DO=[[g]], tau=T), count=3)
     sigma = float(np.real(res.roots[0]))
     # both oracles agree with each other...
     assert abs(sigma - rightmost_root(m, c, k, g, T).real) < 1e-8
@@ -753,3 +753,61 @@ def test_growth_rate_classification_and_undetermined():
     assert flat.classification == "undetermined" and math.isnan(flat.rate)
     with pytest.raises(InputError, match="uniformly spaced"):
         growth_rate(np.r_[0, 1, 3, 4, 5, 6, 7, 8, 9], np.zeros(9))
+
+
+# --------------------------------------------------------------------------- the one core
+
+
+def test_hermite_interpolation_is_exact_for_cubics_and_written_once():
+    """The core's cubic Hermite weights reproduce any cubic from its values
+    and slopes at two steps (to rounding), their error on a smooth history
+    falls as h^4; and the formula exists once in the package (newmark's
+    delay off the grid and the milling cut's passes both read it)."""
+    from pathlib import Path
+
+    import chatterlab
+    from chatterlab.time._core import hermite_weights
+
+    rng = np.random.default_rng(7)
+    c = rng.normal(size=4)
+    p = np.polynomial.Polynomial(c)
+    dp = p.deriv()
+    t0, h = 0.3, 0.7
+    s = np.linspace(0.0, 1.0, 11)
+    w0, w1, w2, w3 = hermite_weights(s, h)
+    got = w0 * p(t0) + w1 * dp(t0) + w2 * p(t0 + h) + w3 * dp(t0 + h)
+    np.testing.assert_allclose(got, p(t0 + s * h), rtol=0, atol=1e-14 * np.abs(c).sum() * 4)
+    errs = []
+    for hh in (0.1, 0.05, 0.025):
+        w0, w1, w2, w3 = hermite_weights(0.37, hh)
+        errs.append(abs(w0 * np.sin(0.2) + w1 * np.cos(0.2) + w2 * np.sin(0.2 + hh) + w3 * np.cos(0.2 + hh)
+                        - np.sin(0.2 + 0.37 * hh)))  # fmt: skip
+    assert 14 < errs[0] / errs[1] < 18 and 14 < errs[1] / errs[2] < 18  # 2^4
+    src = [q.read_text() for q in Path(chatterlab.__file__).parent.rglob("*.py")]
+    assert sum(t.count("2 * s3 - 3 * s2 + 1") for t in src) == 1
+
+
+def test_a_delay_is_placed_on_the_grid_once():
+    """delay_on_grid: d = whole + rem, rem = 0 within 1e-9 (relative) of a
+    whole number of steps, so the delayed value is a stored step."""
+    from chatterlab.time._core import delay_on_grid
+
+    d = np.array([5.0, 5.0 + 1e-12, 5.0 - 1e-12, 5.25, 1.0, 123.999999, 1e6 + 1e-4])
+    whole, rem = delay_on_grid(d)
+    assert whole.tolist() == [5, 5, 5, 5, 1, 123, 1000000]
+    assert rem[[0, 1, 2, 4, 6]].tolist() == [0.0] * 5
+    assert rem[3] == 0.25 and rem[5] == pytest.approx(0.999999, abs=1e-9)
+    np.testing.assert_allclose(whole + rem, d, rtol=1e-9)
+
+
+def test_problems_are_values():
+    """A problem is immutable: nothing sets its attributes after it is built."""
+    p = ConstantProblem([[1.0]], [[0.1]], [[4.0]])
+    with pytest.raises(AttributeError, match="immutable"):
+        p.K = np.array([[5.0]])
+    cb = CallbackProblem(1, [[1.0]], [[0.0]], [[1.0]])
+    with pytest.raises(AttributeError, match="immutable"):
+        del cb.n
+    pw = PiecewiseProblem([1.0], [p, p])
+    with pytest.raises(AttributeError, match="immutable"):
+        pw.pieces = []

@@ -27,6 +27,7 @@ from chatterlab.cli._main import main
 from chatterlab.errors import InputError
 from chatterlab.process._kinematics import kinematics_for
 from chatterlab.structure._assembly import MovingReduction
+from chatterlab.time import Excitation, Initial, Integration
 from chatterlab.time._newmark import ConstantProblem, NewmarkOptions, newmark
 from chatterlab.time._simulate import ParametricProblem, simulate
 
@@ -187,7 +188,13 @@ def test_moving_force_on_a_simply_supported_beam():
     """
     L, b, h, N, v, F = 1.0, 0.05, 0.01, 20, 5.0, 100.0
     sy = cl.assemble(cl.loads_model(moving_load_text(L, b, h, N, v, F)))
-    sim = simulate(sy, feedback="none", width=1.0, duration=L / v, step=1e-4, outputs=["mid.y"])
+    sim = simulate(
+        sy,
+        feedback="none",
+        width=1.0,
+        outputs=["mid.y"],
+        integration=Integration(duration=L / v, step=0.0001),
+    )
     assert sim.status == "ok"
     assert sim.meta["coefficients"] == "polynomial"
     t, y = sim.t, sim.data["mid.y"]
@@ -208,9 +215,11 @@ def test_moving_force_direct_path_agrees():
     """The direct (per-step low-rank) evaluation gives the same history as
     the per-segment polynomials, to rounding."""
     sy = cl.assemble(cl.loads_model(moving_load_text(1.0, 0.05, 0.01, 8, 5.0, 100.0)))
-    kw = dict(feedback="none", width=1.0, duration=0.05, step=2e-4, outputs=["mid.y"])
-    a = simulate(sy, method="polynomial", **kw).data["mid.y"]
-    b = simulate(sy, method="direct", **kw).data["mid.y"]
+    kw = dict(feedback="none", width=1.0, outputs=["mid.y"])
+    a = simulate(sy, **kw, integration=Integration(duration=0.05, step=2e-4, method="polynomial")).data[
+        "mid.y"
+    ]
+    b = simulate(sy, **kw, integration=Integration(duration=0.05, step=2e-4, method="direct")).data["mid.y"]
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-11 * np.abs(b).max())
 
 
@@ -250,7 +259,7 @@ DV = [[{d!r}, 0.0, 0.0], [0.0, {d!r}, 0.0], [0.0, 0.0, 0.0]]
 """
     text_a = base.replace(load, load.replace('b = "ground"', 'b = "carriage"') + spring)
     text_b = base.replace(load, coupling)
-    kw = dict(width=1.0, duration=0.2, step=1e-4, outputs=["mid.y", "wheel.y"])
+    kw = dict(width=1.0, outputs=["mid.y", "wheel.y"], integration=Integration(duration=0.2, step=1e-4))
     a = simulate(cl.assemble(cl.loads_model(text_a)), feedback="none", **kw)
     b = simulate(cl.assemble(cl.loads_model(text_b)), feedback="pd", **kw)
     for name in ("mid.y", "wheel.y"):
@@ -379,7 +388,14 @@ def test_growth_rate_equals_rightmost_root(turning, boundary, factor):
     rates = []
     for N in (1000, 2000):
         h = T / N
-        sim = simulate(turning, feedback="pdo", width=b, delay=T, duration=1.0, step=h, outputs=["tip.x"])
+        sim = simulate(
+            turning,
+            feedback="pdo",
+            width=b,
+            delay=T,
+            outputs=["tip.x"],
+            integration=Integration(duration=1.0, step=h),
+        )
         g = sim.growth("tip.x", skip=0.2)
         assert g.r2 > 0.999
         assert g.classification == ("decaying" if factor < 1 else "growing")
@@ -433,7 +449,12 @@ def test_trajectory_matches_method_of_steps(turning, boundary):
     errs = []
     for N in (1000, 2000):
         sim = simulate(
-            turning, feedback="pdo", width=b, delay=T, duration=3 * T, step=T / N, outputs=["tip.x"]
+            turning,
+            feedback="pdo",
+            width=b,
+            delay=T,
+            outputs=["tip.x"],
+            integration=Integration(duration=3 * T, step=T / N),
         )
         x, r = sim.data["tip.x"], ref(sim.t)
         errs.append(np.abs(x - r).max() / np.abs(r).max())
@@ -449,7 +470,14 @@ def test_static_deflection_under_the_desired_force(turning):
     b, T = 0.3e-3, 0.02
     F0 = 200.0 * b / 0.001
     for fb, stiff in (("none", 1.0e7), ("pd", 1.0e7 + 2.0e9 * b)):
-        sim = simulate(turning, feedback=fb, width=b, delay=T, duration=0.4, step=T / 200, outputs=["tip.x"])
+        sim = simulate(
+            turning,
+            feedback=fb,
+            width=b,
+            delay=T,
+            outputs=["tip.x"],
+            integration=Integration(duration=0.4, step=T / 200),
+        )
         assert sim.data["tip.x"][-1] == pytest.approx(F0 / stiff, rel=1e-6)
 
 
@@ -566,8 +594,7 @@ def test_polynomial_coefficients_equal_the_direct_ones(shaper_damped, terms):
     pd = ParametricProblem(sy, kin, width=0.003, terms=terms, method="direct")
     # the generic path (Eq. 2.6 for W, W', W'' at every step), used when constraints tie
     # other coordinates to a contact: checked on a few hundred steps
-    pg = ParametricProblem(sy, kin, width=0.003, terms=terms, method="direct")
-    pg.fast = None
+    pg = ParametricProblem(sy, kin, width=0.003, terms=terms, method="generic")
     tg = kin.grid_unit / 7 * np.arange(1, 106)
     for X, Y in zip(pg.matrices(tg), pd.matrices(tg), strict=True):
         if Y is None:
@@ -598,7 +625,7 @@ def test_polynomial_coefficients_equal_the_direct_ones(shaper_damped, terms):
 def test_first_pass_of_case_c_equals_case_b(shaper):
     """With a zero history the delayed term is zero during the first stroke
     cycle, so case (c) repeats case (b) there; they part on the second pass."""
-    kw = dict(duration=1.75, step=1.5 / 3000)
+    kw = dict(integration=Integration(duration=1.75, step=1.5 / 3000))
     b = simulate(shaper, feedback="pd", **kw)
     c = simulate(shaper, feedback="pdo", **kw)
     first = b.t < 1.5 - 1e-9
@@ -615,11 +642,10 @@ def test_outputs_and_files(turning, tmp_path):
     sim = simulate(
         turning,
         feedback="pdo",
-        width=0.3e-3,
+        width=0.0003,
         delay=0.02,
-        duration=0.05,
-        step=1e-4,
         outputs=["tip.x", "tool.rz"],
+        integration=Integration(duration=0.05, step=0.0001),
     )
     assert list(sim.data) == ["tip.x", "tool.rz", "cut.1", "cut.2"]
     assert sim.units["tool.rz"] == "rad" and sim.units["tip.x"] == "m"
@@ -660,8 +686,8 @@ def test_outputs_and_files(turning, tmp_path):
         (dict(width=-1.0), "width must be > 0"),
         (dict(width=0.0), "width must be > 0"),
         (dict(feedback="pid"), "feedback must be one of"),
-        (dict(passes=0), "passes must be an integer"),
-        (dict(passes=1.5), "passes must be an integer"),
+        (dict(passes=0), "periods must be > 0"),
+        (dict(passes=-1.5), "periods must be > 0"),
         (dict(speed=-1.0), "speed must be > 0 rpm"),
         (
             dict(delay=10.0, step=1e-6, duration=1e-3, options=NewmarkOptions(max_history_bytes=10**6)),
@@ -670,8 +696,10 @@ def test_outputs_and_files(turning, tmp_path):
     ],
 )
 def test_bad_input_is_one_clear_error(turning, kw, match):
+    moved = {"duration": "duration", "step": "step", "passes": "periods", "options": "scheme"}
+    integration = {moved[k]: kw.pop(k) for k in list(kw) if k in moved}
     with pytest.raises(InputError, match=match):
-        simulate(turning, **kw)
+        simulate(turning, **kw, integration=Integration(**integration))
 
 
 def test_unknown_output_is_refused_before_the_run(turning, monkeypatch):
@@ -684,14 +712,14 @@ def test_unknown_output_is_refused_before_the_run(turning, monkeypatch):
 
     monkeypatch.setattr(sm, "newmark", boom)
     with pytest.raises(InputError, match="unknown point"):
-        simulate(turning, outputs=["nope.x"], duration=1.0)
+        simulate(turning, outputs=["nope.x"], integration=Integration(duration=1.0))
 
 
 def test_stroke_outside_the_movable_range(shaper_path):
     m = cl.load_model(shaper_path)
     sy = cl.assemble(m)
     with pytest.raises(InputError, match="outside the movable range|movable range"):
-        simulate(sy, position=2.0, duration=0.01)
+        simulate(sy, position=2.0, integration=Integration(duration=0.01))
 
 
 @pytest.mark.parametrize(
@@ -716,3 +744,33 @@ def test_cli_exits_2_with_one_line(capsys, tmp_path, args, match):
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
     assert lines[0].startswith("chatterlab: error:") and match in lines[0]
+
+
+def test_the_0_2_keywords_still_work_and_warn(turning):
+    """The keywords of 0.2 go into the option objects (one release, with a
+    DeprecationWarning that names the new form): the same run, bit for bit."""
+    with pytest.warns(DeprecationWarning, match=r"duration= -> integration=Integration\(duration=...\)"):
+        old = simulate(
+            turning, width=2e-4, delay=0.01, duration=0.05, step=1e-4, q0={"tool.x": 1e-6}, forces=False
+        )
+    new = simulate(
+        turning, width=2e-4, delay=0.01, integration=Integration(duration=0.05, step=1e-4),
+        initial=Initial(q0={"tool.x": 1e-6}), excitation=Excitation(cutting_forces=False),
+    )  # fmt: skip
+    np.testing.assert_array_equal(old.data["tool.x"], new.data["tool.x"])
+    assert old.meta == new.meta
+    with pytest.raises(TypeError, match="unexpected keyword argument 'durations'"):
+        simulate(turning, durations=1.0)
+    with pytest.raises(InputError, match="integration must be a Integration"):
+        simulate(turning, integration=NewmarkOptions())
+
+
+def test_the_parametric_problem_is_a_value(shaper):
+    """Its span is given when it is built (was written into its private
+    attribute by simulate); nothing sets an attribute afterwards."""
+    kin = kinematics_for(shaper.model.process)
+    p = ParametricProblem(shaper, kin, width=0.002, t_end=2 * kin.cycle)
+    assert p.breakpoints() == tuple(kin.breakpoints(2 * kin.cycle))
+    assert ParametricProblem(shaper, kin, width=0.002).breakpoints() == ()
+    with pytest.raises(AttributeError, match="immutable"):
+        p.t_end = 1.0

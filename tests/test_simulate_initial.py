@@ -40,7 +40,7 @@ from conftest import assert_clean_error, turning_text
 import chatterlab as cl
 from chatterlab.cli._main import main
 from chatterlab.errors import InputError
-from chatterlab.time import simulate
+from chatterlab.time import Initial, Integration, simulate
 
 M, C, KS, KF = 1.0, 189.7, 1.0e7, 2.0e9
 T, B = 0.02, 0.3e-3  # delay (3000 rpm) and width (below b_lim ~ 0.4 mm)
@@ -99,8 +99,16 @@ CASES = {
 
 
 def run(tool, N: int, **kw):
+    """The cut at h = T/N over two delays from the initial condition ``kw``
+    (q0, v0, history: the fields of Initial)."""
     return simulate(
-        tool, feedback="pdo", width=B, delay=T, duration=2 * T, step=T / N, outputs=["tip.x"], **kw
+        tool,
+        feedback="pdo",
+        width=B,
+        delay=T,
+        outputs=["tip.x"],
+        integration=Integration(duration=2 * T, step=T / N),
+        initial=Initial(**kw),
     )
 
 
@@ -162,7 +170,14 @@ def test_meta_says_what_was_used(tool):
     ic = run(tool, 100, v0=[0.01], history=hist).meta["initial_condition"]
     assert "tool.x 0.01 m/s" in ic and "callable hist(t)" in ic
     # no delayed term: the history is not read, and the meta says so
-    sim = simulate(tool, feedback="pd", width=B, delay=T, duration=T, step=T / 100, history="constant")
+    sim = simulate(
+        tool,
+        feedback="pd",
+        width=B,
+        delay=T,
+        integration=Integration(duration=T, step=T / 100),
+        initial=Initial(history="constant"),
+    )
     assert "not read" in sim.meta["initial_condition"]
 
 
@@ -172,7 +187,12 @@ def test_named_displacement_on_a_beam_is_its_static_shape(shaper_path):
     parallel to the output's row R: C q0 = R^T lambda)."""
     sy = cl.assemble(cl.load_model(shaper_path))
     sim = simulate(
-        sy, feedback="pdo", position=0.85, delay=0.05, duration=2e-3, step=1e-4, q0={"rfe5.y": 1e-5}
+        sy,
+        feedback="pdo",
+        position=0.85,
+        delay=0.05,
+        integration=Integration(duration=0.002, step=0.0001),
+        initial=Initial(q0={"rfe5.y": 1e-05}),
     )
     assert sim.data["rfe5.y"][0] == pytest.approx(1e-5, rel=1e-9)
     from chatterlab.time._parametric import ParametricProblem, _output_map
@@ -233,9 +253,14 @@ def test_cli_initial_condition(model_file, tmp_path, capsys):
     rows = list(csv.DictReader(out.open()))
     x = np.array([float(r["tool.x [m]"]) for r in rows])
     api = simulate(
-        cl.assemble(cl.load_model(model_file)), feedback="pdo", width=B, delay=T, duration=2 * T, step=2e-5,
-        outputs=["tip.x"], q0={"tip.x": 1e-5}, history="constant",
-    )  # fmt: skip
+        cl.assemble(cl.load_model(model_file)),
+        feedback="pdo",
+        width=B,
+        delay=T,
+        outputs=["tip.x"],
+        integration=Integration(duration=2 * T, step=2e-05),
+        initial=Initial(q0={"tip.x": 1e-05}, history="constant"),
+    )
     np.testing.assert_allclose(x, api.data["tip.x"], rtol=1e-15, atol=0)
 
 

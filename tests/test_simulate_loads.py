@@ -9,6 +9,7 @@ from conftest import turning_text
 
 import chatterlab as cl
 from chatterlab.errors import InputError
+from chatterlab.time import Excitation, Integration
 from chatterlab.time._simulate import simulate
 
 M, K, C = 1.0, 1.0e7, 189.7  # the shared 1-DOF tool: 503.3 Hz, zeta = 3 %
@@ -37,9 +38,14 @@ def _warped(w: float, h: float) -> float:
 def test_harmonic_load_gives_the_receptance(system):
     w, F, h = 2 * np.pi * 400.0, 100.0, 2e-5
     sim = simulate(
-        system, feedback="none", delay=0.01, position=None, duration=0.4, step=h, forces=False,
-        outputs=["tool.x"], loads={"tool.x": lambda t: F * np.sin(w * t)},
-    )  # fmt: skip
+        system,
+        feedback="none",
+        delay=0.01,
+        position=None,
+        outputs=["tool.x"],
+        integration=Integration(duration=0.4, step=h),
+        excitation=Excitation(cutting_forces=False, loads={"tool.x": lambda t: F * np.sin(w * t)}),
+    )
     wt = _warped(w, h)
     exact = F / abs(K - M * wt**2 + 1j * C * wt)
     # 20 periods after 0.3 s: the free transient (decay 95 1/s) is below 1e-12 of it
@@ -53,9 +59,13 @@ def test_base_excitation_gives_the_transmissibility(system):
         return Y * np.sin(w * t), Y * w * np.cos(w * t), -Y * w**2 * np.sin(w * t)
 
     sim = simulate(
-        system, feedback="none", delay=0.01, duration=0.4, step=h, forces=False,
-        outputs=["tool.x"], ground_motion={"ground.x": ground},
-    )  # fmt: skip
+        system,
+        feedback="none",
+        delay=0.01,
+        outputs=["tool.x"],
+        integration=Integration(duration=0.4, step=h),
+        excitation=Excitation(cutting_forces=False, ground_motion={"ground.x": ground}),
+    )
     wt = _warped(w, h)
     # m x'' + c (x' - y') + k (x - y) = 0: |X / Y| = |k + j c w| / |k - m w^2 + j c w|
     exact = Y * abs(K + 1j * C * wt) / abs(K - M * wt**2 + 1j * C * wt)
@@ -78,10 +88,12 @@ def test_ground_motion_reaches_the_cut_through_the_coupling(system):
         return np.where(on, Y * (1 - c), 0.0), np.where(on, Y * w * s_, 0.0), np.where(on, Y * w**2 * c, 0.0)
 
     def gap(h: float) -> tuple[float, float, object]:
-        common = dict(delay=T, duration=0.1, step=h, forces=False, outputs=["tool.x"], width=2e-4)
-        a = simulate(system, feedback="pdo", ground_motion={"ground.x": ground}, **common)
+        common = dict(delay=T, outputs=["tool.x"], width=2e-4, integration=Integration(duration=0.1, step=h))
+        moved = Excitation(cutting_forces=False, ground_motion={"ground.x": ground})
+        a = simulate(system, feedback="pdo", excitation=moved, **common)
         z = a.data["tool.x"] - ground(a.t)[0]
-        b = simulate(system, feedback="pdo", loads={"tool.x": lambda t: -M * ground(t)[2]}, **common)
+        pushed = Excitation(cutting_forces=False, loads={"tool.x": lambda t: -M * ground(t)[2]})
+        b = simulate(system, feedback="pdo", excitation=pushed, **common)
         return float(np.max(np.abs(z - b.data["tool.x"]))), float(np.max(np.abs(z))), a
 
     g1, zmax, a = gap(2e-5)
@@ -90,17 +102,40 @@ def test_ground_motion_reaches_the_cut_through_the_coupling(system):
     assert g1 < 1e-3 * zmax
     assert 3.5 < g1 / g2 < 4.5  # second order
     # and the ground terms of the coupling matter: without the cut the answer differs
-    c = simulate(system, feedback="none", ground_motion={"ground.x": ground}, delay=T, duration=0.1, step=2e-5,
-                 forces=False, outputs=["tool.x"], width=2e-4)  # fmt: skip
+    c = simulate(
+        system,
+        feedback="none",
+        delay=T,
+        outputs=["tool.x"],
+        width=0.0002,
+        excitation=Excitation(ground_motion={"ground.x": ground}, cutting_forces=False),
+        integration=Integration(duration=0.1, step=2e-05),
+    )
     assert np.max(np.abs(c.data["tool.x"] - a.data["tool.x"])) > 0.05 * zmax
 
 
 def test_bad_loads_and_ground_motion(system):
     with pytest.raises(InputError, match="not a given coordinate"):
         simulate(
-            system, feedback="none", delay=0.01, duration=0.01, ground_motion={"tool.x": lambda t: (t, t, t)}
+            system,
+            feedback="none",
+            delay=0.01,
+            integration=Integration(duration=0.01),
+            excitation=Excitation(ground_motion={"tool.x": lambda t: (t, t, t)}),
         )
     with pytest.raises(InputError, match="unknown point"):
-        simulate(system, feedback="none", delay=0.01, duration=0.01, loads={"nowhere.x": lambda t: t})
+        simulate(
+            system,
+            feedback="none",
+            delay=0.01,
+            integration=Integration(duration=0.01),
+            excitation=Excitation(loads={"nowhere.x": lambda t: t}),
+        )
     with pytest.raises(InputError, match=r"\(q, q_dot, q_ddot\)"):
-        simulate(system, feedback="none", delay=0.01, duration=0.01, ground_motion={"ground.x": lambda t: t})
+        simulate(
+            system,
+            feedback="none",
+            delay=0.01,
+            integration=Integration(duration=0.01),
+            excitation=Excitation(ground_motion={"ground.x": lambda t: t}),
+        )

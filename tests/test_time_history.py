@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from chatterlab.errors import InputError
-from chatterlab.io import read_dataset
-from chatterlab.time import Simulation, TimeResponse, peaks
+from chatterlab.io import Result, read_dataset
+from chatterlab.time import MillingSimulation, Simulation, TimeResponse, peaks
 from chatterlab.time._history import TimeHistory
 
 DT = 1e-3
@@ -255,11 +255,56 @@ def test_plot_draws_the_histories(runs):
 
 def test_one_implementation_of_the_shared_methods():
     # issue 9: the two result types had two copies of these, with different names;
-    # an override in either would be a second copy again
-    for cls in (TimeResponse, Simulation):
-        for method in ("spectrum", "growth", "to_xarray", "to_netcdf"):
+    # an override in either would be a second copy again (issue 19: the milling
+    # run too, and the files are the one result protocol's)
+    for cls in (TimeResponse, Simulation, MillingSimulation):
+        for method in ("spectrum", "growth"):
             assert getattr(cls, method) is getattr(TimeHistory, method), (cls.__name__, method)
+        for method in ("to_xarray", "to_netcdf", "to_json"):
+            assert getattr(cls, method) is getattr(Result, method), (cls.__name__, method)
+        assert issubclass(cls, Result)
     assert "to_csv" not in vars(Simulation) and "growth" not in vars(TimeResponse)
+    assert "to_csv" not in vars(MillingSimulation)
+
+
+@pytest.mark.parametrize("cls", [TimeResponse, Simulation, MillingSimulation])
+@pytest.mark.parametrize("method", ["plot", "to_csv"])
+def test_no_result_narrows_a_shared_method(cls, method):
+    """Where a result overrides a shared method, every call the base accepts
+    is accepted: each parameter of the base is there, of the same kind, with a
+    default where the base has one (the substitution principle, checked on
+    the signatures; no override needs ``type: ignore``)."""
+    import inspect
+
+    base = inspect.signature(getattr(TimeHistory, method)).parameters
+    got = inspect.signature(getattr(cls, method)).parameters
+    var_kw = any(p.kind is p.VAR_KEYWORD for p in got.values())
+    for name, p in base.items():
+        if p.kind is p.VAR_KEYWORD:
+            assert var_kw, (cls.__name__, method, "**")
+            continue
+        q = got.get(name)
+        if q is None:
+            assert var_kw and p.kind is p.KEYWORD_ONLY, (cls.__name__, method, name)
+            continue
+        assert q.kind is p.kind, (cls.__name__, method, name)
+        assert (p.default is p.empty) or (q.default is not q.empty), (cls.__name__, method, name)
+
+
+def test_json_reads_back(runs, tmp_path):
+    """to_json (the result protocol's, from dataset_parts): the time axis and
+    every history with its unit, strict JSON, the numbers bit for bit."""
+    import json
+
+    _, x, tr, sim = runs
+    text = sim.to_json(tmp_path / "sim.json")
+    data = json.loads((tmp_path / "sim.json").read_text())
+    assert text.strip() == (tmp_path / "sim.json").read_text().strip() and "NaN" not in text
+    assert data["data"]["tip_x"]["units"] == "m" and data["attrs"]["status"] == "ok"
+    np.testing.assert_array_equal(np.array(data["data"]["tip_x"]["values"]), x)  # repr round-trips
+    np.testing.assert_array_equal(np.array(data["coords"]["time"]["values"]), sim.t)
+    assert data["data"]["cut_distance"]["values"][0] == 0.0
+    assert json.loads(tr.to_json())["data"]["q"]["values"][0][5] == x[5]
 
 
 def test_growth_claims_a_class_only_when_the_fit_decides_it():
@@ -279,3 +324,37 @@ def test_growth_claims_a_class_only_when_the_fit_decides_it():
         clean = np.exp(sigma * t) * np.sin(2 * np.pi * 50 * t)
         g = growth_rate(t, clean)
         assert g.classification == cls and abs(g.rate - sigma) < 1e-3, g
+
+
+def test_every_time_result_follows_the_result_protocol(runs, tmp_path):
+    """TimeResponse, Simulation and MillingSimulation are results of the one
+    protocol: files that return their path, strict JSON, and plot(ax=ax)
+    drawing on the Axes given (a multi-panel plot given one Axes draws its
+    first panel there)."""
+    import json
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from chatterlab.process import Milling
+    from chatterlab.time import Integration, simulate_milling
+
+    _, _, tr, sim = runs
+    wn = 2 * math.pi * 922.0
+    mill = simulate_milling(
+        ([[0.04]], [[2 * 0.011 * 0.04 * wn]], [[0.04 * wn**2]]),
+        Milling.from_immersion(2, 0.02, 6e8, 2e8, 0.05, "down"), 10000.0, 1e-3, feed=1e-4,
+        integration=Integration(steps_per_period=30, periods=2),
+    )  # fmt: skip
+    for k, r in enumerate((tr, sim, mill)):
+        assert isinstance(r, Result)
+        assert r.to_netcdf(tmp_path / f"{k}.nc") == Path(tmp_path / f"{k}.nc")
+        assert r.to_csv(tmp_path / f"{k}.csv") == Path(tmp_path / f"{k}.csv")
+        text = r.to_json()
+        assert "NaN" not in text and "Infinity" not in text and json.loads(text)["attrs"]["status"] == "ok"
+        fig, ax = plt.subplots()
+        assert r.plot(ax=ax) is ax and ax.get_lines()
+        plt.close(fig)

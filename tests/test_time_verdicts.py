@@ -34,6 +34,7 @@ import chatterlab as cl
 from chatterlab.cli._main import main
 from chatterlab.frequency import characteristic_roots_system, make_system
 from chatterlab.lobes import lobes
+from chatterlab.time import Excitation, Initial, Integration
 from chatterlab.time._signals import ROOT_REL_ERROR, GrowthEstimate, growth_rate, time_verdict
 from chatterlab.time._simulate import (
     MIN_STEPS_PER_PERIOD,
@@ -196,8 +197,15 @@ def test_turning_tool_below_the_limit_decays(tool, tool_blim):
     """0.98 b_lim (root -2.05 1/s), the API on a 2 s run: decaying, the bar
     covers the root."""
     roots = frozen_roots(tool, 0.98 * tool_blim, T_TOOL)
-    sim = simulate(tool, width=0.98 * tool_blim, delay=T_TOOL, duration=2.0, outputs="tip.x",
-                   q0={"tip.x": 1e-6}, history="constant", roots=roots)  # fmt: skip
+    sim = simulate(
+        tool,
+        width=0.98 * tool_blim,
+        delay=T_TOOL,
+        outputs="tip.x",
+        roots=roots,
+        integration=Integration(duration=2.0),
+        initial=Initial(q0={"tip.x": 1e-06}, history="constant"),
+    )
     v = sim.verdict("tip.x")
     assert_honest(v, roots)
     assert v.classification == "decaying", v.message
@@ -274,8 +282,15 @@ def test_turning_tool_rate_agrees_with_an_independent_integrator(tool, tool_blim
     within its fit's 2 se, and Newmark's verdict (default step) covers both."""
     width = 1.02 * tool_blim
     roots = frozen_roots(tool, width, T_TOOL)
-    sim = simulate(tool, width=width, delay=T_TOOL, duration=0.5, outputs="tip.x", q0={"tip.x": 1e-6},
-                   history="constant", roots=roots)  # fmt: skip
+    sim = simulate(
+        tool,
+        width=width,
+        delay=T_TOOL,
+        outputs="tip.x",
+        roots=roots,
+        integration=Integration(duration=0.5),
+        initial=Initial(q0={"tip.x": 1e-06}, history="constant"),
+    )
     v = sim.verdict("tip.x")
     assert_honest(v, roots)
     assert v.classification == "growing"
@@ -310,8 +325,15 @@ def test_random_structure_with_chatter_above_300_hz(random3, random3_blim, facto
     roots = frozen_roots(random3, factor * random3_blim, 0.01)
     f_chatter = abs(roots.roots[0].imag) / (2 * math.pi)
     assert f_chatter > 300.0
-    sim = simulate(random3, width=factor * random3_blim, delay=0.01, duration=2.0, outputs="tip.x",
-                   q0={"tip.x": 1e-6}, history="constant", roots=roots)  # fmt: skip
+    sim = simulate(
+        random3,
+        width=factor * random3_blim,
+        delay=0.01,
+        outputs="tip.x",
+        roots=roots,
+        integration=Integration(duration=2.0),
+        initial=Initial(q0={"tip.x": 1e-06}, history="constant"),
+    )
     assert 1.0 / (sim.step * f_chatter) >= MIN_STEPS_PER_PERIOD
     v = sim.verdict("tip.x")
     assert_honest(v, roots)
@@ -373,8 +395,17 @@ def test_shaper_at_the_issue_point_is_not_called_growing(shaper):
     root, and a decay this slow is not called growing."""
     roots = frozen_roots(shaper, 0.333773e-3, 1.5, 0.85)
     assert roots.roots[0].real < 0
-    sim = simulate(shaper, width=0.333773e-3, delay=1.5, position=0.85, duration=10.0, outputs="rfe5.y",
-                   q0={"rfe5.y": 1e-6}, history="constant", forces=False, roots=roots)  # fmt: skip
+    sim = simulate(
+        shaper,
+        width=0.000333773,
+        delay=1.5,
+        position=0.85,
+        outputs="rfe5.y",
+        roots=roots,
+        integration=Integration(duration=10.0),
+        initial=Initial(q0={"rfe5.y": 1e-06}, history="constant"),
+        excitation=Excitation(cutting_forces=False),
+    )
     assert_step_resolves_the_rightmost_root(shaper, sim, roots, 0.85)
     v = sim.verdict("rfe5.y")
     assert_honest(v, roots, rightmost=False)  # rfe5.y shows the 83.3 Hz mode (-0.21 1/s) on this run
@@ -388,12 +419,13 @@ def test_undetermined_names_the_step_that_decides(tool, tool_blim):
     decides it."""
     width = 1.02 * tool_blim
     roots = frozen_roots(tool, width, T_TOOL)
-    kw = dict(width=width, delay=T_TOOL, duration=1.0, outputs="tip.x", q0={"tip.x": 1e-6},
-              history="constant", roots=roots)  # fmt: skip
-    v = simulate(tool, step=T_TOOL / 140, **kw).verdict("tip.x")
+    kw = dict(width=width, delay=T_TOOL, outputs="tip.x", roots=roots,
+              initial=Initial(q0={"tip.x": 1e-6}, history="constant"))  # fmt: skip
+    v = simulate(tool, **kw, integration=Integration(duration=1.0, step=T_TOOL / 140)).verdict("tip.x")
     assert v.classification == "undetermined" and math.isfinite(v.decide_step), v.message
     assert_honest(v, roots)
-    w = simulate(tool, step=T_TOOL / math.ceil(T_TOOL / v.decide_step), **kw).verdict("tip.x")
+    h = T_TOOL / math.ceil(T_TOOL / v.decide_step)
+    w = simulate(tool, **kw, integration=Integration(duration=1.0, step=h)).verdict("tip.x")
     assert w.classification == "growing", w.message
     assert_honest(w, roots)
 

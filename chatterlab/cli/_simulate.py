@@ -200,13 +200,20 @@ def _runner(
 ) -> Callable[[str], Any]:
     """The model of the command line as ``feedback case -> Simulation``."""
     from ..structure._assembly import assemble
-    from ..time._simulate import simulate
+    from ..time import Initial, Integration, simulate
 
     sy = assemble(model)
     width = width_m(args) if args.width is not None else None
+    initial = Initial(q0=q0, v0=v0, history="constant" if args.history == "constant" else None)
 
     def simulate_case(fb: Any) -> Any:
         roots = _frozen_roots(sy, fb, width, args)
+        integration = Integration(
+            duration=args.duration,
+            periods=args.passes,
+            step=args.step,
+            progress=None if args.quiet else progress_bar(f"simulate ({fb})"),
+        )
         return simulate(
             sy,
             feedback=fb,
@@ -214,15 +221,10 @@ def _runner(
             speed=args.speed,
             delay=args.delay,
             position=args.position,
-            passes=args.passes,
-            duration=args.duration,
-            step=args.step,
             outputs=args.output,
-            q0=q0,
-            v0=v0,
-            history="constant" if args.history == "constant" else None,
-            progress=None if args.quiet else progress_bar(f"simulate ({fb})"),
             roots=roots,
+            integration=integration,
+            initial=initial,
         )
 
     return simulate_case

@@ -17,16 +17,68 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..io import Result
 from ..structure._assembly import System
 
 __all__ = ["Confirmation", "confirm"]
 
 
+#: the columns of a confirmation: name -> (unit, long name); a text column is
+#: stored as the index of its value in the tuple of :data:`CODES`
+COLUMNS: dict[str, tuple[str, str]] = {
+    "speed": ("", "speed of the diagram"),
+    "delay": ("s", "delay T at that speed"),
+    "width": ("m", "width of cut simulated"),
+    "factor": ("1", "width / b_lim"),
+    "expected": ("1", "the diagram's side"),
+    "growth_rate": ("1/s", "envelope growth rate of the chip-thickness variation"),
+    "classification": ("1", "simulated"),
+    "agrees": ("1", "the simulation agrees with the diagram: 1, or 0"),
+    "status": ("1", "the run's status"),
+    "step": ("s", "time step"),
+    "duration": ("s", "simulated time"),
+}
+#: the words of the text columns, stored as their index
+CODES: dict[str, tuple[str, ...]] = {
+    "expected": ("stable", "unstable"),
+    "classification": ("stable", "unstable", "marginal"),
+    "status": ("ok", "diverged", "interrupted", "stopped"),
+}
+
+
 @dataclass(frozen=True)
-class Confirmation:
-    """Result of :func:`confirm`: one row per simulated point."""
+class Confirmation(Result):
+    """Result of :func:`confirm`: one row per simulated point (the files of
+    the one result protocol, :class:`chatterlab.io.Result`, with a ``point``
+    coordinate); ``speed_unit`` the diagram's (m/s or rpm)."""
 
     rows: tuple[dict[str, Any], ...]
+    speed_unit: str = ""
+
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """``point`` (0 .. n-1) and one variable per column (:data:`COLUMNS`)."""
+        n = len(self.rows)
+        data: dict[str, Any] = {}
+        for name, (unit, what) in COLUMNS.items():
+            vals = [r[name] for r in self.rows]
+            if name in CODES:
+                words = CODES[name]
+                vals = [words.index(v) for v in vals]
+                what += ": " + ", ".join(f"{k} {w}" for k, w in enumerate(words))
+            unit = self.speed_unit if name == "speed" else unit
+            data[name] = (np.array(vals, dtype=float).reshape(n), unit, what)
+        attrs = {
+            "title": "chatterlab time-domain confirmation of a lobe diagram",
+            "summary": self.summary_line(),
+        }
+        return {"point": (np.arange(n), "", "simulated point")}, data, attrs
+
+    def plot(self, ax: Any = None, **style: Any) -> Any:
+        """The simulated points over the diagram's speed and width
+        (:func:`chatterlab.plot._time.plot_confirmation`); returns the Axes."""
+        from ..plot._time import plot_confirmation
+
+        return plot_confirmation(self, ax=ax, **style)
 
     @property
     def agrees(self) -> bool:
@@ -81,7 +133,7 @@ def confirm(
     max_steps : int
         Cap on the steps of one run (the duration is shortened to fit).
     """
-    from ..time._simulate import simulate
+    from ..time import Excitation, Initial, Integration, simulate
 
     if count < 1:
         raise InputError(f"count must be >= 1 (got {count})")
@@ -91,7 +143,7 @@ def confirm(
         )
     picks = _picks(diagram, count)
     if not picks:
-        return Confirmation(())
+        return Confirmation((), str(getattr(diagram, "speed_unit", "")))
     cid, axis, q0 = _disturbance(system, diagram.position)
     rows = []
     for j in picks:
@@ -106,12 +158,12 @@ def confirm(
                 width=b,
                 delay=T,
                 position=diagram.position,
-                duration=dur,
-                step=h,
-                forces=False,
-                q0=q0,
                 outputs=[],
-                record_every=max(1, int(round(1.0 / (8.0 * fch * h)))),
+                integration=Integration(
+                    duration=dur, step=h, record_every=max(1, int(round(1.0 / (8.0 * fch * h))))
+                ),
+                initial=Initial(q0=q0),
+                excitation=Excitation(cutting_forces=False),
             )
             g = sim.growth(f"{cid}.{axis + 1}", window="all", skip=min(3 * T, 0.3 * dur))
             expected = "stable" if fac < 1 else "unstable"
@@ -131,7 +183,7 @@ def confirm(
                     "duration": float(sim.t[-1]) if sim.t.size else 0.0,
                 }
             )
-    return Confirmation(tuple(rows))
+    return Confirmation(tuple(rows), str(getattr(diagram, "speed_unit", "")))
 
 
 def _picks(diagram: Any, count: int) -> list[int]:

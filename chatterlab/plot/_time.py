@@ -7,7 +7,9 @@
 * :func:`plot_time_response` -- one run as an engineer reads it: tool-point
   displacement, cutting force, and the spectrum with the chatter frequency
   and the tooth-passing (regeneration) frequency and its harmonics marked;
-* :func:`plot_outputs` -- rows of a generic response against time.
+* :func:`plot_outputs` -- rows of a generic response against time;
+* :func:`plot_confirmation` -- the points of a time-domain confirmation of
+  a lobe diagram over speed and width, as simulated.
 """
 
 from __future__ import annotations
@@ -59,12 +61,25 @@ def plot_histories(
     Each run keeps its colour on every panel; the first run's in-cut
     intervals are shaded (legend entry "in the cut").  The title (default:
     the first run's model, width, delay and feedback) is on the top panel.
-    ``ax`` is one Axes per output (``axes=`` a deprecated alias).  Returns
-    the Axes (one per output)."""
+    ``ax`` is one Axes per output (``axes=`` a deprecated alias), or one
+    Axes for the first output alone.  Returns the Axes (one per output, or
+    the one given)."""
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
     axes = axes_arg(ax, axes, "plot_histories")
+    if axes is not None and hasattr(axes, "plot"):  # one Axes: the first output on it
+        plot_histories(
+            sims,
+            list(names)[:1],
+            against=against,
+            labels=labels,
+            ax=[axes],
+            scale=scale,
+            unit=unit,
+            title=title,
+        )
+        return axes
     if axes is None:
         fig, axes = plt.subplots(
             len(names), 1, sharex=True, figsize=(8.5, 2.4 * len(names) + 0.6), squeeze=False
@@ -341,4 +356,36 @@ def plot_outputs(
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.legend()
+    return ax
+
+
+def plot_confirmation(conf: Any, *, ax: Any = None, **style: Any) -> Any:
+    """The points of a :class:`chatterlab.lobes.Confirmation`: width (mm)
+    against speed, a circle where the diagram says stable and a triangle
+    where it says unstable, filled green when the simulation decayed, red
+    when it grew, grey when it could not tell; a point that disagrees is
+    ringed black.  ``style`` goes to ``Axes.scatter``.  Returns the Axes."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots()
+    colours = {"stable": "tab:green", "unstable": "tab:red"}
+    for expected, marker in (("stable", "o"), ("unstable", "^")):
+        rows = [r for r in conf.rows if r["expected"] == expected]
+        if not rows:
+            continue
+        ax.scatter(
+            [r["speed"] for r in rows],
+            [r["width"] * 1e3 for r in rows],
+            marker=marker,
+            c=[colours.get(r["classification"], "0.6") for r in rows],
+            edgecolors=["k" if not r["agrees"] else "none" for r in rows],
+            label=f"diagram: {expected}",
+            **{"s": 40, **style},
+        )
+    ax.set_xlabel(f"speed [{conf.speed_unit}]" if conf.speed_unit else "speed")
+    ax.set_ylabel("width of cut [mm]")
+    ax.set_title(conf.summary_line(), fontsize=9)
+    if conf.rows:
+        ax.legend(fontsize=8)
     return ax

@@ -1,10 +1,15 @@
-"""Time domain: the generic Newmark solver (``_newmark``: the integrator;
-``_problems``: what it integrates; ``_options``: its options and
-:class:`TimeResponse`; ``_plan``: the checks and setup before the first
-step), the parametric problem of Eq. 2.28 (``_parametric``) and the
-simulation of a cut (``_simulate``), spectra and growth rates (``_signals``),
-what every time-history result shares (``_history``: :class:`TimeHistory`),
-milling with the tool leaving the cut (``_milling``)."""
+"""Time domain: one Newmark core (``_core``: the scheme, the delayed
+history, the step loop; ``_contact``: its unilateral coupling -- an implicit
+force with an active set, the instants a gap crosses zero located) under
+every time integration: the generic solver (``_newmark``: :func:`newmark`;
+``_problems``: what it integrates; ``_plan``: the checks and setup before
+the first step), the parametric problem of Eq. 2.28 (``_parametric``) and
+the simulation of a cut (``_simulate``, ``_initial``), milling with the tool
+leaving the cut (``_milling``: :func:`simulate_milling`; ``_milling_cut``:
+the cut as the core's coupling; ``_milling_verdict``, ``_milling_result``);
+the option objects and :class:`TimeResponse` (``_options``), spectra and
+growth rates (``_signals``), and what every time-history result shares
+(``_history``: :class:`TimeHistory`)."""
 
 from __future__ import annotations
 
@@ -20,6 +25,7 @@ from ._newmark import (
     TimeVaryingProblem,
     newmark,
 )
+from ._options import Excitation, Initial, Integration
 from ._signals import GrowthEstimate, amplitude_spectrum, growth_rate, peaks
 from ._simulate import FEEDBACK_CASES, ParametricProblem, Simulation, simulate
 
@@ -41,6 +47,9 @@ __all__ = [
     "Simulation",
     "simulate",
     "FEEDBACK_CASES",
+    "Integration",
+    "Initial",
+    "Excitation",
     "MillingSimulation",
     "simulate_milling",
     "default_steps_per_period",

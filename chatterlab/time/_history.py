@@ -3,24 +3,31 @@
 A time-history result is a set of named, uniformly sampled histories on one
 time axis ``t`` (s), with the status of the run that produced it.  The
 generic Newmark solver's :class:`~chatterlab.time.TimeResponse` (``q``,
-``v``, ``a`` per output) and a cut's :class:`~chatterlab.time.Simulation`
-(named outputs and the process state) are two levels of it; both inherit
-this one implementation of
+``v``, ``a`` per output), a cut's :class:`~chatterlab.time.Simulation`
+(named outputs and the process state) and a milling run's
+:class:`~chatterlab.time.MillingSimulation` (the tool point, forces, chips,
+Poincare samples and the verdict) are levels of it; all inherit this one
+implementation of
 
 * :meth:`TimeHistory.spectrum` -- the amplitude spectrum of one history over
   a time window (:func:`chatterlab.time.amplitude_spectrum`);
 * :meth:`TimeHistory.growth` -- the envelope growth rate of one history
   (:func:`chatterlab.time.growth_rate`);
-* :meth:`TimeHistory.to_xarray` / :meth:`TimeHistory.to_netcdf` -- an
+* ``to_xarray`` / ``to_netcdf`` / ``to_json`` -- the one result protocol
+  (:class:`chatterlab.io.Result`) on :meth:`TimeHistory.dataset_parts`: an
   :class:`xarray.Dataset` with a ``time`` coordinate (s) and ``units`` on
-  every variable, written by :func:`chatterlab.io.write_netcdf`;
+  every variable, a netCDF-4 file written by :func:`chatterlab.io.write_netcdf`
+  (returns the path), strict JSON;
 * :meth:`TimeHistory.to_csv` -- one wide CSV writer for every time history:
   ``t [s]``, one column per history (``name [unit]``), the run's status in
   the last column; every number written as the shortest decimal that reads
   back to the same double (round-trip exact, like
-  :func:`chatterlab.io.write_csv`);
+  :func:`chatterlab.io.write_csv`); returns the path;
 * :meth:`TimeHistory.plot` -- histories against time through
-  :func:`chatterlab.plot.plot_outputs` (``ax=``, returns the Axes).
+  :func:`chatterlab.plot.plot_outputs` (``plot(names, ax=None, **style)``,
+  returns the Axes).  A result may draw its own figure by default
+  (a milling run: vibration, forces and Poincare samples) with the same
+  signature: no result narrows it.
 
 How a result plugs in
 ---------------------
@@ -43,7 +50,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -51,6 +58,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputError
+from ..io import Result
 
 __all__ = ["TimeHistory", "netcdf_name"]
 
@@ -67,12 +75,15 @@ def netcdf_name(name: str) -> str:
     return v if not v[:1].isdigit() else f"v_{v}"
 
 
-class TimeHistory:
+class TimeHistory(Result):
     """Mixin of the time-history results: spectrum, growth, files and plot.
 
     See the module docstring for what a result provides.  Every method
     reads histories through :meth:`history`, so a subclass only says what
-    its histories are.
+    its histories are; the files come from :meth:`dataset_parts` through
+    the one result protocol (:class:`chatterlab.io.Result`), except the CSV,
+    whose layout is the time history's own (one row per time, the run's
+    status on every row).
     """
 
     #: attribute name -> (unit, long name) of the histories stored as attributes
@@ -207,23 +218,6 @@ class TimeHistory:
         m = _one_run(self.window(window) & (t >= t[0] + skip), window)
         return growth_rate(t[m], self.history(name)[m], **kwargs)
 
-    def to_xarray(self) -> Any:
-        """The histories as an :class:`xarray.Dataset`: a ``time`` coordinate
-        (s), one variable per history with ``units`` and ``long_name``, the
-        run's status and message (and the result's details) as attributes."""
-        from ..io import make_dataset
-
-        return make_dataset(*self.dataset_parts())
-
-    def to_netcdf(self, path: str | Path, attrs: Mapping[str, Any] | None = None) -> Path:
-        """Write :meth:`to_xarray` (plus the global ``attrs`` given) to a
-        netCDF-4 file, atomically, through :func:`chatterlab.io.write_netcdf`
-        (the same file, without importing xarray); returns the path."""
-        from ..io import write_netcdf
-
-        coords, data, file_attrs = self.dataset_parts()
-        return write_netcdf(path, coords, data, {**file_attrs, **(attrs or {})})
-
     def to_csv(self, path: Any, names: Sequence[str] | None = None) -> Path | None:
         """Write ``t [s]``, the histories ``names`` (default: all) as
         ``name [unit]`` columns (a dimensionless unit ``1`` as ``[-]``, a flag
@@ -239,29 +233,23 @@ class TimeHistory:
         cols = [(f"{n} [{_csv_unit(hist[n][1])}]" if hist[n][1] else n, hist[n][0]) for n in names]
         return write_history_csv(path, self._time(), cols, self._status())
 
-    def plot(
-        self,
-        names: Sequence[str] | str | None = None,
-        *,
-        labels: Sequence[str] | None = None,
-        ylabel: str | None = None,
-        ax: Any = None,
-        **kwargs: Any,
-    ) -> Any:
+    def plot(self, names: Sequence[str] | str | None = None, *, ax: Any = None, **style: Any) -> Any:
         """Histories against time, one line each, through
-        :func:`chatterlab.plot.plot_outputs` (``kwargs`` go to
-        ``Axes.plot``); ``ylabel`` defaults to the common unit.  Returns the
-        Axes."""
+        :func:`chatterlab.plot.plot_outputs`: ``names`` (default all),
+        ``style`` -- ``labels`` (one per history), ``ylabel`` (default the
+        common unit) and anything ``Axes.plot`` takes.  Returns the Axes."""
         from ..plot import plot_outputs
 
         hist = self.histories()
         names = list(hist) if names is None else ([names] if isinstance(names, str) else list(names))
         rows = np.array([self.history(n) for n in names]).reshape(len(names), -1)
+        labels = style.pop("labels", None)
+        ylabel = style.pop("ylabel", None)
         if ylabel is None:
             units = {hist[n][1] for n in names}
             ylabel = f"[{units.pop()}]" if len(units) == 1 else ""
         return plot_outputs(
-            self._time(), rows, list(labels) if labels is not None else names, ylabel=ylabel, ax=ax, **kwargs
+            self._time(), rows, list(labels) if labels is not None else names, ylabel=ylabel, ax=ax, **style
         )
 
     # ------------------------------------------------------------------ helpers

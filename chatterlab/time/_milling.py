@@ -55,31 +55,34 @@ delay equation the Floquet methods analyse (Insperger & Stepan 2002, 2004).
 
 The scheme
 ----------
-Average-acceleration Newmark (gamma = 1/2, beta = 1/4; the scheme of
-:func:`chatterlab.time.newmark`) on a grid of ``N m`` steps per revolution
-(``m`` steps per mean tooth period), locked to the revolution, so the delays
-of a uniform-pitch cutter fall on the grid (exact delayed values) and those
-of a variable-pitch cutter are interpolated by cubic Hermite interpolation
-on r and r' (error O(h^4), as in the generic solver).  The force (1) is
-implicit: with the effective stiffness factored once per step length, the
-new position is q = L z + U F (z = (q, v, a) of the previous step), so the
-tool-point position r = r* + Z F with Z = P U (2 x 2); the active teeth and F
-follow from a 2 x 2 solve, repeated until the set of teeth with h_j > 0 is
-consistent (an active-set iteration; it converges because |Z| ~ beta h^2/m is
-small).  The screen g_j jumps where a tooth enters or leaves the arc
-[entry, exit]: such instants are substep boundaries (the step is split there,
-delayed values by Hermite interpolation) with a restart of the acceleration
-from the equation of motion with the new screen, so the scheme stays second
-order on the piecewise-smooth coefficients (tested: fitted slope 2).  A
-tooth that leaves or re-enters the material inside a step (its active state
-differs at the two ends) is located by interpolating h_j linearly to 0, and
-the step is split there with the old teeth before and a restart with the new
-ones after: without edge forces the force is only kinked there (h_j -> 0),
-with them it jumps by a_p (K_te, K_ne), which unlocated would cost one order
-(tested: slope 2 with runout and edge forces; without the location the
-ratio of successive differences fell to 1.1 in that test).  Cost: a few
-small matrix-vector products per step (the delayed values of a whole chunk,
-up to the shortest delay, are gathered at once).
+The run is the Newmark core's (:mod:`chatterlab.time._core`): the cut is
+its unilateral coupling (:mod:`._contact`; the teeth are the contacts, the
+chip the gap; :mod:`._milling_cut` its data), average acceleration
+(gamma = 1/2, beta = 1/4, or the family of ``NewmarkOptions``) on a grid of
+``N m`` steps per revolution (``m`` steps per mean tooth period), locked to
+the revolution, so the delays of a uniform-pitch cutter fall on the grid
+(exact delayed values) and those of a variable-pitch cutter are
+interpolated by the core's cubic Hermite interpolation on r and r' (error
+O(h^4)).  The force (1) is implicit: with the effective stiffness factored
+once per substep length, the new state is a linear map of the previous one
+and of F, and the tool point r = r* + Z F with Z the 2 x 2 compliance of
+the step; the active teeth and F follow from a 2 x 2 solve, repeated until
+the set of teeth with h_j > 0 is consistent (an active-set iteration; it
+converges because |Z| ~ beta h^2/m is small).  The screen g_j jumps where a
+tooth enters or leaves the arc [entry, exit] (the process's breakpoints):
+such instants are substep points of the periodic pattern, with a restart of
+the acceleration from the equation of motion with the new screen, so the
+scheme stays second order on the piecewise-smooth coefficients (tested:
+fitted slope 2).  A tooth that leaves or re-enters the material inside a
+step (its active state differs at the two ends) is located by
+interpolating h_j linearly to 0, and the step is split there with the old
+teeth before and a restart with the new ones after: without edge forces the
+force is only kinked there (h_j -> 0), with them it jumps by a_p (K_te,
+K_ne), which unlocated would cost one order (tested: slope 2 with runout
+and edge forces; without the location the ratio of successive differences
+fell to 1.1 in that test).  Cost: a few small matrix-vector products per
+step (the delayed values of a whole chunk, up to the shortest delay, are
+gathered at once).
 
 Default step (``steps_per_period=None``).  The average-acceleration rule
 lengthens the period of a mode of circular frequency w by about
@@ -155,20 +158,30 @@ References
 
 from __future__ import annotations
 
+import math
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import InputError, check_count, check_nonneg, check_positive, check_speed
+from ..errors import InputError, check_count, check_nonneg, check_speed
 from ..process._milling import Milling
+from ._contact import _Contacts
+from ._core import FloatArray, _Stepper, check_options
+from ._milling_cut import _MillingCut
 from ._milling_result import MillingSimulation, _result
-from ._milling_setup import TWO_PI, _default_m, _matrices
-from ._milling_step import _Run
-from ._options import NewmarkOptions
+from ._milling_verdict import natural_frequencies
+from ._options import Initial, Integration, with_legacy
+from ._plan import coupled_plan
 
 __all__ = ["MillingSimulation", "simulate_milling", "default_steps_per_period"]
+
+#: (w h)^2 / 12 <= 1e-3: the relative period error of the trapezoidal rule
+_WH_MAX = math.sqrt(12.0e-3)
+#: spindle revolutions of a run when the integration options do not say
+DEFAULT_REVOLUTIONS = 50.0
 
 
 def default_steps_per_period(
@@ -196,16 +209,14 @@ def simulate_milling(
     depth: float,
     *,
     feed: float = 0.0,
-    revolutions: float = 50.0,
-    steps_per_period: int | None = None,
     nonlinear: bool = True,
-    tool_point: Any = None,
-    workpiece_point: Any = None,
     runout: ArrayLike | None = None,
     passes: int | None = None,
-    q0: ArrayLike | None = None,
-    v0: ArrayLike | None = None,
-    options: NewmarkOptions | None = None,
+    tool_point: Any = None,
+    workpiece_point: Any = None,
+    integration: Integration | None = None,
+    initial: Initial | None = None,
+    **deprecated: Any,
 ) -> MillingSimulation:
     """Simulate milling on a structure: vibration, chips, forces, Poincare verdict.
 
@@ -227,12 +238,6 @@ def simulate_milling(
     feed : float, default 0
         Mean feed per tooth f_z, m (the static chip f_z sin phi).  Only used
         by the nonlinear model.
-    revolutions : float, default 50
-        Duration in spindle revolutions.
-    steps_per_period : int, optional
-        Steps m per (mean) tooth period; ``N m`` steps per revolution.
-        Default: :func:`default_steps_per_period` (period error <= 1e-3 at the
-        highest mode).
     nonlinear : bool, default True
         True: Eq. (1)-(2) (feed, edge forces, runout, leaving the cut, multiple
         regeneration).  False: the linear periodic delay equation (3).
@@ -240,11 +245,22 @@ def simulate_milling(
         Radial offset of each tooth's edge, m (nonlinear model only).
     passes : int, optional
         Previous passes K in Eq. (2); default 4N (four revolutions).
-    q0, v0 : array_like (n,), optional
-        Initial state; history zero before t = 0.  Default zero, except in a
-        linear run: a 1 µm tool-point displacement in x and y (q0 = P^+ (1, 1) µm).
-    options : NewmarkOptions, optional
-        gamma, beta and the divergence limit (|q| beyond it stops the run).
+    tool_point, workpiece_point : optional
+        See ``structure``.
+    integration : Integration, optional
+        ``periods``: the duration in spindle revolutions (default 50), or
+        ``duration`` in s; ``steps_per_period``: steps m per (mean) tooth
+        period, ``N m`` per revolution (default :func:`default_steps_per_period`:
+        period error <= 1e-3 at the highest mode); ``scheme``: gamma, beta
+        and the divergence limit (|q| beyond it stops the run).
+    initial : Initial, optional
+        ``q0``, ``v0`` (n,); history zero before t = 0.  Default zero, except
+        in a linear run: a 1 µm tool-point displacement in x and y
+        (q0 = P^+ (1, 1) µm).
+    **deprecated
+        The 0.2 keywords ``revolutions``, ``steps_per_period``, ``q0``,
+        ``v0``, ``options`` (a DeprecationWarning names their place in the
+        option objects).
 
     Returns
     -------
@@ -263,59 +279,83 @@ def simulate_milling(
     Stepan (2002, 2004); Newmark (1959): see the module docstring.
     """
     wall0 = time.perf_counter()
-    rpm, depth, feed, revolutions, opts = _checked_cut(milling, rpm, depth, feed, revolutions, options)
+    legacy = ("revolutions", "steps_per_period", "q0", "v0", "options")
+    opt = with_legacy("simulate_milling", deprecated, legacy, integration=integration, initial=initial)
+    integ, init = opt["integration"], opt["initial"]
+    rpm, depth, feed, opts = _checked_cut(milling, rpm, depth, feed, integ)
     M, C, K, P = _matrices(structure, tool_point, workpiece_point)
     n = M.shape[0]
-    N = milling.teeth
+    if init.history is not None:
+        raise InputError(
+            "initial.history: a milling run starts on the nominal path (zero history); leave it None"
+        )
     try:
-        Minv = np.linalg.inv(M)
+        np.linalg.inv(M)
     except np.linalg.LinAlgError:
         raise InputError("structure: the mass matrix M is singular; give a nonsingular M") from None
-    if steps_per_period is None:
-        m = _default_m(M, K, P, milling, rpm, depth)
-    else:
-        m = check_count(steps_per_period, "steps_per_period (steps per tooth period)")
-    rho, K_pass = _teeth(N, runout, passes, nonlinear)
-    q_init, v_init = _initial_state(P, n, q0, v0, nonlinear)
-
-    omega, n_rev, h, n_total = _grid(N, m, rpm, revolutions, opts)
-    periodic_tooth = milling.uniform and (not np.any(rho) or not nonlinear)
-    per_sample = m if periodic_tooth else n_rev
-    run = _Run(M, C, K, P, Minv, milling, omega, h, n_rev, depth, feed, rho, K_pass, nonlinear, opts)
-    status, msg, done = run.integrate(q_init, v_init, n_total)
-    wall = time.perf_counter() - wall0
-    return _result(
-        run, status, msg, done, per_sample, m, rpm, depth, feed, nonlinear, wall, revolutions, n_total
+    m = (
+        integ.steps_per_period
+        if integ.steps_per_period is not None
+        else _default_m(M, K, P, milling, rpm, depth)
     )
+    rho, K_pass = _teeth(milling.teeth, runout, passes, nonlinear)
+    q_init, v_init = _initial_state(P, n, init.q0, init.v0, nonlinear)
+    cut = _MillingCut(milling, rpm, depth, feed, rho, K_pass, nonlinear, m)
+    revolutions, n_total = _length(cut, integ, opts)
+    contacts = _Contacts(cut, (M, C, K, P), cut.h, opts, n_total)
+    a0 = contacts.start(q_init, v_init)
+    stepper = _Stepper(
+        coupled_plan((M, C, K), contacts, opts, (cut.h, n_total, cut.chunk), (q_init, v_init, a0))
+    )
+    status, reason, done = stepper.run(integ.progress, None)
+    periodic_tooth = milling.uniform and (not np.any(rho) or not nonlinear)
+    run = _MillingRun(
+        milling, rpm, depth, feed, nonlinear, m, revolutions, n_total, cut.n_rev if not periodic_tooth else m
+    )
+    return _result(run, contacts, status, reason, done, time.perf_counter() - wall0)
 
 
-def _grid(
-    N: int, m: int, rpm: float, revolutions: float, opts: NewmarkOptions
-) -> tuple[float, int, float, int]:
-    """(omega, steps per revolution, step h, steps of the run), the run's memory checked."""
-    omega = TWO_PI * rpm / 60.0
-    n_rev = N * m
-    h = (TWO_PI / omega) / n_rev
-    n_total = int(round(revolutions * n_rev))
+@dataclass(frozen=True)
+class _MillingRun:
+    """What a milling run was asked: the cut, the grid and its length
+    (``per_sample``: steps between Poincare samples)."""
+
+    milling: Milling
+    rpm: float
+    depth: float
+    feed: float
+    nonlinear: bool
+    steps_per_period: int
+    revolutions: float
+    n_total: int
+    per_sample: int
+
+
+def _length(cut: _MillingCut, integ: Integration, opts: Any) -> tuple[float, int]:
+    """(revolutions, steps of the run), the run's memory checked."""
+    if integ.duration is not None:
+        n_total = int(round(integ.duration / cut.h))
+        revolutions = n_total / cut.n_rev
+    else:
+        revolutions = float(integ.periods if integ.periods is not None else DEFAULT_REVOLUTIONS)
+        n_total = int(round(revolutions * cut.n_rev))
+    if n_total < 1:
+        raise InputError(f"the run is shorter than one step ({revolutions:g} revolutions); simulate longer")
+    N = cut.teeth
     need = 8 * (n_total + 1) * (8 + 2 * N)  # history, forces, chips and the result's copies
     if need > opts.max_output_bytes:
         raise InputError(
-            f"revolutions = {revolutions:g} at {m} steps per tooth period needs ~{need / 2**30:.3g} GiB "
-            f"(limit options.max_output_bytes = {opts.max_output_bytes / 2**30:.3g} GiB); "
+            f"revolutions = {revolutions:g} at {cut.n_rev // N} steps per tooth period needs ~{need / 2**30:.3g}"
+            f" GiB (limit options.max_output_bytes = {opts.max_output_bytes / 2**30:.3g} GiB); "
             "simulate fewer revolutions or steps"
         )
-    return omega, n_rev, h, n_total
+    return revolutions, n_total
 
 
 def _checked_cut(
-    milling: Milling,
-    rpm: float,
-    depth: float,
-    feed: float,
-    revolutions: float,
-    options: NewmarkOptions | None,
-) -> tuple[float, float, float, float, NewmarkOptions]:
-    """The cut's arguments of :func:`simulate_milling` checked: (rpm, depth, feed, revolutions, options)."""
+    milling: Milling, rpm: float, depth: float, feed: float, integ: Integration
+) -> tuple[float, float, float, Any]:
+    """The cut's arguments of :func:`simulate_milling` checked: (rpm, depth, feed, NewmarkOptions)."""
     if not isinstance(milling, Milling):
         raise InputError(f"milling must be a chatterlab Milling (got {type(milling).__name__})")
     if milling.helix != 0.0:
@@ -326,14 +366,10 @@ def _checked_cut(
     rpm = check_speed(rpm, "spindle speed rpm", "rpm")
     depth = check_nonneg(depth, "depth of cut a_p", "m")
     feed = check_nonneg(feed, "feed per tooth f_z", "m")
-    revolutions = check_positive(revolutions, "revolutions")
-    opts = NewmarkOptions() if options is None else options
-    if not isinstance(opts, NewmarkOptions):
-        raise InputError(f"options must be a NewmarkOptions (got {type(opts).__name__})")
-    return rpm, depth, feed, revolutions, opts
+    return rpm, depth, feed, check_options(integ.scheme)
 
 
-def _teeth(N: int, runout: ArrayLike | None, passes: int | None, nonlinear: bool) -> tuple[Any, int]:
+def _teeth(N: int, runout: ArrayLike | None, passes: int | None, nonlinear: bool) -> tuple[FloatArray, int]:
     """The runout of each tooth (zero in a linear run) and the passes K in the chip (1 in a linear run)."""
     rho = np.zeros(N)
     if runout is not None:
@@ -364,3 +400,64 @@ def _initial_state(
         if a.shape != (n,) or not np.all(np.isfinite(a)):
             raise InputError(f"{name} must be a finite vector of {n} values (got shape {a.shape})")
     return q_init, v_init
+
+
+# =========================================================================== structure
+
+
+def _matrices(
+    structure: Any, tool_point: Any, workpiece_point: Any
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(M, C, K, P) from a FrozenSystem (+ names) or a (M, C, K) tuple (+ P)."""
+    if hasattr(structure, "dof") and hasattr(structure, "A"):
+        M, C, K = (np.asarray(getattr(structure, a), dtype=float) for a in "ABC")
+        if tool_point is None or isinstance(tool_point, str) or len(tool_point) != 2:
+            raise InputError(
+                "simulate_milling on a FrozenSystem: give tool_point=('tool.x', 'tool.y'), the names of "
+                "the tool point's x and y (feed along x)"
+            )
+        P = np.array([structure.dof(str(s)) for s in tool_point], dtype=float)
+        if workpiece_point is not None:
+            if isinstance(workpiece_point, str) or len(workpiece_point) != 2:
+                raise InputError("workpiece_point must name two coordinates, e.g. ('part.x', 'part.y')")
+            P = P - np.array([structure.dof(str(s)) for s in workpiece_point], dtype=float)
+        return M, C, K, P
+    try:
+        M, C, K = (np.asarray(a, dtype=float) for a in structure)
+    except (TypeError, ValueError):
+        raise InputError(
+            "structure must be a FrozenSystem or a tuple (M, C, K) of n x n mass, damping and stiffness "
+            "matrices"
+        ) from None
+    M, C, K = (np.atleast_2d(a) for a in (M, C, K))
+    n = M.shape[0]
+    for name, a in (("M", M), ("C", C), ("K", K)):
+        if a.shape != (n, n) or not np.all(np.isfinite(a)):
+            raise InputError(
+                f"structure {name} must be a finite {n} x {n} matrix like M (got shape {a.shape})"
+            )
+    if tool_point is None:
+        if n > 2:
+            raise InputError(
+                f"structure has {n} coordinates: give tool_point, the 2 x {n} map P with (x, y) = P q"
+            )
+        P = np.eye(2)[:, :n]
+    else:
+        P = np.asarray(tool_point, dtype=float)
+        if P.ndim == 1 and n == 1 and P.size == 2:
+            P = P.reshape(2, 1)
+        if P.shape != (2, n) or not np.all(np.isfinite(P)):
+            raise InputError(
+                f"tool_point must be a finite 2 x {n} matrix P with (x, y) = P q (got shape {P.shape})"
+            )
+    return M, C, K, P
+
+
+def _default_m(
+    M: FloatArray, K: FloatArray, P: FloatArray, milling: Milling, rpm: float, depth: float
+) -> int:
+    w2 = float(np.max(natural_frequencies(M, K))) ** 2
+    comp = float(np.max(np.linalg.eigvalsh(P @ np.linalg.solve(M, P.T))))
+    w2 += depth * milling.teeth * math.hypot(milling.Kt, milling.Kn) * comp
+    tau = milling.tooth_period(rpm)
+    return max(20, int(math.ceil(math.sqrt(w2) * tau / _WH_MAX)))

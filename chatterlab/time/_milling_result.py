@@ -4,15 +4,16 @@ from the integration's buffers and the verdict."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 
+from ._contact import _Contacts
+from ._core import FloatArray
 from ._history import TimeHistory
-from ._milling_setup import TWO_PI, FloatArray, _natural_frequencies
-from ._milling_step import _Run
-from ._milling_verdict import _analyse, _chatter_frequency
+from ._milling_verdict import _analyse, _chatter_frequency, natural_frequencies
 
 __all__ = ["MillingSimulation"]
 
@@ -110,8 +111,8 @@ class MillingSimulation(TimeHistory):
 
     @property
     def tooth_passing_frequency(self) -> float:
-        """N n / 60, Hz."""
-        return float(self.attrs.get("teeth", 1)) * self.rpm / 60.0
+        """The tooth passing frequency, Hz: 1 / the process's tooth period of the run."""
+        return 1.0 / float(self.attrs["tooth_period"])
 
     def file_attrs(self) -> dict[str, Any]:
         """The files' global attributes: the run's status and the cut."""
@@ -126,109 +127,101 @@ class MillingSimulation(TimeHistory):
             "growth_per_period": float(self.growth_per_period),
         }
 
-    def plot(self, axes: Any = None) -> Any:  # type: ignore[override]
-        """Vibration, forces and the Poincare map; returns the three Axes."""
-        import matplotlib.pyplot as plt
+    def plot(self, names: Sequence[str] | str | None = None, *, ax: Any = None, **style: Any) -> Any:
+        """Without ``names``: the vibration, the cutting forces and the
+        Poincare samples (:func:`chatterlab.plot._milling_time.plot_milling_run`;
+        ``ax`` three Axes), returns the three Axes; with ``names``: those
+        histories against time (:meth:`TimeHistory.plot`)."""
+        if names is not None:
+            return super().plot(names, ax=ax, **style)
+        from ..plot._milling_time import plot_milling_run
 
-        if axes is None:
-            fig = plt.figure(figsize=(10, 7), layout="constrained")
-            gs = fig.add_gridspec(2, 2)
-            axes = [fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[:, 1])]
-        a0, a1, a2 = axes
-        a0.plot(self.t, 1e6 * self.x, lw=0.6, label="x")
-        a0.plot(self.t, 1e6 * self.y, lw=0.6, label="y")
-        a0.set_ylabel("tool vibration [µm]")
-        a0.set_title(
-            f"{self.rpm:.0f} rpm, a_p = {1e3 * self.depth:.3g} mm: {self.verdict} "
-            f"(ln|mu| = {self.growth_per_period:.3g} per period)",
-            fontsize=9,
-        )
-        a0.legend(fontsize=8)
-        a1.plot(self.t, self.Fx, lw=0.6, label="Fx")
-        a1.plot(self.t, self.Fy, lw=0.6, label="Fy")
-        a1.set_xlabel("t [s]")
-        a1.set_ylabel("cutting force [N]")
-        a1.legend(fontsize=8)
-        p = self.poincare
-        half = p.shape[0] // 2
-        c = 0 if np.ptp(p[:, 0]) >= np.ptp(p[:, 1]) else 1  # the coordinate that moves more
-        a2.plot(1e6 * p[:half, c], 1e3 * p[:half, 2 + c], ".", ms=3, color="0.7", label="first half")
-        a2.plot(1e6 * p[half:, c], 1e3 * p[half:, 2 + c], ".", ms=4, color="C3", label="last half")
-        a2.set_xlabel(f"{'xy'[c]} at t = k T [µm]")
-        a2.set_ylabel(f"{'xy'[c]}' at t = k T [mm/s]")
-        a2.set_title("Poincaré samples", fontsize=9)
-        a2.legend(fontsize=8)
-        return axes
+        return plot_milling_run(self, ax=ax, **style)
 
 
-def _result(
-    run: _Run, status: str, msg: str, done: int, per_sample: int, m: int, rpm: float, depth: float,
-    feed: float, nonlinear: bool, wall: float, revolutions: float, n_total: int,
-) -> MillingSimulation:  # fmt: skip
-    h, off0 = run.h, run.off0
+def _result(run: Any, cut: _Contacts, status: str, reason: str, done: int, wall: float) -> MillingSimulation:
+    """The :class:`MillingSimulation` of a run (``run``: what was asked,
+    :class:`chatterlab.time._milling._MillingRun`) from its coupling's records
+    up to step ``done``: the samples, the verdict and the message."""
+    h, off0, nonlinear, mill = cut.h, cut.cut.off0, run.nonlinear, run.milling
     k = done + 1
     t = h * np.arange(k)
-    r = run.rbuf[off0 : off0 + k]
-    rv = run.vbuf[off0 : off0 + k]
-    hraw = run.hraw[:k].T.copy()
+    r = cut.rbuf[off0 : off0 + k]
+    rv = cut.vbuf[off0 : off0 + k]
+    hraw = cut.hraw[:k].T.copy()
     chip = np.where(np.isnan(hraw), 0.0, np.maximum(hraw, 0.0)) if nonlinear else np.nan_to_num(hraw)
-    ip = np.arange(0, k, per_sample)
+    ip = np.arange(0, k, run.per_sample)
     pt = np.column_stack([r[ip], rv[ip]])
-    w = _natural_frequencies(run.M, run.K)
+    w = natural_frequencies(cut.M, cut.K)
     w_pos = w[w > 0]
-    w1 = float(np.min(w_pos)) if w_pos.size else TWO_PI * rpm / 60.0
-    T = per_sample * h
+    w1 = float(np.min(w_pos)) if w_pos.size else mill.omega(run.rpm)
+    T = run.per_sample * h
     fc, res = _chatter_frequency(t, r[:, 0], r[:, 1], 1.0 / T)
-    growth, g_err, slope, mu, verdict, reason = _analyse(pt, w1, nonlinear, fc, T, res, status == "diverged")
+    growth, g_err, slope, mu, verdict, why = _analyse(pt, w1, nonlinear, fc, T, res, status == "diverged")
     if verdict not in ("Hopf chatter", "flip chatter"):
         fc = math.nan
     half = k // 2
     arc = ~np.isnan(hraw[:, half:])
     n_arc = int(np.sum(arc))
     out_frac = float(np.sum(hraw[:, half:][arc] <= 0.0)) / n_arc if n_arc and nonlinear else math.nan
-    wall_rev = wall / max(done / run.n_rev, 1e-12)
-    notes = [
-        f"{done} steps of h = {h:.4g} s ({m} per tooth period) in {wall:.3g} s "
-        f"({1e3 * wall_rev:.3g} ms per revolution)"
-    ]
-    if msg:
-        notes.insert(0, msg)
-    if run.located:
-        notes.append(f"{run.located} instants where a tooth left or re-entered the material located")
-    if run.active_fail:
-        notes.append(f"active-set iteration not converged at {run.active_fail} points")
-    if nonlinear and run.K_pass > 1 and run.deepest:
-        notes.append(f"the deepest of {run.K_pass} passes set the chip at {run.deepest} points: raise passes")
+    wall_rev = wall / max(done / cut.cut.n_rev, 1e-12)
     return MillingSimulation(
         t=t,
         x=r[:, 0].copy(),
         y=r[:, 1].copy(),
         vx=rv[:, 0].copy(),
         vy=rv[:, 1].copy(),
-        Fx=run.F[:k, 0].copy(),
-        Fy=run.F[:k, 1].copy(),
+        Fx=cut.F[:k, 0].copy(),
+        Fy=cut.F[:k, 1].copy(),
         chip=chip,
         would_be_chip=hraw,
         poincare_t=t[ip],
         poincare=pt,
-        sample_period=per_sample * h,
+        sample_period=T,
         growth_per_period=growth,
         growth_error=g_err,
         growth_slope=slope,
         multiplier=mu,
         verdict=verdict,
-        reason=reason,
+        reason=why,
         chatter_frequency=fc,
         fraction_out_of_cut=out_frac,
-        rpm=rpm,
-        depth=depth,
-        feed=feed,
+        rpm=run.rpm,
+        depth=run.depth,
+        feed=run.feed,
         nonlinear=nonlinear,
-        steps_per_period=m,
+        steps_per_period=run.steps_per_period,
         h=h,
         status=status,
-        message="; ".join(notes),
+        message=_message(run, cut, status, reason, done, wall, wall_rev),
         wall_time=wall,
         time_per_revolution=wall_rev,
-        attrs={"teeth": run.N, "passes": run.K_pass, "revolutions": revolutions, "n_steps": n_total},
+        attrs={
+            "teeth": mill.teeth,
+            "passes": cut.cut.K_pass,
+            "revolutions": run.revolutions,
+            "n_steps": run.n_total,
+            "tooth_period": mill.tooth_period(run.rpm),
+        },
     )
+
+
+def _message(
+    run: Any, cut: _Contacts, status: str, reason: str, done: int, wall: float, wall_rev: float
+) -> str:
+    """What the run did: its steps and cost, the instants located, the
+    active-set iterations that did not settle, a chip set by the deepest pass."""
+    notes = [
+        f"{done} steps of h = {cut.h:.4g} s ({run.steps_per_period} per tooth period) in {wall:.3g} s "
+        f"({1e3 * wall_rev:.3g} ms per revolution)"
+    ]
+    if status != "ok":
+        notes.insert(0, reason or status)
+    if cut.located:
+        notes.append(f"{cut.located} instants where a tooth left or re-entered the material located")
+    if cut.active_fail:
+        notes.append(f"active-set iteration not converged at {cut.active_fail} points")
+    deepest, K_pass = cut.cut.deepest, cut.cut.K_pass
+    if run.nonlinear and K_pass > 1 and deepest:
+        notes.append(f"the deepest of {K_pass} passes set the chip at {deepest} points: raise passes")
+    return "; ".join(notes)

@@ -144,3 +144,16 @@ def _chatter_frequency(t: FloatArray, x: FloatArray, y: FloatArray, f_rev: float
         if abs(fk - k * f_rev) > res:
             return float(fk), res
     return math.nan, res
+
+
+def natural_frequencies(M: FloatArray, K: FloatArray) -> FloatArray:
+    """Undamped natural circular frequencies of ``M q'' + K q = 0``, rad/s."""
+    from scipy.linalg import eigh, eigvals
+
+    try:
+        lam = eigh(K, M, eigvals_only=True) if np.allclose(K, K.T) and np.allclose(M, M.T) else None
+    except np.linalg.LinAlgError:
+        lam = None
+    if lam is None:
+        lam = np.real(eigvals(np.linalg.solve(M, K)))
+    return np.sqrt(np.clip(lam, 0.0, None))

@@ -1,17 +1,21 @@
 """Options and result of the Newmark integrator: :class:`NewmarkOptions`,
-:class:`TimeResponse`, :class:`NewmarkStabilityWarning`."""
+:class:`TimeResponse`, :class:`NewmarkStabilityWarning`; the option objects
+of a simulation (:class:`Integration`, :class:`Initial`,
+:class:`Excitation`), which :func:`chatterlab.time.simulate` and
+:func:`chatterlab.time.simulate_milling` take instead of twenty keywords."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from chatterlab.errors import InputError
+from chatterlab.errors import InputError, check_count, check_positive
 
 from ._history import TimeHistory
 from ._problems import FloatArray
@@ -238,33 +242,166 @@ class TimeResponse(TimeHistory):
         )
         return growth_rate(self.t, self.history(self._name(coord, field)), **kwargs)
 
-    def to_csv(  # type: ignore[override]
-        self, path: str | Path, *, fields: Sequence[str] = ("q",)
+    def to_csv(
+        self, path: str | Path, names: Sequence[str] | None = None, *, fields: Sequence[str] = ("q",)
     ) -> Path | None:
         """Write ``t [s]``, the chosen fields of every output as columns
-        ``<field>:<name>`` (SI units) and the run's ``status``, one row per
-        time, round-trip exact (:meth:`TimeHistory.to_csv`)."""
-        names = [self._name(i, f) for f in fields for i in range(self.q.shape[0])]
+        ``<field>:<name>`` (SI units) -- or the histories ``names`` -- and the
+        run's ``status``, one row per time, round-trip exact
+        (:meth:`TimeHistory.to_csv`)."""
+        if names is None:
+            names = [self._name(i, f) for f in fields for i in range(self.q.shape[0])]
         return super().to_csv(path, names=names)
 
-    def plot(  # type: ignore[override]
-        self,
-        coords: Sequence[int | str] | int | str | None = None,
-        *,
-        field: str = "q",
-        ax: Any = None,
-        **kwargs: Any,
+    def plot(
+        self, names: Sequence[str] | str | None = None, *, ax: Any = None, field: str = "q", **style: Any
     ) -> Any:
         """Plot outputs (names or indices; default all) against time; returns the Axes."""
+        picked: Any = names
         rows = (
             range(self.q.shape[0])
-            if coords is None
-            else ([coords] if isinstance(coords, (int, str)) else list(coords))
+            if picked is None
+            else ([picked] if isinstance(picked, (int, str)) else list(picked))
         )
-        names = [self._name(c, field) for c in rows]
-        labels = [n.split(":", 1)[1] for n in names]
-        return super().plot(names, labels=labels, ylabel=field, ax=ax, **kwargs)
+        chosen = [self._name(c, field) for c in rows]
+        labels = [n.split(":", 1)[1] for n in chosen]
+        return super().plot(chosen, labels=labels, ylabel=field, ax=ax, **style)
 
 
 #: the recorded fields of a TimeResponse and their long names
 _FIELDS = {"q": "displacement", "v": "velocity", "a": "acceleration"}
+
+
+# =========================================================================== the options of a simulation
+
+
+@dataclass(frozen=True)
+class Integration:
+    """How a simulation is integrated: its length, its step and the scheme.
+
+    Attributes
+    ----------
+    duration : float, optional
+        Simulated time, s (overrides ``periods``).
+    periods : float, optional
+        The length in the process's own periods: stroke cycles or delays of
+        a cut (:func:`~chatterlab.time.simulate`, default 2), spindle
+        revolutions of a milling run (:func:`~chatterlab.time.simulate_milling`,
+        default 50).
+    step : float, optional
+        Time step h, s (:func:`~chatterlab.time.simulate`; default: its step
+        rule).
+    steps_per_period : int, optional
+        Steps per mean tooth period (:func:`~chatterlab.time.simulate_milling`;
+        default: the period-error rule).
+    record_every : int, default 1
+        Record every k-th step (:func:`~chatterlab.time.simulate`).
+    method : {"auto", "polynomial", "direct", "generic"}
+        How the coefficients of Eq. 2.28 are evaluated
+        (:class:`~chatterlab.time.ParametricProblem`).
+    scheme : NewmarkOptions
+        gamma, beta, worker threads, divergence and memory limits.
+    progress : callable, optional
+        ``progress(fraction)`` after each chunk of steps.
+    """
+
+    duration: float | None = None
+    periods: float | None = None
+    step: float | None = None
+    steps_per_period: int | None = None
+    record_every: int = 1
+    method: Literal["auto", "polynomial", "direct", "generic"] = "auto"
+    scheme: NewmarkOptions = field(default_factory=NewmarkOptions)
+    progress: Callable[[float], Any] | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.duration is not None:
+            object.__setattr__(self, "duration", check_positive(self.duration, "duration", "s"))
+        if self.periods is not None:
+            check_positive(self.periods, "periods")  # kept as given: an int stays an int (stroke cycles)
+        if self.step is not None:
+            object.__setattr__(self, "step", check_positive(self.step, "step", "s"))
+        if self.steps_per_period is not None:
+            spp = check_count(self.steps_per_period, "steps_per_period (steps per tooth period)")
+            object.__setattr__(self, "steps_per_period", spp)
+        r = self.record_every
+        if isinstance(r, bool) or not isinstance(r, (int, np.integer)) or r < 1:
+            raise InputError(f"record_every must be a positive integer (got {r!r})")
+        if self.method not in ("auto", "polynomial", "direct", "generic"):
+            raise InputError(
+                f"method must be 'auto', 'polynomial', 'direct' or 'generic' (got {self.method!r})"
+            )
+        if not isinstance(self.scheme, NewmarkOptions):
+            raise InputError(f"scheme must be a NewmarkOptions (got {type(self.scheme).__name__})")
+
+
+@dataclass(frozen=True)
+class Initial:
+    """Where a simulation starts: ``q0``, ``v0`` at t = 0 and the history
+    before it (read by the delayed term).  Each is checked by the function
+    it is given to (its accepted forms: :func:`~chatterlab.time.simulate`);
+    None is zero."""
+
+    q0: Any = None
+    v0: Any = None
+    history: Any = None
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """What loads a cut besides its feedback: the desired cutting forces
+    (``cutting_forces``), external ``loads`` ``{"POINT.DIR": f(t)}`` (N, N m)
+    and a prescribed ``ground_motion`` ``{"ground.y": g(t) -> (q, q', q'')}``
+    (see :func:`~chatterlab.time.simulate`)."""
+
+    cutting_forces: bool = True
+    loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None = None
+    ground_motion: Mapping[str, Callable[[np.ndarray], Any]] | None = None
+
+
+#: the 0.2 keywords of simulate / simulate_milling -> (option object, its field)
+LEGACY_KEYWORDS: dict[str, tuple[str, str]] = {
+    "duration": ("integration", "duration"),
+    "passes": ("integration", "periods"),
+    "revolutions": ("integration", "periods"),
+    "step": ("integration", "step"),
+    "steps_per_period": ("integration", "steps_per_period"),
+    "record_every": ("integration", "record_every"),
+    "method": ("integration", "method"),
+    "options": ("integration", "scheme"),
+    "progress": ("integration", "progress"),
+    "q0": ("initial", "q0"),
+    "v0": ("initial", "v0"),
+    "history": ("initial", "history"),
+    "forces": ("excitation", "cutting_forces"),
+    "loads": ("excitation", "loads"),
+    "ground_motion": ("excitation", "ground_motion"),
+}
+
+
+def with_legacy(who: str, given: dict[str, Any], allowed: Sequence[str], **objects: Any) -> dict[str, Any]:
+    """The option objects of ``who`` (``objects``: name -> the object given
+    or None) with the 0.2 keywords ``given`` (those in ``allowed``) moved
+    into them, with a DeprecationWarning naming the new form; an unknown
+    keyword is a TypeError, as Python's own."""
+    defaults = {"integration": Integration, "initial": Initial, "excitation": Excitation}
+    out = {name: (defaults[name]() if obj is None else obj) for name, obj in objects.items()}
+    for name, obj in out.items():
+        if not isinstance(obj, defaults[name]):
+            raise InputError(f"{name} must be a {defaults[name].__name__} (got {type(obj).__name__})")
+    unknown = [k for k in given if k not in allowed]
+    if unknown:
+        raise TypeError(f"{who}() got an unexpected keyword argument {unknown[0]!r}")
+    moved: dict[str, dict[str, Any]] = {}
+    for key, value in given.items():
+        target, name = LEGACY_KEYWORDS[key]
+        moved.setdefault(target, {})[name] = value
+    for target, values in moved.items():
+        out[target] = replace(out[target], **values)
+    if given:
+        hint = ", ".join(
+            f"{k}= -> {LEGACY_KEYWORDS[k][0]}={type(out[LEGACY_KEYWORDS[k][0]]).__name__}({LEGACY_KEYWORDS[k][1]}=...)"
+            for k in given
+        )
+        warnings.warn(f"{who}: the keywords {hint} (0.2) are deprecated", DeprecationWarning, stacklevel=3)
+    return out

@@ -31,6 +31,7 @@ from ..model._items import DIRECTIONS
 from ..process._cutting import ce_maps
 from ..process._kinematics import ShapingKinematics, SteadyKinematics
 from ..structure._assembly import MovingReduction, System
+from ._problems import Sealed
 
 __all__ = ["ParametricProblem", "FEEDBACK_CASES"]
 
@@ -165,7 +166,7 @@ class _Polynomial:
         return out
 
 
-class ParametricProblem:
+class ParametricProblem(Sealed):
     """The time-varying problem of Eq. (2.28) for :func:`chatterlab.time._newmark.newmark`.
 
     Parameters
@@ -184,7 +185,15 @@ class ParametricProblem:
         see :class:`_Polynomial`), ``"direct"`` evaluates the low-rank
         reduction (or Eq. 2.6 when the model has constraints on the contact
         coordinates) at every step; ``"auto"`` uses the polynomial where
-        possible.
+        possible; ``"generic"`` evaluates Eq. 2.6 and Eqs. 2.16-2.18 at every
+        step even where the low-rank reduction applies (the path of a model
+        whose constraints tie other coordinates to a contact; for checks).
+    t_end : float, default 0
+        The end of the simulated span, s: the process's breakpoints (cut
+        entry and exit, reversal) up to it are reported to the integrator.
+
+    The problem is immutable (:class:`~chatterlab.time._problems.Sealed`);
+    it caches its last evaluation and the coefficient polynomials it built.
     """
 
     def __init__(
@@ -196,12 +205,13 @@ class ParametricProblem:
         terms: str = "pdo",
         forces: bool = True,
         method: str = "auto",
+        t_end: float = 0.0,
     ) -> None:
         if terms not in FEEDBACK_CASES:
             raise InputError(f"feedback must be one of {', '.join(FEEDBACK_CASES)} (got {terms!r})")
         width = check_width(width)
-        if method not in ("auto", "polynomial", "direct"):
-            raise InputError(f"method must be 'auto', 'polynomial' or 'direct' (got {method!r})")
+        if method not in ("auto", "polynomial", "direct", "generic"):
+            raise InputError(f"method must be 'auto', 'polynomial', 'direct' or 'generic' (got {method!r})")
         self.system = system
         self.kin = kinematics
         self.n = len(system.i)
@@ -216,8 +226,8 @@ class ParametricProblem:
         self.terms = terms
         self.width = float(width)
         self._T = float(kinematics.delay) if terms == "pdo" else None
-        self._t_end = 0.0
-        self.fast = system.moving_reduction
+        self.t_end = float(t_end)
+        self.fast = system.moving_reduction if method != "generic" else None
         if self.fast is not None:
             self.Jv = J[:, self.fast.dv]
             self.Ji_const = J @ self.fast.Tm  # (3k, n_i) with the contact columns' constant part
@@ -228,7 +238,8 @@ class ParametricProblem:
                 "structure only by their [[contact]] rows"
             )
         self._memo: tuple[bytes, tuple[Any, ...]] | None = None
-        self.method_used: set[str] = set()
+        self.method_used: set[str] = set()  # a record of the evaluations, owned by the problem
+        self._seal()
 
     # -- TimeVaryingProblem -------------------------------------------------
     def delay(self) -> float | None:
@@ -237,7 +248,7 @@ class ParametricProblem:
     def breakpoints(self) -> tuple[float, ...]:
         """Times where the tool enters or leaves the cut or the slide reverses
         (the coefficients and forces jump there), over the simulated span."""
-        return self.kin.breakpoints(self._t_end) if isinstance(self.kin, ShapingKinematics) else ()
+        return self.kin.breakpoints(self.t_end) if isinstance(self.kin, ShapingKinematics) else ()
 
     def _positions(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         """s, v, in-cut mask and whether s is a slide position (a model with
@@ -346,7 +357,7 @@ class ParametricProblem:
             G = cc * p["G"] if p["G"] is not None else None
             F = c[:, None] * p["F"] if p["F"] is not None else np.zeros((m, n))
         out = (A, B, C, G, F)
-        self._memo = (key, out)
+        object.__setattr__(self, "_memo", (key, out))  # the problem's own cache
         return out
 
     def maps(self, t: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -379,7 +390,7 @@ class ParametricProblem:
         return self._evaluate(t)[4]
 
 
-class _ExtraForce:
+class _ExtraForce(Sealed):
     """Generalised forces on q_i from external loads and prescribed motion of
     given coordinates (Eq. 2.19 and the q_g terms of Eq. 2.27)."""
 
@@ -416,6 +427,7 @@ class _ExtraForce:
         g = np.array(self.g_cols, dtype=int)
         self.Mg, self.Lg, self.Kg = (X[np.ix_(keep, g)] for X in (sy.M, sy.L, sy.K))
         self.Jg = prob.J[:, g]
+        self._seal()
 
     def _motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         q = np.zeros((len(self.g_fns), t.size))
@@ -456,13 +468,14 @@ class _ExtraForce:
         return out
 
 
-class _WithExtraForce:
+class _WithExtraForce(Sealed):
     """A problem whose force is the wrapped problem's plus an extra force."""
 
     def __init__(self, base: ParametricProblem, extra: _ExtraForce) -> None:
         self.base = base
         self.extra = extra
         self.n = base.n
+        self._seal()
 
     def delay(self) -> float | None:
         return self.base.delay()

@@ -15,16 +15,11 @@ from numpy.typing import ArrayLike
 
 from chatterlab.errors import InputError
 
+from ._core import _force_at, _stack, count_text, delay_on_grid, scheme_constants, stability_notes
 from ._options import NewmarkOptions, NewmarkStabilityWarning
 from ._problems import FloatArray
 
 # =========================================================================== helpers
-
-
-def _hermite_weights(s: float, h: float) -> FloatArray:
-    """Weights of ``[q_j, v_j, q_j+1, v_j+1]`` for ``q(t_j + s h)``, cubic Hermite."""
-    s2, s3 = s * s, s * s * s
-    return np.array([2 * s3 - 3 * s2 + 1, h * (s3 - 2 * s2 + s), -2 * s3 + 3 * s2, h * (s3 - s2)])
 
 
 def _history_function(history: Any, n: int, t0: float) -> Callable[[FloatArray], FloatArray]:
@@ -151,56 +146,7 @@ def _check_problem(problem: Any) -> int:
     return int(n)
 
 
-def _stack(name: str, m: Any, k: int, n: int, t: FloatArray, check: bool = True) -> FloatArray:
-    """Validate one coefficient stack; ``check=False`` skips the NaN scan (done later)."""
-    arr = np.asarray(m, dtype=float)
-    if arr.shape == (n, n):
-        arr = np.broadcast_to(arr, (k, n, n))
-    if arr.shape != (k, n, n):
-        raise InputError(
-            f"problem.matrices(t) returned {name} of shape {arr.shape}; expected "
-            f"(len(t), n, n) = ({k}, {n}, {n})"
-        )
-    if check and not np.all(np.isfinite(arr)):
-        bad = int(np.argmax(~np.all(np.isfinite(arr), axis=(1, 2))))
-        raise InputError(f"problem.matrices(t): {name} has NaN/inf entries at t = {t[bad]:.9g} s")
-    return arr
-
-
-def _force_at(problem: Any, t: FloatArray, n: int) -> FloatArray:
-    f = np.asarray(problem.force(t), dtype=float)
-    if f.shape != (t.size, n):
-        raise InputError(f"problem.force(t) returned shape {f.shape}; expected (len(t), n) = ({t.size}, {n})")
-    if not np.all(np.isfinite(f)):
-        bad = int(np.argmax(~np.all(np.isfinite(f), axis=1)))
-        raise InputError(f"problem.force(t) has NaN/inf entries at t = {t[bad]:.9g} s")
-    return f
-
-
-def _inverse(K: FloatArray, t: FloatArray) -> FloatArray:
-    """Batched inverse; consecutive identical matrices are inverted once."""
-    k = K.shape[0]
-    new = np.ones(k, dtype=bool)
-    if k > 1:
-        new[1:] = np.any(K[1:] != K[:-1], axis=(1, 2))
-    try:
-        if new.all():
-            return np.linalg.inv(K)
-        uniq = np.linalg.inv(K[new])
-    except np.linalg.LinAlgError:
-        for i in range(k):
-            try:
-                np.linalg.inv(K[i])
-            except np.linalg.LinAlgError:
-                raise InputError(
-                    f"the effective stiffness A/(beta h^2) + gamma B/(beta h) + C is singular "
-                    f"at t = {t[i]:.9g} s; check that A(t) is positive definite there"
-                ) from None
-        raise
-    return uniq[np.cumsum(new) - 1]
-
-
-@dataclass
+@dataclass(frozen=True)
 class _Plan:
     """Everything :func:`newmark` fixes before the first step: the grid, the
     scheme constants, the delay's place on the grid, the history samples,
@@ -239,6 +185,7 @@ class _Plan:
     v0: FloatArray
     a0: FloatArray
     notes: list[str]
+    coupling: Any = None  # a unilateral coupling's run (:class:`._contact._Contacts`)
 
     @property
     def has_delay(self) -> bool:
@@ -274,20 +221,8 @@ def _scheme(
 ) -> tuple[float, float, float, float, float, float]:
     """Newmark constants ``(c0, c1, c2, c3, dv1, dv2)`` for step h (a note when
     the parameters are not unconditionally stable)."""
-    gam, bet = float(opts.gamma), float(opts.beta)
-    if not opts.unconditionally_stable:
-        notes.append(
-            f"gamma={gam}, beta={bet} is not unconditionally stable in the sense of Bathe & "
-            "Wilson (gamma >= 1/2, beta >= (gamma + 1/2)^2/4)"
-        )
-    return (
-        1.0 / (bet * h * h),
-        gam / (bet * h),
-        1.0 / (bet * h),
-        1.0 / (2.0 * bet) - 1.0,
-        1.0 - gam / bet,
-        h * (1.0 - gam / (2.0 * bet)),
-    )
+    stability_notes(opts, notes)
+    return scheme_constants(float(opts.gamma), float(opts.beta), h)
 
 
 def _delay_on_grid(T: Any, h: float) -> tuple[float, bool, float, int, int]:
@@ -304,14 +239,12 @@ def _delay_on_grid(T: Any, h: float) -> tuple[float, bool, float, int, int]:
             f"G q(t - T) must be known before each step; use h <= T (e.g. h = T/"
             f"{max(2, math.ceil(h / T))})"
         )
-    m_round = round(d)
-    if abs(d - m_round) <= 1e-9 * max(1.0, d):
-        exact, m_del, s_frac = True, int(m_round), 0.0
-        shift = m_del  # j = i - m is a stored node
-    else:
-        exact, m_del = False, int(math.floor(d))
-        s_frac = 1.0 - (d - m_del)  # q(t_j + s h), j = i - m - 1
-        shift = m_del + 1
+    whole_a, rem_a = delay_on_grid(d)
+    whole, rem = int(whole_a), float(rem_a)
+    exact = rem == 0.0
+    # exact: j = i - m is a stored node; else q(t_j + s h), j = i - m - 1, s = 1 - rem
+    s_frac = 0.0 if exact else 1.0 - rem
+    shift = whole if exact else whole + 1
     return T, exact, s_frac, shift, shift + 2
 
 
@@ -337,7 +270,7 @@ def _plan(
     out_bytes = 3 * n_out * n_rec * 8
     if out_bytes > opts.max_output_bytes:
         raise InputError(
-            f"recording {n_out} outputs at {_count(n_rec)} times needs {out_bytes / 2**30:.2f} GiB > "
+            f"recording {n_out} outputs at {count_text(n_rec)} times needs {out_bytes / 2**30:.2f} GiB > "
             f"max_output_bytes = {opts.max_output_bytes / 2**30:.2f} GiB; record fewer "
             "coordinates (outputs=...), thin the record (record_every=...) or raise "
             "NewmarkOptions.max_output_bytes"
@@ -364,7 +297,7 @@ def _plan(
     hist_bytes = (cap * 4 + (shift + 1 if has_delay else 0)) * n * 8  # buffer + history samples
     if hist_bytes > opts.max_history_bytes:
         raise InputError(
-            f"the delay T = {T:.6g} s at step h = {h:.6g} s needs {_count(keep)} stored steps of {n} "
+            f"the delay T = {T:.6g} s at step h = {h:.6g} s needs {count_text(keep)} stored steps of {n} "
             f"coordinates ({hist_bytes / 2**30:.2f} GiB) > max_history_bytes = "
             f"{opts.max_history_bytes / 2**30:.2f} GiB; use a larger step h, or raise "
             "NewmarkOptions(max_history_bytes=...) if the memory is available"
@@ -499,7 +432,28 @@ def _stability_note(opts: NewmarkOptions, A0: FloatArray, C0: FloatArray, h: flo
     warnings.warn(msg, NewmarkStabilityWarning, stacklevel=4)
 
 
-def _count(n: float) -> str:
-    """A count for a message: whole digits up to 1e9, else 3 significant digits
-    (an absurd step must not print a 300-digit integer)."""
-    return f"{int(n)}" if n < 1e9 else f"{n:.3g}"
+def coupled_plan(
+    structure: tuple[FloatArray, FloatArray, FloatArray],
+    coupling: Any,
+    opts: NewmarkOptions,
+    grid: tuple[float, int, int],
+    start: tuple[FloatArray, FloatArray, FloatArray],
+) -> _Plan:
+    """The plan of a structure ``(M, C, K)``, ``M q'' + C q' + K q = P^T F``,
+    with a unilateral coupling (:class:`._contact._Contacts`): ``grid`` =
+    (step h, steps, the coupling's chunk: its shortest delay in steps),
+    ``start`` = (q0, v0, a0), a0 from the coupling's force at t = 0.  No
+    linear delayed term and no breakpoints of a problem (the coupling's
+    pattern restarts), and the coupling records its own outputs."""
+    M, C, K = structure
+    h, n_total, chunk = grid
+    q0, v0, a0 = start
+    n = M.shape[0]
+    notes: list[str] = []
+    coef = _scheme(opts, h, notes)
+    chunk = int(min(chunk, n_total))
+    return _Plan(
+        None, n, opts, 0.0, n_total * h, h, n_total, 1, n_total + 1, np.zeros(0, dtype=int), None, (),
+        float(opts.gamma), float(opts.beta), coef, M, C, K, None, None, True, 0.0, 0, 1,
+        chunk, chunk + 2, 0, np.zeros((0, n)), set(), q0, v0, a0, notes, coupling,
+    )  # fmt: skip

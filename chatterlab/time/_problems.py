@@ -19,6 +19,30 @@ Matrices = tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]
 # =========================================================================== problems
 
 
+class Sealed:
+    """A problem is a value: its attributes are set in ``__init__``, which
+    ends with :meth:`_seal`; setting or deleting one afterwards is an
+    AttributeError (build a new problem instead).  A cache the object owns
+    is updated through ``object.__setattr__``."""
+
+    _sealed = False
+
+    def _seal(self) -> None:
+        object.__setattr__(self, "_sealed", True)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if self._sealed:
+            raise AttributeError(
+                f"{type(self).__name__} is immutable: build a new one instead of setting {name!r}"
+            )
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name: str) -> None:
+        if self._sealed:
+            raise AttributeError(f"{type(self).__name__} is immutable: {name!r} cannot be deleted")
+        object.__delattr__(self, name)
+
+
 @runtime_checkable
 class TimeVaryingProblem(Protocol):
     """What :func:`newmark` integrates: ``A q'' + B q' + C q = p(t) + G q(t - T)``.
@@ -113,7 +137,7 @@ def _eval_force(
     return np.broadcast_to(arr, (t.size, n))
 
 
-class ConstantProblem:
+class ConstantProblem(Sealed):
     """Time-invariant system ``M q'' + C q' + K q = p(t) + G q(t - T)``.
 
     Parameters
@@ -160,6 +184,7 @@ class ConstantProblem:
         self.names = None if names is None else tuple(str(s) for s in names)
         if self.names is not None and len(self.names) != self.n:
             raise InputError(f"names must have {self.n} entries (got {len(self.names)})")
+        self._seal()
 
     def matrices(self, t: FloatArray) -> Matrices:
         k = np.asarray(t).size
@@ -182,7 +207,7 @@ class ConstantProblem:
         return self._breakpoints
 
 
-class CallbackProblem:
+class CallbackProblem(Sealed):
     """Adapter turning user functions of time into a :class:`TimeVaryingProblem`.
 
     Parameters
@@ -239,6 +264,7 @@ class CallbackProblem:
         self._force = force
         self.vectorized = bool(vectorized)
         self.names = None if names is None else tuple(str(s) for s in names)
+        self._seal()
 
     def _one(self, key: str, t: FloatArray) -> FloatArray | None:
         spec = self._spec[key]
@@ -294,7 +320,7 @@ class CallbackProblem:
         return self._breakpoints
 
 
-class PiecewiseProblem:
+class PiecewiseProblem(Sealed):
     """A sequence of problems, each valid between two breakpoints.
 
     Piece ``i`` applies on ``[breakpoints[i-1], breakpoints[i])`` (the first
@@ -338,6 +364,7 @@ class PiecewiseProblem:
             )
         self._delay = delays.pop() if delays else None
         self.names = getattr(self.pieces[0], "names", None)
+        self._seal()
 
     def _index(self, t: FloatArray) -> np.ndarray:
         return np.searchsorted(self.breakpoints_switch, t, side="right")

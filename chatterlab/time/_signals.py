@@ -263,6 +263,44 @@ def _extrema(x: FloatArray) -> tuple[np.ndarray, FloatArray, np.ndarray]:
     return tpos[sel], val[sel], kind[sel]
 
 
+def _envelope(ts: FloatArray, xs: FloatArray, dt: float, method: str) -> tuple[FloatArray | None, FloatArray]:
+    """Envelope points ``(env, times)`` of :func:`growth_rate` (``env`` None
+    when fewer than two extrema: no oscillation)."""
+    from scipy.signal import hilbert
+
+    if method == "extrema":
+        pos, val, _ = _extrema(xs)
+        if pos.size < 2:
+            return None, ts
+        return 0.5 * np.abs(np.diff(val)), ts[0] + dt * 0.5 * (pos[1:] + pos[:-1])
+    # demodulate by the current estimate so that the FFT-based analytic
+    # signal sees a nearly stationary signal (a growing one would ring at
+    # the wrap-around), then correct the estimate: three passes.
+    m = xs.size // 10
+    te = ts[m : xs.size - m]
+    tmid = 0.5 * (ts[0] + ts[-1])
+    sigma0 = 0.0
+
+    def demodulated(sig: float) -> FloatArray:
+        # x exp(-sig t) minus its least-squares offset in both x and the
+        # demodulated signal (a static deflection of x, a mean of y)
+        g = np.exp(-sig * (ts - tmid))
+        y = xs * g
+        basis = np.column_stack([np.ones_like(g), g])
+        coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+        return y - basis @ coef
+
+    for _ in range(4):
+        env_d = np.abs(hilbert(demodulated(sigma0)))[m : xs.size - m]
+        if not np.all(env_d > 0):
+            break
+        tcd = te - te.mean()
+        ld = np.log(env_d)
+        sigma0 += float(np.dot(tcd, ld - ld.mean()) / np.dot(tcd, tcd))
+    env = np.abs(hilbert(demodulated(sigma0)))[m : xs.size - m] * np.exp(sigma0 * (te - tmid))
+    return env, te
+
+
 def growth_rate(
     t: ArrayLike,
     x: ArrayLike,
@@ -326,8 +364,6 @@ def growth_rate(
     comparable modes gives a beating envelope: ``r2`` well below 1 warns of
     it.
     """
-    from scipy.signal import hilbert
-
     tt, xx, dt = _uniform_time(t, x)
     if xx.ndim != 1:
         raise InputError(f"x must be 1-D (got shape {xx.shape})")
@@ -342,43 +378,13 @@ def growth_rate(
         raise InputError(f"the window [{lo:.6g}, {hi:.6g}] s holds fewer than 8 samples")
     ts, xs = tt[sel], xx[sel]
 
-    if method == "extrema":
-        pos, val, _ = _extrema(xs)
-        if pos.size < 2:
-            return GrowthEstimate(
-                math.nan, "undetermined", math.nan, "fewer than two extrema in the window: no oscillation"
-            )
-        env = 0.5 * np.abs(np.diff(val))
-        te = ts[0] + dt * 0.5 * (pos[1:] + pos[:-1])
-    elif method == "hilbert":
-        # demodulate by the current estimate so that the FFT-based analytic
-        # signal sees a nearly stationary signal (a growing one would ring at
-        # the wrap-around), then correct the estimate: three passes.
-        m = xs.size // 10
-        te = ts[m : xs.size - m]
-        tmid = 0.5 * (ts[0] + ts[-1])
-        sigma0 = 0.0
-
-        def demodulated(sig: float) -> FloatArray:
-            # x exp(-sig t) minus its least-squares offset in both x and the
-            # demodulated signal (a static deflection of x, a mean of y)
-            g = np.exp(-sig * (ts - tmid))
-            y = xs * g
-            basis = np.column_stack([np.ones_like(g), g])
-            coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-            return y - basis @ coef
-
-        for _ in range(4):
-            env_d = np.abs(hilbert(demodulated(sigma0)))[m : xs.size - m]
-            if not np.all(env_d > 0):
-                break
-            tcd = te - te.mean()
-            ld = np.log(env_d)
-            sigma0 += float(np.dot(tcd, ld - ld.mean()) / np.dot(tcd, tcd))
-        env = np.abs(hilbert(demodulated(sigma0)))[m : xs.size - m] * np.exp(sigma0 * (te - tmid))
-    else:
+    if method not in ("extrema", "hilbert"):
         raise InputError(f"method must be 'extrema' or 'hilbert' (got {method!r})")
-
+    env, te = _envelope(ts, xs, dt, method)
+    if env is None:
+        return GrowthEstimate(
+            math.nan, "undetermined", math.nan, "fewer than two extrema in the window: no oscillation"
+        )
     good = env > 1e-10 * (env.max() if env.size else 0.0)
     dropped = env.size - int(np.count_nonzero(good))
     env, te = env[good], te[good]
@@ -386,6 +392,12 @@ def growth_rate(
         return GrowthEstimate(
             math.nan, "undetermined", math.nan, f"only {env.size} envelope points in the window (need >= 4)"
         )
+    return _fit(env, te, tol, method, dropped)
+
+
+def _fit(env: FloatArray, te: FloatArray, tol: float, method: str, dropped: int) -> GrowthEstimate:
+    """The least-squares line through ``log env`` at ``te`` and its class
+    (:func:`growth_rate`; ``dropped`` points below 1e-10 were left out)."""
     y = np.log(env)
     tc = te - te.mean()
     rate = float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
@@ -580,7 +592,6 @@ def time_verdict(
       faster-decaying mode that the run excited more: no contradiction.
     """
     span = main.t_fit[1] - main.t_fit[0]
-    thr = math.log1p(tol)
     rate, fit_err = float(main.rate), 2.0 * float(main.se)
     ok = check is not None and math.isfinite(rate) and math.isfinite(float(check.rate)) and span > 0
     check_rate = float(check.rate) if check is not None else math.nan
@@ -590,59 +601,15 @@ def time_verdict(
         step_err = RICHARDSON_SAFETY * abs(e_signed)
     else:
         e_signed, step_err = math.nan, math.nan
-    decide = math.nan
-    coarse = max(step, check_step)
-    per_period = 1.0 / (frequency * coarse) if frequency > 0 else math.inf
-    w_main = 2.0 * math.pi * frequency if frequency > 0 else 0.0
-    # the phase error of the regeneration over one delay at the coarser step
-    phase = w_main * delay * (w_main * coarse) ** 2 / 12.0 if delay > 0 else 0.0
     if diverged:
-        cls, how = "diverged", "the run diverged"
+        cls, how, decide = "diverged", "the run diverged", math.nan
     elif not ok:
-        cls = "undetermined"
+        cls, decide = "undetermined", math.nan
         how = "no rate: " + (main.message if not math.isfinite(rate) else "the check run gave no rate")
-    elif per_period < ASYMPTOTIC_STEPS or phase > ASYMPTOTIC_PHASE:
-        # Richardson's estimate holds in the h^2 regime only
-        cls = "undetermined"
-        scale = min(
-            per_period / ASYMPTOTIC_STEPS, math.sqrt(ASYMPTOTIC_PHASE / phase) if phase > 0 else math.inf
-        )
-        decide = min(step, check_step) * scale
-        why = (
-            f"{per_period:.3g} < {ASYMPTOTIC_STEPS} steps per period of {frequency:.6g} Hz"
-            if per_period < ASYMPTOTIC_STEPS
-            else f"a phase error of the regeneration (w h)^2/12 w T = {phase:.3g} > {ASYMPTOTIC_PHASE} rad per delay"
-        )
-        how = (
-            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, but the run at h = {coarse:.4g} s has {why}: its"
-            f" error is not in the h^2 regime, so the step error is unknown; a step of {decide:.3g} s would"
-            " make it known"
-        )
-        step_err = math.inf
     else:
-        w = (fit_err + step_err) * span
-        change = rate * span
-        if change - w > thr:
-            cls = "growing"
-        elif change + w < -thr:
-            cls = "decaying"
-        elif abs(change) + w <= thr:
-            cls = "steady"
-        else:
-            cls = "undetermined"
-        how = (
-            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, {check_rate:+.6g} 1/s at h = {check_step:.4g} s:"
-            f" step error {step_err:.3g} 1/s (Richardson, order 2), fit error {fit_err:.3g} 1/s (2 se),"
-            f" over {span:.4g} s"
+        cls, how, decide, step_err = _richardson_class(
+            main, (step, check_step, check_rate), (e_signed, step_err), frequency, delay, tol
         )
-        if cls == "undetermined":
-            best = abs(rate - e_signed)  # the extrapolated rate
-            margin = best - fit_err - thr / span
-            if margin > 0 and step_err > 0:
-                decide = step * math.sqrt(0.5 * margin / step_err)
-                how += f"; a step of {decide:.3g} s would bring the step error to {0.5 * margin:.3g} 1/s"
-            else:
-                how += "; the fit's own error decides nothing: a longer run is needed"
     r_rate = r_hz = math.nan
     contra = ""
     lam = np.asarray(roots if roots is not None else [], dtype=complex).reshape(-1)
@@ -665,6 +632,73 @@ def time_verdict(
         name, cls, rate, fit_err, step_err, float(step), float(check_step), check_rate, float(frequency),
         decide, r_rate, r_hz, bool(roots_certain), contra, msg, main.t_fit,
     )  # fmt: skip
+
+
+def _richardson_class(
+    main: GrowthEstimate,
+    steps: tuple[float, float, float],
+    err: tuple[float, float],
+    frequency: float,
+    delay: float,
+    tol: float,
+) -> tuple[str, str, float, float]:
+    """The class of :func:`time_verdict` from a main and a check rate:
+    ``steps`` = (step, check step, the check run's rate), ``err`` = (the
+    signed Richardson error, the step error).  Returns (class, how, the step
+    that would decide it or NaN, the step error -- infinite outside the h^2
+    regime)."""
+    step, check_step, check_rate = steps
+    e_signed, step_err = err
+    span = main.t_fit[1] - main.t_fit[0]
+    thr = math.log1p(tol)
+    rate, fit_err = float(main.rate), 2.0 * float(main.se)
+    decide = math.nan
+    coarse = max(step, check_step)
+    per_period = 1.0 / (frequency * coarse) if frequency > 0 else math.inf
+    w_main = 2.0 * math.pi * frequency if frequency > 0 else 0.0
+    # the phase error of the regeneration over one delay at the coarser step
+    phase = w_main * delay * (w_main * coarse) ** 2 / 12.0 if delay > 0 else 0.0
+    if per_period < ASYMPTOTIC_STEPS or phase > ASYMPTOTIC_PHASE:
+        # Richardson's estimate holds in the h^2 regime only
+        scale = min(
+            per_period / ASYMPTOTIC_STEPS, math.sqrt(ASYMPTOTIC_PHASE / phase) if phase > 0 else math.inf
+        )
+        decide = min(step, check_step) * scale
+        why = (
+            f"{per_period:.3g} < {ASYMPTOTIC_STEPS} steps per period of {frequency:.6g} Hz"
+            if per_period < ASYMPTOTIC_STEPS
+            else f"a phase error of the regeneration (w h)^2/12 w T = {phase:.3g} > {ASYMPTOTIC_PHASE} rad per delay"
+        )
+        how = (
+            f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, but the run at h = {coarse:.4g} s has {why}: its"
+            f" error is not in the h^2 regime, so the step error is unknown; a step of {decide:.3g} s would"
+            " make it known"
+        )
+        return "undetermined", how, decide, math.inf
+    w = (fit_err + step_err) * span
+    change = rate * span
+    if change - w > thr:
+        cls = "growing"
+    elif change + w < -thr:
+        cls = "decaying"
+    elif abs(change) + w <= thr:
+        cls = "steady"
+    else:
+        cls = "undetermined"
+    how = (
+        f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, {check_rate:+.6g} 1/s at h = {check_step:.4g} s:"
+        f" step error {step_err:.3g} 1/s (Richardson, order 2), fit error {fit_err:.3g} 1/s (2 se),"
+        f" over {span:.4g} s"
+    )
+    if cls == "undetermined":
+        best = abs(rate - e_signed)  # the extrapolated rate
+        margin = best - fit_err - thr / span
+        if margin > 0 and step_err > 0:
+            decide = step * math.sqrt(0.5 * margin / step_err)
+            how += f"; a step of {decide:.3g} s would bring the step error to {0.5 * margin:.3g} 1/s"
+        else:
+            how += "; the fit's own error decides nothing: a longer run is needed"
+    return cls, how, decide, step_err
 
 
 def _contradiction(

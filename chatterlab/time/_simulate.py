@@ -27,18 +27,19 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from ..errors import InputError, check_positive, check_width, warn_width
+from ..errors import InputError, check_width, warn_width
 from ..process._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ..structure._assembly import System
 from ._history import TimeHistory
 from ._initial import initial_state
-from ._newmark import ConstantProblem, NewmarkOptions, TimeResponse, newmark
+from ._newmark import ConstantProblem, TimeResponse, newmark
+from ._options import Excitation, Initial, Integration, with_legacy
 from ._parametric import FEEDBACK_CASES, ParametricProblem, _ExtraForce, _output_map, _WithExtraForce
 from ._signals import GrowthEstimate, TimeVerdict, amplitude_spectrum, peaks, time_verdict
 
@@ -95,7 +96,7 @@ class Simulation(TimeHistory):
     width: float
     delay: float
     step: float
-    passes: int
+    passes: float
     units: dict[str, str]
     model: str
     meta: dict[str, Any] = field(default_factory=dict)
@@ -245,21 +246,26 @@ class Simulation(TimeHistory):
         a.update(self.meta)
         return a
 
-    def plot(  # type: ignore[override]
+    def plot(
         self,
-        names: list[str] | None = None,
+        names: Sequence[str] | str | None = None,
         *,
-        against: Literal["time", "distance"] = "time",
         ax: Any = None,
-        axes: Any = None,
+        against: Literal["time", "distance"] = "time",
+        **style: Any,
     ) -> Any:
-        """Time histories (or against the cut distance) of outputs, one panel
-        each, the in-cut intervals shaded (``axes=`` is a deprecated alias of
+        """Time histories (or against the cut distance) of outputs (default
+        the first two), one panel each, the in-cut intervals shaded
+        (:func:`chatterlab.plot.plot_histories`; ``style``: its ``labels``,
+        ``scale``, ``unit``, ``title``, and ``axes=``, the deprecated alias of
         ``ax=``); returns the Axes.  One run with its force and spectrum:
         :func:`chatterlab.plot.plot_time_response`."""
         from ..plot import plot_histories
 
-        return plot_histories([self], names or list(self.data)[:2], against=against, ax=ax, axes=axes)
+        chosen = (
+            list(self.data)[:2] if names is None else ([names] if isinstance(names, str) else list(names))
+        )
+        return plot_histories([self], chosen, against=against, ax=ax, **style)
 
 
 def simulate(
@@ -270,21 +276,12 @@ def simulate(
     speed: float | None = None,
     delay: float | None = None,
     position: float | None = None,
-    passes: int = 2,
-    duration: float | None = None,
-    step: float | None = None,
     outputs: str | list[str] | tuple[str, ...] | None = None,
-    forces: bool = True,
-    options: NewmarkOptions | None = None,
-    q0: Any = None,
-    v0: Any = None,
-    history: Any = None,
-    progress: Any = None,
-    record_every: int = 1,
-    method: Literal["auto", "polynomial", "direct"] = "auto",
-    loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None = None,
-    ground_motion: Mapping[str, Callable[[np.ndarray], Any]] | None = None,
     roots: Any = None,
+    integration: Integration | None = None,
+    initial: Initial | None = None,
+    excitation: Excitation | None = None,
+    **deprecated: Any,
 ) -> Simulation:
     """Newmark simulation of the moving, delayed closed loop (Eq. 2.28).
 
@@ -303,66 +300,12 @@ def simulate(
         Delay T, s: holds the slide still (at ``position``) and cuts continuously.
     position : float, optional
         Hold the slide at s (m) instead of running stroke cycles.
-    passes : int
-        Number of stroke cycles (shaping) or delay periods (steady) simulated
-        when ``duration`` is not given.
-    duration : float, optional
-        Simulated time, s.
-    step : float, optional
-        Time step h, s.  Default: a twentieth of the period of the highest
-        natural frequency below 300 Hz, and at most T/20; for a continuous
-        cut with ``roots`` given, also fine enough for the chatter band:
-        every relevant root (one whose envelope can still shape the fitted
-        window) resolved with at least 20 steps per period and its growth
-        rate within a quarter of what the verdict must resolve
-        (:func:`chatter_step`), within 2 000 000 steps; rounded down so that
-        the process events (cut entry and exit, reversal, one cycle) fall on
-        the step grid.
     outputs : str or list of str, optional
         ``"POINT.DIR"`` time histories to record (default: the first CE's
         points ``b`` along x and y — the paper's q1, q2 at RFE 5; when ``b``
         is the ground, the body or node of its point ``a``).  In the netCDF file a
         name becomes a valid variable name (``"rfe5.x"`` -> ``rfe5_x``; the
         name itself is its ``long_name``).
-    forces : bool
-        Apply the desired cutting forces while in the cut.
-    loads : mapping, optional
-        External forces: ``"POINT.DIR" -> f(t)`` (or a coordinate name), f a
-        vectorised callable returning the force (N, or N m for ``rz``) at the
-        times ``t`` (s), in global axes.  A load on a moving contact travels
-        with it.
-    ground_motion : mapping, optional
-        Prescribed motion of given coordinates (Eq. 2.19): ``"ground.y" -> g(t)``
-        with g returning ``(q, q_dot, q_ddot)`` arrays at the times t (m, m/s,
-        m/s^2 or rad...).  It loads the structure through the stiffness,
-        damping and mass couplings, and through the coupling elements' terms
-        on given coordinates (Eq. 2.27) while cutting.
-    options : NewmarkOptions, optional
-        Integrator parameters and memory limits.
-    q0, v0 : array (n_i,) or mapping, optional
-        Initial displacement (m, rad) and velocity (m/s, rad/s) at t = 0;
-        zero by default.  Either a vector over the independent coordinates,
-        or ``{"POINT.DIR": value}`` (or a coordinate name): the named
-        displacements are met by the static shape under forces at those
-        points (the state minimising q^T C q, C the stiffness of the run at
-        t = 0), the named velocities by the state right after impulses at
-        those points (minimising v^T A v, A the mass matrix).
-    history : optional
-        q_i(t) for t < 0, read by the delayed term (``feedback="pdo"``):
-        ``None`` or ``"zero"`` (the default), ``"constant"`` (q0 held), a
-        constant (n_i,) vector, a vectorised callable ``t -> (len(t), n_i)``
-        (``(len(t),)`` for one coordinate) or a table ``(t_k, q_k)`` with
-        ``q_k`` of shape (len(t_k), n_i), ``t_k`` increasing and covering
-        [-T, 0]: a not-a-knot cubic spline through 4 or more nodes (error
-        O(dt^4) for a smooth history, dt the largest node spacing), linear
-        through 2 or 3 (O(dt^2)).  Only values are read, no derivative.
-    progress : callable, optional
-        ``progress(fraction)`` after each chunk of steps.
-    record_every : int
-        Record every k-th step.
-    method : {"auto", "polynomial", "direct"}
-        Coefficient evaluation (see :class:`ParametricProblem`); the results
-        agree to rounding.
     roots : RootsResult or array of complex, optional
         The characteristic roots (1/s) of the same frozen system, e.g.
         ``chatterlab.frequency.characteristic_roots_system`` on
@@ -371,6 +314,54 @@ def simulate(
         ``RootsResult`` that converged with a band proven to hold every root
         right of its rightmost one is *certain* (a contradiction can then be
         named); a bare array is shown only.
+    integration : Integration, optional
+        ``duration`` (s) or ``periods`` (stroke cycles, or delays of a
+        continuous cut; default 2); ``step`` h (s; default: a twentieth of
+        the period of the highest natural frequency below 300 Hz, and at most
+        T/20; for a continuous cut with ``roots`` given, also fine enough
+        for the chatter band: every relevant root (one whose envelope can
+        still shape the fitted window) resolved with at least 20 steps per
+        period and its growth rate within a quarter of what the verdict must
+        resolve (:func:`chatter_step`), within 2 000 000 steps; rounded down
+        so that the process events (cut entry and exit, reversal, one cycle)
+        fall on the step grid); ``record_every``; ``method`` of the
+        coefficients (:class:`ParametricProblem`; the results agree to
+        rounding); ``scheme`` (:class:`NewmarkOptions`: gamma, beta,
+        memory limits); ``progress(fraction)`` after each chunk of steps.
+    initial : Initial, optional
+        ``q0``, ``v0``: the displacement (m, rad) and velocity (m/s, rad/s)
+        at t = 0, zero by default; either a vector over the independent
+        coordinates, or ``{"POINT.DIR": value}`` (or a coordinate name): the
+        named displacements are met by the static shape under forces at
+        those points (the state minimising q^T C q, C the stiffness of the
+        run at t = 0), the named velocities by the state right after
+        impulses at those points (minimising v^T A v, A the mass matrix).
+        ``history``: q_i(t) for t < 0, read by the delayed term
+        (``feedback="pdo"``): ``None`` or ``"zero"`` (the default),
+        ``"constant"`` (q0 held), a constant (n_i,) vector, a vectorised
+        callable ``t -> (len(t), n_i)`` (``(len(t),)`` for one coordinate)
+        or a table ``(t_k, q_k)`` with ``q_k`` of shape (len(t_k), n_i),
+        ``t_k`` increasing and covering [-T, 0]: a not-a-knot cubic spline
+        through 4 or more nodes (error O(dt^4) for a smooth history, dt the
+        largest node spacing), linear through 2 or 3 (O(dt^2)).  Only values
+        are read, no derivative.
+    excitation : Excitation, optional
+        ``cutting_forces``: apply the desired cutting forces while in the
+        cut (default True).  ``loads``: external forces ``"POINT.DIR" ->
+        f(t)`` (or a coordinate name), f a vectorised callable returning the
+        force (N, or N m for ``rz``) at the times ``t`` (s), in global axes;
+        a load on a moving contact travels with it.  ``ground_motion``:
+        prescribed motion of given coordinates (Eq. 2.19), ``"ground.y" ->
+        g(t)`` with g returning ``(q, q_dot, q_ddot)`` arrays at the times t
+        (m, m/s, m/s^2 or rad...); it loads the structure through the
+        stiffness, damping and mass couplings, and through the coupling
+        elements' terms on given coordinates (Eq. 2.27) while cutting.
+    **deprecated
+        The 0.2 keywords ``passes``, ``duration``, ``step``, ``options``,
+        ``record_every``, ``method``, ``progress`` (-> ``integration``),
+        ``q0``, ``v0``, ``history`` (-> ``initial``), ``forces``, ``loads``,
+        ``ground_motion`` (-> ``excitation``), accepted for one release with
+        a DeprecationWarning.
 
     Returns
     -------
@@ -381,27 +372,68 @@ def simulate(
     InputError
         Bad arguments (non-positive width, duration or step; a step longer
         than the delay; an unknown output; a delay history or a record above
-        the memory limits of ``options``; a stroke outside the movable range;
-        a q0, v0 or history of the wrong shape, not finite, naming an unknown
-        output, or a table not increasing or not covering [-T, 0]).
+        the memory limits of ``integration.scheme``; a stroke outside the
+        movable range; a q0, v0 or history of the wrong shape, not finite,
+        naming an unknown output, or a table not increasing or not covering
+        [-T, 0]).
     """
-    mdl = system.model
-    width, duration, step, kin = _check_run(
-        system, feedback, width, passes, duration, step, speed, delay, position
+    opt = with_legacy(
+        "simulate",
+        deprecated,
+        LEGACY_SIMULATE,
+        integration=integration,
+        initial=initial,
+        excitation=excitation,
     )
+    cut = _Cut(system, feedback, width, speed, delay, position, outputs)
+    return _simulate(cut, roots, opt["integration"], opt["initial"], opt["excitation"])
+
+
+#: the 0.2 keywords :func:`simulate` still takes (see :data:`._options.LEGACY_KEYWORDS`)
+LEGACY_SIMULATE = (
+    "passes", "duration", "step", "options", "record_every", "method", "progress", "q0", "v0", "history",
+    "forces", "loads", "ground_motion",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Cut:
+    """The cut :func:`simulate` runs: the system, the feedback case, the
+    width and the kinematics' arguments, the outputs' names."""
+
+    system: System
+    feedback: Literal["none", "pd", "pdo"]
+    width: float | None
+    speed: float | None
+    delay: float | None
+    position: float | None
+    outputs: str | list[str] | tuple[str, ...] | None
+
+
+def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Excitation) -> Simulation:
+    """:func:`simulate` with its options gathered."""
+    system, feedback = cut.system, cut.feedback
+    mdl = system.model
+    periods = integ.periods if integ.periods is not None else 2
+    width, kin = _check_run(system, feedback, cut.width, periods, cut.speed, cut.delay, cut.position)
     T = float(kin.delay)
-    if duration is None:
-        duration = passes * T
-    if isinstance(outputs, str):  # one point, as frf(inputs="rfe5.x") takes it
-        outputs = [outputs]
+    duration = integ.duration if integ.duration is not None else periods * T
+    outputs = [cut.outputs] if isinstance(cut.outputs, str) else cut.outputs  # one point, as frf takes it
     outs = list(outputs) if outputs is not None else _default_outputs(mdl)
     out_rows = [_output_map(system, name) for name in outs]  # refuse unknown outputs before the run
-    prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=forces, method=method)
-    prob._t_end = float(duration)
+    prob = ParametricProblem(
+        system,
+        kin,
+        width=width,
+        terms=feedback,
+        forces=exc.cutting_forces,
+        method=integ.method,
+        t_end=duration,
+    )
     lam, certain = _roots_of(roots)
-    step, rule = _time_step(system, kin, feedback, step, position, duration, prob, lam)
-    run_prob = _run_problem(prob, loads, ground_motion)
-    q0v, v0v, hist, initial = initial_state(prob, kin, q0, v0, history)
+    step, rule = _time_step(system, kin, feedback, integ.step, cut.position, duration, prob, lam)
+    run_prob = _run_problem(prob, exc.loads, exc.ground_motion)
+    q0v, v0v, hist, initial = initial_state(prob, kin, init.q0, init.v0, init.history)
     with _blas_limits():
         res = newmark(
             run_prob,
@@ -410,34 +442,33 @@ def simulate(
             q0v,
             v0v,
             history=hist,
-            options=options,
-            record_every=record_every,
-            progress=progress,
+            options=integ.scheme,
+            record_every=integ.record_every,
+            progress=integ.progress,
         )
     data, units = _histories(prob, res, outs, out_rows)
-    s, _, cut, cd = kin.state(res.t)
+    s, _, in_cut, cd = kin.state(res.t)
     rerun = None
     if isinstance(kin, SteadyKinematics):
+        # the verdict's check run: the same cut at another step, every step recorded
+        check = replace(integ, duration=duration, step=None, record_every=1, progress=None)
+        same = replace(cut, outputs=outs)
 
         def rerun(h2: float) -> Simulation:
-            return simulate(
-                system, feedback=feedback, width=width, speed=speed, delay=delay, position=position,
-                passes=passes, duration=duration, step=h2, outputs=outs, forces=forces, options=options,
-                q0=q0, v0=v0, history=history, method=method, loads=loads, ground_motion=ground_motion,
-            )  # fmt: skip
+            return _simulate(same, None, replace(check, step=h2), init, exc)
 
     return Simulation(
         t=res.t,
         data=data,
         position=s,
-        in_cut=cut,
+        in_cut=in_cut,
         cut_distance=cd,
         response=res,
         terms=feedback,
         width=float(width),
         delay=T,
         step=step,
-        passes=int(passes),
+        passes=periods,
         units=units,
         model=mdl.source,
         meta={
@@ -456,14 +487,12 @@ def _check_run(
     system: System,
     feedback: str,
     width: float | None,
-    passes: Any,
-    duration: float | None,
-    step: float | None,
+    periods: Any,
     speed: float | None,
     delay: float | None,
     position: float | None,
-) -> tuple[float, float | None, float | None, ShapingKinematics | SteadyKinematics]:
-    """The arguments of :func:`simulate` checked: ``(width, duration, step, kinematics)``."""
+) -> tuple[float, ShapingKinematics | SteadyKinematics]:
+    """The cut's arguments of :func:`simulate` checked: ``(width, kinematics)``."""
     mdl = system.model
     if feedback not in FEEDBACK_CASES:
         raise InputError(f"feedback must be one of {', '.join(FEEDBACK_CASES)} (got {feedback!r})")
@@ -473,13 +502,13 @@ def _check_run(
         width = mdl.couplings[0].width_ref
     width = check_width(width)
     warn_width(width, [c.width_ref for c in mdl.couplings])
-    if not (isinstance(passes, int | np.integer) and not isinstance(passes, bool) and passes >= 1):
-        raise InputError(f"passes must be an integer >= 1 (got {passes!r})")
-    if duration is not None:
-        duration = check_positive(duration, "duration", "s")
-    if step is not None:
-        step = check_positive(step, "step", "s")
-    return width, duration, step, _kinematics(system, speed, delay, position)
+    if (
+        isinstance(periods, bool)
+        or not isinstance(periods, int | float | np.integer | np.floating)
+        or not periods > 0
+    ):
+        raise InputError(f"passes (integration periods) must be a number > 0 (got {periods!r})")
+    return width, _kinematics(system, speed, delay, position)
 
 
 def _kinematics(
@@ -675,7 +704,7 @@ def constant_loop(
     without the delayed term), or None when the slide moves (no frozen
     system).  Their characteristic roots (``chatterlab.frequency.make_system(A,
     B, C, DO=G, tau=T)``) are those of the very system the run integrates."""
-    width, _, _, kin = _check_run(system, feedback, width, 1, None, None, speed, delay, position)
+    width, kin = _check_run(system, feedback, width, 1, speed, delay, position)
     if not isinstance(kin, SteadyKinematics):
         return None
     prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=False)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 import chatterlab as cl
+from chatterlab.time import Integration
 from chatterlab.time._signals import amplitude_spectrum, peaks
 from chatterlab.time._simulate import Simulation, simulate
 
@@ -141,7 +142,13 @@ def run(
     for label, h in steps.items():
         runs[label] = {}
         for case, (terms, _, _) in CASES.items():
-            sim = simulate(system, feedback=terms, passes=passes, step=h, width=width, speed=speed)
+            sim = simulate(
+                system,
+                feedback=terms,
+                width=width,
+                speed=speed,
+                integration=Integration(periods=passes, step=h),
+            )
             if sim.status != "ok":  # pragma: no cover - a diverged run is reported, not plotted
                 raise RuntimeError(f"case {case} at h = {h}: {sim.message}")
             cuts = passes_in_cut(sim)
@@ -188,10 +195,9 @@ def run(
             sim = simulate(
                 system,
                 feedback=CASES[case][0],
-                passes=growth_passes,
-                step=growth_step,
                 width=width,
                 speed=speed,
+                integration=Integration(periods=growth_passes, step=growth_step),
             )
             cuts = passes_in_cut(sim)
             g[case] = {name: np.array([np.ptp(sim.data[name][sl]) for sl in cuts]) for name in OUTPUTS}
