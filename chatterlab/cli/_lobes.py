@@ -229,10 +229,12 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
         else:
             d.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)})
     if args.plot:
+        from pathlib import Path
+
         from ..plot import savefig
 
-        name = getattr(model, "name", "")
-        title = f"{name} ({model.source}): stability lobes" if name else None
+        name = getattr(model, "name", "") or Path(str(model.source)).stem
+        title = f"{name}: stability lobes"
         savefig(d.plot(title=title), outs.path(args.plot))
     if getattr(d, "verified", None) is False:
         print(check_verdict(d.checks), file=sys.stderr)

@@ -152,7 +152,7 @@ def draw_lobe_panel(
     top = d.width_max * 1e3
     peak = float(np.max(em[fin])) if np.any(fin) else top
     ytop = top if 1.2 * peak >= top else 1.2 * peak
-    handles = _draw_lobes_and_envelope(ax, curves, lo, hi, vx, em, ytop, px, dense, measured)
+    handles = _draw_lobes_and_envelope(ax, curves, lo, hi, vx, em, ytop, px, dense, measured, d.limit_name)
     handles += _draw_limits(ax, d, lo, hi, references)
     handles += _draw_claims(ax, _claim_spans(d, vx, em), lo, hi, top)
     ax.set_ylim(0, ytop)
@@ -181,6 +181,7 @@ def _draw_lobes_and_envelope(
     px: float,
     dense: bool,
     measured: bool = False,
+    limit: str = "b_lim",
 ) -> list[Any]:
     """The lobes (unless dense), the unstable region above the envelope
     ``em`` (mm at speeds ``vx``), the band the envelope sweeps per pixel
@@ -216,15 +217,18 @@ def _draw_lobes_and_envelope(
         xc = lo + (cols[starts] + 0.5) / px * (hi - lo)
         band = ax.fill_between(xc, cmin, cmax, color="tab:red", alpha=0.55, lw=0, zorder=2)
         band.set_gid("lobe-band")
-        handles.append(
-            Patch(color="tab:red", alpha=0.55, label="b_lim sweeps this band within each pixel column")
-        )
+        handles.append(Patch(color="tab:red", alpha=0.55, label="band swept within a pixel column"))
     if measured:
         (line,) = ax.plot(vx, em, ".-", color="tab:red", lw=0.8, ms=2.5, zorder=3,
-                          label="b_lim at the requested speeds (measured FRF)")  # fmt: skip
+                          label=f"{limit} at the requested speeds (measured FRF)")  # fmt: skip
     else:
         (line,) = ax.plot(
-            vx, em, color="tab:red", lw=0.5 if dense else 1.6, zorder=3, label="b_lim (exact lower envelope)"
+            vx,
+            em,
+            color="tab:red",
+            lw=0.5 if dense else 1.6,
+            zorder=3,
+            label=f"{limit} (exact lower envelope)",
         )
     line.set_gid("envelope")
     handles.append(line)
@@ -244,7 +248,7 @@ def _draw_limits(ax: Any, d: Any, lo: float, hi: float, references: Mapping[str,
             ls="--",
             lw=1,
             zorder=4,
-            label=f"unconditional limit {a:.4g} mm ({d.absolute_minimum['chatter_hz']:.1f} Hz)",
+            label=f"unconditional limit {a:.4g} mm",
         )
         handles.append(al)
     m = d.minimum
@@ -255,7 +259,7 @@ def _draw_limits(ax: Any, d: Any, lo: float, hi: float, references: Mapping[str,
             "ko",
             ms=4.5,
             zorder=5,
-            label=f"min of range {m['width'] * 1e3:.4g} mm at {m['speed']:.4g} {d.speed_unit}",
+            label=f"minimum {m['width'] * 1e3:.4g} mm at {m['speed']:.4g} {d.speed_unit}",
         )
         handles.append(mk)
     styles_ref = [("tab:green", ":"), ("k", ":"), ("tab:purple", "-.")]
@@ -284,7 +288,7 @@ def _draw_claims(
             hatch="////",
             fc="none",
             ec="tab:green",
-            label=f"b_lim = inf: no chatter below the {top:g} mm ceiling",
+            label=f"no chatter below the {top:g} mm ceiling",
         ),
         2: dict(
             y=(0.0, 1.0),

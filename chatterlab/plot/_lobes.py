@@ -162,11 +162,9 @@ def _dense_note(main: dict[str, Any], has_zoom: bool) -> str | None:
     import textwrap
 
     return textwrap.fill(
-        f"Lobes denser than the plot: up to {main['density']:.0f} lobe bottoms in {DENSE_PIXELS} pixel"
-        " columns. Where dense, each pixel column shows the band b_lim sweeps in it, from the lobe"
-        " bottoms to the cusps; "
-        + ("individual lobes in the zoom below." if has_zoom else "pass three axes for a zoom panel."),
-        46,
+        f"{main['density']:.0f} lobes per {DENSE_PIXELS} pixels: each column shows the band the"
+        " limit sweeps" + ("; single lobes in the zoom" if has_zoom else ""),
+        34,
     )
 
 
@@ -222,13 +220,7 @@ def _lobe_count(curves: list[Any], d: Any) -> str:
     if not ks:
         return "no lobe below the width ceiling"
     kk = sorted(k for k, _ in ks)
-    txt = f"{len(ks)} lobes in the speed range (k = {kk[0]}-{kk[-1]})"
-    if len(ks) == len(d.lobes):
-        return txt + ", as in the summary"
-    return txt + (
-        f";\nthe summary's {len(d.lobes)} are the lobe numbers k of the envelope at its"
-        f" {np.size(d.speed)} speeds, on each branch"
-    )
+    return f"{len(ks)} lobes, k = {kk[0]}-{kk[-1]}"
 
 
 def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[Any], d: Any, loc: str, count: str) -> None:
@@ -241,11 +233,11 @@ def _lobe_legend(ax: Any, drawn: dict[str, Any], curves: list[Any], d: Any, loc:
         txt = count
         if drawn["labelled"]:
             multi = len({c.branch for c in curves}) > 1
-            txt += "\nnumbers: lobe k" + ("/branch" if multi else "") + " at its bottom"
+            txt += "\nlabel " + ("k/branch" if multi else "k") + ": lobe number k at its bottom"
             if multi:
-                txt += "; " + _branch_modes(curves)
+                txt += "\n" + _branch_modes(curves)
         if loc == "outside":
-            txt = "\n".join(textwrap.fill(line, 46) for line in txt.split("\n"))
+            txt = "\n".join(textwrap.fill(line, 34) for line in txt.split("\n"))
         handles.append(Line2D([], [], ls="none", label=txt))
     if loc == "outside":
         ax.legend(*_with_labels(handles), loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
@@ -269,8 +261,8 @@ def _branch_modes(curves: list[Any]) -> str:
     for b in sorted(chains):
         ch = chains[b]
         f = float(ch.omega[int(np.argmin(ch.width))]) / (2 * np.pi)
-        parts.append(f"branch {b}: chatter at {f:.4g} Hz at its lowest")
-    return ", ".join(parts)
+        parts.append(f"branch {b}: {f:.4g} Hz")
+    return "; ".join(parts)
 
 
 def _model_name(d: Any) -> str:
