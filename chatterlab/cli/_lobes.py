@@ -308,7 +308,9 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Comm
         from ..plot import plot_atlas, savefig
 
         savefig(
-            plot_atlas(res, model.process, model=model.source, width_max=wmax, terms=args.terms),
+            plot_atlas(
+                res, model.process, model=model.name or model.source, width_max=wmax, terms=args.terms
+            ),
             outs.path(args.plot),
         )
     return 0 if res.status == "ok" else 1

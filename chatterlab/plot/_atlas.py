@@ -11,7 +11,11 @@ from ._style import axes_arg, cell_edges, model_of
 
 
 def _atlas_model_name(result: Any, model: str | None) -> str:
-    return model or model_of(result)
+    """The model's name, or its file's stem (never a path in a title)."""
+    from pathlib import PurePath
+
+    name = model or model_of(result)
+    return PurePath(name).stem if name.endswith(".toml") else name
 
 
 def plot_atlas(
@@ -46,8 +50,9 @@ def plot_atlas(
     wmax = width_max if width_max is not None else attrs.get("width_max_m")
     ceiling = f"the {float(wmax) * 1e3:g} mm ceiling" if wmax is not None else "the width ceiling"
     bl = np.asarray(result.data["b_lim"], float) * 1e3
+    created = ax is None
     if ax is None:
-        fig, ax = plt.subplots(2, 1, sharex=True, figsize=(8.5, 6.8), gridspec_kw={"height_ratios": [2, 1.3]})
+        fig, ax = plt.subplots(2, 1, sharex=True, figsize=(8.5, 7.0), gridspec_kw={"height_ratios": [2, 1.3]})
     axm, axw = ax
     speed_name = getattr(process, "speed_name", "speed")
     _atlas_map(axm, pos, v, bl, ceiling)
@@ -65,7 +70,11 @@ def plot_atlas(
     head = title or f"{name}: stability atlas along the stroke"
     if title and name not in title:
         head = f"{name}: {title}"
-    axm.set_title(f"{head}\n{sub}", fontsize=9)
+    if created:  # the title above the figure, the map's legend between them: nothing overlaps
+        axm.figure.suptitle(f"{head}\n{sub}", fontsize=9)
+        axm.figure.subplots_adjust(top=0.87)
+    else:
+        axm.set_title(f"{head}\n{sub}", fontsize=9)
     return ax
 
 
@@ -85,24 +94,30 @@ def _atlas_map(ax: Any, pos: np.ndarray, v: np.ndarray, bl: np.ndarray, ceiling:
     vmax = float(np.nanpercentile(finite, 95)) if anyfin else 1.0
     vmin = float(np.nanmin(finite)) if anyfin else 0.0
     extra: list[Any] = []
+    ax.set_facecolor("0.55")  # a failed (NaN) cell shows the background: the grey of its legend entry
     mesh = ax.pcolormesh(v, pos, finite, shading="nearest", cmap="viridis", vmin=vmin, vmax=vmax)
     # the colour bar outside the map's frame keeps both panels' speed axes aligned
     cax = ax.inset_axes((1.015, 0.0, 0.02, 1.0))
     cb = ax.figure.colorbar(mesh, cax=cax, extend="max" if np.nanmax(finite) > vmax else "neither")
     cb.set_label("b_lim [mm] (largest chatter-free width)")
-    if np.any(isinf):
-        ax.pcolor(
+    if np.any(isinf):  # white with black hatching: stands out from every colour of the map
+        cells = ax.pcolor(
             *np.meshgrid(cell_edges(v), cell_edges(pos)),
             np.ma.masked_where(~isinf, np.ones_like(bl)),
-            cmap=ListedColormap(["0.78"]),
-            lw=0,
+            cmap=ListedColormap(["white"]),
+            edgecolors="none",
+            hatch="////",
         )
-        extra.append(Patch(facecolor="0.78", label=f"grey: b_lim = inf, no chatter below {ceiling}"))
+        cells.set_gid("atlas-inf")
+        extra.append(
+            Patch(facecolor="white", edgecolor="black", hatch="////", label=f"no chatter below {ceiling}")
+        )
     if np.any(isnan):
-        extra.append(Patch(facecolor="white", edgecolor="0.4", label="not computed (task failed)"))
+        extra.append(Patch(facecolor="0.55", label="not computed (task failed)"))
     ax.set_ylabel("slide position s [m]")
-    if extra:
-        ax.legend(handles=extra, loc="upper right", fontsize=7, framealpha=0.9)
+    if extra:  # above the map, outside it: no cell is covered
+        ax.legend(handles=extra, loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize=7, framealpha=0.9,
+                  ncol=len(extra), borderaxespad=0.2)  # fmt: skip
 
 
 def _atlas_worst(axw: Any, v: np.ndarray, bl: np.ndarray, ceiling: str) -> None:
