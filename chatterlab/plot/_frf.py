@@ -240,8 +240,8 @@ def plot_nyquist(
     fj = omega[j] / (2 * np.pi)
 
     def draw(a: Any, legend: bool) -> None:
-        a.plot(det.real, det.imag, lw=1, color="tab:blue", label="w > 0" if legend else None, gid="nyquist")
-        a.plot(det.real, -det.imag, lw=0.8, ls="--", color="tab:orange", label="w < 0" if legend else None)
+        a.plot(det.real, det.imag, lw=1, color="tab:blue", label="ω > 0" if legend else None, gid="nyquist")
+        a.plot(det.real, -det.imag, lw=0.8, ls="--", color="tab:orange", label="ω < 0 (mirror)" if legend else None)
         a.plot([0], [0], "r+", ms=12, mew=2, label="critical point (origin)" if legend else None)
         a.plot(
             [det[j].real],
@@ -274,7 +274,9 @@ def plot_nyquist(
         axi.set_aspect("equal")
         axi.tick_params(labelsize=7)
         axi.grid(alpha=0.3)
-        axi.set_title(f"zoom: the critical point, +-{r:.2g} (3 x the closest distance)", fontsize=8)
+        axi.set_xlabel("Re det(I - G D)", fontsize=7)
+        axi.set_ylabel("Im det(I - G D)", fontsize=7)
+        axi.set_title(f"zoom on the origin: ±{r:.2g} (3 × the closest distance)", fontsize=8)
     if verdict:
         ax.text(
             0.02,
@@ -374,7 +376,7 @@ def plot_loop_nyquist(
     omega = np.asarray(omega, float)
     L = track_loci(np.asarray(loop, complex).reshape(omega.size, -1))
     for c in range(L.shape[1]):
-        lab = "w > 0" + (f" (locus {c + 1})" if L.shape[1] > 1 else "")
+        lab = "ω > 0" + (f" (locus {c + 1})" if L.shape[1] > 1 else "")
         ax.plot(L[:, c].real, L[:, c].imag, lw=1, label=lab, gid="locus")
         ax.plot(L[:, c].real, -L[:, c].imag, lw=0.6, ls="--", color="0.6")
     crit = -1.0 / width
@@ -409,10 +411,10 @@ def plot_loop_nyquist(
     ax.text(0.02, 0.98, note, transform=ax.transAxes, va="top", fontsize=8, gid="verdict",
             bbox={"fc": "white", "ec": "0.6", "alpha": 0.9})  # fmt: skip
     ax.axhline(0, color="0.3", lw=0.5)
-    ax.set_xlabel("Re lambda [1/m]")
-    ax.set_ylabel("Im lambda [1/m]")
+    ax.set_xlabel("Re λ [1/m]")
+    ax.set_ylabel("Im λ [1/m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.legend(loc="lower left", fontsize=7)
-    ax.set_title(title or "loop per unit width: det(I - G D) = prod(1 + b lambda)", fontsize=9)
+    ax.set_title(title or "loop per unit width: det(I - G D) = ∏(1 + b λ)", fontsize=9)
     return ax
