@@ -25,7 +25,7 @@ import pytest
 from conftest import turning_text
 
 import chatterlab as cl
-from chatterlab.design import design_fields, field_derivative, loop_matrices, sensitivity
+from chatterlab.design import design_fields, field_derivative, field_value, loop_matrices, sensitivity
 from chatterlab.errors import InputError
 from chatterlab.io import read_netcdf
 from chatterlab.lobes import lobes
@@ -156,7 +156,7 @@ def two_dof_sens():
 
 def test_methods_are_found(two_dof_sens):
     _, _, s = two_dof_sens
-    assert s.methods == ("affine", "affine", "central-4", "central-4", "affine")
+    assert s.methods == ("affine", "affine", "central", "central", "affine")
 
 
 @pytest.mark.parametrize("i", range(5))
@@ -217,12 +217,81 @@ def test_affine_fields_are_exact_and_the_others_detected():
     assert c2.d.K[1, 1] == pytest.approx(1.0, rel=1e-12, abs=1e-12)
     assert abs(c2.d.K[0, 0]) <= 1e-9 and not np.any(c2.d.M) and not np.any(c2.d.P)
     fa = field_derivative(model, "coupling.cut.force_angle_deg", base=L)
-    assert fa.method == "central-4"
+    assert fa.method == "central"
     # P = K_f f n^T (b = 1 m), f = (cos a, sin a): dP/da = K_f (-sin a, cos a) n^T pi/180
     a, n = np.radians(70.0), np.radians(30.0)
     exact = 2e9 * np.outer([-np.sin(a), np.cos(a), 0], [np.cos(n), np.sin(n), 0]) * np.pi / 180
-    # fourth-order difference, relative error ~ eps^(4/5) ~ 3e-13 of |P|: 1e-10 of |dP| leaves room
-    assert np.allclose(fa.d.P, exact, rtol=0, atol=1e-10 * np.abs(exact).max())
+    # central difference with the derived step: relative error ~ eps^(2/3) ~ 4e-11 of |P|, and
+    # |P| / |dP| = 180 / pi here: 1e-8 of |dP| is 4e-11 with a factor 4 to spare
+    assert np.allclose(fa.d.P, exact, rtol=0, atol=1e-8 * np.abs(exact).max())
+    # its error estimate (the truncation term from a third difference) bounds the actual error
+    err = np.abs(fa.d.P - fa.alt.P).max()
+    assert np.abs(fa.d.P - exact).max() <= err + 64 * EPS * np.abs(L.P).max() / fa.step
+
+
+MODAL = """
+[[mode]]
+id = "x1"
+frequency_hz = 500.0
+damping_ratio = 0.03
+stiffness = 1.0e7
+direction = "tool.x"
+[[point]]
+id = "tip"
+coords = { x = "tool.x" }
+[[coupling]]
+id = "cut"
+a = "tip"
+b = "ground"
+model = "regenerative"
+width_ref = 0.001
+Kf = 2.0e9
+[process]
+kind = "turning"
+rpm = 3000.0
+"""
+
+
+@pytest.mark.parametrize(
+    ("which", "path", "affine"),
+    [
+        ("two_dof", "spring.holder.c1", True),
+        ("two_dof", "spring.holder.d2", True),
+        ("two_dof", "body.tool.mass", True),
+        ("two_dof", "body.tool.inertia", True),
+        ("two_dof", "coupling.cut.Kf", True),
+        ("two_dof", "absorber.tva.damping_ratio", True),
+        ("two_dof", "absorber.tva.mass", True),  # f and zeta written: k, c and m all scale with m
+        ("two_dof", "absorber.tva.frequency_hz", False),
+        ("two_dof", "coupling.cut.force_angle_deg", False),
+        ("shaper", "beam.table.rho", True),
+        ("shaper", "beam.table.eta", True),
+        ("shaper", "beam.table.E", True),  # G follows E through nu
+        ("shaper", "coupling.cut.K3", True),
+        ("shaper", "beam.table.I", False),
+        ("shaper", "beam.table.A", False),
+        ("shaper", "beam.table.nu", False),
+        ("modal", "mode.x1.stiffness", True),
+        ("modal", "mode.x1.damping_ratio", True),
+        ("modal", "mode.x1.frequency_hz", False),
+    ],
+)
+def test_the_affinity_table_is_right(which, path, affine, shaper_path):
+    """Every field the table calls affine has a vanishing second difference of all the
+    loop's matrices over a step of a quarter of its value (relative 1e-9 of each block:
+    round-off of a few assemblies), every one it calls non-affine a nonvanishing one."""
+    from chatterlab.design import field_affinity
+    from chatterlab.design._matrices import _vanishes
+
+    model = {"two_dof": lambda: cl.loads_model(TWO_DOF), "modal": lambda: cl.loads_model(MODAL)}.get(
+        which, lambda: cl.load_model(shaper_path)
+    )()
+    assert field_affinity(model, path) is affine
+    p = field_value(model, path)
+    pos = 0.85 if which == "shaper" else None
+    X = [loop_matrices(model.with_parameter(path, p * f), position=pos) for f in (0.75, 1.0, 1.25)]
+    second = X[0].combine([1.0, -2.0, 1.0], X)
+    assert _vanishes(second, X) is affine
 
 
 def test_default_fields_include_the_joint_damping():

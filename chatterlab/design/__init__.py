@@ -14,7 +14,7 @@ from ._absorber import (
     without_absorbers,
 )
 from ._critical import CriticalPoint
-from ._fields import design_fields, field_unit, field_value
+from ._fields import design_fields, field_affinity, field_unit, field_value
 from ._limits import Limits, limits_of, lobe_bottoms
 from ._matrices import FieldDerivative, LoopMatrices, field_derivative, loop_matrices
 from ._sensitivity import Sensitivity, sensitivity
@@ -39,4 +39,5 @@ __all__ = [
     "design_fields",
     "field_value",
     "field_unit",
+    "field_affinity",
 ]

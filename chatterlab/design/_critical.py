@@ -183,6 +183,13 @@ class CriticalPoint:
             return float("nan")
         return float(sum(np.sum(s * x) for s, x in zip(self.S.blocks(), d.blocks(), strict=True)))
 
+    def error_bound(self, tol: LoopMatrices) -> float:
+        """The largest change of db/dp when every entry of dX/dp is off by at
+        most the same entry of ``tol``."""
+        if self.degenerate:
+            return float("nan")
+        return float(sum(np.sum(np.abs(s) * t) for s, t in zip(self.S.blocks(), tol.blocks(), strict=True)))
+
 
 def _sensitivity_matrices(L: LoopMatrices, e: _Eval, kind: str, index: int, T: float) -> LoopMatrices:
     """S of :class:`CriticalPoint` at an evaluated point (module docstring)."""

@@ -21,7 +21,7 @@ from typing import Any
 from ..errors import InputError
 from ..model import Model
 
-__all__ = ["design_fields", "field_value", "field_unit"]
+__all__ = ["design_fields", "field_value", "field_unit", "field_affinity"]
 
 #: the fields of each list table a design study varies by default (when the file writes them)
 _DESIGN = {
@@ -92,6 +92,75 @@ _DEFAULTS = {
     ("coupling", "Kv"): 0.0,
     ("absorber", "damping"): 0.0,
 }
+
+
+#: fields that enter M, C, K, J and the CE matrices linearly, by the assembly's construction
+#: (docs/model-format.md: a spring adds c J^T J, a body diag(m, m, J), a beam's mass and
+#: damping are proportional to rho and eta, a coupling's matrices to its coefficients, a
+#: mode's matrices to its stiffness or mass); tests/test_design_sensitivity.py confirms each
+#: by a vanishing second difference
+_AFFINE = (
+    {("spring", f) for f in ("c1", "c2", "c6", "d1", "d2", "d6")}
+    | {
+        ("body", "mass"),
+        ("body", "inertia"),
+        ("beam", "rho"),
+        ("beam", "eta"),
+        ("absorber", "stiffness"),
+        ("absorber", "damping"),
+        ("absorber", "damping_ratio"),
+        ("mode", "stiffness"),
+        ("mode", "mass"),
+        ("mode", "damping_ratio"),
+        ("coupling", "Kf"),
+        ("coupling", "Kv"),
+    }
+    | {("coupling", f"K{i}") for i in range(1, 9)}
+)
+#: fields that do not (a section's shear parameter, Poisson's ratio, angles, frequencies)
+_NOT_AFFINE = {
+    ("beam", "A"),
+    ("beam", "I"),
+    ("beam", "nu"),
+    ("beam", "G"),
+    ("beam", "kappa"),
+    ("spring", "angle_deg"),
+    ("coupling", "angle_deg"),
+    ("coupling", "force_angle_deg"),
+    ("coupling", "normal_angle_deg"),
+    ("coupling", "width_ref"),
+    ("absorber", "frequency_hz"),
+    ("absorber", "angle_deg"),
+    ("mode", "frequency_hz"),
+}
+
+
+def field_affinity(model: Model, path: str) -> bool | None:
+    """Whether the loop's matrices are affine in the field: True or False
+    where the model format says so, None where it does not (then it is
+    tested).  Young's modulus is affine when G follows it through nu (no
+    ``G`` written), an absorber's mass unless its stiffness and damping
+    ratio are written (then c = 2 zeta sqrt(k m) grows like sqrt(m))."""
+    kind, iid, name = _split(path)
+    if (kind, name) in _AFFINE:
+        return True
+    if (kind, name) in _NOT_AFFINE:
+        return False
+    if iid is None:
+        return None
+    items = _raw(model).get(kind, [])
+    item = (
+        next((it for it in items if isinstance(it, dict) and it.get("id") == iid), None)
+        if isinstance(items, list)
+        else None
+    )
+    if item is None:
+        return None
+    if (kind, name) == ("beam", "E"):
+        return "G" not in item
+    if (kind, name) == ("absorber", "mass"):  # c = 2 zeta sqrt(k m) is not linear in m at fixed k
+        return not ("stiffness" in item and "damping_ratio" in item)
+    return None
 
 
 def _raw(model: Model) -> dict[str, Any]:

@@ -11,16 +11,21 @@ matrices are available at any p, not as closed forms of p.  Their
 derivatives:
 
 * **affine fields** (a spring's stiffness or damping, a mass, a density,
-  Young's modulus with G from nu, a cutting coefficient): one central
-  difference over a large step h = |p|/4 is exact up to round-off.  The map
-  is *tested* to be affine on the same evaluations: the second difference
-  ``X(p+h) - 2 X(p) + X(p-h)`` must vanish to round-off (relative 1e-9 of
-  the block's size) in every block, else the field is treated as below;
-* **other fields** (a section's I or A, Poisson's ratio, an absorber's
-  frequency): the fourth-order central difference
-  ``[8 (X(p+h) - X(p-h)) - (X(p+2h) - X(p-2h))] / 12 h`` with the derived
-  step h = eps^(1/5) |p| that balances its truncation error h^4 X^(5) / 30
-  against round-off eps |X| / h (relative error ~ eps^(4/5) ~ 3e-13).
+  Young's modulus with G from nu, a cutting coefficient: the table of
+  :func:`chatterlab.design.field_affinity`, each entry confirmed by a
+  vanishing second difference in tests/test_design_sensitivity.py): one
+  difference over a large step h = |p|/4 (or 1 for a field at 0) is exact
+  up to round-off eps |Y| / (h |dY|), which is reported;
+* **fields the table does not know** are *tested*: the second difference
+  ``Y(p+h) - 2 Y(p) + Y(p-h)`` must vanish to round-off (relative 1e-9 of
+  the block's size) in every block for the central difference over h = |p|/4
+  to be taken as exact; else they are treated as below;
+* **other fields** (a section's I or A, Poisson's ratio, an angle, an
+  absorber's frequency): the central difference with the derived step
+  h = (3 eps)^(1/3) |p| that balances its truncation error h^2 Y^(3) / 6
+  against round-off eps |Y| / h (relative error ~ eps^(2/3) ~ 4e-11), and
+  that truncation term estimated from the third difference
+  ``Y(p+2h) - 3 Y(p+h) + 3 Y(p) - Y(p-h) = h^3 Y^(3)``, which is reported.
 
 The complex-step method (p + j h) would be exact for any smooth field, but
 the model reader and the assembly are not complex-safe (a field is checked
@@ -49,7 +54,7 @@ from ..errors import ChatterlabError, InputError, UnitWarning
 from ..model import Model
 from ..process import closed_loop
 from ..structure import assemble
-from ._fields import field_unit, field_value
+from ._fields import field_affinity, field_unit, field_value
 
 __all__ = ["LoopMatrices", "FieldDerivative", "loop_matrices", "field_derivative"]
 
@@ -120,12 +125,14 @@ def loop_matrices(
 class FieldDerivative:
     """d/dp of the :class:`LoopMatrices` for one field.
 
-    ``d`` is the derivative used; ``alt`` a second, less accurate estimate
-    (affine: the one-sided difference; otherwise the second-order central
-    difference) whose distance from ``d`` bounds the error of the less
-    accurate one -- the propagated difference is reported as the error
-    estimate of a sensitivity.  ``method`` is ``"affine"`` or
-    ``"central-4"``; ``step`` the h used (field unit).
+    ``d`` is the derivative used; ``alt`` a second estimate whose distance
+    from ``d`` estimates d's truncation error: for a tested affine field the
+    other difference (one-sided or over twice the step), for a non-affine one
+    the central difference corrected by its truncation term estimated from a
+    third difference, for an affine field of the format's table ``d`` itself
+    (no truncation).  ``roundoff`` estimates the round-off of each entry of
+    ``d``: 8 eps |Y| / |h|.  ``method`` is
+    ``"affine"`` or ``"central"``; ``step`` the h used (field unit).
     """
 
     path: str
@@ -136,6 +143,7 @@ class FieldDerivative:
     method: str
     step: float
     evaluations: int
+    roundoff: LoopMatrices | None = None
 
 
 def field_derivative(
@@ -151,10 +159,13 @@ def field_derivative(
 ) -> FieldDerivative:
     """d/dp of the loop's matrices for the field ``path`` (module docstring).
 
-    ``affine=True`` skips the test of affinity (a field known to enter
-    linearly, e.g. an absorber's stiffness): one forward difference over a
-    large step; ``False`` goes straight to the fourth-order difference."""
+    ``affine`` (default: what :func:`~chatterlab.design.field_affinity`
+    says of the field): True takes one difference over a large step (exact
+    for an affine map), False the central difference with the derived step,
+    None tests the field first (a vanishing second difference)."""
     p0 = field_value(model, path)
+    if affine is None:
+        affine = field_affinity(model, path)
     kw: dict[str, Any] = {"position": position, "speeds": speeds, "terms": terms, "couplings": couplings}
     X0 = base if base is not None else loop_matrices(model, **kw)
     n_eval = 0
@@ -172,10 +183,20 @@ def field_derivative(
             )
         return X
 
-    scale = abs(p0) if p0 != 0 else _unit_step(at, X0)
-    if scale == 0.0:  # the field changes nothing: every derivative is zero
+    def result(d: LoopMatrices, alt: LoopMatrices, method: str, h: float) -> FieldDerivative:
+        return FieldDerivative(path, p0, field_unit(path), d, alt, method, abs(h), n_eval, _roundoff(X0, h))
+
+    if p0 == 0 and affine:  # an affine field at 0: the difference to p = 1, rescaled if too small
+        h, Xh = _zero_step(at, X0, path, p0)
+        if Xh is None:  # the field changes nothing: every derivative is zero
+            z = X0.combine([0.0], [X0])
+            return result(z, z, "affine", 0.0)
+        d = Xh.combine([1 / h, -1 / h], [Xh, X0])
+        return result(d, d, "affine", h)
+    scale = abs(p0) if p0 != 0 else _scale(at, X0)
+    if scale == 0.0:
         z = X0.combine([0.0], [X0])
-        return FieldDerivative(path, p0, field_unit(path), z, z, "affine", 0.0, n_eval)
+        return result(z, z, "affine", 0.0)
     if affine is not False:
         h = 0.25 * scale
         Xp = at(p0 + h)
@@ -185,8 +206,8 @@ def field_derivative(
         if Xp is None:
             raise InputError(f"field '{path}' = {p0:g}: the model cannot be built around this value")
         forward = Xp.combine([1 / h, -1 / h], [Xp, X0])
-        if affine:  # known to enter linearly: the difference is exact
-            return FieldDerivative(path, p0, field_unit(path), forward, forward, "affine", h, n_eval)
+        if affine:  # affine by the format: the difference is exact up to round-off
+            return result(forward, forward, "affine", h)
         Xm = at(p0 - h)
         if Xm is not None:  # central: X(p - h), X(p), X(p + h)
             three = [Xm, X0, Xp]
@@ -198,35 +219,72 @@ def field_derivative(
             three = [X0, Xp, X2]
             d, alt = forward, X2.combine([0.5 / h, -0.5 / h], [X2, X0])
         if _vanishes(Xp.combine([1.0, -2.0, 1.0], three), three):
-            return FieldDerivative(path, p0, field_unit(path), d, alt, "affine", abs(h), n_eval)
-    h = _EPS**0.2 * scale
-    got = [at(p0 + k * h) for k in (-2, -1, 1, 2)]
-    pts = [x for x in got if x is not None]
-    if len(pts) < 4:
+            return result(d, alt, "affine", h)
+    # not affine: the central difference with the step that balances its truncation error
+    # h^2 Y^(3) / 6 against round-off eps |Y| / h, and that truncation term estimated from the
+    # third difference Y(p + 2h) - 3 Y(p + h) + 3 Y(p) - Y(p - h) = h^3 Y^(3) (+ O(h^4))
+    h = (3 * _EPS) ** (1 / 3) * scale
+    Xm, Xp, X2 = at(p0 - h), at(p0 + h), at(p0 + 2 * h)
+    if Xm is None or Xp is None or X2 is None:
         raise InputError(
             f"field '{path}' = {p0:g} lies at the edge of its valid range: the model cannot be built at"
-            f" {p0:g} +- {2 * h:.3g}, so the field has no two-sided derivative here"
+            f" {p0:g} - {h:.3g} .. {p0:g} + {2 * h:.3g}, so the field has no two-sided derivative here"
         )
-    m2, m1, p1, p2 = pts
-    d = p1.combine([8 / (12 * h), -8 / (12 * h), -1 / (12 * h), 1 / (12 * h)], [p1, m1, p2, m2])
-    alt = p1.combine([0.5 / h, -0.5 / h], [p1, m1])
-    return FieldDerivative(path, p0, field_unit(path), d, alt, "central-4", h, n_eval)
+    d = Xp.combine([0.5 / h, -0.5 / h], [Xp, Xm])
+    third = Xp.combine([1.0, -3.0, 3.0, -1.0], [X2, Xp, X0, Xm])
+    alt = d.combine([1.0, -1.0 / (6 * h)], [d, third])  # d - h^2 Y^(3) / 6
+    return result(d, alt, "central", h)
 
 
-def _unit_step(at: Any, X0: LoopMatrices) -> float:
-    """A scale for a field whose value is 0: the step that changes the
-    matrices by about a quarter of their size (probed at p = 1; 0 when the
-    field changes nothing)."""
-    X1 = at(1.0)
+def _roundoff(X0: LoopMatrices, h: float) -> LoopMatrices:
+    """An estimate of the round-off of a difference quotient of the blocks
+    over the step h, entry by entry: 8 eps |Y| / |h| (a few roundings of each
+    entry in the model's assembly, divided by the step; 0 for a zero step)."""
+    hh = abs(h)
+    return LoopMatrices(*(8 * _EPS * np.abs(Y) / hh if hh else np.zeros_like(Y) for Y in X0.blocks()))
+
+
+def _zero_step(at: Any, X0: LoopMatrices, path: str, p0: float) -> tuple[float, LoopMatrices | None]:
+    """For an affine field at 0: (h, Y(h)) with h = 1, or, when that changes the
+    matrices by less than 1e-6 of their size (round-off above 1e-10 of the
+    difference), the step that changes them by a quarter of it."""
+    h, X1 = 1.0, at(1.0)
     if X1 is None:
-        X1 = at(-1.0)
+        h, X1 = -1.0, at(-1.0)
+    if X1 is None:
+        raise InputError(
+            f"field '{path}' = {p0:g}: the model cannot be built at +-1; give it a nonzero value"
+        )
+    rel = _relative_change(X0, X1)
+    if rel == 0:
+        return h, None
+    if rel < 1e-6:
+        h = h * 0.25 / rel
+        X1 = at(h)
         if X1 is None:
-            raise InputError("a field at 0 whose model cannot be built at +-1: give it a nonzero value")
+            raise InputError(f"field '{path}' = {p0:g}: the model cannot be built at {h:g}")
+    return h, X1
+
+
+def _relative_change(X0: LoopMatrices, X1: LoopMatrices) -> float:
     rel = 0.0
     for a, b in zip(X1.blocks(), X0.blocks(), strict=True):
         nb = float(np.abs(b).max(initial=0.0))
         if nb > 0:
             rel = max(rel, float(np.abs(a - b).max(initial=0.0)) / nb)
+    return rel
+
+
+def _scale(at: Any, X0: LoopMatrices) -> float:
+    """A scale for a field whose value is 0 (not known to be affine): the
+    step that changes the matrices by about a quarter of their size (probed
+    at p = 1; 0 when the field changes nothing)."""
+    X1 = at(1.0)
+    if X1 is None:
+        X1 = at(-1.0)
+        if X1 is None:
+            raise InputError("a field at 0 whose model cannot be built at +-1: give it a nonzero value")
+    rel = _relative_change(X0, X1)
     return 0.0 if rel == 0 else 0.25 / rel
 
 

@@ -41,7 +41,7 @@ class Sensitivity:
     fields, units, values, methods
         The parameter paths, their units, their values in the model and how
         the loop's matrices were differentiated (``"affine"``: one exact
-        difference; ``"central-4"``: fourth-order central difference).
+        difference; ``"central"``: the central difference with the derived step).
     speed : ndarray (n,)
         The speeds of the study (process unit); ``b_lim`` (m) at them.
     d_b_lim : ndarray (n_fields, n)
@@ -53,8 +53,10 @@ class Sensitivity:
     d_minimum, d_absolute : ndarray (n_fields,)
         Their derivatives, m per field unit.
     err_minimum, err_absolute : ndarray (n_fields,)
-        Error estimates of those: the change when the matrices'
-        derivatives are taken one order less accurately (an upper bound).
+        Error estimates of those, propagated from the matrices' derivatives:
+        their truncation error (none for an affine field; for a non-affine
+        one its leading term, from a third difference) plus a bound of their
+        round-off.
     degenerate : bool
         Two boundaries meet at the minimum (a symmetric structure): the
         minimum has no derivative there (d_* are nan).
@@ -327,6 +329,8 @@ def sensitivity(
             if cp is not None:
                 dd[i] = cp.derivative(fd.d)
                 ee[i] = abs(dd[i] - cp.derivative(fd.alt))
+                if fd.roundoff is not None:
+                    ee[i] += cp.error_bound(fd.roundoff)
     mn = lim.minimum
     minimum = {
         "width": float(mn.b) if mn is not None else float("inf"),
