@@ -18,8 +18,9 @@ one.  The pitch difference Delta = 40 deg cancels the regeneration of
 consecutive teeth where omega_c Delta / Omega ~ pi, i.e. near
 Omega = omega_c Delta / pi: about 11000 rpm for a 920 Hz chatter.
 
-Run: ``python studies/milling_benchmark.py`` (prints the numbers and writes
-``docs/figures/milling_lobes.png`` and ``docs/figures/milling_pitch.png``).
+Run: ``python studies/milling_benchmark.py`` (prints the numbers; with
+``--figures docs/figures`` it also rewrites ``milling_lobes.png`` and
+``milling_pitch.png`` there).
 ``tests/test_floquet.py`` runs :func:`compute` on a few speeds.
 
 References: T. Insperger, G. Stepan, Int. J. Numer. Meth. Engng 61 (2004)
@@ -136,6 +137,9 @@ def draw(res: dict[str, Any], folder: Path) -> list[Path]:
 
 
 def main() -> None:
+    from _figures import figures_dir
+
+    folder = figures_dir(__doc__.splitlines()[0])
     res = compute(201, 101)
     for imm in (0.05, 1.0):
         sp = res[imm]["spectral"]
@@ -152,9 +156,9 @@ def main() -> None:
         f"variable pitch: largest gain x{v.a_lim[j] / u.a_lim[j]:.2f} at {v.speed[j]:.0f} rpm"
         f" ({u.a_lim[j] * 1e3:.3f} -> {v.a_lim[j] * 1e3:.3f} mm)"
     )
-    folder = Path(__file__).resolve().parents[1] / "docs" / "figures"
-    for p in draw(res, folder):
-        print("wrote", p)
+    if folder is not None:
+        for p in draw(res, folder):
+            print("wrote", p)
 
 
 if __name__ == "__main__":

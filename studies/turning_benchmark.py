@@ -18,8 +18,6 @@ Automation*, 2nd ed., Cambridge University Press, 2012, ch. 3.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 from scipy.optimize import brentq
 
@@ -97,12 +95,17 @@ def run(rpm: np.ndarray | None = None) -> dict:
 
 
 if __name__ == "__main__":
+    from _figures import figures_dir
+
+    folder = figures_dir(__doc__.splitlines()[0])
     r = run()
     print(r["diagram"].summary())
     print(f"max relative error of the envelope against the closed form: {r['max_rel_error']:.2e}")
     print(
         f"minimum b_lim {r['minimum'] * 1e3:.9g} mm, closed form 2 k zeta (1 + zeta) / K_f = {r['minimum_closed_form'] * 1e3:.9g} mm"
     )
+    if folder is None:
+        raise SystemExit(0)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -114,7 +117,6 @@ if __name__ == "__main__":
         title="1-DOF turning: chatterlab lobes and Tlusty's closed form",
         references={"closed form (Tlusty), at the requested speeds": (d.speed, r["reference"])},
     )
-    out = Path(__file__).resolve().parents[1] / "docs" / "figures" / "turning_lobes.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    out = folder / "turning_lobes.png"
     savefig(axes, str(out))
     print(f"wrote {out}")

@@ -92,7 +92,7 @@ def turning_tables(point: str, coords: dict[str, str] | None = None) -> dict[str
     }
 
 
-def run(out: Path | None = FIGURES, *, quick: bool = False) -> dict[str, Any]:
+def run(out: Path | None = None, *, quick: bool = False) -> dict[str, Any]:
     """The walkthrough; figures to ``out`` (None: no figures)."""
     from chatterlab.lobes import lobes, lobes_measured
     from chatterlab.model import Process, build_model
@@ -347,7 +347,10 @@ def _figures(
 
 
 def main() -> None:
-    res = run()
+    sys.path.insert(0, str(HERE.parent))
+    from _figures import figures_dir
+
+    res = run(figures_dir(__doc__.splitlines()[0]))
     print(res["fit_table"])
     for k, v in res.items():
         if k != "fit_table":

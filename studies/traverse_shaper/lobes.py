@@ -16,6 +16,7 @@ writes ``docs/figures/shaper_lobes.png``, ``shaper_lobes_zoom.png`` and
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -121,9 +122,11 @@ def plot(r: dict, outdir: Path) -> list[Path]:
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(HERE.parent))
+    from _figures import figures_dir
+
+    out = figures_dir(__doc__.splitlines()[0])
     res = run()
     print(report(res))
-    out = HERE.parents[1] / "docs" / "figures"
-    out.mkdir(parents=True, exist_ok=True)
-    for f in plot(res, out):
+    for f in plot(res, out) if out is not None else []:
         print(f"wrote {f}")

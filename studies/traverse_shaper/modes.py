@@ -13,6 +13,7 @@ Run: ``python studies/traverse_shaper/modes.py`` (prints the table and writes
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -82,8 +83,12 @@ def plot(res: dict[str, np.ndarray], path: Path) -> None:
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(HERE.parent))
+    from _figures import figures_dir
+
+    folder = figures_dir(__doc__.splitlines()[0])
     res = run()
     print(table(res))
-    out = HERE.parents[1] / "docs" / "figures" / "shaper_modes.png"
-    plot(res, out)
-    print(f"wrote {out}")
+    if folder is not None:
+        plot(res, folder / "shaper_modes.png")
+        print(f"wrote {folder / 'shaper_modes.png'}")
