@@ -74,3 +74,19 @@ def test_a_wrong_unit_is_one_line(capsys, args, words):
     code = main(args)
     err = capsys.readouterr().err
     assert_clean_error(code, err, *words)
+
+
+@pytest.mark.parametrize(
+    ("args", "option", "cap"),
+    [
+        (["lobes", SHAPER, "--speed", "0.1", "1", "--verify", "100000"], "--verify", 1000),
+        (["lobes", SHAPER, "--speed", "0.1", "1", "--confirm", "51"], "--confirm", 50),
+        (["roots", SHAPER, "--width", "0.2", "--count", "201"], "--count", 200),
+        (["lobes", ONE, "--speed", "1000", "2000", "--scan", "1000000000"], "--scan", 2000),
+        (["roots", ONE, "--width", "1", "--method", "sdm", "--steps", "5001"], "--steps", 5000),
+    ],
+)
+def test_every_count_whose_work_grows_has_a_cap(capsys, args, option, cap):
+    """Issue 20 item 7: a refusal before the work, naming the option and the largest accepted value."""
+    code = main(args)
+    assert_clean_error(code, capsys.readouterr().err, option, f"largest accepted, {cap}")

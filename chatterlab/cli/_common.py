@@ -37,6 +37,16 @@ MM = 1e-3
 MAX_POINTS = 100_000
 #: the most positions of an atlas (``lobes --positions A B N``): a boundary is computed at each
 MAX_POSITIONS = 10_000
+#: the largest value of every other count whose work grows with it (issue 20 item 7: every command
+#: finishes or refuses within a bounded time): dest -> (largest accepted, what each unit costs)
+COUNT_CAPS = {
+    "verify": (1000, "each an argument-principle count"),
+    "confirm": (50, "each a Newmark simulation of the closed loop"),
+    "count": (200, "the rightmost roots searched"),
+    "steps": (5000, "the semi-discretisation's matrices grow with the steps squared"),
+    "scan": (2000, "each depth one monodromy eigenvalue problem"),
+    "teeth": (100, "the period's pieces grow with the teeth"),
+}
 
 
 def mm_to_m(value_mm: Any) -> Any:
@@ -197,6 +207,15 @@ def check_numbers(args: argparse.Namespace, unit: str = "") -> None:
         )
     if getattr(args, "count", None) is not None:
         check_count(args.count, "--count", 1)
+    for dest, (cap, why) in COUNT_CAPS.items():
+        value = getattr(args, dest, None)
+        if dest == "count" and getattr(args, "command", None) != "roots":
+            continue  # modes --count only lists modes already computed
+        if isinstance(value, int) and not isinstance(value, bool) and value > cap:
+            opt = "--" + dest.replace("_", "-")
+            raise InputError(
+                f"{opt} {value} is more than the largest accepted, {cap} ({why}): use at most {cap}"
+            )
 
 
 # ----------------------------------------------------------------------------- unit slips
