@@ -149,7 +149,8 @@ def test_files_and_plots(full_run, tmp_path):
     matplotlib.use("Agg")
     ax = r.plot(risk=0.05)
     assert ax.get_xlabel() == "spindle speed [rpm]"
-    assert r.plot_sensitivity().get_xlim() == (-0.05, 1.05)
+    lo, hi = r.plot_sensitivity().get_xlim()
+    assert lo == -0.05 and hi >= 1.25  # every bar and its interval inside
     import matplotlib.pyplot as plt
 
     plt.close("all")

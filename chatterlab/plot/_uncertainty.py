@@ -54,11 +54,16 @@ def plot_risk(result: Any, *, ax: Any = None, risk: float | None = None, title: 
             lw=2.4,
             label=f"P(chatter) = {100 * risk:g} % (safe side)",
         )
+    right = v.min() + 0.75 * (v.max() - v.min())
     for k, (pv, pb) in enumerate(result.points):
         e = result.p_chatter
         ax.plot(pv, 1e3 * pb, marker="o", ms=7, mfc="white", mec="k", ls="none")
-        ax.annotate(f"P = {float(e.value[k]):.3f}\n[{max(float(e.low[k]), 0):.3f}, {min(float(e.high[k]), 1):.3f}]",
-                    (pv, 1e3 * pb), textcoords="offset points", xytext=(6, 6), fontsize=7)  # fmt: skip
+        left = pv > right  # the label on the side with room
+        ax.annotate(
+            f"P(chatter) = {float(e.value[k]):.3f}\n[{max(float(e.low[k]), 0):.3f}, {min(float(e.high[k]), 1):.3f}]",
+            (pv, 1e3 * pb), textcoords="offset points", xytext=(-8 if left else 8, 6), fontsize=7,
+            ha="right" if left else "left", bbox={"boxstyle": "round", "fc": "white", "alpha": 0.8, "lw": 0.3},
+        )  # fmt: skip
     ax.set_xlim(v.min(), v.max())
     ax.set_ylim(0.0, top)
     ax.set_xlabel(f"{result.process.speed_name} [{result.speed_unit}]")
@@ -69,7 +74,7 @@ def plot_risk(result: Any, *, ax: Any = None, risk: float | None = None, title: 
         f" (map error <= {float(np.nanmax(result.p_stable.half_width)):.2g})",
         fontsize=10,
     )
-    ax.legend(fontsize=7, loc="upper right", framealpha=0.85)
+    ax.legend(fontsize=7, loc="upper left", framealpha=0.85)
     return ax
 
 
@@ -101,9 +106,13 @@ def plot_sobol(result: Any, *, ax: Any = None, output: str = "b_min", title: str
         vv = np.nan_to_num(np.asarray(vals, float)[order])
         ee = np.nan_to_num(np.asarray(e, float)[order])
         ax.barh(y + off, vv, height=h, color=colour, xerr=ee, capsize=2, label=label, error_kw={"lw": 0.8})
+        for yi, val, err in zip(y + off, vv, ee, strict=True):
+            ax.text(max(val + err, 0.0) + 0.01, yi, f"{val:.3f} \u00b1 {err:.3f}", va="center", fontsize=7)
     ax.set_yticks(y, [names[i] for i in order], fontsize=8)
     ax.axvline(0.0, color="k", lw=0.8)
-    ax.set_xlim(-0.05, 1.05)
+    top = max([1.0] + [float(np.nanmax(np.asarray(e.value) + np.asarray(e.half_width))) for e in (s1, st)
+                       if np.any(np.isfinite(e.value))])  # fmt: skip
+    ax.set_xlim(-0.05, top + 0.25)
     ax.set_xlabel("share of the output's variance")
     what = (
         f"smallest {result.limit_name}"
