@@ -56,3 +56,30 @@ def test_risk_writes_what_it_prints(tmp_path, capsys, monkeypatch):
     assert header.startswith("speed [rpm],width [m],p_stable [1]") and "b_lim_q50 [m]" in header
     p = np.loadtxt(tmp_path / "again.csv", delimiter=",", skiprows=1, usecols=2)
     assert np.array_equal(p, d.data["p_stable"][0].ravel())
+
+
+def test_the_shipped_uncertain_model_is_what_the_study_writes(tmp_path):
+    """studies/tap_test/fit_uncertain.toml (the docs' command line example)
+    is the fit's model as studies/tap_test/risk.py writes it today."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("tap_test_risk", root / "studies" / "tap_test" / "risk.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    import tomllib
+
+    made = tomllib.loads(mod.write_model(tmp_path / "fit_uncertain.toml").read_text())
+    shipped = tomllib.loads((root / "studies" / "tap_test" / "fit_uncertain.toml").read_text())
+
+    def same(a, b):  # numbers to 1e-9: the fit's least squares may round differently under another BLAS
+        if isinstance(a, dict):
+            return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+        if isinstance(a, list):
+            return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+        if isinstance(a, float):
+            return abs(a - b) <= 1e-9 * max(abs(a), abs(b))
+        return a == b
+
+    assert same(made, shipped)

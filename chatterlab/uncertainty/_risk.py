@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import uuid
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -184,7 +185,7 @@ def risk(
     fp = _fingerprint(model, space, design, n_max, all_v, wmax, position, opts)
     task = LobeSampleTask(
         model, space, design, n_max, tuple(all_v.tolist()), wmax, position, tuple(sorted(opts.items())),
-        share, fp,
+        share, fp, uuid.uuid4().hex,
     )  # fmt: skip
     stages = [n_max] if tol is None else _schedule(n_max)
     arrays = {k: np.full((replicates, design.matrices, n_max, all_v.size), np.nan) for k in OUTPUTS}

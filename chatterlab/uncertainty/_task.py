@@ -80,7 +80,8 @@ class LobeSampleTask:
     position: float | None = None
     options: tuple[tuple[str, Any], ...] = ()
     share: bool = True  #: reuse the structure when only the cut is uncertain
-    key: str = field(default="", repr=False)  #: the run's fingerprint (worker caches)
+    key: str = field(default="", repr=False)  #: the run's fingerprint (checkpoints; the shared structure)
+    run_id: str = field(default="", repr=False)  #: this run (the rows cached in a worker serve it only)
 
     def values(self, eid: int) -> dict[str, float]:
         """The field values of an evaluation."""
@@ -105,7 +106,7 @@ class LobeSampleTask:
         return lobes(mdl, v, width_max=self.width_max, position=self.position, **opts)
 
     def row(self, eid: int) -> dict[str, np.ndarray]:
-        key = (self.key, int(eid))
+        key = (self.run_id, int(eid))
         hit = _ROWS.get(key)
         if hit is not None:
             _ROWS.move_to_end(key)
