@@ -183,6 +183,9 @@ class _Stepper:
         self.S = np.zeros((p.cap, 4, n))
         self.S[0, 1], self.S[0, 2], self.S[0, 3] = p.q0, p.v0, p.a0
         self.Sz = self.S.reshape(p.cap, 4 * n)[:, n:]  # rows: the state (q, v, a) as one vector
+        # the rows as views made once (S is never reallocated): a point of a coupling reads and
+        # writes them without making a view per step
+        self.Zrows = [self.Sz[i] for i in range(p.cap)] if p.coupling is not None else []
         self.off = 0
         nb = 4 if p.has_delay else 3
         self.xfull = np.zeros(nb * n)
@@ -309,7 +312,7 @@ class _Stepper:
         Blk: Any
         if cut is not None:
             points, gsteps = data
-            point, Sz, src = cut.point, self.Sz, r0
+            point, Zrows, src = cut.point, self.Zrows, r0
         else:
             Kinv, F, Blk = data
             points = range(c)
@@ -318,7 +321,7 @@ class _Stepper:
             for k, e in enumerate(points):
                 if cut is not None:  # the coupling's substep e ends in step gsteps[k]
                     row = gsteps[k] - off
-                    point(k, e, Sz[src], Sz[row])
+                    point(k, e, Zrows[src], Zrows[row])
                     src = row
                     continue
                 Sk = S[r0 + k]
