@@ -1,51 +1,70 @@
-"""Benchmark of the milling lobes (issue 12): the spectral-element Floquet
-method against first-order semi-discretisation (SDM) with 40 steps, the
-method peers use.
+"""The milling rows of issue 26, measured: the Floquet lobes against a plain
+numpy semi-discretisation, and an FE-scale end mill without hand reduction.
 
 Run from the repository root::
 
-    python benchmarks/bench_milling.py             # 201 speeds, both immersions
-    python benchmarks/bench_milling.py --quick     # 41 speeds
+    python benchmarks/bench_milling.py                   # label "current", 5 interleaved repeats
+    python benchmarks/bench_milling.py --label before    # e.g. with PYTHONPATH at an older checkout
+    python benchmarks/bench_milling.py --table-only      # regenerate milling.md from milling.json
 
-The problem is Insperger & Stepan's 1-DOF benchmark (N = 2, Kt = 6e8,
-Kn = 2e8 N/m^2, 922 Hz, zeta = 0.011, m = 0.03993 kg, down-milling) at
-a_e/D = 0.05 and 1, over 5000-25000 rpm, depths to 10 mm.  Everything below
-is measured in this run, single-threaded BLAS, with the load averages:
+**Row 1, the lobes.**  The 1-DOF benchmark of Insperger & Stepan
+(``studies/milling/benchmark_1dof.toml``: N = 2, K_t = 6e8, K_n = 2e8 N/m^2,
+922 Hz, zeta = 0.011, m = 0.03993 kg, down-milling) at a_e/D = 0.05 and 1,
+201 speeds 5000-25000 rpm, depths to 10 mm, the loop read from the model
+file (``milling_loop_of(assemble(load_model(path)).at())``, the immersion
+set in the file's text).  Two routes, timed interleaved (a, b, a, b, ...),
+``--repeat`` times each, every route with one BLAS thread:
 
-1. **spectral** ``milling_lobes(method="spectral")``: Brent to rtol 1e-8 on
-   the spectral radius after a 40-depth scan, with the convergence check of
-   every limit (degree + 6); timed ``--repeat`` times interleaved with 3
-   (min and median);
-2. **its accuracy**, measured: on every 10th speed a reference with degree
-   28 (+6 for its check) and rtol 1e-11; the largest relative deviation;
-3. **SDM m = 40, the same search** (scan + Brent to rtol 1e-4, which is far
-   below its own ~1 % error): the competent use of the peers' method;
-4. **SDM m = 40 on a grid** of 201 speeds x ``--grid-depths`` depths with
-   the boundary read between grid depths (what the published SDM codes do,
-   a contour of the spectral radius); measured, not extrapolated;
-5. the accuracy of 3 and 4 against the reference (largest and median
-   relative error);
-6. **the 2-core sweep**: the spectral lobes as a sweep over the speeds with
-   the loky backend, 2 workers, vs the serial backend (warm, interleaved
-   repeats, min of each);
-7. memory: the Python allocation peak (tracemalloc, in a separate run on 11
-   speeds: tracing slows Python several times, so no timing is traced) of 1
-   and 3, and the process's peak RSS.
+a. chatterlab: ``milling_lobes(loop, rpm, depth_max=0.01, **SETTINGS)``, the
+   spectral elements with the complete depth search.  ``SETTINGS`` is the
+   1e-6 setting: ``rtol=1e-7``, so that every limit's convergence check must
+   confirm it to ``10 rtol`` = 1e-6 relative (the engine refines the mesh of
+   any speed where it does not; ``target_rtol`` in the diagram's meta) and
+   the root is located to 1e-7;
+b. the competitor, :class:`PlainSDM` below: what a competent numpy user
+   writes from Insperger & Stepan (2004): first-order semi-discretisation with
+   m = 40 steps per period, the step matrices of all steps by one batched
+   ``scipy.linalg.expm`` of the 6 x 6 Van Loan blocks (states scaled so that
+   the exponent's norm is ~omega dt), the coefficients' exact means over each
+   step in closed form, the monodromy built by updating its two top rows and
+   shifting the history rows (no dense (m+2)^2 products), ``numpy.linalg.eigvals``;
+   and the same depth search as chatterlab's scan route (40 depths up to the
+   first one with spectral radius >= 1, then Brent's method to rtol 1e-4,
+   far below its own error).
 
-Numbers go to ``benchmarks/results/bench_milling.json``.
+Accuracy: both against a reference computed in the same run, chatterlab's
+spectral method at degree 24 with elements half as long (omega L <= 2.5) and
+rtol 1e-11 (its own convergence check is recorded), at **all** 201 speeds:
+the largest and median relative error of a_lim.  Times: min and median of
+the wall clock and of the process's CPU time (the machine is shared:
+``/proc/loadavg`` before and after).  Memory: the process's peak RSS after
+each row.
+
+**Row 2, the FE tool.**  ``studies/milling/tool_cantilever.toml`` with its
+carbide beam cut into 100 Timoshenko elements (302 coordinates), its loop
+unreduced, at 5000/10000/15000/20000/25000 rpm and a_e/D = 0.05, 0.5 and 1:
+``milling_lobes(loop, [rpm], depth_max=...)`` per speed, timed once each
+(a per-speed cost, goal <= 10 s), with the result's basis, error estimate and
+what the engine reduced.  A refusal (an ``InputError``, as 0.2.0 gives) is
+recorded as such.
+
+Results go to ``benchmarks/results/milling.json`` under ``runs[<label>]``
+(other labels are kept) and ``benchmarks/results/milling.md`` is generated
+from it.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import os
 import platform
+import re
 import resource
+import subprocess
 import sys
 import time
-import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -54,211 +73,450 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+import scipy.linalg as sla  # noqa: E402
+from scipy.optimize import brentq  # noqa: E402
 
 try:
-    import chatterlab  # noqa: F401
+    import chatterlab as cl
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from chatterlab.frequency import sdm_monodromy  # noqa: E402
-from chatterlab.lobes import milling_lobes  # noqa: E402
-from chatterlab.process import (
-    Milling,  # noqa: E402
-    milling_loop,  # noqa: E402
-)
-from chatterlab.structure import Structure  # noqa: E402
+    import chatterlab as cl
 
 ROOT = Path(__file__).resolve().parents[1]
-LOADED = 0.5
+ONE_DOF = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
+TOOL = ROOT / "studies" / "milling" / "tool_cantilever.toml"
+OUT = ROOT / "benchmarks" / "results" / "milling.json"
+TABLE = ROOT / "benchmarks" / "results" / "milling.md"
+IMMERSIONS = (0.05, 1.0)
+DEPTH_MAX = 0.01
+#: chatterlab's 1e-6 setting (see the module docstring)
+SETTINGS: dict[str, Any] = {"rtol": 1e-7}
+#: the reference: degree 24, elements half as long, rtol 1e-11
+REFERENCE: dict[str, Any] = {"degree": 24, "rtol": 1e-11}
+REFERENCE_SPAN = 2.5
+SDM_STEPS = 40
+SDM_RTOL = 1e-4
+GOAL = 10.0  #: issue 26: chatterlab at least this many times faster than the plain SDM
+FE_ELEMENTS = 100
+FE_RPM = (5000.0, 10000.0, 15000.0, 20000.0, 25000.0)
+FE_IMMERSIONS = (0.05, 0.5, 1.0)
+FE_GOAL_S = 10.0
 
 
-def structure() -> Structure:
-    return Structure.single_dof(0.03993, 2 * np.pi * 922.0, 0.011)
+# ============================================================================ the machine
+def loadavg() -> str:
+    try:
+        return Path("/proc/loadavg").read_text().strip()
+    except OSError:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def cutter(immersion: float) -> Milling:
-    return Milling.from_immersion(2, 0.02, 6e8, 2e8, immersion, "down")
+def peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def load() -> list[float]:
-    return [round(x, 2) for x in os.getloadavg()]
+def source_commit() -> str:
+    """The commit of the chatterlab actually imported, '+dirty' when its tracked files differ."""
+    src = Path(cl.__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no", "chatterlab"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        return head + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return f"not a checkout ({src})"
 
 
-def timed(f: Any, f_small: Any) -> tuple[Any, float, int]:
-    """Run ``f`` timed (no tracing: tracemalloc slows Python code several
-    times), then ``f_small`` (the same on 11 speeds) under tracemalloc for
-    the allocation peak, which does not grow with the number of speeds."""
-    t = time.perf_counter()
-    out = f()
-    dt = time.perf_counter() - t
-    tracemalloc.start()
-    f_small()
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return out, dt, peak
+def stats(wall: list[float], cpu: list[float]) -> dict[str, Any]:
+    return {
+        "min_s": min(wall),
+        "median_s": float(np.median(wall)),
+        "wall_s": wall,
+        "cpu_min_s": min(cpu),
+        "cpu_median_s": float(np.median(cpu)),
+        "cpu_s": cpu,
+    }
 
 
-def sdm_grid(st: Structure, m: Milling, rpm: np.ndarray, depths: np.ndarray) -> np.ndarray:
-    """The peers' way: the spectral radius of SDM m = 40 on a (speed, depth)
-    grid, the boundary read between the first unstable grid depth and the one
-    below it (linear interpolation of rho - 1)."""
-    out = np.full(rpm.size, np.inf)
-    for i, r in enumerate(rpm):
-        prev_a, prev_f = 0.0, -1.0
-        for a in depths:
-            ev = np.linalg.eigvals(sdm_monodromy(milling_loop(st, m), float(r), float(a), 40))
-            f = float(np.max(np.abs(ev))) - 1.0
-            if f >= 0:
-                out[i] = prev_a + (a - prev_a) * (-prev_f) / (f - prev_f)
-                break
-            prev_a, prev_f = float(a), f
+# ============================================================================ the problem
+def one_dof_loop(immersion: float) -> Any:
+    """The benchmark's loop from its model file, the immersion set in the text."""
+    from chatterlab.lobes import milling_loop_of
+
+    text = ONE_DOF.read_text()
+    text, n = re.subn(
+        r"^radial_immersion = [0-9.e+-]+", f"radial_immersion = {immersion!r}", text, flags=re.M
+    )
+    assert n == 1, "the model file's radial_immersion line moved"
+    return milling_loop_of(cl.assemble(cl.loads_model(text)).at())
+
+
+def fe_loop(immersion: float, elements: int = FE_ELEMENTS) -> Any:
+    """The cantilever end mill with its beam cut into ``elements`` parts, unreduced."""
+    from chatterlab.lobes import milling_loop_of
+
+    text = TOOL.read_text()
+    text, n = re.subn(r"^elements = \d+", f"elements = {elements}", text, flags=re.M)
+    text, m = re.subn(
+        r"^radial_immersion = [0-9.e+-]+", f"radial_immersion = {immersion!r}", text, flags=re.M
+    )
+    assert n == 1 and m == 1, "the tool file's elements/radial_immersion lines moved"
+    return milling_loop_of(cl.assemble(cl.loads_model(text)).at())
+
+
+# ============================================================================ the competitor
+class PlainSDM:
+    """First-order semi-discretisation of a 1-DOF milling tool (Insperger &
+    Stepan, Int. J. Numer. Meth. Engng 61 (2004) 117-141), written as a
+    competent numpy user would: m x'' + c x' + k x = -a_p h(t) (x(t) - x(t - tau)),
+    tau = T the tooth period, h(t) = sum_j g_j sin phi_j (K_t cos phi_j + K_n sin phi_j).
+
+    Per speed the exact means h_i of h over the m steps (closed form); per
+    depth the m step exponentials in one batched ``expm`` (Van Loan: e^{A dt}
+    and the two integrals of the linear interpolation of the delayed term),
+    the monodromy by its top rows and a shift, its eigenvalues by LAPACK."""
+
+    def __init__(self, mass: float, damping: float, stiffness: float, milling: Any, rpm: float, steps: int):
+        self.mass, self.steps = mass, steps
+        self.w = np.sqrt(stiffness / mass)
+        self.c = damping / mass
+        teeth = milling.teeth
+        T = 60.0 / (rpm * teeth)
+        self.dt = T / steps
+        t = np.arange(steps + 1) * self.dt
+        self.h = self._h_mean(t[:-1], t[1:], 2 * np.pi * rpm / 60.0, teeth, milling)
+
+    @staticmethod
+    def _h_mean(t0: np.ndarray, t1: np.ndarray, Om: float, teeth: int, milling: Any) -> np.ndarray:
+        st, ex = milling.entry, milling.exit  # the cut arc (down-milling: arccos(2 a_e/D - 1) to pi)
+        Kt, Kn = milling.Kt, milling.Kn
+
+        def F(ph: np.ndarray) -> np.ndarray:  # an antiderivative of sin(ph) (Kt cos ph + Kn sin ph)
+            return Kt * np.sin(ph) ** 2 / 2 + Kn * (ph / 2 - np.sin(2 * ph) / 4)
+
+        tot = np.zeros_like(t0)
+        for j in range(teeth):
+            p0, p1 = Om * t0 - 2 * np.pi * j / teeth, Om * t1 - 2 * np.pi * j / teeth
+            for k in (-1, 0, 1):  # the cut arc [st, ex] shifted by whole turns
+                lo, hi = np.maximum(p0, st + 2 * np.pi * k), np.minimum(p1, ex + 2 * np.pi * k)
+                ok = hi > lo
+                tot += np.where(
+                    ok,
+                    F(np.where(ok, hi, 0.0) - 2 * np.pi * k) - F(np.where(ok, lo, 0.0) - 2 * np.pi * k),
+                    0.0,
+                )
+        return tot / (Om * (t1 - t0))
+
+    def monodromy(self, a: float) -> np.ndarray:
+        m, dt, w = self.steps, self.dt, self.w
+        kc = a * self.h / self.mass  # (m,) cutting stiffness per unit mass on each step
+        # states (x, v / w): the exponent's norm is ~ w dt instead of w^2 dt
+        Z = np.zeros((m, 6, 6))
+        Z[:, 0, 1] = w
+        Z[:, 1, 0] = -(w * w + kc) / w
+        Z[:, 1, 1] = -self.c
+        Z[:, 0, 2] = Z[:, 1, 3] = Z[:, 2, 4] = Z[:, 3, 5] = 1.0
+        E = sla.expm(Z * dt)
+        P, F1, F2 = E[:, :2, :2], E[:, :2, 2:4], E[:, :2, 4:]
+        b = kc / w  # the delayed term's input, in the scaled velocity row
+        c0 = (F1[:, :, 1] - F2[:, :, 1] / dt) * b[:, None]  # weight of x_{i-m}
+        c1 = (F2[:, :, 1] / dt) * b[:, None]  # weight of x_{i-m+1}
+        D = m + 2
+        Phi = np.eye(D)  # rows: x_i, v_i / w, x_{i-1}, ..., x_{i-m}
+        for i in range(m):
+            top = P[i] @ Phi[:2] + np.outer(c0[i], Phi[D - 1]) + np.outer(c1[i], Phi[D - 2])
+            Phi = np.vstack([top, Phi[:1], Phi[2 : D - 1]])
+        return Phi
+
+    def radius(self, a: float) -> float:
+        return float(np.max(np.abs(np.linalg.eigvals(self.monodromy(a)))))
+
+
+def sdm_limit(sdm: PlainSDM, depth_max: float, scan: int, rtol: float) -> float:
+    """chatterlab's scan route with the SDM's spectral radius: the first of
+    ``scan`` depths where rho >= 1, refined by Brent's method; inf if none."""
+    prev = 1e-12 * depth_max
+    for a in depth_max * np.arange(1, scan + 1) / scan:
+        if sdm.radius(float(a)) >= 1.0:
+            return float(
+                brentq(lambda x: sdm.radius(x) - 1.0, prev, a, xtol=rtol * prev, rtol=4 * np.finfo(float).eps)
+            )
+        prev = float(a)
+    return float("inf")
+
+
+def sdm_lobes(loop: Any, rpm: np.ndarray) -> np.ndarray:
+    M, C, K = (float(np.asarray(X)[0, 0]) for X in (loop.M, loop.C, loop.K))
+    assert loop.n == 1, "the plain SDM is written for the 1-DOF benchmark"
+    return np.array(
+        [
+            sdm_limit(PlainSDM(M, C, K, loop.milling, float(r), SDM_STEPS), DEPTH_MAX, 40, SDM_RTOL)
+            for r in rpm
+        ]
+    )
+
+
+# ============================================================================ row 1
+def relerr(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """|x - ref| / ref, 0 where both are inf (stable to the ceiling), inf where one is."""
+    both = ~np.isfinite(x) & ~np.isfinite(ref)
+    with np.errstate(invalid="ignore"):
+        e = np.abs(x - ref) / ref
+    e[both] = 0.0
+    e[np.isfinite(x) != np.isfinite(ref)] = np.inf
+    return e
+
+
+def reference(loop: Any, rpm: np.ndarray) -> Any:
+    from chatterlab.lobes import milling_lobes
+
+    try:  # the span keyword (elements half as long) arrived with the FE-scale change
+        return milling_lobes(loop, rpm, depth_max=DEPTH_MAX, span=REFERENCE_SPAN, **REFERENCE)
+    except TypeError:
+        return milling_lobes(loop, rpm, depth_max=DEPTH_MAX, **REFERENCE)
+
+
+def row_lobes(repeat: int, n_speeds: int) -> dict[str, Any]:
+    from threadpoolctl import threadpool_limits
+
+    from chatterlab.lobes import milling_lobes
+
+    rpm = np.linspace(5000.0, 25000.0, n_speeds)
+    out: dict[str, Any] = {}
+    with threadpool_limits(limits=1, user_api="blas"):
+        for imm in IMMERSIONS:
+            loop = one_dof_loop(imm)
+            routes: dict[str, Callable[[], Any]] = {
+                "chatterlab": lambda loop=loop: milling_lobes(loop, rpm, depth_max=DEPTH_MAX, **SETTINGS),
+                "sdm": lambda loop=loop: sdm_lobes(loop, rpm),
+            }
+            res = {k: f() for k, f in routes.items()}  # warm-up
+            wall: dict[str, list[float]] = {k: [] for k in routes}
+            cpu: dict[str, list[float]] = {k: [] for k in routes}
+            load_before = loadavg()
+            for _ in range(repeat):
+                for k, f in routes.items():
+                    c, t = time.process_time(), time.perf_counter()
+                    res[k] = f()
+                    wall[k].append(time.perf_counter() - t)
+                    cpu[k].append(time.process_time() - c)
+            load_after = loadavg()
+            t = time.perf_counter()
+            ref = reference(loop, rpm)
+            t_ref = time.perf_counter() - t
+            d = res["chatterlab"]
+            e_cl, e_sd = relerr(np.asarray(d.a_lim), ref.a_lim), relerr(res["sdm"], ref.a_lim)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                est = np.asarray(d.error) / np.asarray(d.a_lim)
+                ref_est = np.asarray(ref.error) / np.asarray(ref.a_lim)
+            s_cl, s_sd = stats(wall["chatterlab"], cpu["chatterlab"]), stats(wall["sdm"], cpu["sdm"])
+            out[f"{imm:g}"] = {
+                "immersion": imm,
+                "speeds": n_speeds,
+                "chatterlab": {
+                    **s_cl,
+                    "settings": SETTINGS,
+                    "resolution": d.resolution,
+                    "evaluations": int(d.evaluations),
+                    "meta": {k: v for k, v in d.meta.items() if isinstance(v, (int, float, str))},
+                    "basis": {
+                        b: int(np.sum(np.asarray(d.basis) == b)) for b in sorted(set(map(str, d.basis)))
+                    },
+                    "kinds": {b: int(np.sum(np.asarray(d.kind) == b)) for b in sorted(set(map(str, d.kind)))},
+                    "error_max_rel": float(np.max(e_cl)),
+                    "error_median_rel": float(np.median(e_cl)),
+                    "own_estimate_max_rel": float(np.nanmax(np.where(np.isfinite(est), est, np.nan))),
+                    "a_lim_m": [float(x) for x in d.a_lim],
+                },
+                "sdm": {
+                    **s_sd,
+                    "steps": SDM_STEPS,
+                    "rtol": SDM_RTOL,
+                    "error_max_rel": float(np.max(e_sd)),
+                    "error_median_rel": float(np.median(e_sd)),
+                    "a_lim_m": [float(x) for x in res["sdm"]],
+                },
+                "reference": {
+                    **REFERENCE,
+                    "span": REFERENCE_SPAN,
+                    "time_s": t_ref,
+                    "own_estimate_max_rel": float(np.nanmax(np.where(np.isfinite(ref_est), ref_est, np.nan))),
+                    "a_lim_m": [float(x) for x in ref.a_lim],
+                    "kind": [str(x) for x in ref.kind],
+                },
+                "ratio_sdm_over_chatterlab": {
+                    "min": s_sd["min_s"] / s_cl["min_s"],
+                    "median": s_sd["median_s"] / s_cl["median_s"],
+                    "cpu_min": s_sd["cpu_min_s"] / s_cl["cpu_min_s"],
+                },
+                "load_before": load_before,
+                "load_after": load_after,
+                "peak_rss_mb": peak_rss_mb(),
+            }
+            r = out[f"{imm:g}"]
+            print(
+                f"a_e/D = {imm:g}: chatterlab {s_cl['min_s']:.2f} / {s_cl['median_s']:.2f} s (CPU {s_cl['cpu_min_s']:.2f}),"
+                f" SDM {s_sd['min_s']:.2f} / {s_sd['median_s']:.2f} s (CPU {s_sd['cpu_min_s']:.2f}):"
+                f" {r['ratio_sdm_over_chatterlab']['min']:.2f}x min, {r['ratio_sdm_over_chatterlab']['median']:.2f}x median;"
+                f" errors max {r['chatterlab']['error_max_rel']:.1e} vs {r['sdm']['error_max_rel']:.1e}"
+                f" (reference {t_ref:.0f} s, own estimate {r['reference']['own_estimate_max_rel']:.1e});"
+                f" load {load_before.split()[0]} -> {load_after.split()[0]}, RSS {r['peak_rss_mb']:.0f} MB",
+                flush=True,
+            )
     return out
 
 
-def _one_speed(rpm: float, immersion: float) -> dict[str, float]:
-    L = milling_lobes(milling_loop(structure(), cutter(immersion)), np.array([rpm]), depth_max=0.01)
-    return {"a_lim": float(L.a_lim[0])}
+# ============================================================================ row 2
+def row_fe(depth_max: float) -> dict[str, Any]:
+    from threadpoolctl import threadpool_limits
+
+    from chatterlab.errors import InputError
+    from chatterlab.lobes import milling_lobes
+
+    out: dict[str, Any] = {"elements": FE_ELEMENTS, "depth_max": depth_max, "cases": []}
+    with threadpool_limits(limits=1, user_api="blas"):
+        for imm in FE_IMMERSIONS:
+            loop = fe_loop(imm)
+            out["n"] = int(loop.n)
+            for rpm in FE_RPM:
+                load = loadavg()
+                c, t = time.process_time(), time.perf_counter()
+                case: dict[str, Any] = {"immersion": imm, "rpm": rpm, "load": load}
+                try:
+                    d = milling_lobes(loop, np.array([rpm]), depth_max=depth_max)
+                except InputError as exc:
+                    case.update(status="refused", message=str(exc))
+                else:
+                    case.update(
+                        status="ok",
+                        a_lim_m=float(d.a_lim[0]),
+                        kind=str(d.kind[0]),
+                        basis=str(d.basis[0]),
+                        error_m=float(d.error[0]),
+                        resolution=d.resolution,
+                        meta={k: v for k, v in d.meta.items() if isinstance(v, (int, float, str))},
+                    )
+                case.update(
+                    wall_s=time.perf_counter() - t, cpu_s=time.process_time() - c, peak_rss_mb=peak_rss_mb()
+                )
+                out["cases"].append(case)
+                shown = (
+                    f"a_lim {case['a_lim_m'] * 1e3:.6g} mm {case['kind']} ({case['basis']}, error {case['error_m']:.1e} m)"
+                    if case["status"] == "ok"
+                    else "refused: " + case["message"][:90]
+                )
+                print(
+                    f"FE tool {loop.n} DOF, a_e/D {imm:g}, {rpm:g} rpm: {case['wall_s']:.2f} s, {shown}",
+                    flush=True,
+                )
+    return out
 
 
-def sweep_speedup(rpm: np.ndarray, immersion: float, repeat: int) -> dict[str, Any]:
-    from chatterlab.sweep import Grid, sweep
-
-    grid = Grid({"rpm": rpm})
-    f = functools.partial(_one_speed, immersion=immersion)
-    outs = {"a_lim": "m"}
-    sweep(f, grid, outputs=outs, jobs=2, backend="loky", progress=False)  # warm the workers
-    ts: dict[str, list[float]] = {"serial": [], "loky2": []}
-    res = {}
-    for _ in range(repeat):
-        for b in ("serial", "loky"):
-            t = time.perf_counter()
-            r = sweep(f, grid, outputs=outs, jobs=2 if b == "loky" else 1, backend=b, progress=False)  # type: ignore[arg-type]
-            ts["serial" if b == "serial" else "loky2"].append(time.perf_counter() - t)
-            res[b] = np.asarray(r.data["a_lim"])
-    same = bool(np.array_equal(res["serial"], res["loky"]))
-    return {
-        "serial_s": {"min": min(ts["serial"]), "median": float(np.median(ts["serial"]))},
-        "loky2_s": {"min": min(ts["loky2"]), "median": float(np.median(ts["loky2"]))},
-        "speedup_min": min(ts["serial"]) / min(ts["loky2"]),
-        "bit_identical": same,
-        "load": load(),
-    }
-
-
-def run(n_speeds: int, grid_depths: int, repeat: int) -> dict[str, Any]:
-    rpm = np.linspace(5000.0, 25000.0, n_speeds)
-    st = structure()
-    report: dict[str, Any] = {
-        "machine": platform.platform(),
-        "cpus": os.cpu_count(),
-        "speeds": n_speeds,
-        "load_start": load(),
-    }
-    for imm in (0.05, 1.0):
-        m = cutter(imm)
-        key = f"ae/D={imm:g}"
-        print(f"--- a_e/D = {imm:g}, {n_speeds} speeds 5000-25000 rpm, depths to 10 mm (load {load()})")
-        few = rpm[:: max(1, n_speeds // 10)]
-        # interleaved repeats of the two searches (the machine is shared: min and median)
-        t_sps: list[float] = []
-        t_sds: list[float] = []
-        for _ in range(repeat):
-            t = time.perf_counter()
-            sp = milling_lobes(milling_loop(st, m), rpm, depth_max=0.01, rtol=1e-8)
-            t_sps.append(time.perf_counter() - t)
-            t = time.perf_counter()
-            sd = milling_lobes(milling_loop(st, m), rpm, method="sdm", steps=40, rtol=1e-4)
-            t_sds.append(time.perf_counter() - t)
-        t_sp, t_sd = min(t_sps), min(t_sds)
-        _, _, mem_sp = timed(
-            lambda: None,
-            lambda m=m, few=few: milling_lobes(milling_loop(st, m), few, depth_max=0.01, rtol=1e-8),
-        )
-        _, _, mem_sd = timed(
-            lambda: None,
-            lambda m=m, few=few: milling_lobes(milling_loop(st, m), few, method="sdm", steps=40, rtol=1e-4),
-        )
-        est = float(np.nanmax(sp.error / sp.a_lim))
-        print(
-            f"spectral: min {t_sp:.2f} s, median {np.median(t_sps):.2f} s of {repeat}, {sp.evaluations} evaluations"
-            f" ({sp.meta.get('refined', 0)} speeds refined), alloc peak {mem_sp / 1e6:.1f} MB,"
-            f" own error estimate <= {est:.1e} relative"
-        )
-        sub = np.arange(0, n_speeds, 10)
-        ref = milling_lobes(milling_loop(st, m), rpm[sub], depth_max=0.01, rtol=1e-11, degree=28)
-        with np.errstate(invalid="ignore"):  # inf - inf where both say stable to 10 mm
-            dev = float(np.nanmax(np.abs(sp.a_lim[sub] - ref.a_lim) / ref.a_lim))
-            e_sd = np.abs(sd.a_lim[sub] - ref.a_lim) / ref.a_lim
-        print(
-            f"  measured against degree 28 / rtol 1e-11 on {sub.size} speeds: max relative deviation {dev:.1e}"
-        )
-        print(
-            f"SDM m=40, same search: min {t_sd:.2f} s, median {np.median(t_sds):.2f} s, {sd.evaluations} monodromies,"
-            f" alloc peak {mem_sd / 1e6:.1f} MB; error vs reference max {np.nanmax(e_sd):.1e},"
-            f" median {np.nanmedian(e_sd):.1e}"
-        )
-        depths = 0.01 * np.arange(1, grid_depths + 1) / grid_depths
-        t = time.perf_counter()
-        g = sdm_grid(st, m, rpm, depths)
-        t_grid = time.perf_counter() - t
-        with np.errstate(invalid="ignore"):
-            e_g = np.abs(g[sub] - ref.a_lim) / ref.a_lim
-        print(
-            f"SDM m=40 on a {n_speeds} x {grid_depths} grid: {t_grid:.2f} s; error vs reference max"
-            f" {np.nanmax(e_g):.1e}, median {np.nanmedian(e_g):.1e}"
-        )
-        print(
-            f"ratios: SDM same search / spectral {t_sd / t_sp:.1f}x, SDM grid / spectral {t_grid / t_sp:.1f}x"
-            f" (load {load()})"
-        )
-        report[key] = {
-            "spectral_s": t_sp,
-            "spectral_s_all": t_sps,
-            "sdm40_search_s_all": t_sds,
-            "spectral_refined_speeds": sp.meta.get("refined", 0),
-            "spectral_evaluations": sp.evaluations,
-            "spectral_alloc_peak_MB": mem_sp / 1e6,
-            "spectral_error_estimate_max_rel": est,
-            "spectral_deviation_from_reference_max_rel": dev,
-            "sdm40_search_s": t_sd,
-            "sdm40_search_alloc_peak_MB": mem_sd / 1e6,
-            "sdm40_search_error_max_rel": float(np.nanmax(e_sd)),
-            "sdm40_search_error_median_rel": float(np.nanmedian(e_sd)),
-            "sdm40_grid_depths": grid_depths,
-            "sdm40_grid_s": t_grid,
-            "sdm40_grid_error_max_rel": float(np.nanmax(e_g)),
-            "sdm40_grid_error_median_rel": float(np.nanmedian(e_g)),
-            "ratio_sdm_search": t_sd / t_sp,
-            "ratio_sdm_grid": t_grid / t_sp,
-            "a_lim_mm_every_10th": (ref.a_lim * 1e3).tolist(),
-            "kind_every_10th": ref.kind.tolist(),
-            "load": load(),
-        }
-        print("2-core sweep of the spectral lobes (serial vs loky x2, warm) ...")
-        sw = sweep_speedup(rpm, imm, repeat)
-        print(
-            f"  serial {sw['serial_s']['min']:.2f} s, loky x2 {sw['loky2_s']['min']:.2f} s: speed-up"
-            f" {sw['speedup_min']:.2f}x, identical {sw['bit_identical']} (load {sw['load']})"
-        )
-        report[key]["sweep"] = sw
-    report["peak_rss_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
-    report["load_end"] = load()
-    report["LOADED"] = max(report["load_start"][0], report["load_end"][0]) > LOADED
-    print(f"peak RSS {report['peak_rss_MB']:.0f} MB; LOADED = {report['LOADED']} (1-min load above {LOADED})")
-    return report
+# ============================================================================ the table
+def table(data: dict[str, Any]) -> str:
+    lines = [
+        "# Milling rows of issue 26: Floquet lobes against a plain numpy SDM, and an FE-scale tool",
+        "",
+        "Generated by `python benchmarks/bench_milling.py` from `benchmarks/results/milling.json`; do not edit.",
+        "",
+        "Row 1: the 1-DOF benchmark (`studies/milling/benchmark_1dof.toml`), 201 speeds 5000-25000 rpm, depths"
+        " to 10 mm, one BLAS thread, interleaved repeats. *chatterlab* is `milling_lobes(..., rtol=1e-7)` (every"
+        " limit's convergence check must confirm 1e-6 relative); *SDM* is the plain numpy first-order"
+        " semi-discretisation written in the benchmark (m = 40, the same scan and Brent search, rtol 1e-4). Errors"
+        " are against the spectral reference (degree 24, omega L <= 2.5, rtol 1e-11) at all 201 speeds. The ratio"
+        " is SDM time / chatterlab time within one run (goal >= 10).",
+        "",
+        "| run | commit | a_e/D | repeats | chatterlab min / median s (CPU min) | SDM min / median s (CPU min)"
+        " | ratio min, median (CPU min) | chatterlab error max / median | SDM error max / median | chatterlab"
+        " evaluations | load before -> after | peak RSS MB |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for label, run in data.get("runs", {}).items():
+        for key, r in run.get("lobes", {}).items():
+            c, s, q = r["chatterlab"], r["sdm"], r["ratio_sdm_over_chatterlab"]
+            lines.append(
+                f"| {label} | {run['commit']} | {key} | {run['repeat']} | {c['min_s']:.2f} / {c['median_s']:.2f}"
+                f" ({c['cpu_min_s']:.2f}) | {s['min_s']:.2f} / {s['median_s']:.2f} ({s['cpu_min_s']:.2f})"
+                f" | {q['min']:.2f}x, {q['median']:.2f}x ({q['cpu_min']:.2f}x)"
+                f" | {c['error_max_rel']:.1e} / {c['error_median_rel']:.1e} | {s['error_max_rel']:.1e} /"
+                f" {s['error_median_rel']:.1e} | {c['evaluations']} | {r['load_before'].split()[0]} ->"
+                f" {r['load_after'].split()[0]} | {r['peak_rss_mb']:.0f} |"
+            )
+    lines += [
+        "",
+        "Load: 1-minute /proc/loadavg on a 2-core machine shared with other work; CPU is the process's CPU time.",
+        "",
+        "Row 2: the cantilever end mill (`studies/milling/tool_cantilever.toml`, its beam in"
+        f" {FE_ELEMENTS} Timoshenko elements), unreduced, one `milling_lobes` call per speed (goal <= 10 s).",
+        "",
+        "| run | commit | DOF | a_e/D | rpm | status | wall s (CPU) | a_lim mm | kind | basis | error estimate"
+        " (relative) | peak RSS MB |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for label, run in data.get("runs", {}).items():
+        fe = run.get("fe")
+        if not fe:
+            continue
+        for c in fe["cases"]:
+            if c["status"] == "ok":
+                a = c["a_lim_m"]
+                rel = c["error_m"] / a if np.isfinite(a) and a else float("nan")
+                res = f"{a * 1e3:.6g} | {c['kind']} | {c['basis']} | {rel:.1e}"
+            else:
+                res = "— | — | — | —"
+            lines.append(
+                f"| {label} | {run['commit']} | {fe.get('n', '')} | {c['immersion']:g} | {c['rpm']:g} | {c['status']}"
+                f" | {c['wall_s']:.2f} ({c['cpu_s']:.2f}) | {res} | {c['peak_rss_mb']:.0f} |"
+            )
+    notes = [f"- {label}: {run['note']}" for label, run in data.get("runs", {}).items() if run.get("note")]
+    return "\n".join(lines + ([""] + notes if notes else [])) + "\n"
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="41 speeds instead of 201")
-    ap.add_argument("--grid-depths", type=int, default=50, help="depths of the SDM grid (default 50: 0.2 mm)")
-    ap.add_argument("--repeat", type=int, default=3, help="repeats of the sweep timing")
+    ap.add_argument("--label", default="current", help="the run's name in milling.json (before, after, ...)")
+    ap.add_argument("--repeat", type=int, default=5, help="interleaved repeats of row 1 (default 5)")
+    ap.add_argument("--speeds", type=int, default=201, help="speeds of row 1 (default 201)")
+    ap.add_argument("--rows", default="lobes,fe", help="rows to run: lobes, fe (comma-separated)")
+    ap.add_argument(
+        "--fe-depth-max", type=float, default=0.01, help="depth ceiling of row 2, m (default 0.01)"
+    )
+    ap.add_argument("--note", default="", help="a note stored with the run")
+    ap.add_argument("--table-only", action="store_true", help="regenerate milling.md from milling.json")
     args = ap.parse_args()
-    rep = run(41 if args.quick else 201, args.grid_depths, args.repeat)
-    out = ROOT / "benchmarks" / "results" / "bench_milling.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(rep, indent=1) + "\n")
-    print(f"wrote {out.relative_to(ROOT)}")
+    data = json.loads(OUT.read_text()) if OUT.exists() else {"runs": {}}
+    if not args.table_only:
+        rows = set(args.rows.split(","))
+        run: dict[str, Any] = {
+            "commit": source_commit(),
+            "chatterlab": cl.__version__,
+            "machine": platform.platform(),
+            "cpus": os.cpu_count(),
+            "repeat": args.repeat,
+            "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+            "note": args.note,
+        }
+        print(f"chatterlab {run['commit']} ({cl.__file__}); load {loadavg()}", flush=True)
+        if "lobes" in rows:
+            run["lobes"] = row_lobes(args.repeat, args.speeds)
+        if "fe" in rows:
+            run["fe"] = row_fe(args.fe_depth_max)
+        run["peak_rss_mb"] = peak_rss_mb()
+        data.setdefault("runs", {})[args.label] = run
+        OUT.parent.mkdir(parents=True, exist_ok=True)
+        OUT.write_text(json.dumps(data, indent=1) + "\n")
+        print(f"wrote {OUT.relative_to(ROOT)}")
+    TABLE.write_text(table(data))
+    print(f"wrote {TABLE.relative_to(ROOT)}")
 
 
 if __name__ == "__main__":

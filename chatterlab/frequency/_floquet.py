@@ -346,7 +346,7 @@ def multipliers(
         f_hz = sm.critical(a)[1]
         err = float("nan")
         if check:
-            sm2 = SpectralMonodromy(loop, rpm, degree + CHECK_DEGREE, depth=a, depth_hint=a, mesh=sm.mesh)
+            sm2 = SpectralMonodromy(loop, rpm, depth=a, depth_hint=a, mesh=sm.mesh.raised(CHECK_DEGREE))
             err = float(abs(sm2.at(a)[0] - mu[0]))
         res = f"degree {degree} x {sm.n_sub} elements"
         T = sm.period

@@ -1,12 +1,57 @@
 """Spectral-element collocation of the monodromy operator of milling
 (:class:`SpectralMonodromy`): the reference method of
 :mod:`chatterlab.frequency._floquet` (see its docstring for the method and
-references), with the mesh of sub-elements between the cut's breakpoints."""
+references), with the mesh of sub-elements between the cut's breakpoints.
+
+The discretisation and its factored form
+----------------------------------------
+One period is cut into sub-elements where a tooth cuts (free gaps between
+them are solved exactly, x(t) = e^{A t} x(0)); element s carries
+Chebyshev-Lobatto collocation of degree p_s.  Its unknowns are the states at
+its nodes; the cut enters the collocation equations only through the force
+on the tool at the nodes 1..p_s, F_i = -a_p [H_i r_i - sum_j H_j(t_i)
+r(t_i - tau_j)] (r = C x the cut coordinates, H_i = sum_j H_j(t_i)).  The
+collocation equations are therefore U(a) X = V(a) z with U(a) = U0 + a U1,
+V(a) = V0 + a V1 affine in a_p (Butcher et al. 2004), and U1, V1 of rank
+rho (the cut's rank) per node.  Instead of assembling and solving these
+N x N systems at every depth, the free structure's part U0 (block
+lower-bidiagonal: element by element) is solved once per speed, for the
+state carried over from the last period and for a unit force at every node,
+and the cut is eliminated in the m_f = rho x (nodes) force unknowns:
+
+    X(a) = X0 + a P (I + a K)^-1 Q                                           (1)
+
+where z (size k) holds what the next period needs of the last one (the
+state at its end and the cut coordinates at the nodes a delayed argument
+falls on), X0 the free structure's map of z, P the response of z to the
+nodal forces, K the nodal forces' response to themselves through the
+structure and the cut, Q the forces' dependence on z.  (1) is exact (a
+Woodbury identity of U(a)^-1 V(a), restricted to z, which has the same
+nonzero eigenvalues), and:
+
+* d X / d a = P (I + a K)^-2 Q exactly, with the same factorisation;
+* the depths with a multiplier mu = z0 are a = -1/nu for the eigenvalues nu
+  of K + Q (X0 - z0 I)^-1 P (m_f x m_f; :meth:`SpectralMonodromy.unit_depths`);
+* every evaluation at a depth costs O(m_f^2 k) and an eigenproblem of size
+  k, independent of the number of collocation unknowns N;
+* a structure whose high modes respond quasi-statically enters through an
+  extra compliance in K and P (:class:`QuasiStatic`) without resolving
+  them in time (:func:`split_structure`).
+
+The mesh: a piece between breakpoints is one element of degree chosen from
+its length (``degree=None``: the solution there oscillates omega L / 2 pi
+times, omega the highest pole frequency; Chebyshev interpolation of such a
+solution converges once p exceeds ~ omega L e / 4, geometrically after,
+:func:`auto_degree`), split only when that degree would exceed
+``P_MAX``; or, with an explicit degree, sub-elements with omega L <= span.
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -15,27 +60,37 @@ from ..errors import InputError, check_count
 from ..process import Milling
 from ..process._loop import ClosedLoop
 
-__all__ = ["SpectralMonodromy", "CHECK_DEGREE", "DEGREE", "ELEMENT_SPAN"]
+__all__ = [
+    "SpectralMonodromy",
+    "QuasiStatic",
+    "split_structure",
+    "auto_degree",
+    "CHECK_DEGREE",
+    "DEGREE",
+    "ELEMENT_SPAN",
+]
 
-#: default mesh: sub-elements short enough that omega L <= ELEMENT_SPAN (omega: the highest
-#: pole frequency, stiffened by the cut); with the default degree 16 the critical multiplier
-#: of the Insperger-Stepan benchmark is then within ~1e-10 of its converged value
+#: default mesh with an explicit degree: sub-elements short enough that omega L <= ELEMENT_SPAN
+#: (omega: the highest pole frequency, stiffened by the cut); with the degree 16 the critical
+#: multiplier of the Insperger-Stepan benchmark is then within ~1e-10 of its converged value
 ELEMENT_SPAN = 5.0
-#: above this many multipliers the spectral radius comes from Arnoldi iterations (measured:
-#: 3x faster than the dense QR at 113, slower at 65)
-ARNOLDI_MIN = 90
-#: largest collocation system assembled (dense: 4 matrices of N^2 doubles, 0.5 GB at 4000)
-MAX_UNKNOWNS = 4000
-#: default polynomial degree of the spectral elements
+#: above this many multipliers the spectral radius comes from Arnoldi iterations on (1)
+ARNOLDI_MIN = 160
+#: largest discretisation set up: nodal states x (force unknowns + carried state), in doubles
+MAX_ENTRIES = 6e7
+#: default polynomial degree of the spectral elements (explicit-degree meshes)
 DEGREE = 16
 #: the convergence check of the spectral method raises the degree by this much
 CHECK_DEGREE = 6
+#: degrees of the automatic mesh: at least P_MIN; a piece that would need more than P_MAX is split
+P_MIN, P_MAX = 10, 48
 
 
 # ============================================================================ spectral elements
+@lru_cache(maxsize=64)
 def _cheb(p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Chebyshev-Lobatto nodes on [0, 1] (ascending), the differentiation
-    matrix d/ds on [0, 1], and the barycentric weights."""
+    matrix d/ds on [0, 1], and the barycentric weights (read-only, cached)."""
     k = np.arange(p + 1)
     x = -np.cos(np.pi * k / p)  # ascending on [-1, 1]
     c = np.ones(p + 1)
@@ -47,27 +102,66 @@ def _cheb(p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     w = (-1.0) ** k
     w[0] *= 0.5
     w[-1] *= 0.5
-    return (x + 1.0) / 2.0, 2.0 * D, w
+    out = ((x + 1.0) / 2.0, 2.0 * D, w)
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
-def _bary(nodes: np.ndarray, w: np.ndarray, s: float) -> np.ndarray:
-    """Weights of the polynomial interpolant at s (nodes on [0, 1])."""
-    d = s - nodes
-    hit = np.nonzero(np.abs(d) < 1e-14)[0]
-    if hit.size:
-        out = np.zeros(nodes.size)
-        out[hit[0]] = 1.0
-        return out
-    q = w / d
-    return q / q.sum()
+def _bary(nodes: np.ndarray, w: np.ndarray, s: np.ndarray | float) -> np.ndarray:
+    """Weights of the polynomial interpolant at s (nodes on [0, 1]), shape s.shape + (p+1,)."""
+    s = np.asarray(s, dtype=float)
+    d = s[..., None] - nodes
+    hit = np.abs(d) < 1e-14
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = w / d
+        q = q / q.sum(axis=-1, keepdims=True)
+    on = hit.any(axis=-1)
+    return np.where(on[..., None], hit.astype(float), q)
 
 
-@dataclass
+def auto_degree(omega_L: float, tol: float) -> int:
+    """Collocation degree for an element over which the solution turns by
+    omega L radians, aiming at a relative error ~tol of the multipliers.
+
+    Chebyshev interpolation of e^{i omega t} on an element of length L has
+    coefficients ~ J_k(omega L / 2) (Bessel), which fall below eps once
+    (e omega L / 4k)^k < eps: for k beyond e omega L / 4 the fall is
+    geometric, a decade per ~log10(4k / (e omega L))^-1 degrees.  The rule
+    solves (e omega L / 4 p)^p = tol for p with a margin of 6 degrees for the
+    solution's other components (the coefficients' own variation, the cut's
+    stiffening) and the factor the limit's sensitivity adds, measured on the
+    benchmark at 5000-25000 rpm and full immersion (tests/test_milling_speed.py
+    checks the error it gives)."""
+    wl = max(float(omega_L), 1e-3)
+    goal = math.log(1.0 / max(tol, 1e-15))
+    p = max(P_MIN - 6, 2)
+    while p < 200:
+        base = 4.0 * p / (math.e * wl)
+        if base > 1.0 and p * math.log(base) >= goal:
+            break
+        p += 1
+    return max(P_MIN, p + 6)
+
+
+@dataclass(frozen=True)
 class _Mesh:
     a: np.ndarray  # sub-element starts (S,)
     b: np.ndarray  # ends
     t0: float  # time origin
     T: float
+    deg: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # degree per element (S,)
+
+    def raised(self, by: int) -> _Mesh:
+        """The same elements, every degree raised by ``by`` (the convergence check)."""
+        return replace(self, deg=self.deg + int(by))
+
+    def finer(self) -> _Mesh:
+        """Every element split in two, same degrees (a refinement of the mesh)."""
+        mid = 0.5 * (self.a + self.b)
+        a = np.ravel(np.column_stack([self.a, mid]))
+        b = np.ravel(np.column_stack([mid, self.b]))
+        return replace(self, a=a, b=b, deg=np.repeat(self.deg, 2))
 
 
 def _mesh(
@@ -76,7 +170,9 @@ def _mesh(
     depth: float | None,
     elements: int | None,
     omega_max: float,
-    span: float = ELEMENT_SPAN,
+    span: float,
+    degree: int | None,
+    tol: float,
 ) -> _Mesh:
     T = milling.period(rpm)
     tb = milling.breakpoints(rpm, depth)
@@ -89,26 +185,111 @@ def _mesh(
         tb = np.unique(np.r_[tb, shifted])
         tb = tb[np.r_[True, np.diff(tb) > 1e-9 * T]]
     ends = np.r_[tb, tb[0] + T]
-    starts, stops = [], []
+    starts: list[float] = []
+    stops: list[float] = []
+    degs: list[int] = []
     for lo, hi in zip(ends[:-1], ends[1:], strict=True):
         mid = 0.5 * (lo + hi)
         if not np.any(milling.directional(mid, rpm, depth) != 0.0):
             continue
         L = hi - lo
-        n_sub = elements if elements is not None else max(1, math.ceil(omega_max * L / span))
+        wl = omega_max * L
+        if elements is not None:
+            n_sub, p = elements, int(degree if degree is not None else DEGREE)
+        elif degree is not None:
+            n_sub, p = max(1, math.ceil(wl / span)), int(degree)
+        else:
+            n_sub = 1
+            while auto_degree(wl / n_sub, tol) > P_MAX:
+                n_sub += 1
+            p = auto_degree(wl / n_sub, tol)
         e = lo + L * np.arange(n_sub + 1) / n_sub
         starts.extend(e[:-1])
         stops.extend(e[1:])
+        degs.extend([p] * n_sub)
     a = np.array(starts)
     b = np.array(stops)
     t0 = float(a[0]) if a.size else 0.0
-    return _Mesh(a, b, t0, T)
+    return _Mesh(a, b, t0, T, np.array(degs, dtype=int))
 
 
+# ============================================================================ quasi-static modes
+@dataclass(frozen=True)
+class QuasiStatic:
+    """A structure split into the modes below a frequency, integrated in
+    time, and the rest, which respond quasi-statically (:func:`split_structure`).
+
+    ``loop``: the milling loop on the kept modes (mass-normalised modal
+    coordinates, the damping projected); ``compliance``: the static
+    compliance of the other modes between the cut's coordinates r = Jr q
+    (rho x rho, m/N), added to the kept modes' response at every instant
+    (the static residual of modal truncation augmentation, here exact and
+    massless: it has no pseudo-frequency to resolve); ``compliance2``: the
+    next term of the mode-acceleration series, sum phi phi^T / omega^4 over
+    the other modes (its force's second derivative's response, s^2 m/N),
+    which the error estimate uses; ``kept``, ``n_full``, ``f_split``: what
+    was kept (Hz for the frequency)."""
+
+    loop: ClosedLoop
+    compliance: np.ndarray
+    compliance2: np.ndarray
+    kept: int
+    n_full: int
+    f_split: float
+    omega_full: float
+
+    def note(self) -> str:
+        return (
+            f"{self.kept} of {self.n_full} modes integrated (below {self.f_split:.4g} Hz), the others"
+            " quasi-static (their exact static compliance at the tool)"
+        )
+
+
+def split_structure(loop: ClosedLoop, f_split: float) -> QuasiStatic:
+    """The loop's structure as its undamped modes below ``f_split`` (Hz) plus
+    the exact static compliance of all the others at the cut (see
+    :class:`QuasiStatic`).
+
+    The kept modes are exact (Rayleigh-Ritz on eigenvectors of (K, M)); the
+    others' static compliance Jr (K^-1 - Phi_k Lambda_k^-1 Phi_k^T) Jr^T is
+    exact; what is neglected is their dynamic amplification
+    1/(1 - (w/w_j)^2) - 1 ~ (w/w_j)^2 at the frequencies w the cut drives,
+    and their damping's coupling to the kept modes."""
+    M, C, K = loop.M, loop.C, loop.K
+    _, Jr, _ = loop.cut_basis
+    lam, Phi = sla.eigh(K, M)  # mass-normalised
+    lam = np.maximum(lam, np.finfo(float).tiny)
+    keep = np.sqrt(lam) < 2 * np.pi * f_split
+    if not np.any(keep):
+        keep[0] = True
+    P = Phi[:, keep]
+    static = Jr @ np.linalg.solve(K, Jr.T)
+    G = static - (Jr @ P) @ ((Jr @ P) / lam[keep]).T
+    Po = Phi[:, ~keep]
+    G2 = (Jr @ Po) @ ((Jr @ Po) / lam[~keep] ** 2).T
+    from ..structure import Structure
+
+    red = Structure(np.eye(P.shape[1]), P.T @ C @ P, np.diag(lam[keep]), (), f"{loop.name} (modes)")
+    J = loop.J @ P
+    rl = replace(loop, structure=red, J=J, force=P.T @ loop.force, frozen=None)
+    return QuasiStatic(
+        rl,
+        0.5 * (G + G.T),
+        0.5 * (G2 + G2.T),
+        int(np.count_nonzero(keep)),
+        loop.n,
+        float(f_split),
+        loop.omega_max,
+    )
+
+
+# ============================================================================ the monodromy
 class SpectralMonodromy:
-    """The spectral-element discretisation U(a) X_new = V(a) X_old of one
-    period at one speed, assembled once; :meth:`at` gives the multipliers at
-    any depth a_p (without helix U and V are affine in a_p).
+    """The spectral-element discretisation of one period at one speed in
+    the factored form (1) of the module docstring, set up once; :meth:`at`,
+    :meth:`tangent`, :meth:`radius` give the multipliers at any depth a_p
+    (without helix, (1) holds at every depth; with a helix the coefficients
+    depend on a_p and the set-up is for ``depth`` only).
 
     Parameters
     ----------
@@ -116,59 +297,65 @@ class SpectralMonodromy:
         The problem: the structure under the cutter (a milling
         :class:`~chatterlab.process.ClosedLoop`, ``loop.process`` the cutter)
         and the spindle speed (rpm).
-    degree : int
-        Polynomial degree p of each sub-element (>= 2).
+    degree : int, optional
+        Polynomial degree p of each sub-element (>= 2); None: chosen per
+        element for the accuracy ``tol`` (:func:`auto_degree`).
     elements : int, optional
         Sub-elements per cutting piece (default: enough that
-        omega_max L <= ELEMENT_SPAN on each, omega_max the structure's highest pole
-        frequency, raised with the cutting stiffness at the depth given).
-    span : float
-        omega L of the default sub-elements (smaller: finer).
+        omega_max L <= ``span`` on each with an explicit degree, one per
+        piece below degree ``P_MAX`` with the automatic one; omega_max the
+        structure's highest pole frequency, raised with the cutting
+        stiffness at ``depth_hint``).
     depth : float, optional
-        Needed with a helix (the coefficients then depend on a_p
-        non-linearly and the matrices are built for this depth only).
+        Needed with a helix (the matrices are then built for this depth).
+    mesh : optional
+        The elements and degrees of another discretisation (its ``mesh``,
+        e.g. ``sm.mesh.raised(CHECK_DEGREE)``); ``degree`` is then not used.
+    span : float
+        omega L of the sub-elements of an explicit degree (smaller: finer).
+    tol : float
+        The accuracy the automatic degree aims at (relative, multipliers).
+    quasi_static : QuasiStatic, optional
+        The structure split into integrated modes and a quasi-static rest
+        (:func:`split_structure`); ``loop`` is then not used for the structure.
     """
 
     def __init__(
         self,
         loop: ClosedLoop,
         rpm: float,
-        degree: int = DEGREE,
+        degree: int | None = DEGREE,
         elements: int | None = None,
         depth: float | None = None,
         depth_hint: float | None = None,
         mesh: _Mesh | None = None,
         span: float = ELEMENT_SPAN,
+        *,
+        tol: float = 1e-10,
+        quasi_static: QuasiStatic | None = None,
+        accel: bool = False,
     ) -> None:
-        p = check_count(degree, "degree", 2)
+        if degree is not None:
+            check_count(degree, "degree", 2)
+        self.quasi_static = quasi_static
+        self.loop = loop
+        if quasi_static is not None:
+            loop = quasi_static.loop
         milling = loop.milling
-        self.structure, self.milling, self.rpm, self.degree = loop, milling, float(rpm), p
+        self.structure, self.milling, self.rpm = loop, milling, float(rpm)
         self.helix_depth = depth if milling.helix > 0 else None
         if milling.helix > 0 and depth is None:
             raise InputError("milling with a helix angle: give the depth of cut a_p (depth, m)")
-        A = loop.state_matrix
-        d = A.shape[0]
         om = self._mesh_omega(depth, depth_hint)
         if mesh is None:
-            mesh = _mesh(milling, rpm, self.helix_depth, elements, om, span)
+            mesh = _mesh(milling, rpm, self.helix_depth, elements, om, span, degree, tol)
         self.mesh = mesh
-        S = mesh.a.size
-        self.n_sub = S
-        T = mesh.T
-        self.period = T
-        if S == 0:  # never in the cut: the free structure
-            E = sla.expm(A * T)
-            self.U0, self.U1 = np.eye(d), np.zeros((d, d))
-            self.V0, self.V1 = E, np.zeros((d, d))
-            self.cols = np.arange(d)
-            return
-        U0, U1, V0, V1 = self._assemble()
-        self._scale(U0, U1, V0, V1)
-        self.U0, self.U1, self.V0, self.V1 = U0, U1, V0, V1
-        used = np.nonzero(np.any(V0 != 0, axis=0) | np.any(V1 != 0, axis=0))[0]
-        self.cols = used
-        self.block = self._block_size()
+        self.degree = int(mesh.deg.max()) if mesh.deg.size else int(degree or DEGREE)
+        self.n_sub = int(mesh.a.size)
+        self.period = mesh.T
+        self._setup(accel)
 
+    # ------------------------------------------------------------------ set-up
     def _mesh_omega(self, depth: float | None, depth_hint: float | None) -> float:
         """Frequency scale for the default mesh: the structure's poles, stiffened by the cut."""
         structure, milling = self.structure, self.milling
@@ -180,253 +367,375 @@ class SpectralMonodromy:
             kc = a_h * Hs * np.linalg.norm(W, 2) * np.linalg.norm(Jr, 2)
             # capped at twice the structure's: deeper, the convergence check says what is missed
             om = min(math.sqrt(om**2 + kc), 2.0 * om)
-        return om
+        return max(om, 1e-9)
 
-    def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """U0 + a U1 (this period's nodes) and V0 + a V1 (the last period's),
-        unscaled: continuity across each free gap, collocation at nodes 1..p."""
-        structure, milling, mesh, p = self.structure, self.milling, self.mesh, self.degree
-        rpm = self.rpm
-        A = structure.state_matrix
+    def _setup(self, accel: bool) -> None:
+        loop, milling, mesh = self.structure, self.milling, self.mesh
+        A = loop.state_matrix
         d = A.shape[0]
-        n = structure.n
-        Ub, Jr, W = structure.cut_basis
+        n = loop.n
+        Ub, Jr, W = loop.cut_basis
+        rho = Jr.shape[0]
         S = mesh.a.size
         T = mesh.T
-        taus = milling.delays(rpm)
-        s_nodes, Dm, bw = _cheb(p)
-        nn = p + 1
-        N = S * nn * d
-        if N > MAX_UNKNOWNS:
+        self.d, self.rho = d, rho
+        # scaled states x^ = (q, q' / ws): A^ = S^-1 A S has entries ~ ws, the collocation rows are
+        # divided by ws (U's condition number ~1e4 instead of 1e12 unscaled)
+        ws = max(loop.omega_max, 1.0 / T)
+        sc = np.r_[np.ones(n), np.full(n, ws)]
+        self.ws, self.state_scale = ws, sc
+        Ah = A * sc[None, :] / sc[:, None]
+        Bh = np.zeros((d, rho))
+        Bh[n:] = W / ws
+        Ch = np.zeros((rho, d))
+        Ch[:, :n] = Jr
+        self._Ah, self._Ch = Ah, Ch
+        if S == 0:  # never in the cut: the free structure
+            E = sla.expm(Ah * T)
+            self.k, self.m_f = d, 0
+            self.X0 = E
+            self.P = np.zeros((d, 0))
+            self.K = np.zeros((0, 0))
+            self.Q = np.zeros((0, d))
+            self.Q2 = None
+            self._nmap_z = np.zeros((0, d))
+            self._nmap_f = np.zeros((0, 0))
+            self.z_blocks: list[tuple[str, int, int]] = [("x", -1, 0)]
+            return
+        deg = mesh.deg
+        nn = deg + 1
+        node_off = np.r_[0, np.cumsum(nn)]  # first node of each element
+        f_off = np.r_[0, np.cumsum(deg)]  # first force node (collocation node 1) of each element
+        Nn = int(node_off[-1])
+        m_nodes = int(f_off[-1])
+        m_f = m_nodes * rho
+        if Nn * d * (d + m_f) > MAX_ENTRIES:
             raise InputError(
-                f"spectral elements: {S} elements x {nn} nodes x {d} states = {N} unknowns exceed {MAX_UNKNOWNS};"
-                " a period this long holds many vibrations of the highest mode: reduce the structure to the modes"
-                " that matter (chatterlab.lobes.reduce_structure), lower the degree, or raise the spindle speed"
+                f"spectral elements: {S} elements, {Nn} nodes x {d} states x {m_f} nodal forces exceed"
+                f" {MAX_ENTRIES:.0e} entries; a period this long holds many vibrations of the highest mode"
+                " integrated: split the structure (its quasi-static modes) or raise the spindle speed"
             )
-        U0 = np.zeros((N, N))
-        U1 = np.zeros((N, N))
-        V0 = np.zeros((N, N))
-        V1 = np.zeros((N, N))
-
-        def blk(s: int, k: int) -> slice:
-            i = (s * nn + k) * d
-            return slice(i, i + d)
-
-        t_nodes = mesh.a[:, None] + (mesh.b - mesh.a)[:, None] * s_nodes[None, :]
+        self.m_f = m_f
+        # ---- node times and the cut's coefficients there (one-sided at an element's ends)
+        t_nodes = [mesh.a[s] + (mesh.b[s] - mesh.a[s]) * _cheb(int(deg[s]))[0] for s in range(S)]
+        self.t_nodes = t_nodes
+        teeth = milling.teeth
+        taus = milling.delays(self.rpm)
+        Hn = np.empty((m_nodes, teeth, rho, rho))
+        for s in range(S):
+            Hk = milling.directional_on(
+                t_nodes[s][1:], self.rpm, 0.5 * (mesh.a[s] + mesh.b[s]), self.helix_depth
+            )
+            Hn[f_off[s] : f_off[s + 1]] = np.einsum("ai,kjab,bl->kjil", Ub, Hk, Ub)
+        self._Hn = Hn
+        # ---- the free structure, element by element: nodal states from the state entering each
+        # element (d) and the unit forces at its nodes 1..p (rho each): x^ = Phi x0 + Gam F
         expm_cache: dict[float, np.ndarray] = {}
 
         def expA(g: float) -> np.ndarray:
             key = round(g / T, 14)
             if key not in expm_cache:
-                expm_cache[key] = sla.expm(A * g) if g > 0 else np.eye(d)
+                expm_cache[key] = sla.expm(Ah * g) if g > 0 else np.eye(d)
             return expm_cache[key]
 
+        self._expA = expA
         I_d = np.eye(d)
-        qrows = slice(n, 2 * n)  # the q' equations
+        nmap_z = np.empty((Nn * d, d))  # nodal states from the last period's end state x^_end
+        nmap_f = np.zeros((Nn * d, m_f))  # and from the nodal forces
+        enter_z = expA(mesh.a[0] + T - mesh.b[S - 1])  # element 0 starts from the old period's end
+        enter_f = np.zeros((d, m_f))
         for s in range(S):
+            p = int(deg[s])
             L = mesh.b[s] - mesh.a[s]
-            # continuity with the previous sub-element, through the free gap between them
-            r0 = blk(s, 0)
-            U0[r0, r0] = I_d
-            if s == 0:
-                gap = mesh.a[0] + T - mesh.b[S - 1]
-                V0[r0, blk(S - 1, p)] = expA(gap)
-            else:
-                gap = mesh.a[s] - mesh.b[s - 1]
-                U0[r0, blk(s - 1, p)] = -expA(gap)
-            # collocation at nodes 1..p
-            tk = t_nodes[s, 1:]
-            # the coefficients of this piece, continued to its ends (one-sided at a breakpoint)
-            Hk = milling.directional_on(tk, rpm, 0.5 * (mesh.a[s] + mesh.b[s]), self.helix_depth)
-            Hr = np.einsum("ai,kjab,bl->kjil", Ub, Hk, Ub)  # reduced (p, N, rho, rho)
-            Bq_all = np.einsum("ni,kjil,lm->kjnm", W, Hr, Jr)  # (p, N, n, n): on q, in the q' rows
-            e0 = s * nn * d
-            rows = slice(e0 + d, e0 + nn * d)
-            U0[rows, e0 : e0 + nn * d] += np.kron(Dm[1:, :] / L, I_d) - np.kron(np.eye(nn)[1:], A)
-            for k in range(1, nn):
-                r = blk(s, k)
-                Bsum = Bq_all[k - 1].sum(axis=0)
-                U1[r, blk(s, k)][qrows, :n] += Bsum
-                for j in range(milling.teeth):
-                    Bq = Bq_all[k - 1, j]
-                    if not np.any(Bq):
+            _, Dm, _ = _cheb(p)
+            blk = np.zeros(((p + 1) * d, (p + 1) * d))
+            blk[:d, :d] = I_d
+            blk[d:] = np.kron(Dm[1:, :] / (L * ws), I_d) - np.kron(np.eye(p + 1)[1:], Ah / ws)
+            rhs = np.zeros(((p + 1) * d, d + p * rho))
+            rhs[:d, :d] = I_d
+            for k in range(p):
+                rhs[(k + 1) * d : (k + 2) * d, d + k * rho : d + (k + 1) * rho] = Bh / ws
+            sol = np.linalg.solve(blk, rhs)
+            Phi, Gam = sol[:, :d], sol[:, d:]
+            rows = slice(node_off[s] * d, node_off[s + 1] * d)
+            nmap_z[rows] = Phi @ enter_z
+            nmap_f[rows] = Phi @ enter_f
+            nmap_f[rows, f_off[s] * rho : f_off[s + 1] * rho] += Gam
+            if s + 1 < S:
+                E = expA(mesh.a[s + 1] - mesh.b[s])
+                last = slice(node_off[s + 1] * d - d, node_off[s + 1] * d)
+                enter_z = E @ nmap_z[last]
+                enter_f = E @ nmap_f[last]
+        self._nmap_z, self._nmap_f = nmap_z, nmap_f
+        self._node_off, self._f_off = node_off, f_off
+        # ---- what the next period needs of this one (z) and the cut's equations
+        # F + a (Lx x^ + LF F + Lz z) = 0 at every force node; z_new = Rx x^ + RF F.  z holds
+        # ("x", s, 0): the state at the end of element s, and ("r", s, l): r at node l of element s
+        end_key = ("x", S - 1, 0)
+        zb: list[tuple[str, int, int]] = [end_key]  # the period's end state first
+        zindex: dict[tuple[str, int, int], int] = {end_key: 0}
+        zsize = [d]
+
+        def zcol(key: tuple[str, int, int]) -> int:
+            if key not in zindex:
+                zindex[key] = sum(zsize)
+                zb.append(key)
+                zsize.append(d if key[0] == "x" else rho)
+            return zindex[key]
+
+        qs = self.quasi_static
+        Gr = qs.compliance if qs is not None else None
+        s_nodes_cache = {int(p): _cheb(int(p)) for p in set(deg.tolist())}
+
+        def x_rows(s2: int, l2: int) -> slice:
+            j0 = (int(node_off[s2]) + l2) * d
+            return slice(j0, j0 + d)
+
+        def r_forces(s2: int, l2: int) -> list[tuple[int, float]]:
+            """The nodal forces (index, weight) of F at node l2 of element s2: itself at a
+            collocation node; at node 0 the collocation polynomial of nodes 1..p continued to it."""
+            if l2 >= 1:
+                return [(int(f_off[s2]) + l2 - 1, 1.0)]
+            nodes, _, _ = s_nodes_cache[int(deg[s2])]
+            inner = nodes[1:]
+            bw1 = 1.0 / np.array([np.prod(inner[i] - np.delete(inner, i)) for i in range(inner.size)])
+            e = _bary(inner, bw1, 0.0)
+            return [(int(f_off[s2]) + i, float(e[i])) for i in range(inner.size)]
+
+        Lx = np.zeros((m_f, Nn * d))
+        LF = np.zeros((m_f, m_f))
+        Lz_entries: list[tuple[int, int, np.ndarray]] = []  # (row, z column, rho x width block)
+        tol_t = 1e-12 * T
+        uniform = milling.uniform
+        for s in range(S):
+            p = int(deg[s])
+            for k in range(1, p + 1):
+                i = int(f_off[s]) + k - 1
+                ri = slice(i * rho, (i + 1) * rho)
+                Hsum = Hn[i].sum(axis=0)
+                Lx[ri, x_rows(s, k)] += Hsum @ Ch
+                if Gr is not None:
+                    LF[ri, ri] += Hsum @ Gr
+                for j in range(teeth):
+                    Hj = Hn[i, j]
+                    if not np.any(Hj):
                         continue
-                    # delayed value x(t_k - tau_j)
-                    td = t_nodes[s, k] - taus[j]
-                    old = td <= mesh.t0 + 1e-12 * T  # x(t0) is the old period's end: keeps U bidiagonal
+                    td = t_nodes[s][k] - taus[j]
+                    old = td <= mesh.t0 + tol_t  # x(t0) is the old period's end: keeps U bidiagonal
                     if old:
                         td += T
-                    target = V1 if old else U1
-                    sign = 1.0 if old else -1.0
-                    if old and abs(td - t_nodes[s, k]) <= 1e-12 * T:  # one period back: the same node
-                        target[r, blk(s, k)][qrows, :n] += Bq
+                    if old and uniform and abs(td - t_nodes[s][k]) <= tol_t:  # one period back: the same node
+                        Lz_entries.append((i, zcol(("r", s, k)), -Hj))
                         continue
-                    for col, wgt in self._locate(td, mesh, s_nodes, bw, p, d, expA):
-                        target[r, col][qrows, :] += sign * (Bq @ wgt[:n, :])
-        return U0, U1, V0, V1
+                    for kind, s2, l2, wgt in self._locate(td, s_nodes_cache):
+                        # wgt maps the referenced quantity (r at a node, or the state at an element's
+                        # end) to r(td)
+                        if old:
+                            Lz_entries.append((i, zcol((kind, s2, l2)), -Hj @ wgt))
+                        elif kind == "r":
+                            Lx[ri, x_rows(s2, l2)] -= Hj @ (wgt @ Ch)
+                            if Gr is not None:
+                                for i2, e2 in r_forces(s2, l2):
+                                    LF[ri, i2 * rho : (i2 + 1) * rho] -= e2 * (Hj @ (wgt @ Gr))
+                        else:  # an element's end state, across a free gap
+                            Lx[ri, x_rows(s2, int(deg[s2]))] -= Hj @ wgt
+        k_z = int(sum(zsize))
+        Lz = np.zeros((m_f, k_z))
+        for i, c, blk_ in Lz_entries:
+            Lz[i * rho : (i + 1) * rho, c : c + blk_.shape[1]] += blk_
+        Rx = np.zeros((k_z, Nn * d))
+        RF = np.zeros((k_z, m_f))
+        for key, c in zindex.items():
+            kind, s2, l2 = key
+            if kind == "x":
+                Rx[c : c + d, x_rows(s2, int(deg[s2]))] = I_d
+            else:
+                Rx[c : c + rho, x_rows(s2, l2)] = Ch
+                if Gr is not None:
+                    for i2, e2 in r_forces(s2, l2):
+                        RF[c : c + rho, i2 * rho : (i2 + 1) * rho] += e2 * Gr
+        self.z_blocks = zb
+        self._zindex = zindex
+        self.k = k_z
+        # ---- the factored form (1)
+        self.K = Lx @ nmap_f + LF
+        Qm = Lz.copy()
+        Qm[:, :d] += Lx @ nmap_z
+        self.Q = -Qm
+        self.P = Rx @ nmap_f + RF
+        X0 = np.zeros((k_z, k_z))
+        X0[:, :d] = Rx @ nmap_z
+        self.X0 = X0
+        self._Lx, self._LF, self._Rx = Lx, LF, Rx
+        # the next term of the quasi-static modes' response (mode acceleration: - G2 F''), for the
+        # error estimate of the split: its effect on K and P per unit G2
+        self.Q2 = None
+        if qs is not None and accel:
+            self._accel(qs.compliance2)
 
-    def _scale(self, U0: np.ndarray, U1: np.ndarray, V0: np.ndarray, V1: np.ndarray) -> None:
-        """Scale the four matrices in place and keep the column scale."""
-        structure, S, p, T = self.structure, self.mesh.a.size, self.degree, self.period
-        n, nn = structure.n, p + 1
-        # scaling (it leaves the multipliers alone): velocities in units of omega_s = the highest
-        # pole frequency, each equation divided by its largest natural size (1 for continuity of
-        # q, omega_s for q' = v, omega_s^2 for the equations of motion); unscaled, U's condition
-        # number reached 1e12 on a variable-pitch mesh and the multipliers scattered by 1e-7
-        ws = max(structure.omega_max, 1.0 / T)
-        unit = np.r_[np.ones(n), np.full(n, ws)]
-        col = np.tile(unit, S * nn)
-        row_c = np.r_[np.ones(n), np.full(n, 1.0 / ws)]  # continuity rows (node 0)
-        row_e = np.r_[np.full(n, 1.0 / ws), np.full(n, 1.0 / ws**2)]  # collocation rows
-        row = np.tile(np.r_[row_c, np.tile(row_e, p)], S)
-        for X_ in (U0, U1, V0, V1):
-            X_ *= row[:, None]
-            X_ *= col[None, :]
-        self.colscale = col
+    def _accel(self, G2: np.ndarray) -> None:
+        """Add the mode-acceleration term -G2 F'' to the quasi-static response
+        (F'' from each element's collocation polynomial of the nodal forces)."""
+        mesh, rho, deg = self.mesh, self.rho, self.mesh.deg
+        f_off = self._f_off
+        m_f = self.m_f
+        D2F = np.zeros((m_f, m_f))  # F'' at the force nodes from the forces at nodes 1..p of the element
+        for s in range(mesh.a.size):
+            p = int(deg[s])
+            L = mesh.b[s] - mesh.a[s]
+            _, Dm, _ = _cheb(p)
+            D2 = (Dm @ Dm)[1:, 1:] / L**2  # F at node 0 continued from inside: dropped (F(t0+) ~ F_1)
+            blk = slice(int(f_off[s]) * rho, int(f_off[s + 1]) * rho)
+            D2F[blk, blk] = np.kron(D2, np.eye(rho))
+        corr = -np.kron(np.eye(self.m_f // rho), G2) @ D2F
+        Hsum = self._Hn.sum(axis=1)  # (m_nodes, rho, rho)
+        Hb = sla.block_diag(*Hsum) if Hsum.shape[0] else np.zeros((0, 0))
+        self.K = self.K + Hb @ corr
+        for key, c in self._zindex.items():
+            if key[0] == "r" and key[2] >= 1:
+                i2 = int(f_off[key[1]]) + key[2] - 1
+                self.P[c : c + rho] += corr[i2 * rho : (i2 + 1) * rho]
 
-    def _block_size(self) -> int:
-        """The rows of one element when U is block lower-bidiagonal, else 0."""
-        U0, U1, p, S = self.U0, self.U1, self.degree, self.mesh.a.size
-        d = self.structure.state_matrix.shape[0]
-        N = U0.shape[0]
-        nn = p + 1
-        # block lower-bidiagonal U (every delayed value in the previous period: a uniform pitch)
-        # is solved element by element, O(S (p d)^2 |cols|) instead of O((S p d)^3)
-        b = nn * d
-        allowed = np.zeros((N, N), dtype=bool)
-        for s in range(S):
-            allowed[s * b : (s + 1) * b, s * b : (s + 1) * b] = True
-            if s > 0:
-                allowed[s * b : s * b + d, (s - 1) * b + p * d : s * b] = True
-        return b if not np.any(((U0 != 0) | (U1 != 0)) & ~allowed) else 0
-
-    @staticmethod
-    def _locate(td, mesh, s_nodes, bw, p, d, expA):
-        """(column slice, d x d weight) pairs giving x(td) from the nodes."""
-        nn = p + 1
+    def _locate(self, td: float, cache: dict[int, Any]) -> list[tuple[str, int, int, np.ndarray]]:
+        """What x(td) is made of: [(kind, element, node, weight)] with kind "r" (the cut
+        coordinates at a node, weight rho x rho) or "x" (an element's end state, weight
+        rho x d: r(td) = C e^{A g} x_end)."""
+        mesh = self.mesh
         tol = 1e-12 * mesh.T
         inside = np.nonzero((mesh.a - tol <= td) & (td <= mesh.b + tol))[0]
+        I_r = np.eye(self.rho)
         if inside.size:
             s = int(inside[0])
+            p = int(mesh.deg[s])
+            s_nodes, _, bw = cache[p]
             u = (td - mesh.a[s]) / (mesh.b[s] - mesh.a[s])
             wts = _bary(s_nodes, bw, min(max(u, 0.0), 1.0))
-            out = []
-            for l_ in np.nonzero(wts)[0]:
-                i = (s * nn + int(l_)) * d
-                out.append((slice(i, i + d), wts[l_] * np.eye(d)))
-            return out
+            return [("r", s, int(l_), wts[l_] * I_r) for l_ in np.nonzero(wts)[0]]
         before = np.nonzero(mesh.b <= td)[0]
         s = int(before[-1]) if before.size else mesh.a.size - 1
         g = td - mesh.b[s] if before.size else td + mesh.T - mesh.b[s]
-        i = (s * nn + p) * d
-        return [(slice(i, i + d), expA(g))]
+        return [("x", s, 0, self._Ch @ self._expA(g))]
 
+    # ------------------------------------------------------------------ evaluation
     @property
     def size(self) -> int:
-        return self.U0.shape[0]
+        """Number of multipliers of the discretisation (the size k of z)."""
+        return int(self.k)
 
-    def _solve(self, a: float) -> np.ndarray:
-        """X = U(a)^-1 V(a)[:, cols]."""
-        return self._solve_rhs(a, (self.V0 + a * self.V1)[:, self.cols])
+    @property
+    def unknowns(self) -> int:
+        """Collocation unknowns N (nodal states) of the discretisation."""
+        return int(self._nmap_z.shape[0])
 
-    def _solve_rhs(self, a: float, Vc: np.ndarray) -> np.ndarray:
-        """U(a)^-1 Vc (element by element where U is block bidiagonal)."""
-        b = getattr(self, "block", 0)
-        if not b:
-            return sla.solve(self.U0 + a * self.U1, Vc, check_finite=False)
-        d = self.structure.state_matrix.shape[0]
-        X = np.empty_like(Vc)
-        for s in range(self.U0.shape[0] // b):
-            sl = slice(s * b, (s + 1) * b)
-            rhs = Vc[sl].copy()
-            if s > 0:
-                C = self.U0[s * b : s * b + d, s * b - d : s * b]
-                rhs[:d] -= C @ X[s * b - d : s * b]
-            X[sl] = np.linalg.solve(self.U0[sl, sl] + a * self.U1[sl, sl], rhs)
-        return X
+    def monodromy(self, depth: float) -> np.ndarray:
+        """The k x k monodromy matrix X(a_p) of (1)."""
+        a = float(depth)
+        if self.m_f == 0:
+            return self.X0.copy()
+        W = np.linalg.solve(np.eye(self.m_f) + a * self.K, self.Q)
+        return self.X0 + a * (self.P @ W)
+
+    def _batch(self, depths: np.ndarray, derivative: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        a = np.asarray(depths, dtype=float)
+        k = self.k
+        if self.m_f == 0:
+            X = np.broadcast_to(self.X0, (a.size, k, k)).copy()
+            return X, (np.zeros_like(X) if derivative else None)
+        Ms = np.eye(self.m_f)[None] + a[:, None, None] * self.K[None]
+        W = np.linalg.solve(Ms, np.broadcast_to(self.Q, (a.size,) + self.Q.shape))
+        X = self.X0[None] + a[:, None, None] * (self.P[None] @ W)
+        if not derivative:
+            return X, None
+        dX = self.P[None] @ np.linalg.solve(Ms, W)
+        return X, dX
+
+    def tangents(self, depths: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`tangent` at several depths in one batch (the same numbers)."""
+        X, dX = self._batch(np.atleast_1d(depths), True)
+        assert dX is not None
+        mu, vr = np.linalg.eig(X)
+        out = []
+        for i in range(X.shape[0]):
+            out.append(_derivatives(mu[i], vr[i], dX[i]))
+        return out
 
     def tangent(self, depth: float) -> tuple[np.ndarray, np.ndarray]:
-        """The nonzero Floquet multipliers mu_k at depth a_p and their
-        derivatives d mu_k / d a_p (without helix: U and V affine in a_p).
+        """The Floquet multipliers mu_k at depth a_p and their derivatives
+        d mu_k / d a_p (without helix: (1) holds at every depth).
 
-        With X(a) = U(a)^-1 V(a) the monodromy, dX/da = U^-1 (V1 - U1 X)
-        exactly, and for a simple eigenvalue d mu = y^H (dX/da) x / (y^H x)
-        with x, y its right and left eigenvectors (first-order perturbation
-        theory, e.g. Golub & Van Loan, Matrix Computations, sec. 7.2.2), here
-        as the diagonal of W^-1 (dX/da) W with W the right eigenvectors (the
-        rows of W^-1 are the left ones, normalised to y^H x = 1).  At a
-        defective multiplier (two real multipliers meeting) y^H x = 0 and the
-        derivative is infinite: a singular W gives inf, a nearly singular one
-        huge rates, which a caller must read as "moves arbitrarily fast
+        With X(a) the monodromy (1), dX/da = P (I + a K)^-2 Q exactly, and
+        for a simple eigenvalue d mu = y^H (dX/da) x / (y^H x) with x, y its
+        right and left eigenvectors (first-order perturbation theory, e.g.
+        Golub & Van Loan, Matrix Computations, sec. 7.2.2), here as the
+        diagonal of W^-1 (dX/da) W with W the right eigenvectors (the rows
+        of W^-1 are the left ones, normalised to y^H x = 1).  At a defective
+        multiplier (two real multipliers meeting) y^H x = 0 and the
+        derivative is infinite: a singular W gives inf, a nearly singular
+        one huge rates, which a caller must read as "moves arbitrarily fast
         here"."""
         if self.helix_depth is not None:
             raise InputError("tangent: with a helix the matrices are not affine in a_p")
-        a = float(depth)
-        cols = self.cols
-        Xf = self._solve(a)
-        X = Xf[cols]
-        mu, vr = np.linalg.eig(X)
-        dX = self._solve_rhs(a, self.V1[:, cols] - self.U1 @ Xf)[cols]
-        # the rows of vr^-1 are the left eigenvectors scaled so that y^H x = 1
-        try:
-            dmu = np.einsum("kj,jk->k", np.linalg.solve(vr, dX), vr)
-        except np.linalg.LinAlgError:  # defective: no first-order rate
-            dmu = np.full(mu.shape, np.inf + 0j)
-        # nearly defective: the rates are huge (|W^-1| ~ 1/gap), which the search reads as fast
-        dmu = np.where(np.isfinite(dmu), dmu, np.inf)
-        order = np.argsort(-np.abs(mu))
-        return mu[order], dmu[order]
+        return self.tangents(np.array([float(depth)]))[0]
 
     def unit_depths(self, z: float, depth_max: float) -> np.ndarray:
         """Every depth a_p in (0, depth_max] at which the discretised
         monodromy has the multiplier z = +1 (fold) or -1 (flip), ascending.
 
-        A multiplier z at depth a is det(V(a) - z U(a)) = 0, with
-        V - z U = P0 + a P1 affine in a (P0 = V0 - z U0, P1 = V1 - z U1).  P1
-        is nonzero only on the r rows where the cut acts, P1 = E P1[rows]; by
-        Sylvester's identity det(P0 + a P1) = det(P0) det(I_r + a M) with
-        M = P1[rows] P0^-1 E, so the depths are -1/nu for the real eigenvalues
-        nu < 0 of the real r x r matrix M: all of them, from one eigenproblem,
-        no sampling (P0 is regular: the free structure, damped, has no
-        multiplier on the unit circle).  An eigenvalue within 1e-6 (relative)
-        of the real axis is taken as real: a double root (a multiplier
-        touching z) is split by rounding into a pair ~sqrt(eps) apart, and
-        counting a touch as a crossing errs on the safe side."""
-        P1 = self.V1 - z * self.U1
-        rows = np.nonzero(np.any(P1 != 0.0, axis=1))[0]
-        if rows.size == 0:
+        With (1), det(X(a) - z I) = det(X0 - z I) det(I + a M) / det(I + a K)
+        with M = K + Q (X0 - z I)^-1 P (Sylvester's determinant identity), so
+        the depths are -1/nu for the real eigenvalues nu < 0 of the real
+        m_f x m_f matrix M: all of them, from one eigenproblem, no sampling
+        (X0 - z I is regular: the free structure, damped, has no multiplier
+        on the unit circle).  An eigenvalue within 1e-6 (relative) of the
+        real axis is taken as real: a double root (a multiplier touching z)
+        is split by rounding into a pair ~sqrt(eps) apart, and counting a
+        touch as a crossing errs on the safe side."""
+        if self.m_f == 0:
             return np.zeros(0)
-        P0 = self.V0 - z * self.U0
-        E = np.zeros((P0.shape[0], rows.size))
-        E[rows, np.arange(rows.size)] = 1.0
-        M = P1[rows] @ sla.solve(P0, E, check_finite=False)
-        nu = np.linalg.eigvals(M)
+        Mz = self.K + self.Q @ np.linalg.solve(self.X0 - z * np.eye(self.k), self.P)
+        nu = np.linalg.eigvals(Mz)
         real = (np.abs(nu.imag) <= 1e-6 * np.abs(nu)) & (nu.real < 0.0)
         a = -1.0 / nu.real[real]
         return np.sort(a[a <= depth_max])
 
     def at(self, depth: float) -> np.ndarray:
-        """The nonzero Floquet multipliers at depth a_p, largest modulus first."""
-        a = float(depth)
-        X = self._solve(a)
-        mu = np.linalg.eigvals(X[self.cols])
+        """The Floquet multipliers at depth a_p, largest modulus first."""
+        mu = np.linalg.eigvals(self.monodromy(depth))
         return mu[np.argsort(-np.abs(mu))]
 
     def radius(self, depth: float) -> float:
         """The spectral radius at depth a_p: the largest |mu|.  Above
         ``ARNOLDI_MIN`` multipliers it comes from ARPACK's implicitly
-        restarted Arnoldi (6 largest, tolerance 1e-14, fixed start vector),
-        else (or if ARPACK does not converge) from the dense eigenvalues."""
-        X = self._solve(float(depth))[self.cols]
-        if X.shape[0] > ARNOLDI_MIN:
-            from scipy.sparse.linalg import ArpackNoConvergence, eigs
+        restarted Arnoldi on (1) applied as an operator (6 largest, tolerance
+        1e-14, fixed start vector), else (or if ARPACK does not converge)
+        from the dense eigenvalues."""
+        a = float(depth)
+        if self.k > ARNOLDI_MIN and self.m_f:
+            from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
+            lu = sla.lu_factor(np.eye(self.m_f) + a * self.K, check_finite=False)
+            X0, P, Q = self.X0, self.P, self.Q
+
+            def mv(v: np.ndarray) -> np.ndarray:
+                v = np.ravel(v)
+                return X0 @ v + a * (P @ sla.lu_solve(lu, Q @ v, check_finite=False))
+
+            op = LinearOperator((self.k, self.k), matvec=mv, dtype=float)
             try:
-                w = eigs(X, k=6, which="LM", v0=np.ones(X.shape[0]), tol=1e-14, return_eigenvectors=False)
+                w = eigs(op, k=6, which="LM", v0=np.ones(self.k), tol=1e-14, return_eigenvectors=False)
                 return float(np.max(np.abs(w)))
             except ArpackNoConvergence:
                 pass
-        return float(np.max(np.abs(np.linalg.eigvals(X))))
+        return float(np.max(np.abs(np.linalg.eigvals(self.monodromy(a)))))
+
+    def nodal_states(self, depth: float, z: np.ndarray) -> np.ndarray:
+        """The states at every node (N_nodes, d, physical units) of the period
+        that follows the data z of the last one at depth a_p."""
+        a = float(depth)
+        z = np.asarray(z)
+        F = a * np.linalg.solve(np.eye(self.m_f) + a * self.K, self.Q @ z) if self.m_f else np.zeros(0)
+        x = self._nmap_z @ z[: self.d] + self._nmap_f @ F
+        return x.reshape(-1, self.d) * self.state_scale
 
     def critical(self, depth: float, samples: int = 128) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its
@@ -440,39 +749,45 @@ class SpectralMonodromy:
         Fourier coefficient of its displacement at the tool picks k.
         """
         a = float(depth)
-        X = self._solve(a)
-        mu, vec = np.linalg.eig(X[self.cols])
+        mu, vec = np.linalg.eig(self.monodromy(a))
         i = int(np.argmax(np.abs(mu)))
         m = complex(mu[i])
-        x_new = (X @ vec[:, i]) * getattr(self, "colscale", 1.0)
-        return m, self._dominant_hz(m, x_new, samples)
+        return m, self._dominant_hz(m, self.nodal_states(a, vec[:, i]) if self.m_f else None, samples)
 
-    def _dominant_hz(self, mu: complex, x_nodes: np.ndarray, samples: int) -> float:
+    def _dominant_hz(self, mu: complex, x_nodes: np.ndarray | None, samples: int) -> float:
         mesh = self.mesh
         T = self.period
         st = self.structure
-        d = st.state_matrix.shape[0]
         n = st.n
-        if mesh.a.size == 0 or mu == 0:
+        if x_nodes is None or mesh.a.size == 0 or mu == 0:
             return float(abs(np.angle(mu)) / T / (2 * np.pi))
-        p = self.degree
-        s_nodes, _, bw = _cheb(p)
-        nodes = x_nodes.reshape(mesh.a.size, p + 1, d)
+        d = self.d
+        A = st.state_matrix
         t = mesh.t0 + T * np.arange(samples) / samples
-        xs = np.empty((samples, d), dtype=complex)
-        for k, tk in enumerate(t):
-            inside = np.nonzero((mesh.a <= tk) & (tk <= mesh.b))[0]
-            if inside.size:
-                s_ = int(inside[0])
-                w = _bary(s_nodes, bw, (tk - mesh.a[s_]) / (mesh.b[s_] - mesh.a[s_]))
-                xs[k] = w @ nodes[s_]
-            else:
-                before = np.nonzero(mesh.b <= tk)[0]
-                if before.size:
-                    s_ = int(before[-1])
-                    xs[k] = sla.expm(st.state_matrix * (tk - mesh.b[s_])) @ nodes[s_, p]
-                else:  # before the first element: from the last one of the previous period
-                    xs[k] = sla.expm(st.state_matrix * (tk + T - mesh.b[-1])) @ nodes[-1, p] / mu
+        xs = np.zeros((samples, d), dtype=complex)
+        done = np.zeros(samples, dtype=bool)
+        off = self._node_off
+        for s in range(mesh.a.size):
+            inside = (~done) & (mesh.a[s] <= t) & (t <= mesh.b[s])
+            if np.any(inside):
+                s_nodes, _, bw = _cheb(int(mesh.deg[s]))
+                w = _bary(s_nodes, bw, (t[inside] - mesh.a[s]) / (mesh.b[s] - mesh.a[s]))
+                xs[inside] = w @ x_nodes[off[s] : off[s + 1]]
+                done |= inside
+        # the free gaps: from the end of the element before, exactly, one step e^{A dt} per sample
+        dt = T / samples
+        step = sla.expm(A * dt)
+        gap = np.zeros(samples, dtype=bool)  # computed in a free gap
+        for k_ in np.nonzero(~done)[0]:
+            before = np.nonzero(mesh.b <= t[k_])[0]
+            if k_ > 0 and gap[k_ - 1] and _same_gap(mesh, t, int(k_)):
+                xs[k_] = step @ xs[k_ - 1]
+            elif before.size:
+                s_ = int(before[-1])
+                xs[k_] = sla.expm(A * (t[k_] - mesh.b[s_])) @ x_nodes[off[s_ + 1] - 1]
+            else:  # before the first element: from the last one of the previous period
+                xs[k_] = sla.expm(A * (t[k_] + T - mesh.b[-1])) @ x_nodes[off[-1] - 1] / mu
+            gap[k_] = True
         lam = np.log(complex(mu)) / T
         r = (st.J @ xs[:, :n].T).T  # (samples, 2) tool displacement
         per = r * np.exp(-lam * (t - mesh.t0))[:, None]
@@ -481,3 +796,22 @@ class SpectralMonodromy:
         kk = int(np.argmax(power))
         k = kk if kk <= samples // 2 else kk - samples
         return float(abs(lam.imag + 2 * np.pi * k / T) / (2 * np.pi))
+
+
+def _same_gap(mesh: _Mesh, t: np.ndarray, k: int) -> bool:
+    """Samples k - 1 and k lie in the same free gap (no element between them)."""
+    lo, hi = t[k - 1], t[k]
+    return not np.any((mesh.b >= lo) & (mesh.a <= hi))
+
+
+def _derivatives(mu: np.ndarray, vr: np.ndarray, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The multipliers (largest modulus first) and their first-order rates from
+    the right eigenvectors ``vr`` and the derivative ``dX`` of the matrix."""
+    try:
+        dmu = np.einsum("kj,jk->k", np.linalg.solve(vr, dX), vr)
+    except np.linalg.LinAlgError:  # defective: no first-order rate
+        dmu = np.full(mu.shape, np.inf + 0j)
+    # nearly defective: the rates are huge (|W^-1| ~ 1/gap), which the search reads as fast
+    dmu = np.where(np.isfinite(dmu), dmu, np.inf)
+    order = np.argsort(-np.abs(mu))
+    return mu[order], dmu[order]

@@ -338,7 +338,7 @@ def floquet_limit(
         if method != "spectral" or not check or not np.isfinite(a):
             break
         sm = SpectralMonodromy(loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span)
-        sm2 = SpectralMonodromy(loop, float(r), degree + CHECK_DEGREE, mesh=sm.mesh, depth=a, depth_hint=0.0)
+        sm2 = SpectralMonodromy(loop, float(r), mesh=sm.mesh.raised(CHECK_DEGREE), depth=a, depth_hint=0.0)
         if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
             da = max(1e-6 * a, 10 * rtol * a)
             slope = (rho(a + da) - rho(a - da)) / (2 * da)
@@ -384,7 +384,7 @@ def _complete_limit(
         evals += c.evaluations
         if not check or c.status != "crossing":
             break
-        sm2 = SpectralMonodromy(loop, float(r), degree + CHECK_DEGREE, mesh=sm.mesh)
+        sm2 = SpectralMonodromy(loop, float(r), mesh=sm.mesh.raised(CHECK_DEGREE))
         err = abs(sm2.radius(c.depth) - 1.0) / abs(c.slope) if c.slope else np.inf
         evals += 1
         if err <= target * c.depth or elements is not None or attempt == 3:
