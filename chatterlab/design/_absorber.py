@@ -316,7 +316,7 @@ class AbsorberDesign:
             ["without absorber", "tuned absorber" + ("s" if len(self.absorbers) > 1 else "")],
             ax=ax,
             title=title
-            or f"{self.after.model}: tuned absorber, {self.width * 1e3:.4g} mm"
+            or f"{getattr(self.model, 'name', '') or self.after.model}: tuned absorber, {self.width * 1e3:.4g} mm"
             + (f" (x {self.gain:.3g})" if np.isfinite(self.gain) else ""),
         )
 
