@@ -110,10 +110,18 @@ def test_estimates_read_from_the_samples(full_run):
     assert float(r.p_chatter.value[0]) == float((r.samples[:, :, jp] <= 3.1e-4).mean())
     e = r.p_chatter_at(6000.0, 3.1e-4)
     assert float(e.value) == float(r.p_chatter.value[0])
-    # the safe width at a risk is a quantile: with 16 samples, the 1/16 quantile is the smallest sample
+    # the safe width at a risk: with 16 samples, P(chatter) = 1/16 from the smallest sample's limit up
+    # to (not including) the second smallest
     w = r.safe_width(1 / 16, conservative=False)
-    assert np.array_equal(w, b.reshape(16, -1).min(axis=0))
-    assert np.all(r.safe_width(1 / 16) <= w)
+    second = np.sort(b.reshape(16, -1), axis=0)[1]
+    assert np.array_equal(w, np.nextafter(second, 0.0))
+    assert all(float(r.p_chatter_at(v, x).value) == 1 / 16 for v, x in zip(r.speed, w, strict=True))
+    # the safe side: the upper end of the interval within the risk, at least the rule of three 3/16
+    cons = r.safe_width(0.25)
+    assert np.all(cons <= r.safe_width(0.25, conservative=False))
+    for v, x in zip(r.speed, cons, strict=True):
+        e = r.p_chatter_at(v, x)
+        assert x == 0 or (float(e.high) <= 0.25 and -math.log(0.05) / 16 <= 0.25)
     rec = r.recommend(0.1)
     assert rec and rec[0]["width"] == max(x["width"] for x in rec)
     assert set(r.sobol) == {"b_min", "chatter@0"}

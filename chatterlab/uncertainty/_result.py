@@ -234,24 +234,50 @@ class ProbabilisticLobes(Result):
 
     def safe_width(self, risk: float, *, conservative: bool = True) -> np.ndarray:
         """The largest width (m) at each speed of :attr:`speed` whose
-        probability of chatter is at most ``risk``: the ``risk`` quantile of
-        the limit (for a width below it, P(b_lim <= b) <= risk); with
-        ``conservative``, the lower end of its confidence interval, so the
-        sampling error cannot push an operating point over the risk."""
+        probability of chatter is at most ``risk``.
+
+        P(chatter) at b is P(b_lim <= b), a step function of b that rises
+        at each sample's limit; the width returned is the largest float
+        below the first sample limit s_k at which the estimate (with
+        ``conservative``: the upper end of its confidence interval, at
+        least -ln(1 - level)/N -- the rule of three) would exceed ``risk``.
+        So every width up to it has an estimated probability of chatter at
+        most ``risk`` -- on the safe side of the sampling error with
+        ``conservative``.  0 where no width is safe enough (too few samples
+        to claim the risk), inf where every width up to the ceiling is."""
+        from ._estimate import t_factor
+
         if not 0 < risk < 1:
             raise InputError(f"risk must lie between 0 and 1 (got {risk:g})")
         grid = np.searchsorted(self.all_speeds, self.speed)
-        q = quantile_estimate(self.samples[:, :, grid], [risk], self.level)
-        w = np.asarray(q.low if conservative else q.value)[0]
-        return np.where(np.isnan(w), np.asarray(q.value)[0], w)
+        R, n = self.replicates, self.rows
+        t = t_factor(R, self.level)
+        floor = -np.log(1.0 - self.level) / (R * n)
+        out = np.zeros(grid.size)
+        for i, j in enumerate(grid):
+            b = self.samples[:, :, j]
+            # the estimate is a step function: on [s_(k-1), s_k) it is P(b_lim < s_k) (s_-1 = 0, s_K = inf)
+            edges = np.append(np.unique(b[np.isfinite(b)]), np.inf)
+            reps = np.sort(b, axis=1)
+            p = np.stack([np.searchsorted(reps[r], edges, side="left") for r in range(R)]) / n
+            est = p.mean(axis=0)
+            if conservative:
+                est = np.maximum(est + t * p.std(axis=0, ddof=1) / np.sqrt(R), floor)
+            bad = np.nonzero(est > risk)[0]
+            if bad.size == 0:
+                out[i] = np.inf  # safe up to the ceiling
+            else:
+                out[i] = np.nextafter(edges[bad[0] - 1], 0.0) if bad[0] > 0 else 0.0
+        return out
 
     def recommend(self, risk: float, *, count: int = 3, conservative: bool = True) -> list[dict[str, float]]:
         """The best operating points at a risk: the tops of the ``risk``
         lobe (:meth:`safe_width`) -- its local maxima over speed, highest
         first -- each with its width (m), speed and estimated probability
-        of chatter (and the interval's upper end) there."""
-        w = self.safe_width(risk, conservative=conservative)
-        fin = np.where(np.isfinite(w), w, np.nanmax(np.where(np.isfinite(w), w, np.nan), initial=0.0))
+        of chatter (and the interval's upper end) there (a width at the
+        ceiling: safe as far as the diagram searched)."""
+        w = np.minimum(self.safe_width(risk, conservative=conservative), float(self.nominal.width_max))
+        fin = w
         peaks = [
             j
             for j in range(fin.size)
