@@ -201,7 +201,7 @@ def test_import_chatterlab_is_light():
     the public names come from their subpackages on first use."""
     code = (
         "import sys, chatterlab\n"
-        "heavy = [m for m in ('scipy', 'matplotlib', 'joblib', 'control', 'xarray', 'dask', 'h5py')"
+        "heavy = [m for m in ('scipy', 'matplotlib', 'joblib', 'control', 'xarray', 'dask', 'h5py', 'pint')"
         " if m in sys.modules]\n"
         "print(','.join(heavy))"
     )
