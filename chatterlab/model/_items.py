@@ -37,6 +37,8 @@ __all__ = [
     "stroke_cycle",
     "stroke_speed",
     "Movable",
+    "Machine",
+    "machine_problem",
     "MatrixBlock",
     "Model",
     "DIRECTIONS",
@@ -392,6 +394,87 @@ class Process:
 
 
 @dataclass(frozen=True)
+class Machine:
+    """The limits of the machine and its tool that a recommended cut must
+    respect, and the feed of the cut (``[machine]``, docs/model-format.md;
+    the analysis is :func:`chatterlab.selection.recommend`).  Every field
+    is optional: an absent limit does not limit.
+
+    Speeds are in the process's speed unit (rpm for turning and milling,
+    m/s for a shaper's work speed), everything else SI.  A curve is a tuple
+    of (speed, value) points with the speeds strictly increasing, read
+    linearly between them; a curve of one point is that value at every
+    speed.
+    """
+
+    max_speed: float = float("inf")  #: the spindle's (or the ram's) highest speed
+    min_speed: float = 0.0  #: its lowest speed
+    power: tuple[tuple[float, float], ...] = ()  #: (speed, W): the power available at the cut
+    torque: tuple[tuple[float, float], ...] = ()  #: (rpm, N m): the spindle's torque (turning, milling)
+    max_depth: float = float("inf")  #: m: the largest depth of cut (milling a_p, turning/shaping b)
+    max_width: float = float("inf")  #: m: the largest radial width a_e (milling)
+    feed: float = float("nan")  #: m: feed per tooth (milling), per revolution (turning), per stroke (shaping)
+    workpiece_diameter: float = float("nan")  #: m: turning, for the cutting speed pi D n
+    specific_energy: float = float("nan")  #: N/m^2: cutting force per unit chip area along the cutting speed
+
+
+def machine_problem(machine: Machine, kind: str | None) -> tuple[str, str] | None:
+    """What is wrong with ``machine`` for a process of ``kind`` (``"turning"``,
+    ``"milling"``, ``"shaping"``, ``"delay"`` or None), as ``(field, the fix)``;
+    None when nothing is.  The one set of rules for the ``[machine]`` table
+    and for a :class:`Machine` built in Python (field names as in the file;
+    the speed limits named ``max_rpm``/``min_rpm`` for a spindle)."""
+    import math
+
+    spindle = kind in ("turning", "milling")
+    unit = "m/s" if kind == "shaping" else "rpm"
+    vmax, vmin = ("max_rpm", "min_rpm") if spindle else ("max_speed", "min_speed")
+    if not (machine.max_speed > 0 and not math.isnan(machine.max_speed)):
+        return vmax, f"must be > 0 {unit} (got {machine.max_speed:g}): the highest speed the machine runs"
+    if not (math.isfinite(machine.min_speed) and machine.min_speed >= 0):
+        return vmin, f"must be a finite speed >= 0 {unit} (got {machine.min_speed:g})"
+    if not machine.min_speed < machine.max_speed:
+        return vmin, (
+            f"{machine.min_speed:g} {unit} is not below {vmax} = {machine.max_speed:g} {unit}: give {vmin} < {vmax}"
+        )
+    for name, curve, what in (("power", machine.power, "W"), ("torque", machine.torque, "N m")):
+        for i, (v, y) in enumerate(curve):
+            if not (math.isfinite(v) and v >= 0):
+                return name, f"point {i + 1}: the speed must be a finite number >= 0 {unit} (got {v:g})"
+            if not (math.isfinite(y) and y > 0):
+                return name, f"point {i + 1}: the {name} must be a finite number > 0 {what} (got {y:g})"
+            if i and not v > curve[i - 1][0]:
+                return name, (
+                    f"the speeds must increase from point to point (point {i + 1}, {v:g} {unit}, follows"
+                    f" {curve[i - 1][0]:g} {unit}): list the curve in increasing speed"
+                )
+    if machine.torque and not spindle:
+        return (
+            "torque",
+            "a spindle's torque applies to turning and milling: a shaper's drive is limited by power",
+        )
+    for name in ("max_depth", "max_width", "feed", "workpiece_diameter", "specific_energy"):
+        v = getattr(machine, name)
+        unit_ = "N/m^2" if name == "specific_energy" else "m"
+        absent = v == math.inf if name in ("max_depth", "max_width") else math.isnan(v)
+        if not absent and not (math.isfinite(v) and v > 0):
+            return name, f"must be a finite number > 0 {unit_} (got {v:g})"
+    if kind is not None and kind != "milling" and math.isfinite(machine.max_width):
+        return "max_width", (
+            "the largest radial width a_e applies to milling; for turning and shaping the width of cut b is"
+            " the depth of cut: give max_depth"
+        )
+    if kind is not None and kind != "turning" and not math.isnan(machine.workpiece_diameter):
+        return "workpiece_diameter", "the workpiece diameter sets the cutting speed of turning only: drop it"
+    if kind == "milling" and not math.isnan(machine.specific_energy):
+        return (
+            "specific_energy",
+            "a milling cut's power comes from [process] Kt and Kte: drop specific_energy",
+        )
+    return None
+
+
+@dataclass(frozen=True)
 class Movable:
     """The movable subsystem (the paper's X2Y2 frame): bodies that translate
     by s along ``direction``.  Their centres in the model file are at
@@ -479,6 +562,7 @@ class Model:
     matrices: MatrixBlock | None = None
     modes: tuple[Mode, ...] = ()  #: a modal model's [[mode]] tables (``matrices`` holds their matrices)
     frf: FrfSource | None = None  #: a measured FRF as the structure ([frf])
+    machine: Machine | None = None  #: the machine's and tool's limits ([machine])
     variant: str | None = None
     overrides: tuple[tuple[str, Any], ...] = ()
     text: str = ""  #: the model file's text (kept for result files)

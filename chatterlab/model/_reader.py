@@ -22,7 +22,7 @@ from ..errors import ChatterlabError, ModelError
 from ._absorber import read_absorbers
 from ._fields import _Ids, _Item
 from ._frf import read_frf_table
-from ._items import Mode, Model
+from ._items import Machine, Mode, Model, Process, machine_problem
 from ._matrices import _read_matrix_model
 from ._modes import read_modal_model, shape_coordinates
 from ._points import (
@@ -66,7 +66,7 @@ _LISTS = (
     "mode",
     "absorber",
 )
-_TABLES = ("model", "movable", "process", "matrices", "frf", "variant")
+_TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine")
 
 #: Limits checked before anything is parsed or allocated (docs/model-format.md, "Limits").
 MAX_MODEL_BYTES = 8 * 2**20  #: a model file larger than this is refused unread
@@ -270,7 +270,7 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
                     f" (known: {', '.join(map(str, known)) or 'none'})",
                     source=src,
                 )
-        elif len(parts) == 2 and parts[0] in ("movable", "process", "model", "frf"):
+        elif len(parts) == 2 and parts[0] in ("movable", "process", "model", "frf", "machine"):
             tbl, fld = parts
             table = raw.setdefault(tbl, {})
             if not isinstance(table, dict):
@@ -381,6 +381,7 @@ def _build_model(
     couplings = milling_couplings(src, couplings, process)
     _check_stroke(src, process, movable)
     absorbers = read_absorbers(src, raw, ids, ctx)
+    machine = _read_machine(src, raw, process)
 
     model = Model(
         name=name,
@@ -401,6 +402,7 @@ def _build_model(
         matrices=matrices,
         modes=modes,
         frf=frf,
+        machine=machine,
         variant=variant,
         overrides=tuple((overrides or {}).items()),
         text=text,
@@ -460,3 +462,79 @@ def _apply_variant(
     if overrides:
         _apply_overrides(src, raw, overrides, "parameter")
         _check_tree(raw, src)  # --set values come from JSON: same limits as the file
+
+
+#: the most points of a [machine] power or torque curve
+MAX_CURVE_POINTS = 10_000
+
+
+def _read_machine(src: str, raw: dict[str, Any], process: Process | None) -> Machine | None:
+    """The ``[machine]`` table (docs/model-format.md, "[machine]"): the limits of
+    the machine and its tool that a recommended cut respects, and its feed; the
+    rules are :func:`chatterlab.model._items.machine_problem`'s."""
+    if "machine" not in raw:
+        return None
+    if process is None or process.kind == "delay":
+        raise ModelError(
+            "needs a [process] of kind turning, milling or shaping: its speeds are in the process's unit",
+            source=src,
+            item="[machine]",
+        )
+    kind = process.kind
+    spindle = kind in ("turning", "milling")
+    vmax, vmin = ("max_rpm", "min_rpm") if spindle else ("max_speed", "min_speed")
+    t = raw["machine"]
+    others = ("max_speed", "min_speed") if spindle else ("max_rpm", "min_rpm")
+    for key, use in zip(others, (vmax, vmin), strict=True):
+        if isinstance(t, dict) and key in t:
+            raise ModelError(
+                f"{key}: a {kind} process's speed is in {process.speed_unit}: write {use}",
+                source=src,
+                item="[machine]",
+                field=key,
+            )
+    fields = (vmax, vmin, "power", "torque", "max_depth", "max_width", "feed", "workpiece_diameter",
+              "specific_energy", "description")  # fmt: skip
+    it = _Item(src, "[machine]", t, fields)
+    unit = process.speed_unit
+    inf, nan = float("inf"), float("nan")
+    machine = Machine(
+        max_speed=it.num(vmax, inf, unit=unit, positive=True),
+        min_speed=it.num(vmin, 0.0, unit=unit, nonneg=True),
+        power=_curve(it, "power", "W", unit),
+        torque=_curve(it, "torque", "N m", unit),
+        max_depth=it.num("max_depth", inf, unit="m", positive=True),
+        max_width=it.num("max_width", inf, unit="m", positive=True),
+        feed=it.num("feed", nan, unit="m", positive=True),
+        workpiece_diameter=it.num("workpiece_diameter", nan, unit="m", positive=True),
+        specific_energy=it.num("specific_energy", nan, unit="N/m^2", positive=True),
+    )
+    bad = machine_problem(machine, kind)
+    if bad is not None:
+        raise it.err(*bad)
+    return machine
+
+
+def _curve(it: _Item, key: str, what: str, unit: str) -> tuple[tuple[float, float], ...]:
+    """A number (the same at every speed) or a list of [speed, value] points."""
+    v = it.raw(key, None)
+    if v is None:
+        return ()
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return ((0.0, it.num(key, unit=what, positive=True)),)
+    form = f"a number in {what} or a list of [speed {unit}, {key} {what}] points"
+    if not isinstance(v, list) or not v:
+        raise it.err(key, f"must be {form}, got {v!r}")
+    if len(v) > MAX_CURVE_POINTS:
+        raise it.err(key, f"has {len(v)} points; at most {MAX_CURVE_POINTS} are read")
+    out = []
+    for i, p in enumerate(v):
+        ok = (
+            isinstance(p, list)
+            and len(p) == 2
+            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in p)
+        )
+        if not ok:
+            raise it.err(key, f"point {i + 1} must be [speed {unit}, {key} {what}], got {p!r}")
+        out.append((float(p[0]), float(p[1])))
+    return tuple(out)
