@@ -36,6 +36,8 @@ __all__ = [
     "spindle_speed_for",
     "stroke_cycle",
     "stroke_speed",
+    "cutting_speed",
+    "ProcessDamping",
     "Movable",
     "Machine",
     "machine_problem",
@@ -289,6 +291,13 @@ def stroke_speed(stroke: Any, T: Any, return_speed: Any) -> Any:
     return stroke / (T - stroke / return_speed)
 
 
+def cutting_speed(rpm: Any, diameter: float) -> Any:
+    """V = pi D n / 60, m/s: the surface speed of a spindle turning at n rpm
+    at the diameter D (m): the workpiece's in turning, the cutter's in
+    milling (a shaper's cutting speed is its work speed itself)."""
+    return np.pi * diameter * rpm / 60.0
+
+
 @dataclass(frozen=True)
 class Process:
     """Process kinematics: how the cutting speed sets the delay T.
@@ -475,6 +484,33 @@ def machine_problem(machine: Machine, kind: str | None) -> tuple[str, str] | Non
 
 
 @dataclass(frozen=True)
+class ProcessDamping:
+    """Process damping of a cut (``[process_damping]``, docs/process-damping.md):
+    the flank of the tool pressing on the wavy surface it has just cut.
+
+    Linear model (Altintas, Eynian & Onozuka 2008): the force on the tool
+    per unit width b is ``-C_pd (b / V) (n . dw/dt) n`` along the cut's
+    normal n, V the cutting speed.  Indentation model (Wu 1989; Chiou &
+    Liang 1998; Budak & Tunc 2010): the force is ``K_sp`` times the volume of
+    material under the flank (wear land ``wear_land``, clearance angle
+    ``clearance``), whose small-vibration equivalent is
+    ``C_pd = K_sp wear_land^2 / 4`` (docs/process-damping.md, Eq. 6).
+    """
+
+    coupling: str  #: id of the [[coupling]] the term acts on
+    C_pd: float  #: N/m: the linear coefficient (from K_sp w^2 / 4 for the indentation model)
+    K_sp: float = float("nan")  #: N/m^3: indentation coefficient (nan: the linear model given)
+    wear_land: float = float("nan")  #: m: flank wear land width
+    clearance: float = float("nan")  #: rad: clearance (relief) angle of the flank
+    normal: float | None = None  #: rad in CE axes: the cut's normal (None: from the coupling)
+
+    @property
+    def indentation(self) -> bool:
+        """The indentation model was given (K_sp, wear land, clearance angle)."""
+        return not np.isnan(self.K_sp)
+
+
+@dataclass(frozen=True)
 class Movable:
     """The movable subsystem (the paper's X2Y2 frame): bodies that translate
     by s along ``direction``.  Their centres in the model file are at
@@ -563,6 +599,7 @@ class Model:
     modes: tuple[Mode, ...] = ()  #: a modal model's [[mode]] tables (``matrices`` holds their matrices)
     frf: FrfSource | None = None  #: a measured FRF as the structure ([frf])
     machine: Machine | None = None  #: the machine's and tool's limits ([machine])
+    process_damping: ProcessDamping | None = None  #: [process_damping] of the cut
     variant: str | None = None
     overrides: tuple[tuple[str, Any], ...] = ()
     text: str = ""  #: the model file's text (kept for result files)

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ChatterlabError, ModelError
 from ._absorber import read_absorbers
+from ._damping import read_process_damping
 from ._fields import _Ids, _Item
 from ._frf import read_frf_table
 from ._items import Machine, Mode, Model, Process, machine_problem
@@ -66,7 +67,7 @@ _LISTS = (
     "mode",
     "absorber",
 )
-_TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine")
+_TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine", "process_damping")
 
 #: Limits checked before anything is parsed or allocated (docs/model-format.md, "Limits").
 MAX_MODEL_BYTES = 8 * 2**20  #: a model file larger than this is refused unread
@@ -270,7 +271,14 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
                     f" (known: {', '.join(map(str, known)) or 'none'})",
                     source=src,
                 )
-        elif len(parts) == 2 and parts[0] in ("movable", "process", "model", "frf", "machine"):
+        elif len(parts) == 2 and parts[0] in (
+            "movable",
+            "process",
+            "model",
+            "frf",
+            "machine",
+            "process_damping",
+        ):
             tbl, fld = parts
             table = raw.setdefault(tbl, {})
             if not isinstance(table, dict):
@@ -382,6 +390,7 @@ def _build_model(
     _check_stroke(src, process, movable)
     absorbers = read_absorbers(src, raw, ids, ctx)
     machine = _read_machine(src, raw, process)
+    process_damping = read_process_damping(src, raw, process, couplings, machine)
 
     model = Model(
         name=name,
@@ -403,6 +412,7 @@ def _build_model(
         modes=modes,
         frf=frf,
         machine=machine,
+        process_damping=process_damping,
         variant=variant,
         overrides=tuple((overrides or {}).items()),
         text=text,
