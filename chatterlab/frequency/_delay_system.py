@@ -19,6 +19,27 @@ root method (:func:`chatterlab.frequency.characteristic_roots`,
 :func:`chatterlab.frequency.rhp_count`, :func:`chatterlab.frequency.newton_refine`)
 takes one such value (:func:`as_delay_system`), never loose matrices.
 
+Several delays.  A machine with an active damper (``[[actuator]]``, whose
+delayed term has the controller's own delay T_a beside the cut's T) has
+
+.. math::
+
+    \\Delta(\\lambda) = P(\\lambda) - \\sum_i U_i V_i^T e^{-\\lambda\\tau_i}
+                     = P(\\lambda) - U\\,E(\\lambda)\\,V^T,\\qquad
+    E = \\operatorname{diag}(e^{-\\lambda\\tau_k}),
+
+one delay per column of ``U``, ``V`` (:attr:`DelaySystem.taus`; the paper's
+Table 1 gives every feedback transfer its own time constant).  A system whose
+delayed terms share one delay is the single-delay system above, exactly as
+before (``taus`` None); :func:`make_system` takes several delayed terms as
+``delays=[(DO_1, tau_1), ...]``, :func:`loop_system` builds them from a loop
+with actuators.  Its ``tau`` is then the largest delay, which sets the
+sampling of the argument principle; the factored form of the phase (which
+multiplies the loop transfer by one scalar :math:`e^{-\\lambda\\tau}`) does not
+apply, so :meth:`DelaySystem.partial_fractions` is None and the count samples
+:math:`\\det\\Delta` directly; the root search is
+:func:`chatterlab.frequency._roots.characteristic_roots`' several-delay route.
+
 References
 ----------
 .. [1] E. Wittbrodt, K. J. Kaliński, "Transient vibration of unsteady linear
@@ -28,6 +49,7 @@ References
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -85,6 +107,10 @@ class DelaySystem:
     open_coeffs : tuple of ndarray
         Coefficients of the open-loop structure :math:`P_0` (``(K, C, M)``),
         used by the winding count.
+    taus : ndarray, shape (r,), or None
+        Several delays: the delay of each column of ``U``, ``V`` (s), and
+        ``tau`` the largest; None when every delayed term has the delay
+        ``tau`` (the single-delay system).
     """
 
     coeffs: tuple[NDArray[np.float64], ...]
@@ -96,6 +122,21 @@ class DelaySystem:
     Cz: NDArray[np.float64]
     open_coeffs: tuple[NDArray[np.float64], ...]
     _cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    taus: NDArray[np.float64] | None = None
+
+    @property
+    def multi_delay(self) -> bool:
+        """The delayed terms have several delays (:attr:`taus`)."""
+        return self.taus is not None
+
+    @property
+    def delays(self) -> tuple[float, ...]:
+        """The distinct delays, s, ascending (empty without a delayed term)."""
+        if not self.has_delay:
+            return ()
+        if self.taus is None:
+            return (self.tau,)
+        return tuple(float(t) for t in np.unique(self.taus))
 
     @property
     def n(self) -> int:
@@ -133,6 +174,10 @@ class DelaySystem:
         """Characteristic matrix :math:`\\Delta(\\lambda)`, shape ``lam.shape + (n, n)``."""
         lam = np.asarray(lam, dtype=complex)
         out = self.P(lam)
+        if self.taus is not None:
+            with np.errstate(over="ignore", invalid="ignore"):
+                e = np.exp(-lam[..., None] * self.taus)  # (..., r)
+                return out - (self.U * e[..., None, :]) @ self.V.T
         if self.has_delay:
             with np.errstate(over="ignore", invalid="ignore"):
                 e = np.exp(-lam * self.tau)[..., None, None]
@@ -143,6 +188,10 @@ class DelaySystem:
         """Derivative :math:`\\Delta'(\\lambda)`, shape ``lam.shape + (n, n)``."""
         lam = np.asarray(lam, dtype=complex)
         out = self.dP(lam)
+        if self.taus is not None:
+            with np.errstate(over="ignore", invalid="ignore"):
+                e = self.taus * np.exp(-lam[..., None] * self.taus)
+                return out + (self.U * e[..., None, :]) @ self.V.T
         if self.has_delay:
             with np.errstate(over="ignore", invalid="ignore"):
                 e = np.exp(-lam * self.tau)[..., None, None]
@@ -204,7 +253,12 @@ class DelaySystem:
     def partial_fractions(self) -> tuple[ComplexArray, ComplexArray, ComplexArray] | None:
         """``(p, L, R)`` with :math:`H(\\lambda) = L \\operatorname{diag}(1/(\\lambda - p)) R`
         (from ``A = S diag(p) S^{-1}``: ``L = Cz S``, ``R = S^{-1} B``), or
-        None when the eigenvector matrix is ill-conditioned (cond > 1e8)."""
+        None when the eigenvector matrix is ill-conditioned (cond > 1e8), and
+        for several delays (:attr:`taus`), whose loop is not ``H`` times one
+        scalar delay: its consumers (the factored phase, the predicted roots,
+        the gain band) then take their direct routes."""
+        if self.taus is not None:
+            return None
 
         def compute() -> tuple[ComplexArray, ComplexArray, ComplexArray] | None:
             p, S, ok = self.eigen()
@@ -360,6 +414,7 @@ def make_system(
     DV: ArrayLike | None = None,
     DO: ArrayLike | tuple[ArrayLike, ArrayLike] | None = None,
     tau: float | None = None,
+    delays: Sequence[tuple[Any, float]] | None = None,
 ) -> DelaySystem:
     """Validate the second-order closed-loop data and build a :class:`DelaySystem`.
 
@@ -375,6 +430,11 @@ def make_system(
         are dropped).
     tau : float, optional
         Delay in s; required (> 0) when ``DO`` is non-zero.
+    delays : sequence of ``(DO_i, tau_i)``, optional
+        Several delayed terms, each with its own delay (instead of ``DO``
+        and ``tau``): :math:`\\Delta = P - \\sum_i D_{O,i} e^{-\\lambda\\tau_i}`.
+        Terms with equal delays are summed; one distinct delay gives the
+        single-delay system.
 
     Returns
     -------
@@ -384,13 +444,63 @@ def make_system(
     ------
     InputError
         Non-square, mismatched or non-finite matrices, ``M`` not symmetric
-        positive definite, ``tau <= 0`` with ``DO`` given.
+        positive definite, ``tau <= 0`` with ``DO`` given, ``delays`` with
+        ``DO`` or ``tau``.
 
     References
     ----------
     .. [1] E. Wittbrodt, K. Kaliński, seed paper, Eqs. 2.1, 2.22-2.28.
     """
-    return _system(_structure(M, C, K), DP, DV, DO, tau)
+    if delays is None:
+        return _system(_structure(M, C, K), DP, DV, DO, tau)
+    if DO is not None or tau is not None:
+        raise InputError("give either DO and tau (one delay) or delays=[(DO_i, tau_i), ...], not both")
+    st = _structure(M, C, K)
+    n = st[0].shape[0]
+    parts = []
+    for i, item in enumerate(delays):
+        if not (isinstance(item, tuple | list) and len(item) == 2):
+            raise InputError(f"delays[{i}] must be a pair (DO_i, tau_i) (got {type(item).__name__})")
+        try:
+            U, V = factor_delayed(item[0], n)
+        except InputError as exc:
+            raise InputError(str(exc).replace("DO", f"delays[{i}] DO")) from exc
+        if U.shape[1]:
+            parts.append((U, V, check_tau(item[1], True)))
+    return _system_delays(st, DP, DV, parts)
+
+
+def _merge_delayed(
+    parts: Sequence[tuple[FloatArray, FloatArray, float]], n: int
+) -> tuple[FloatArray, FloatArray, float, FloatArray | None]:
+    """``(U, V, tau, taus)`` of delayed terms ``(U_i, V_i, tau_i)``: one
+    delay -- every term's (summed), ``taus`` None -- or the columns stacked
+    with their delays ``taus`` and ``tau`` the largest."""
+    parts = [p for p in parts if p[0].shape[1]]
+    if not parts:
+        return np.zeros((n, 0)), np.zeros((n, 0)), 0.0, None
+    U = np.hstack([p[0] for p in parts])
+    V = np.hstack([p[1] for p in parts])
+    taus = np.concatenate([np.full(p[0].shape[1], float(p[2])) for p in parts])
+    if np.all(taus == taus[0]):
+        if len(parts) > 1:  # one delay: the sum, factored again at its rank
+            U, V = factor_delayed(U @ V.T, n)
+        return U, V, float(taus[0]), None
+    return U, V, float(taus.max()), taus
+
+
+def _system_delays(
+    structure: tuple[FloatArray, FloatArray, FloatArray, Any],
+    DP: ArrayLike | None,
+    DV: ArrayLike | None,
+    parts: Sequence[tuple[FloatArray, FloatArray, float]],
+) -> DelaySystem:
+    """The second-order system with the delayed terms ``parts`` (each ``(U_i,
+    V_i, tau_i)``): :func:`_system` for one delay, else the columns' delays."""
+    n = structure[0].shape[0]
+    U, V, tau, taus = _merge_delayed(parts, n)
+    sys = _system(structure, DP, DV, (U, V) if U.shape[1] else None, tau if U.shape[1] else None)
+    return sys if taus is None else dataclasses.replace(sys, taus=taus, _cache={})
 
 
 def _structure(M: ArrayLike, C: ArrayLike, K: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, Any]:
@@ -444,8 +554,86 @@ def loop_system(loop: Any) -> DelaySystem:
 
 def _loop_system(loop: Any, structure: tuple[FloatArray, FloatArray, FloatArray, Any]) -> DelaySystem:
     """:func:`loop_system` with the loop's structure already validated."""
+    acts = getattr(loop, "actuators", None)
+    if acts is not None:
+        return _controlled_system(loop, acts, structure)
     DO = (loop.U, loop.V) if loop.U.shape[1] else None
     return _system(structure, loop.DP, loop.DV, DO, loop.delay if DO is not None else None)
+
+
+def _controlled_system(
+    loop: Any, acts: Any, structure: tuple[FloatArray, FloatArray, FloatArray, Any]
+) -> DelaySystem:
+    """The delay system of a loop with actuators (:class:`chatterlab.process.Actuators`):
+    actuator k adds -D_a = B_k (P_k + s V_k + O_k e^{-s T_k}) S_k / (1 + s tau_k)
+    to Delta.  Without a bandwidth it is second order: P_k and V_k join
+    D_P and D_V, the delayed term U = -O_k B_k, V = S_k^T has the delay T_k
+    (a proportional term when T_k = 0).  An actuator with a bandwidth adds
+    its force f_k as a state, tau_k f_k' = -f_k - (P_k y + V_k y' + O_k
+    y(t - T_k)), and the system is written in first order, x = (q, q', f)."""
+    Mm, Cm, Km, cho = structure
+    n = Mm.shape[0]
+    DP = np.array(loop.DP, dtype=float)
+    DV = np.array(loop.DV, dtype=float)
+    parts: list[tuple[FloatArray, FloatArray, float]] = []
+    if loop.U.shape[1]:
+        parts.append((np.asarray(loop.U, float), np.asarray(loop.V, float), float(loop.delay)))
+    lagged = [k for k in range(acts.m) if acts.lag[k] > 0]
+    for k in range(acts.m):
+        if k in lagged:
+            continue
+        b, c = acts.B[:, k], acts.S[k]
+        DP = DP - acts.P[k] * np.outer(b, c)
+        DV = DV - acts.V[k] * np.outer(b, c)
+        if acts.O[k] != 0:
+            if acts.delay[k] > 0:
+                parts.append((-acts.O[k] * b[:, None], c[:, None], float(acts.delay[k])))
+            else:
+                DP = DP - acts.O[k] * np.outer(b, c)
+    if not lagged:
+        return _system_delays(structure, DP, DV, parts)
+    # first order: x = (q, q', f_lagged)
+    ml = len(lagged)
+    m = 2 * n + ml
+    A = np.zeros((m, m))
+    A[:n, n : 2 * n] = np.eye(n)
+    A[n : 2 * n, :n] = -sla.cho_solve(cho, Km - DP)
+    A[n : 2 * n, n : 2 * n] = -sla.cho_solve(cho, Cm - DV)
+    fparts: list[tuple[FloatArray, FloatArray, float]] = []
+    for U, V, t in parts:  # M q'' = ... + U V^T q(t - t): rows q'', columns q
+        Uf = np.zeros((m, U.shape[1]))
+        Uf[n : 2 * n] = sla.cho_solve(cho, U)
+        Vf = np.zeros((m, V.shape[1]))
+        Vf[:n] = V
+        fparts.append((Uf, Vf, t))
+    for j, k in enumerate(lagged):
+        b, c, tk = acts.B[:, k], acts.S[k], float(acts.lag[k])
+        row = 2 * n + j
+        A[n : 2 * n, row] = sla.cho_solve(cho, b)
+        A[row, :n] = -acts.P[k] * c / tk
+        A[row, n : 2 * n] = -acts.V[k] * c / tk
+        A[row, row] = -1.0 / tk
+        if acts.O[k] != 0:
+            e = np.zeros((m, 1))
+            e[row, 0] = -acts.O[k] / tk
+            Vf = np.zeros((m, 1))
+            Vf[:n, 0] = c
+            if acts.delay[k] > 0:
+                fparts.append((e, Vf, float(acts.delay[k])))
+            else:
+                A[row, :n] += -acts.O[k] * c / tk
+    U, V, tau, taus = _merge_delayed(fparts, m)
+    sys = DelaySystem(
+        coeffs=(-A, np.eye(m)),
+        U=U,
+        V=V,
+        tau=tau,
+        A=A,
+        B=U.copy(),
+        Cz=V.T.copy(),
+        open_coeffs=(-A, np.eye(m)),
+    )
+    return sys if taus is None else dataclasses.replace(sys, taus=taus, _cache={})
 
 
 def loop_systems(loops: Sequence[Any]) -> list[DelaySystem]:

@@ -593,6 +593,8 @@ class Model:
     couplings: tuple[Coupling, ...] = ()
     #: [[absorber]] tuned vibration absorbers (:class:`chatterlab.model.Absorber`)
     absorbers: tuple[Any, ...] = ()
+    #: [[actuator]] active dampers (:class:`chatterlab.model._actuator.Actuator`)
+    actuators: tuple[Any, ...] = ()
     process: Process | None = None
     movable: Movable | None = None
     matrices: MatrixBlock | None = None

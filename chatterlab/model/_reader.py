@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ChatterlabError, ModelError
 from ._absorber import read_absorbers
+from ._actuator import read_actuators
 from ._damping import read_process_damping
 from ._fields import _Ids, _Item
 from ._frf import read_frf_table
@@ -66,6 +67,7 @@ _LISTS = (
     "coupling",
     "mode",
     "absorber",
+    "actuator",
 )
 _TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine", "process_damping")
 
@@ -389,6 +391,7 @@ def _build_model(
     couplings = milling_couplings(src, couplings, process)
     _check_stroke(src, process, movable)
     absorbers = read_absorbers(src, raw, ids, ctx)
+    actuators = read_actuators(src, raw, ids, ctx)
     machine = _read_machine(src, raw, process)
     process_damping = read_process_damping(src, raw, process, couplings, machine)
 
@@ -406,6 +409,7 @@ def _build_model(
         points=tuple(points),
         couplings=tuple(couplings),
         absorbers=tuple(absorbers),
+        actuators=tuple(actuators),
         process=process,
         movable=movable,
         matrices=matrices,

@@ -52,6 +52,8 @@ __all__ = [
     "ce_maps",
     "delay_for",
     "TERMS",
+    "Actuators",
+    "actuators_of",
 ]
 
 #: which feedback terms are on: the paper's cases (a) none, (b) proportional +
@@ -104,6 +106,11 @@ class ClosedLoop:
         A periodic process (the rotating cutter, whose directional matrices
         the Floquet methods integrate over a period); None for a constant
         one (turning, shaping, a given delay).
+    actuators : Actuators or None
+        The machine's active dampers (``[[actuator]]``): a second coupling
+        term of the same loop, with its own gains and delays, which does not
+        scale with the width (:class:`Actuators`); :meth:`D` includes it,
+        ``DP``, ``DV``, ``DO`` and ``Dl`` are the cutting process's alone.
     """
 
     structure: Structure
@@ -117,6 +124,7 @@ class ClosedLoop:
     terms: str
     frozen: FrozenSystem | None = None
     process: Any = None
+    actuators: Actuators | None = None
 
     # ------------------------------------------------------------- the structure
     @property
@@ -186,9 +194,11 @@ class ClosedLoop:
         return coupling_matrix(s, self.Dl_P, self.Dl_V, self.Dl_O, self.delay)
 
     def D(self, s: complex | np.ndarray) -> np.ndarray:
-        """D(s) on the structure's coordinates, shape (..., n, n) (Eq. 2.23)."""
+        """D(s) on the structure's coordinates, shape (..., n, n) (Eq. 2.23),
+        the actuators' term (:meth:`Actuators.D`) included."""
         self._needs_delay()
-        return coupling_matrix(s, self.DP, self.DV, self.DO, self.delay)
+        out = coupling_matrix(s, self.DP, self.DV, self.DO, self.delay)
+        return out if self.actuators is None else out + self.actuators.D(s)
 
     def __call__(self, s: complex | np.ndarray) -> np.ndarray:
         """D(s): see :meth:`D`."""
@@ -236,8 +246,8 @@ class ClosedLoop:
 
     @property
     def is_zero(self) -> bool:
-        """No feedback at all (case a, or all CE matrices zero)."""
-        return not (np.any(self.Dl_P) or np.any(self.Dl_V) or np.any(self.Dl_O))
+        """No feedback at all (case a, or all CE matrices zero, and no actuator)."""
+        return not (np.any(self.Dl_P) or np.any(self.Dl_V) or np.any(self.Dl_O)) and self.actuators is None
 
     @property
     def milling(self) -> Any:
@@ -428,7 +438,9 @@ def closed_loop_unwarned(
     T = delay_for(frozen.model.process, speed=speed, delay=delay) if np.any(O) else None
     if np.any(O) and T is None:
         raise InputError("the delayed feedback term needs a delay: give speed or delay")
-    return ClosedLoop(frozen.structure, J, P, V, O, J.T @ F, float(width), T, terms, frozen)
+    return ClosedLoop(
+        frozen.structure, J, P, V, O, J.T @ F, float(width), T, terms, frozen, actuators=actuators_of(frozen)
+    )
 
 
 # ---------------------------------------------------------------------------- the coupling elements
@@ -470,3 +482,104 @@ def _milling_zoa(model: Any) -> np.ndarray:
     from ._milling import Milling
 
     return Milling.from_cut(model.process.milling).zoa()
+
+
+# ---------------------------------------------------------------------------- the actuators
+@dataclass(frozen=True, eq=False)
+class Actuators:
+    """The machine's active dampers on the loop's coordinates
+    (:mod:`chatterlab.model._actuator`): actuator k measures y_k = S[k] q and
+    pushes with the generalised force B[:, k] f_k,
+
+        f_k(s) = -G_k(s) y_k(s),   G_k(s) = (P_k + s V_k + O_k e^{-s T_k}) / (1 + s tau_k),
+
+    G_k's numerator evaluated by :func:`coupling_matrix` (the paper's
+    feedback with the actuator's own delay T_k), tau_k = 1 / (2 pi f_b) its
+    bandwidth's time constant (0: none).  On the structure's coordinates the
+    term is D_a(s) = -B diag(G(s)) S, added to the cutting process's D(s):
+    Delta(s) = s^2 M + s C + K - D(s) - D_a(s).  Unlike the cut it does not
+    scale with the width.
+
+    Attributes
+    ----------
+    ids : tuple of str
+    B : ndarray (n, m)
+        Generalised forces of unit actuator forces (the force's point and
+        direction, minus the reaction's).
+    S : ndarray (m, n)
+        The sensors' displacements along their directions.
+    P, V, O : ndarray (m,)
+        Gains: N/m, N s/m, N/m.
+    delay : ndarray (m,)
+        T_a of each delayed term, s (0: undelayed).
+    lag : ndarray (m,)
+        1 / (2 pi f_b), s (0: no bandwidth limit).
+    force_limit : ndarray (m,)
+        N (inf: none).
+    """
+
+    ids: tuple[str, ...]
+    B: np.ndarray
+    S: np.ndarray
+    P: np.ndarray
+    V: np.ndarray
+    O: np.ndarray
+    delay: np.ndarray
+    lag: np.ndarray
+    force_limit: np.ndarray
+
+    @property
+    def m(self) -> int:
+        return len(self.ids)
+
+    def gains(self, s: complex | np.ndarray) -> np.ndarray:
+        """G_k(s), shape ``s.shape + (m,)``."""
+        sa = np.asarray(s, dtype=complex)
+        out = np.empty(sa.shape + (self.m,), dtype=complex)
+        for k in range(self.m):
+            Pk, Vk, Ok = (np.array([[x[k]]]) for x in (self.P, self.V, self.O))
+            num = coupling_matrix(sa, Pk, Vk, Ok, float(self.delay[k]))[..., 0, 0]
+            out[..., k] = num / (1.0 + sa * self.lag[k])
+        return out
+
+    def D(self, s: complex | np.ndarray) -> np.ndarray:
+        """D_a(s) = -B diag(G(s)) S on the structure's coordinates, shape (..., n, n)."""
+        g = self.gains(s)
+        return -np.einsum("ik,...k,kj->...ij", self.B, g, self.S)
+
+
+def actuators_of(frozen: FrozenSystem) -> Actuators | None:
+    """The model's ``[[actuator]]`` items on the independent coordinates of
+    ``frozen`` (None when it has none)."""
+    acts = getattr(frozen.model, "actuators", ())
+    if not acts:
+        return None
+    sy = frozen.system
+
+    def along(ref: Any, angle: float) -> np.ndarray:
+        T = frozen.expand(sy.point_map(ref, frozen.position))[:2]
+        return np.array([np.cos(angle), np.sin(angle)]) @ T
+
+    n = frozen.structure.n
+    B = np.zeros((n, len(acts)))
+    S = np.zeros((len(acts), n))
+    for k, a in enumerate(acts):
+        S[k] = along(a.sensor, a.sensor_angle)
+        B[:, k] = along(a.at, a.angle)
+        if a.reaction is not None:
+            B[:, k] -= along(a.reaction, a.angle)
+
+    def arr(name: str) -> np.ndarray:
+        return np.array([float(getattr(a, name)) for a in acts])
+
+    return Actuators(
+        tuple(a.id for a in acts),
+        B,
+        S,
+        arr("proportional_gain"),
+        arr("velocity_gain"),
+        arr("delayed_gain"),
+        arr("delay"),
+        arr("lag"),
+        arr("force_limit"),
+    )
