@@ -63,7 +63,8 @@ def _verify(
     above it; where the diagram says ``inf``, 0 at the width ceiling.  Each
     check says whether its count is ``proven`` (every phase increment bounded,
     see :func:`chatterlab.frequency._phase_sampling.certified_phase`) or only
-    sampled."""
+    sampled (a machine with actuators whose delay differs from the cut's: its
+    count samples det Delta directly, see :mod:`chatterlab.frequency._delay_system`)."""
     from ..frequency._delay_system import loop_systems
     from ..frequency._winding import rhp_counts
 
@@ -83,7 +84,17 @@ def _verify(
     # proportional or velocity feedback, the delay-free loop's decomposition),
     # and their phases are certified together: each count is the one
     # rhp_count(loop) gives alone
-    counts = rhp_counts(loop_systems(loops))
+    systems = loop_systems(loops)
+    # a loop with an actuator's own delay beside the cut's has several delays: its phase is
+    # sampled on det Delta itself (the factored form multiplies by one scalar delay), not proven
+    multi = [k for k, sy in enumerate(systems) if sy.multi_delay]
+    if not multi:
+        counts = rhp_counts(systems)
+    else:
+        single = [k for k in range(len(systems)) if k not in set(multi)]
+        got = dict(zip(single, rhp_counts([systems[k] for k in single]), strict=True))
+        got.update(zip(multi, rhp_counts([systems[k] for k in multi], direct=True), strict=True))
+        counts = [got[k] for k in range(len(systems))]
     out = []
     for (j, kind, b, expect), w in zip(where, counts, strict=True):
         if w.status != "converged":
