@@ -292,7 +292,8 @@ class ProbabilisticLobes(Result):
                     "speed": float(self.speed[j]),
                     "width": float(w[j]),
                     "p_chatter": float(e.value),
-                    "p_chatter_high": float(e.high),
+                    # the interval's upper end, never below the rule of three (none of N samples chattered)
+                    "p_chatter_high": max(float(e.high), -np.log(1.0 - self.level) / self.n_samples),
                 }
             )
         return out
