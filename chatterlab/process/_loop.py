@@ -38,10 +38,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InputError, check_delay, check_speed, check_width, warn_width
+from ..errors import InputError, check_delay, check_nonneg, check_speed, check_width, warn_width
 from ..model._items import Process
 from ..structure._assembly import FrozenSystem
 from ..structure._structure import Structure
+from ._damping import LoopDamping, damping_term, milling_damping
 
 __all__ = [
     "ClosedLoop",
@@ -111,6 +112,12 @@ class ClosedLoop:
         term of the same loop, with its own gains and delays, which does not
         scale with the width (:class:`Actuators`); :meth:`D` includes it,
         ``DP``, ``DV``, ``DO`` and ``Dl`` are the cutting process's alone.
+    damping : LoopDamping or None
+        Process damping (``[process_damping]``, :mod:`chatterlab.process._damping`):
+        the ideal-derivative term b C_pd / V(T) W that ``Dl_V`` includes, at
+        the cutting speed V of the loop's delay; :meth:`at` moves it with the
+        width and the delay.  None: no process damping (``Dl_V`` is the
+        coupling elements' alone).
     """
 
     structure: Structure
@@ -125,6 +132,7 @@ class ClosedLoop:
     frozen: FrozenSystem | None = None
     process: Any = None
     actuators: Actuators | None = None
+    damping: LoopDamping | None = None
 
     # ------------------------------------------------------------- the structure
     @property
@@ -273,14 +281,21 @@ class ClosedLoop:
                 )
             delay = float(self.process.delay(check_speed(speed, unit=self.process.speed_unit)))
         T = self.delay if delay is None else check_delay(delay)
+        b = self.width if width is None else float(width)
+        Dl_V, damping = f * self.Dl_V, self.damping
+        if damping is not None and delay is not None:
+            # the process damping's gain follows the cutting speed of the new delay
+            damping = LoopDamping(damping.term, float(delay))
+            Dl_V = Dl_V + (damping.matrix(b) - self.damping.matrix(b))  # type: ignore[union-attr]
         return replace(
             self,
             Dl_P=f * self.Dl_P,
-            Dl_V=f * self.Dl_V,
+            Dl_V=Dl_V,
             Dl_O=f * self.Dl_O,
             force=f * self.force,
-            width=self.width if width is None else float(width),
+            width=b,
             delay=T if np.any(self.Dl_O) else None,
+            damping=damping,
         )
 
 
@@ -291,6 +306,7 @@ def milling_loop(
     *,
     width: float = 1.0,
     frozen: FrozenSystem | None = None,
+    C_pd: float = 0.0,
 ) -> ClosedLoop:
     """A structure under a milling cutter: the closed loop the Floquet
     methods integrate (:func:`chatterlab.frequency.multipliers`,
@@ -310,6 +326,11 @@ def milling_loop(
     width : float
         The axial depth a_p, m, of the constant (time-averaged) part; the
         Floquet methods take the depth as their own argument.
+    C_pd : float
+        Process damping, N/m (``[process_damping] C_pd``): each tooth's flank
+        damps the tool's velocity along its radial direction with
+        a_p C_pd / V, V = pi D n / 60 (:mod:`chatterlab.process._damping`);
+        the loop's ``Dl_V`` holds the averaged term.  0: none.
     """
     if not isinstance(structure, Structure):
         raise InputError(
@@ -338,8 +359,14 @@ def milling_loop(
     width = check_width(width, "depth of cut a_p")
     H0 = width * milling.zoa()
     T = milling.tooth_period(milling.rpm) if milling.rpm else None
+    V = np.zeros((2, 2))
+    damping = None
+    if check_nonneg(C_pd, "process damping C_pd", "N/m") > 0.0:
+        # the rubbing flanks' averaged term a_p C_pd / V W_0 (process._damping), V = pi D n / 60
+        damping = LoopDamping(milling_damping(milling, C_pd), float("nan") if T is None else T)
+        V = damping.matrix(float(width))
     return ClosedLoop(
-        structure, J, H0, np.zeros((2, 2)), -H0, np.zeros(n), float(width), T, "pdo", frozen, milling
+        structure, J, H0, V, -H0, np.zeros(n), float(width), T, "pdo", frozen, milling, damping=damping
     )
 
 
@@ -438,8 +465,25 @@ def closed_loop_unwarned(
     T = delay_for(frozen.model.process, speed=speed, delay=delay) if np.any(O) else None
     if np.any(O) and T is None:
         raise InputError("the delayed feedback term needs a delay: give speed or delay")
+    damping = None
+    term = damping_term(frozen.model, couplings) if terms in ("pd", "pdo") else None
+    if term is not None:  # the flank's damping b C_pd / V W at the cutting speed of this delay
+        Tv = T if T is not None else delay_for(frozen.model.process, speed=speed, delay=delay)
+        damping = LoopDamping(term, float(Tv))  # type: ignore[arg-type]
+        V = V + damping.matrix(float(width))
     return ClosedLoop(
-        frozen.structure, J, P, V, O, J.T @ F, float(width), T, terms, frozen, actuators=actuators_of(frozen)
+        frozen.structure,
+        J,
+        P,
+        V,
+        O,
+        J.T @ F,
+        float(width),
+        T,
+        terms,
+        frozen,
+        actuators=actuators_of(frozen),
+        damping=damping,
     )
 
 
