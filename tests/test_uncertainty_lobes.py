@@ -122,6 +122,11 @@ def test_estimates_read_from_the_samples(full_run):
     for v, x in zip(r.speed, cons, strict=True):
         e = r.p_chatter_at(v, x)
         assert x == 0 or (float(e.high) <= 0.25 and -math.log(0.05) / 16 <= 0.25)
+    lim = r.risk_limit(0.25)  # the plug-in width limit of a speed recommendation
+    assert np.array_equal(lim.max_width(r.speed, np.full(r.speed.size, np.inf)), cons)
+    mid = 0.5 * (r.speed[3] + r.speed[4])  # between two computed speeds: the smaller of the two
+    assert lim.max_width([mid], [1.0])[0] == min(cons[3], cons[4])
+    assert lim.max_width([r.speed[0] - 1.0, r.speed[5]], [1.0, 1e-9]).tolist() == [0.0, min(1e-9, cons[5])]
     rec = r.recommend(0.1)
     assert rec and rec[0]["width"] == max(x["width"] for x in rec)
     assert set(r.sobol) == {"b_min", "chatter@0"}

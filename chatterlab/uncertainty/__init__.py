@@ -21,13 +21,14 @@ from ._design import MAX_SAMPLES, Design
 from ._estimate import Estimate, quantile_estimate, replicate_estimate, sobol_indices
 from ._fit import uncertain_modal_model
 from ._propagate import Propagation, propagate
-from ._result import ProbabilisticLobes
+from ._result import ProbabilisticLobes, RiskLimit
 from ._risk import risk
 from ._space import InputSpace
 
 __all__ = [
     "risk",
     "ProbabilisticLobes",
+    "RiskLimit",
     "InputSpace",
     "Design",
     "propagate",

@@ -34,7 +34,35 @@ from ..errors import InputError
 from ..io import Result
 from ._estimate import Estimate, p_stable_replicates, quantile_estimate, replicate_estimate, sobol_indices
 
-__all__ = ["ProbabilisticLobes"]
+__all__ = ["ProbabilisticLobes", "RiskLimit"]
+
+
+@dataclass(frozen=True, eq=False)
+class RiskLimit:
+    """A width limit at a risk of chatter: ``name`` and
+    ``max_width(speeds, upper)`` -- the largest width (m) at each speed whose
+    probability of chatter is at most the risk (on the safe side of its
+    sampling error), capped at ``upper`` -- the form of a plug-in width
+    limit of a speed recommendation (``limits=``).
+
+    The limit is known at the speeds the diagram computed; at a speed
+    between two of them it is the smaller of the two (a dip narrower than
+    the speed step is not seen, as in any sampled lobe diagram: compute the
+    speeds the recommendation will ask for), and 0 -- no cut -- outside
+    their range."""
+
+    name: str
+    speeds: np.ndarray
+    widths: np.ndarray
+
+    def max_width(self, speeds: Any, upper: Any) -> np.ndarray:
+        v = np.atleast_1d(np.asarray(speeds, float))
+        j = np.clip(np.searchsorted(self.speeds, v), 0, self.speeds.size - 1)
+        exact = self.speeds[j] == v
+        below = self.widths[np.maximum(j - 1, 0)]
+        w = np.where(exact, self.widths[j], np.minimum(below, self.widths[j]))
+        w = np.where((v < self.speeds[0]) | (v > self.speeds[-1]), 0.0, w)
+        return np.minimum(np.asarray(upper, float), w)
 
 
 @dataclass(frozen=True, eq=False)
@@ -269,6 +297,15 @@ class ProbabilisticLobes(Result):
             else:
                 out[i] = np.nextafter(edges[bad[0] - 1], 0.0) if bad[0] > 0 else 0.0
         return out
+
+    def risk_limit(self, risk: float, *, conservative: bool = True) -> RiskLimit:
+        """:meth:`safe_width` as a :class:`RiskLimit`: a plug-in width limit
+        for a speed recommendation (``recommend(model, limits=[res.risk_limit(0.01)],
+        margin=0)``: the stability limit becomes the 1 % risk lobe)."""
+        w = self.safe_width(risk, conservative=conservative)
+        return RiskLimit(
+            f"P(chatter) <= {100 * risk:g} % ({self.n_samples} samples)", np.asarray(self.speed, float), w
+        )
 
     def recommend(self, risk: float, *, count: int = 3, conservative: bool = True) -> list[dict[str, float]]:
         """The best operating points at a risk: the tops of the ``risk``
