@@ -63,6 +63,7 @@ import numpy as np
 from ..errors import ChatterlabError, InputError, check_width
 from ..model import Model
 from ..structure import assemble
+from ._controlled import design_lobes
 from ._critical import CriticalPoint, at_delay
 from ._limits import limits_of, lobe_bottoms
 from ._matrices import field_derivative, loop_matrices
@@ -364,11 +365,9 @@ class _Problem:
         key = np.asarray(u, float).tobytes()
         if key in self.cache:
             return self.cache[key]
-        from ..lobes import lobes
-
         self.evaluations += 1
         mdl = self.model_at(u)
-        d = lobes(assemble(mdl).at(self.mat_kw["position"]), self.speeds, verify=0, **self.lobe_kw)
+        d = design_lobes(assemble(mdl).at(self.mat_kw["position"]), self.speeds, verify=0, **self.lobe_kw)
         L = loop_matrices(mdl, **self.mat_kw)
         cps = _candidate_points(d, L, self.objective)
         grads = np.zeros((len(cps), u.size))
@@ -516,8 +515,6 @@ def tune_absorbers(
     -------
     AbsorberDesign
     """
-    from ..lobes import lobes
-
     t0 = time.perf_counter()
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {', '.join(OBJECTIVES)} (got {objective!r})")
@@ -552,14 +549,14 @@ def tune_absorbers(
     # the bare structure: its lobes, the chatter frequency, the host modes
     bare = without_absorbers(model)
     try:
-        before = lobes(assemble(bare).at(position), speeds, verify=verify, **lobe_kw)
+        before = design_lobes(assemble(bare).at(position), speeds, verify=verify, **lobe_kw)
         bare_width, f_c = _objective(before, bare, objective, position, speeds, terms)
     except ChatterlabError as exc:
         if "undamped" not in str(exc):
             raise
         before, bare_width, f_c = None, 0.0, float("nan")
     if not np.isfinite(f_c):  # an undamped bare structure: its lowest mode is the host
-        d0 = lobes(fz0, speeds, verify=0, **lobe_kw)
+        d0 = design_lobes(fz0, speeds, verify=0, **lobe_kw)
         f_c = float(d0.absolute_minimum["chatter_hz"])
     lo_f, hi_f = frequency_hz if frequency_hz is not None else (0.6 * f_c, 1.4 * f_c)
     if not 0 < lo_f < hi_f:
@@ -614,7 +611,7 @@ def tune_absorbers(
         runs.append((label, u, *_solve(prob, u)))
     label, u_start, u_best, w_best, nit = max(runs, key=lambda r: r[3])
     tuned = prob.model_at(u_best)
-    after = lobes(assemble(tuned).at(position), speeds, verify=verify, **lobe_kw)
+    after = design_lobes(assemble(tuned).at(position), speeds, verify=verify, **lobe_kw)
     width, _ = _objective(after, tuned, objective, position, speeds, terms)
     phys = prob.physical(u_best)
     tuned_abs = []

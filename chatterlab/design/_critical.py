@@ -6,8 +6,9 @@ On the boundary of the lobe diagram (:mod:`chatterlab.lobes._diagram`)
     det X = 0,   X(b, w, z) = I + b H(w) (A(w) + z O),   z = e^{-j w T},        (1)
 
 with H = J Z^-1 J^T the structure's FRF between the coupling-element (CE)
-coordinates, Z(w) = K - w^2 M + j w C, A = P + j w V and O the CE matrices at
-b = 1 m.  (By the matrix determinant lemma (1) is the loop condition of the
+coordinates, Z(w) = K - w^2 M + j w C - D_a(jw) (the machine's actuators,
+:mod:`chatterlab.design._receptance`: 0 without), A = P + j w V and O the CE
+matrices at b = 1 m.  (By the matrix determinant lemma (1) is the loop condition of the
 lobe engine, det(I + z N(b)) = 0 with N = b V^T (I + b H A)^-1 H U, |nu| = 1
 for an eigenvalue nu of N, times the factor det(I + b H A), which does not
 vanish at a boundary point of the delayed loop: the two have the same zeros
@@ -41,11 +42,13 @@ G_R = Z^-1 J^T and G_L = J Z^-1,
     dX/db = H (A + z O),   dX/dw|_z = b [H' (A + z O) + j H V],   dX/dz = b H O,
     H' = -G_L (-2 w M + j C) G_R,
     dX/dp = b [(dJ G_R + G_L dJ^T - G_L dZ G_R)(A + z O) + H (dP + j w dV + z dO)],
-    dZ = dK - w^2 dM + j w dC,
+    dZ = dK - w^2 dM + j w dC + d(F_a diag(G) S_a),
 
 so (3) is a *linear* function of the derivatives of the matrices,
 db/dp = sum over blocks of S_X : dX/dp, with real "sensitivity matrices"
-S_M, S_C, S_K, S_J, S_P, S_V, S_O, S_T computed once per critical point
+S_M, S_C, S_K, S_J, S_P, S_V, S_O, S_T and, for the actuators, S of their
+maps, gains, delays and time constants (through the partial derivatives of
+G_k) computed once per critical point
 (:attr:`CriticalPoint.S`); a field then costs one elementwise product.
 
 References
@@ -66,6 +69,7 @@ from typing import Any
 import numpy as np
 
 from ._matrices import LoopMatrices
+from ._receptance import Control, control_at, receptances
 
 __all__ = ["CriticalPoint", "at_delay", "at_frequency", "branch_minimum", "static_point"]
 
@@ -90,6 +94,7 @@ class _Eval:
     second: float  # |second nearest|
     y: np.ndarray  # left eigenvector (y^H X = lam y^H), scaled so that y^H u = 1
     u: np.ndarray  # right eigenvector
+    ctl: Control | None = None  # the actuators' term at w (None without actuators)
 
 
 def _evaluate(L: LoopMatrices, b: float, w: float, z: complex) -> _Eval | None:
@@ -98,10 +103,8 @@ def _evaluate(L: LoopMatrices, b: float, w: float, z: complex) -> _Eval | None:
 
     if not (np.isfinite(b) and np.isfinite(w) and np.isfinite(z)):
         return None
-    Z = L.K - w * w * L.M + 1j * w * L.C
-    GR = np.linalg.solve(Z, L.J.T.astype(complex))
-    GL = np.linalg.solve(Z.T, L.J.T.astype(complex)).T
-    H = L.J @ GR
+    ctl = control_at(L, w)
+    GR, GL, H = receptances(L, w, ctl)
     A = L.P + 1j * w * L.V
     X = np.eye(H.shape[0]) + b * H @ (A + z * L.O)
     if not np.all(np.isfinite(X)):
@@ -113,7 +116,7 @@ def _evaluate(L: LoopMatrices, b: float, w: float, z: complex) -> _Eval | None:
     y = vl[:, k]
     yu = np.vdot(y, u)
     second = float(np.abs(vals[order[1]])) if vals.size > 1 else np.inf
-    return _Eval(b, w, z, GR, GL, H, A, complex(vals[k]), second, y / np.conj(yu), u)
+    return _Eval(b, w, z, GR, GL, H, A, complex(vals[k]), second, y / np.conj(yu), u, ctl)
 
 
 def _d(e: _Eval, Y: np.ndarray) -> complex:
@@ -126,8 +129,11 @@ def _lam_b(L: LoopMatrices, e: _Eval) -> complex:
 
 
 def _lam_w(L: LoopMatrices, e: _Eval) -> complex:
-    """d lambda / dw at fixed z."""
-    Hw = -e.GL @ (-2 * e.w * L.M + 1j * L.C) @ e.GR
+    """d lambda / dw at fixed z (dZ_c/dw = -2 w M + j C - dD_a/dw)."""
+    dZ = -2 * e.w * L.M + 1j * L.C
+    if e.ctl is not None:
+        dZ = dZ - e.ctl.dDa
+    Hw = -e.GL @ dZ @ e.GR
     return e.b * _d(e, Hw @ (e.A + e.z * L.O) + 1j * e.H @ L.V)
 
 
@@ -210,6 +216,25 @@ def _sensitivity_matrices(L: LoopMatrices, e: _Eval, kind: str, index: int, T: f
         "V": 1j * w * np.outer(g, e.u),
         "O": z * np.outer(g, e.u),
     }
+    # the actuators: dZ_c = d(Fa diag(G) Sa), so d lambda = b sum (-r s^T) : dZ_c
+    ctl = e.ctl
+    if ctl is None:
+        m = L.Pa.size
+        zero = np.zeros(m, dtype=complex)
+        G.update(Fa=np.zeros(L.Fa.shape, complex), Sa=np.zeros(L.Sa.shape, complex))
+        G.update(Pa=zero, Va=zero, Oa=zero, Ta=zero, La=zero)
+    else:
+        R = -rs
+        rho = np.einsum("ik,ij,kj->k", L.Fa, R, L.Sa)  # diag(Fa^T R Sa^T)
+        G.update(
+            Fa=(R @ L.Sa.T) * ctl.G[None, :],
+            Sa=ctl.G[:, None] * (L.Fa.T @ R),
+            Pa=rho * ctl.dP,
+            Va=rho * ctl.dV,
+            Oa=rho * ctl.dO,
+            Ta=rho * ctl.dT,
+            La=rho * ctl.dL,
+        )
     lz = _lam_z(L, e)
     GT = np.zeros(L.T.size, dtype=complex)
     if kind == "static":

@@ -4,8 +4,8 @@ A field is addressed by its parameter path (``spring.holder.c1``,
 ``beam.table.I``, ``coupling.cut.Kf``; docs/model-format.md, "parameter
 paths"), the same paths ``Model.with_parameter``, ``--set`` and the sweep
 engine use.  :func:`design_fields` lists the default set of a model: every
-number written in the file for a body, beam, spring, coupling, absorber or
-mode, and the damping of every joint direction that has a stiffness (a
+number written in the file for a body, beam, spring, coupling, absorber,
+mode or actuator (its gains, delay and bandwidth), and the damping of every joint direction that has a stiffness (a
 designer's "damp this joint" is a field the file leaves at its default 0).
 Geometry (centres, offsets, distances, angles), reference widths and the
 process kinematics are not in the default set: their paths may be given
@@ -30,6 +30,7 @@ _DESIGN = {
     "spring": ("c1", "c2", "c6", "d1", "d2", "d6"),
     "absorber": ("mass", "stiffness", "frequency_hz", "damping", "damping_ratio"),
     "mode": ("frequency_hz", "damping_ratio", "stiffness", "mass"),
+    "actuator": ("proportional_gain", "velocity_gain", "delayed_gain", "delay", "bandwidth_hz"),
 }
 #: coupling fields that are geometry or a reference, not a cutting coefficient
 _NOT_COEFFICIENTS = ("width_ref", "angle_deg", "force_angle_deg", "normal_angle_deg")
@@ -69,6 +70,14 @@ _UNITS = {
     ("mode", "damping_ratio"): "1",
     ("mode", "stiffness"): "N/m",
     ("mode", "mass"): "kg",
+    ("actuator", "proportional_gain"): "N/m",
+    ("actuator", "velocity_gain"): "N s/m",
+    ("actuator", "delayed_gain"): "N/m",
+    ("actuator", "delay"): "s",
+    ("actuator", "bandwidth_hz"): "Hz",
+    ("actuator", "force_limit"): "N",
+    ("actuator", "angle_deg"): "deg",
+    ("actuator", "sensor_angle_deg"): "deg",
     ("process", "return_speed"): "m/s",
     ("process", "run_in"): "m",
     ("process", "cut"): "m",
@@ -91,14 +100,19 @@ _DEFAULTS = {
     ("coupling", "normal_angle_deg"): 0.0,
     ("coupling", "Kv"): 0.0,
     ("absorber", "damping"): 0.0,
+    ("actuator", "proportional_gain"): 0.0,
+    ("actuator", "velocity_gain"): 0.0,
+    ("actuator", "delayed_gain"): 0.0,
+    ("actuator", "delay"): 0.0,
 }
 
 
 #: fields that enter M, C, K, J and the CE matrices linearly, by the assembly's construction
 #: (docs/model-format.md: a spring adds c J^T J, a body diag(m, m, J), a beam's mass and
 #: damping are proportional to rho and eta, a coupling's matrices to its coefficients, a
-#: mode's matrices to its stiffness or mass); tests/test_design_sensitivity.py confirms each
-#: by a vanishing second difference
+#: mode's matrices to its stiffness or mass, an actuator's gains and delay are entries of the
+#: loop's actuator blocks); tests/test_design_sensitivity.py confirms each by a vanishing
+#: second difference
 _AFFINE = (
     {("spring", f) for f in ("c1", "c2", "c6", "d1", "d2", "d6")}
     | {
@@ -114,6 +128,10 @@ _AFFINE = (
         ("mode", "damping_ratio"),
         ("coupling", "Kf"),
         ("coupling", "Kv"),
+        ("actuator", "proportional_gain"),
+        ("actuator", "velocity_gain"),
+        ("actuator", "delayed_gain"),
+        ("actuator", "delay"),
     }
     | {("coupling", f"K{i}") for i in range(1, 9)}
 )
@@ -132,6 +150,9 @@ _NOT_AFFINE = {
     ("absorber", "frequency_hz"),
     ("absorber", "angle_deg"),
     ("mode", "frequency_hz"),
+    ("actuator", "bandwidth_hz"),
+    ("actuator", "angle_deg"),
+    ("actuator", "sensor_angle_deg"),
 }
 
 
@@ -176,7 +197,7 @@ def design_fields(model: Model) -> list[str]:
     in file order."""
     raw = _raw(model)
     out: list[str] = []
-    for kind in ("body", "beam", "spring", "coupling", "absorber", "mode"):
+    for kind in ("body", "beam", "spring", "coupling", "absorber", "mode", "actuator"):
         items = raw.get(kind, [])
         for it in items if isinstance(items, list) else []:
             if not isinstance(it, dict) or "id" not in it:

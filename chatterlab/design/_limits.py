@@ -25,8 +25,9 @@ import numpy as np
 from ..errors import InputError
 from ._critical import CriticalPoint, at_delay, branch_minimum, static_point
 from ._matrices import LoopMatrices
+from ._receptance import receptance
 
-__all__ = ["Limits", "limits_of", "lobe_bottoms"]
+__all__ = ["Limits", "limits_of", "lobe_bottoms", "branch_bottoms"]
 
 
 @dataclass(frozen=True)
@@ -55,11 +56,6 @@ def _z_of(H: np.ndarray, L: LoopMatrices, b: float, w: float) -> complex:
     if z.size == 0:
         raise InputError("the boundary point has no delayed root: the coupling elements have no delayed term")
     return complex(z[np.argmin(np.abs(np.log(np.abs(z))))])
-
-
-def _H(L: LoopMatrices, w: float) -> np.ndarray:
-    Z = L.K - w * w * L.M + 1j * w * L.C
-    return np.asarray(L.J @ np.linalg.solve(Z, L.J.T.astype(complex)))
 
 
 def limits_of(diagram: Any, L: LoopMatrices, *, speeds: bool = True) -> Limits:
@@ -111,10 +107,11 @@ def limits_of(diagram: Any, L: LoopMatrices, *, speeds: bool = True) -> Limits:
 
 
 def _absolute(diagram: Any, L: LoopMatrices) -> CriticalPoint | None:
-    """The absolute minimum: the engine's, polished, or a lower branch bottom
-    that the lobes show (the engine refines the branch with the lowest
-    *sampled* width; where two branch minima are within the sampling error of
-    each other, about 1e-6, that can be the higher one)."""
+    """The absolute minimum: the lowest of the engine's, polished, and of
+    every branch's low samples, each polished (:func:`branch_bottoms`: the
+    engine refines only the branch with the lowest *sampled* width; where two
+    branch minima are within the sampling error of each other, about 1e-6,
+    that can be the higher one)."""
     a = diagram.absolute_minimum
     width, fa = float(a["width"]), float(a["chatter_hz"])
     if not np.isfinite(width):
@@ -125,17 +122,56 @@ def _absolute(diagram: Any, L: LoopMatrices) -> CriticalPoint | None:
         except ArithmeticError:
             return None
     w = 2 * np.pi * fa
-    z = _z_of(_H(L, w), L, width, w)
+    z = _z_of(receptance(L, w)[0], L, width, w)
     try:
         cp: CriticalPoint | None = branch_minimum(L, width, w, z)
     except ArithmeticError:
         cp = None
     if cp is not None and not cp.converged:
         cp = None
-    for other in lobe_bottoms(diagram, L):
+    for other in branch_bottoms(diagram, L):
         if cp is None or other.b < cp.b * (1 - 1e-12):
             cp = other
     return cp
+
+
+def branch_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[CriticalPoint]:
+    """Every local minimum of every branch of the boundary that the diagram
+    samples, polished (:func:`~chatterlab.design._critical.branch_minimum`),
+    lowest first.  A branch's lobes are one curve b(w) over different ranges
+    of the delay: their samples, merged and sorted by frequency, sample the
+    branch, and each of its local minima -- an end of the samples too, when
+    it is lower than its neighbour -- is refined; minima closer than ``rel``
+    in frequency are one."""
+    found: list[CriticalPoint] = []
+    branches: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for lobe in diagram.lobes:
+        branches.setdefault(int(lobe.branch), []).append(
+            (np.asarray(lobe.frequency_hz, dtype=float), np.asarray(lobe.width, dtype=float))
+        )
+    for parts in branches.values():
+        f = np.concatenate([p[0] for p in parts])
+        wd = np.concatenate([p[1] for p in parts])
+        f, idx = np.unique(f, return_index=True)
+        wd = wd[idx]
+        ok = np.isfinite(wd) & (f > 0)
+        f, wd = f[ok], wd[ok]
+        if f.size == 0:
+            continue
+        left = np.r_[np.inf, wd[:-1]]
+        right = np.r_[wd[1:], np.inf]
+        for i in np.nonzero((wd <= left) & (wd <= right))[0]:
+            w = 2 * np.pi * f[i]
+            if any(abs(cp.w - w) <= 1e-3 * w for cp in found):
+                continue
+            try:
+                z = _z_of(receptance(L, w)[0], L, wd[i], w)
+                cp = branch_minimum(L, wd[i], w, z)
+            except (ArithmeticError, InputError):
+                continue
+            if cp.converged and not any(abs(c.w - cp.w) <= rel * cp.w for c in found):
+                found.append(cp)
+    return sorted(found, key=lambda c: c.b)
 
 
 def lobe_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[CriticalPoint]:
@@ -154,7 +190,7 @@ def lobe_bottoms(diagram: Any, L: LoopMatrices, rel: float = 1e-7) -> list[Criti
             w = 2 * np.pi * fr[i]
             if w <= 0 or any(abs(cp.w - w) <= 1e-3 * w for cp in found):
                 continue
-            z = _z_of(_H(L, w), L, wd[i], w)
+            z = _z_of(receptance(L, w)[0], L, wd[i], w)
             try:
                 cp = branch_minimum(L, wd[i], w, z)
             except ArithmeticError:

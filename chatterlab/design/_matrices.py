@@ -4,8 +4,8 @@ their derivatives with respect to it.
 The boundary of the lobe diagram depends on a field p only through the
 structure's M(p), C(p), K(p) on the independent coordinates, the map J(p)
 to the coupling-element coordinates, the CE matrices P(p), V(p), O(p) at
-b = 1 m, and -- at a given speed -- the delay T(p) of the process
-kinematics (:class:`LoopMatrices`).  The model is immutable: a field is
+b = 1 m, -- at a given speed -- the delay T(p) of the process kinematics,
+and the actuators' maps, gains, delays and bandwidths (:class:`LoopMatrices`).  The model is immutable: a field is
 changed by building the model again (``Model.with_parameter``), so these
 matrices are available at any p, not as closed forms of p.  Their
 derivatives:
@@ -53,6 +53,7 @@ import numpy as np
 from ..errors import ChatterlabError, InputError, UnitWarning
 from ..model import Model
 from ..process import closed_loop
+from ..process._loop import Actuators
 from ..structure import assemble
 from ._fields import field_affinity, field_unit, field_value
 
@@ -71,7 +72,11 @@ def structure_matrices(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 class LoopMatrices:
     """What the boundary depends on: M, C, K (n, n) on the independent
     coordinates, J (p, n) to the CE coordinates, the CE matrices P, V, O
-    (p, p) at b = 1 m, and the delays T (s) at the speeds of the study."""
+    (p, p) at b = 1 m, the delays T (s) at the speeds of the study, and the
+    machine's actuators (:class:`chatterlab.process.Actuators`, m of them;
+    empty blocks without): their force map Fa (n, m), sensor map Sa (m, n),
+    gains Pa, Va, Oa (m,), delays Ta (m,) and bandwidth time constants La
+    (m,), which add -Fa diag(G(s)) Sa to the loop's D(s)."""
 
     M: np.ndarray
     C: np.ndarray
@@ -81,6 +86,23 @@ class LoopMatrices:
     V: np.ndarray
     O: np.ndarray
     T: np.ndarray
+    Fa: np.ndarray
+    Sa: np.ndarray
+    Pa: np.ndarray
+    Va: np.ndarray
+    Oa: np.ndarray
+    Ta: np.ndarray
+    La: np.ndarray
+
+    @property
+    def actuators(self) -> Actuators | None:
+        """The actuators as :class:`chatterlab.process.Actuators` (None without)."""
+        m = self.Pa.size
+        if m == 0:
+            return None
+        ids = tuple(f"a{k}" for k in range(m))
+        inf = np.full(m, np.inf)
+        return Actuators(ids, self.Fa, self.Sa, self.Pa, self.Va, self.Oa, self.Ta, self.La, inf)
 
     def blocks(self) -> tuple[np.ndarray, ...]:
         return tuple(getattr(self, f.name) for f in fields(self))
@@ -116,8 +138,14 @@ def loop_matrices(
         T = np.asarray(speeds, dtype=float).copy()
     else:
         T = np.asarray(proc.delay(np.asarray(speeds, dtype=float)), dtype=float)
+    a = loop.actuators
+    n = M.shape[0]
+    if a is None:
+        act: tuple[np.ndarray, ...] = (np.zeros((n, 0)), np.zeros((0, n))) + (np.zeros(0),) * 5
+    else:
+        act = (a.B, a.S, a.P, a.V, a.O, a.delay, a.lag)
     return LoopMatrices(
-        *(np.array(x, dtype=float) for x in (M, C, K, loop.J, loop.Dl_P, loop.Dl_V, loop.Dl_O, T))
+        *(np.array(x, dtype=float) for x in (M, C, K, loop.J, loop.Dl_P, loop.Dl_V, loop.Dl_O, T, *act))
     )
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import InputError, check_width
 from ..model import Model
 from ..structure import assemble
+from ._controlled import design_lobes
 from ._fields import design_fields, field_value
 from ._limits import limits_of
 from ._matrices import FieldDerivative, field_derivative, loop_matrices
@@ -285,8 +286,6 @@ def sensitivity(
     -------
     Sensitivity
     """
-    from ..lobes import lobes
-
     t0 = time.perf_counter()
     width_max = check_width(width_max, "width_max")
     paths = list(design_fields(model) if fields is None else fields)
@@ -295,7 +294,7 @@ def sensitivity(
     for p in paths:
         field_value(model, p)  # every path checked before the work
     frozen = assemble(model).at(position)
-    diagram = lobes(
+    diagram = design_lobes(
         frozen, np.asarray(speeds, dtype=float), width_max=width_max, terms=terms,
         n_frequencies=n_frequencies, verify=verify, couplings=couplings,
     )  # fmt: skip

@@ -14,8 +14,20 @@ from ..process._loop import closed_loop_unwarned
 from ..structure._assembly import FrozenSystem
 from ._result import LobeDiagram
 
+__all__ = ["verify_diagram", "VERIFY_OFFSET"]
+
 #: relative offset of the verification widths from the envelope
 VERIFY_OFFSET = 1e-3
+
+
+def verify_diagram(
+    frozen: FrozenSystem, d: LobeDiagram, count: int, couplings: list[str] | None = None
+) -> tuple[dict[str, Any], ...]:
+    """The argument-principle checks of a diagram ``d`` computed on another
+    route than the frozen system's own (a plant: the structure with a
+    machine's actuators, :func:`chatterlab.design.design_lobes`), counted on
+    the closed loops of ``frozen`` (:func:`_verify`)."""
+    return _verify(frozen, d, count, couplings)
 
 
 def _check_speeds(d: LobeDiagram, count: int) -> list[tuple[int, str]]:
