@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import matplotlib
 import numpy as np
+import pytest
 from test_uncertainty_badinput import BASE, RISK, run
 
 from chatterlab.io import read_netcdf
@@ -83,3 +84,48 @@ def test_the_shipped_uncertain_model_is_what_the_study_writes(tmp_path):
         return a == b
 
     assert same(made, shipped)
+
+
+@pytest.mark.slow  # three interpreters (10-25 s); the in-process interrupt of test_uncertainty_lobes.py is fast
+def test_a_killed_run_resumes_with_nothing_lost(tmp_path):
+    """SIGKILL in the middle of a run (after its first saved chunk), then the
+    same command with --resume: the file an uninterrupted run writes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    (tmp_path / "m.toml").write_text(BASE + TABLE)
+    cmd = [
+        sys.executable,
+        "-m",
+        "chatterlab.cli",
+        "risk",
+        "m.toml",
+        *RISK,
+        "--samples",
+        "16",
+        "--replicates",
+        "2",
+    ]
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    clean = subprocess.run(
+        [*cmd, "--out", "clean.csv"], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
+    assert clean.returncode == 0, clean.stderr
+    p = subprocess.Popen([*cmd, "--out", "killed.csv"], cwd=tmp_path, env=env, start_new_session=True,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    ck = Path(tmp_path / "killed.csv.ckpt")
+    t0 = time.monotonic()
+    while not list(ck.glob("stage_*/chunk_*.npz")) and p.poll() is None and time.monotonic() - t0 < 60:
+        time.sleep(0.05)
+    os.killpg(p.pid, signal.SIGKILL)
+    p.wait()
+    assert not (tmp_path / "killed.csv").exists() and ck.is_dir()
+    resumed = subprocess.run([*cmd, "--out", "killed.csv", "--resume"], cwd=tmp_path, env=env, capture_output=True,
+                             text=True)  # fmt: skip
+    assert resumed.returncode == 0, resumed.stderr
+    assert (tmp_path / "killed.csv").read_text() == (tmp_path / "clean.csv").read_text()
+    assert not ck.exists()
