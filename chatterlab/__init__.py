@@ -59,6 +59,7 @@ _SUBPACKAGES = frozenset(
         "lobes",
         "sweep",
         "quantities",
+        "selection",
         "io",
         "plot",
         "cli",

@@ -46,6 +46,7 @@ LAYERS = {
     "quantities": 7,
     "design": 7,  # sensitivities of the limit, absorbers (issue 23): above lobes
     "uncertainty": 7.5,  # probabilistic lobes (issue 24): on lobes, sweep and quantities, below cli
+    "selection": 7,  # the speeds to choose (issue 22 item 4): on lobes, frequency and time, below cli
     "cli": 8,
     "__init__": 9,
 }

@@ -76,6 +76,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._risk",
         "probabilistic lobes: P(chatter), quantile lobes and Sobol' indices from [uncertainty]",
     ),
+    "recommend": (
+        "chatterlab.cli._recommend",
+        "the speeds and depths to choose: most material removed while stable, or the chatter-frequency rule",
+    ),
     "example": (
         "chatterlab.cli._example",
         "copy a bundled example (model, FRF) into this folder; alone: list them",
