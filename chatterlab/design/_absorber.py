@@ -64,8 +64,8 @@ from ..errors import ChatterlabError, InputError, check_width
 from ..model import Model
 from ..structure import assemble
 from ._controlled import design_lobes
-from ._critical import CriticalPoint, at_delay
-from ._limits import limits_of, lobe_bottoms
+from ._epigraph import CANDIDATES, candidate_points, solve_epigraph
+from ._limits import limits_of
 from ._matrices import field_derivative, loop_matrices
 
 __all__ = [
@@ -78,7 +78,6 @@ __all__ = [
 ]
 
 OBJECTIVES = ("minimum", "absolute")
-_CANDIDATES = 3  #: the lowest candidates held by the constraints of (2)
 
 
 # ------------------------------------------------------------------ the classical tunings
@@ -369,7 +368,7 @@ class _Problem:
         mdl = self.model_at(u)
         d = design_lobes(assemble(mdl).at(self.mat_kw["position"]), self.speeds, verify=0, **self.lobe_kw)
         L = loop_matrices(mdl, **self.mat_kw)
-        cps = _candidate_points(d, L, self.objective)
+        cps = candidate_points(d, L, self.objective)
         grads = np.zeros((len(cps), u.size))
         if cps:
             phys = self.physical(u)
@@ -392,41 +391,12 @@ class _Problem:
         vals = np.array([cp.b for cp in cps]) if cps else np.array([np.inf])
         if not cps:
             grads = np.zeros((1, u.size))
-        order = np.argsort(vals)[:_CANDIDATES]
+        order = np.argsort(vals)[:CANDIDATES]
         vals, grads = vals[order], grads[order]
-        while vals.size < _CANDIDATES:  # a fixed number of constraints: repeat the highest
+        while vals.size < CANDIDATES:  # a fixed number of constraints: repeat the highest
             vals, grads = np.r_[vals, vals[-1]], np.vstack([grads, grads[-1]])
         self.cache[key] = (vals, grads)
         return vals, grads
-
-
-def _candidate_points(d: Any, L: Any, objective: str) -> list[CriticalPoint]:
-    """The smooth pieces whose minimum is the objective: the branch bottoms the
-    lobes show (and the range ends, for the minimum over a range)."""
-    lim = limits_of(d, L, speeds=False)
-    cps = list(lobe_bottoms(d, L))
-    extra = [lim.absolute] if objective == "absolute" else [lim.minimum]
-    if objective == "minimum":
-        T, b, f = np.asarray(d.delay), np.asarray(d.b_lim), np.asarray(d.chatter_hz)
-        for j in (int(np.argmin(T)), int(np.argmax(T))):
-            if np.isfinite(b[j]) and f[j] > 0:
-                extra.append(at_delay(L, T[j], b[j], 2 * np.pi * f[j], j))
-    for cp in extra:
-        if cp is not None and not any(
-            abs(c.w - cp.w) <= 1e-7 * max(cp.w, 1.0) and abs(c.b - cp.b) <= 1e-9 * cp.b for c in cps
-        ):
-            cps.append(cp)
-    if objective == "minimum":  # a bottom outside the range is not a candidate: keep those the range holds
-        cps = [c for c in cps if c.kind != "bottom" or _in_range(c, T)]
-    return cps
-
-
-def _in_range(cp: CriticalPoint, T: np.ndarray) -> bool:
-    """Some lobe k of the bottom's branch has its bottom at a delay in [T.min(), T.max()]."""
-    phi = -np.angle(cp.z)  # w T = phi + 2 pi k
-    lo, hi = float(T.min()) * cp.w, float(T.max()) * cp.w
-    k = math.ceil((lo - phi) / (2 * math.pi))
-    return bool(phi + 2 * math.pi * k <= hi)
 
 
 def _host_modes(
@@ -608,7 +578,7 @@ def tune_absorbers(
         prob.scale = width_max
     runs = []
     for label, u in u0:
-        runs.append((label, u, *_solve(prob, u)))
+        runs.append((label, u, *solve_epigraph(prob, u)))
     label, u_start, u_best, w_best, nit = max(runs, key=lambda r: r[3])
     tuned = prob.model_at(u_best)
     after = design_lobes(assemble(tuned).at(position), speeds, verify=verify, **lobe_kw)
@@ -664,35 +634,3 @@ def _objective(
     if cp is None:
         return float("inf"), float("nan")
     return float(cp.b), float(cp.frequency_hz)
-
-
-def _solve(prob: _Problem, u0: np.ndarray) -> tuple[np.ndarray, float, int]:
-    """SLSQP on the epigraph form (2) in the unit box, from u0: returns the
-    best design, its objective (m) and the iterations."""
-    from scipy.optimize import minimize
-
-    s = prob.scale
-    vals0, _ = prob.candidates(u0)
-    y0 = np.r_[u0, vals0[0] / s]
-    n = u0.size
-
-    def cons(y: np.ndarray) -> np.ndarray:
-        vals, _ = prob.candidates(y[:n])
-        return vals / s - y[n]
-
-    def cons_jac(y: np.ndarray) -> np.ndarray:
-        _, grads = prob.candidates(y[:n])
-        return np.hstack([grads / s, -np.ones((grads.shape[0], 1))])
-
-    res = minimize(
-        lambda y: -y[n],
-        y0,
-        jac=lambda y: np.r_[np.zeros(n), -1.0],
-        method="SLSQP",
-        bounds=[(0.0, 1.0)] * n + [(0.0, None)],
-        constraints=[{"type": "ineq", "fun": cons, "jac": cons_jac}],
-        options={"ftol": 1e-10, "maxiter": 100},
-    )
-    u = np.clip(res.x[:n], 0.0, 1.0)
-    best = float(prob.candidates(u)[0][0])
-    return u, best, int(res.nit)
