@@ -58,7 +58,8 @@ import numpy as np
 from ..errors import InputError, check_speed, check_width
 from ..frequency._delay_system import single_threaded
 from ..structure._assembly import FrozenSystem
-from ._envelope import Boundary, _check_terms, _Segment, boundary
+from ._envelope import Boundary as _ConstantBoundary
+from ._envelope import _check_terms, _Segment, boundary
 from ._plant import Plant
 from ._result import Lobe, LobeDiagram
 from ._verification import VERIFY_OFFSET as VERIFY_OFFSET
@@ -66,6 +67,40 @@ from ._verification import _check_speeds as _check_speeds
 from ._verification import _verify
 
 __all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
+
+
+class Boundary(_ConstantBoundary):
+    """The stability boundary of one frozen configuration, computed once and
+    evaluated at any delays (:meth:`envelope`): the constant-coefficient
+    engine of :mod:`chatterlab.lobes._envelope`, or, when the model has
+    ``[process_damping]`` (or ``damping=`` is given with a plant), a
+    :class:`~chatterlab.lobes._damped.DampedBoundary`, whose width and delay
+    are coupled through the cutting speed.  Same arguments and methods;
+    ``Boundary(frozen, ...)`` returns the one the model needs."""
+
+    def __new__(cls, frozen: FrozenSystem | None = None, *args: Any, **kw: Any) -> Boundary:
+        if cls is Boundary and _damped(frozen, kw):
+            from ._damped import DampedBoundary
+
+            return super().__new__(DampedBoundary)
+        return super().__new__(cls)
+
+    def __init__(
+        self, frozen: FrozenSystem | None = None, *args: Any, damping: Any = None, **kw: Any
+    ) -> None:
+        super().__init__(frozen, *args, **kw)
+
+
+def _damped(frozen: FrozenSystem | None, kw: dict[str, Any]) -> bool:
+    """The boundary needs process damping: a ``damping=`` term, or the
+    model's ``[process_damping]`` with the velocity terms on."""
+    if kw.get("damping") is not None:
+        return True
+    if frozen is None or kw.get("plant") is not None or kw.get("terms", "pdo") != "pdo":
+        return False
+    from ..process._damping import damping_term
+
+    return damping_term(frozen.model, kw.get("couplings")) is not None
 
 
 @single_threaded
@@ -83,6 +118,7 @@ def lobes(
     couplings: list[str] | None = None,
     plant: Plant | None = None,
     name: str | None = None,
+    damping: Any = None,
 ) -> LobeDiagram:
     """Stability lobe diagram b_lim(speed) at a frozen configuration.
 
@@ -119,6 +155,12 @@ def lobes(
         None and ``process`` must be given.
     name : str, optional
         Label of the structure in the result (default: the model file).
+    damping : DampingTerm, optional
+        Process damping of a ``plant`` (:mod:`chatterlab.process._damping`);
+        a model's ``[process_damping]`` is taken from the model.  With it the
+        boundary couples the width and the delay through the cutting speed
+        (:mod:`chatterlab.lobes._damped`) and ``meta["process_damping"]``
+        says so.
 
     Returns
     -------
@@ -138,15 +180,36 @@ def lobes(
         n_base=n_frequencies,
         couplings=couplings,
         plant=plant,
+        damping=damping,
     )
     T = np.asarray(proc.delay(speeds), dtype=float) if proc.kind != "delay" else speeds.copy()
     envelope = bd.envelope(T)
-    lobe_list, n_in_range = _lobe_curves(bd.segments, T, envelope[2], proc, 1.0)
+    damped = getattr(bd, "term", None) is not None
+    if damped:
+        lobe_list, n_in_range = bd.lobe_curves(T, envelope[2], proc)  # type: ignore[attr-defined]
+    else:
+        lobe_list, n_in_range = _lobe_curves(bd.segments, T, envelope[2], proc, 1.0)
     diagram = _diagram_of(
         bd, frozen, proc, speeds, T, envelope, lobe_list, n_in_range, width_max, terms, name
     )
+    if damped:
+        diagram = replace(diagram, meta={**diagram.meta, "process_damping": _damping_meta(bd)})
     checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
     return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
+
+
+def _damping_meta(bd: Any) -> dict[str, Any]:
+    """What a damped diagram says of its process damping (files, plot)."""
+    t = bd.term
+    return {
+        "C_pd": float(t.C_pd),
+        "model": "indentation (linearised: C_pd = K_sp w^2 / 4)" if t.indentation else "linear",
+        "K_sp": float(t.K_sp),
+        "wear_land": float(t.wear_land),
+        "clearance_deg": float(np.degrees(t.clearance)),
+        "diameter": float("nan") if t.diameter is None else float(t.diameter),
+        "cells": len(bd.cells),
+    }
 
 
 def _process_of(frozen: FrozenSystem | None, process: Any) -> Any:
