@@ -121,8 +121,14 @@ class Window:
 WINDOW_MAX = 1600
 
 
-def solve_window(sys: DelaySystem, w: Window, match_tol: float) -> None:
-    size = sys.A.shape[0] + w.N2 * sys.r
+def solve_window(sys: DelaySystem, w: Window, match_tol: float, model: DelaySystem | None = None) -> None:
+    """The roots of ``sys`` in the window ``w``: the eigenvalues of the
+    generator of ``model`` (default ``sys``; a reduced model of it,
+    :meth:`DelaySystem.band_model`) at ``N`` and ``N2`` nodes near the window,
+    each refined by Newton on ``sys`` (from its low-rank factorisation when
+    ``model`` is a reduced one), kept when both discretisations give it."""
+    gen = sys if model is None else model
+    size = gen.A.shape[0] + w.N2 * gen.r
     if size > WINDOW_MAX:
         raise TooLarge(
             f"a window of radius {w.radius:.4g} rad/s at {w.centre / 2 / math.pi:.4g} Hz needs a"
@@ -132,7 +138,7 @@ def solve_window(sys: DelaySystem, w: Window, match_tol: float) -> None:
     scale = root_scale(sys)
     found = []
     for N in (w.N, w.N2):
-        G = generator_matrix(sys, N, w.centre)
+        G = generator_matrix(gen, N, w.centre)
         try:
             ev = np.linalg.eigvals(G)
         except np.linalg.LinAlgError:
@@ -141,7 +147,7 @@ def solve_window(sys: DelaySystem, w: Window, match_tol: float) -> None:
             continue
         s = ev - 1j * w.centre
         pre = ev[(np.abs(s) <= 1.3 * w.radius) & (ev.imag >= -0.05 * w.radius - 1e-12 * scale)]
-        lam, ok = newton(sys, pre)
+        lam, ok = newton(sys, pre, factored=gen is not sys)
         lam_ok = canonical(lam[ok], scale)
         inside = np.abs(lam_ok - 1j * w.centre) <= w.radius
         # roots mapped from the lower half plane may sit outside the disc

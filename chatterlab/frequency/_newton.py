@@ -48,11 +48,18 @@ def newton(
     tol: float = 1e-13,
     maxiter: int = 40,
     deflate: ComplexArray | None = None,
+    factored: bool = False,
 ) -> tuple[ComplexArray, NDArray[np.bool_]]:
     """Vectorised Newton iteration on det Delta; returns (roots, converged).
 
     ``deflate``: known roots ``zeta_i``; Newton is then applied to
     ``det Delta(lam) / prod (lam - zeta_i)`` so that it cannot return them.
+    ``factored``: the step from the low-rank factorisation of det Delta
+    (:meth:`DelaySystem.factored_log_derivative`, O(m r^2) per step) instead
+    of a solve with Delta (O(n^3)); the same iteration in exact arithmetic,
+    used for the many candidates of a large system's search, whose reported
+    roots are then refined with Delta itself.  Ignored without a
+    pole-residue form.
     """
     lam = np.array(lam0, dtype=complex).ravel()
     conv = np.zeros(lam.shape, dtype=bool)
@@ -61,17 +68,22 @@ def newton(
         alive &= lam.real * sys.tau > -EXP_LIMIT
     scale = root_scale(sys)
     last = np.full(lam.shape, np.inf)
+    factored = factored and sys.partial_fractions() is not None
     for _ in range(maxiter):
         idx = np.flatnonzero(alive & ~conv)
         if idx.size == 0:
             break
         L = lam[idx]
         with np.errstate(all="ignore"):
-            D = sys.delta(L)
-            Dp = sys.ddelta(L)
-            # an exactly singular Delta means lam is a root to machine precision
-            X = batched_solve(D, Dp, singular=np.inf)
-            tr = np.trace(X, axis1=-2, axis2=-1)
+            fac = sys.factored_log_derivative(L) if factored else None
+            if fac is not None:
+                tr = fac
+            else:
+                D = sys.delta(L)
+                Dp = sys.ddelta(L)
+                # an exactly singular Delta means lam is a root to machine precision
+                X = batched_solve(D, Dp, singular=np.inf)
+                tr = np.trace(X, axis1=-2, axis2=-1)
             exact = np.isinf(tr.real) | np.isinf(tr.imag)
             if deflate is not None and deflate.size:
                 tr = tr - (1.0 / (L[:, None] - deflate[None, :])).sum(axis=1)

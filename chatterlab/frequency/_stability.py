@@ -188,6 +188,25 @@ def stability(
     -------
     Stability
     """
+    from ._delay_system import single_threaded_blas
+
+    # one BLAS thread: the work is dense problems of the structure's size, and
+    # a second thread on a shared machine costs more than it gains
+    with single_threaded_blas():
+        return _stability(frozen, width, speed, delay, terms, couplings, count, winding)
+
+
+def _stability(
+    frozen: FrozenSystem,
+    width: float,
+    speed: float | None,
+    delay: float | None,
+    terms: Literal["pdo", "pd", "o", "none"],
+    couplings: list[str] | None,
+    count: int,
+    winding: bool,
+) -> Stability:
+    """:func:`stability` (under one BLAS thread)."""
     from ._delay_system import loop_system
     from ._roots import characteristic_roots
 
@@ -219,7 +238,10 @@ def stability(
     if winding:
         from ._winding import rhp_count
 
-        w = rhp_count(sys_, omega_max=loop_band(fb))
+        # in factored form the count proves its own band (the gain bound's
+        # passive tail): the loop band, which needs the structure's complex
+        # modes, only ends a sampled count
+        w = rhp_count(sys_, omega_max=None if sys_.partial_fractions() is not None else loop_band(fb))
         if verdict in ("stable", "unstable") and w.status == "converged":
             agree = (w.count == 0) == (verdict == "stable")
             how = "every phase increment proven" if w.proven else "phase sampled, not proven"
