@@ -339,3 +339,18 @@ def test_the_fits_uncertainty_in_a_modal_model():
     for g in pairs:
         i, j = (sp.paths.index(p) for p in g.paths)
         assert np.allclose(x[:, i], x[:, j], rtol=1e-14)  # one pole: its two modes move together
+
+
+def test_the_risk_lobe_feeds_the_speed_recommendation(full_run):
+    """chatterlab.selection.recommend with the 25 % risk lobe as a plug-in
+    limit (and no margin): every recommended width is within the risk
+    limit at its speed, and where the risk limit binds it sets the width."""
+    from chatterlab.selection import recommend
+
+    m, r = full_run
+    lim = r.risk_limit(0.25)
+    rec = recommend(m, speeds=RPM, limits=[lim], margin=0.0, check=False, width_max=2e-3)
+    v, w = np.asarray(rec.speed), np.asarray(rec.width)
+    assert v.size and np.all(w <= lim.max_width(v, np.full(v.size, np.inf)))
+    bound = np.array([lim.name in str(b) for b in rec.binding])
+    assert bound.any() and np.array_equal(w[bound], lim.max_width(v[bound], np.full(bound.sum(), np.inf)))
