@@ -403,33 +403,39 @@ def _host_modes(
     bare: Model, ids: list[str], model: Model, position: float | None, f_c: float
 ) -> list[tuple[float, float]]:
     """(host mode frequency Hz, modal mass kg at the absorber's point and
-    direction) per absorber: of the bare structure's undamped modes within a
-    factor 2 of the chatter frequency f_c that the absorber sees (a
-    mass-normalised amplitude e . P phi at its point of at least 1 % of the
-    largest there), the one nearest f_c."""
-    from scipy.linalg import eigh
-
+    direction) per absorber (:func:`host_mode`)."""
     fz = assemble(bare).at(position)
     L = loop_matrices(bare, position=position)
-    w2, phi = eigh(L.K, L.M)
+    out = []
+    for aid in ids:
+        ab = next(a for a in model.absorbers if a.id == aid)
+        row = np.array(ab.direction) @ fz.expand(fz.system.point_map(ab.at, fz.position))[:2]
+        out.append(host_mode(L.M, L.K, row, f_c, f'[[absorber]] "{aid}": its point'))
+    return out
+
+
+def host_mode(M: np.ndarray, K: np.ndarray, row: np.ndarray, f_c: float, what: str) -> tuple[float, float]:
+    """(frequency Hz, modal mass kg) of the host mode seen through ``row`` (a
+    point's displacement along a direction, from the coordinates): of the
+    undamped modes of (M, K) within a factor 2 of the chatter frequency f_c
+    that it sees (a mass-normalised amplitude row . phi of at least 1 % of
+    the largest there), the one nearest f_c; its modal mass 1 / (row . phi)^2."""
+    from scipy.linalg import eigh
+
+    w2, phi = eigh(K, M)
     f = np.sqrt(np.abs(w2)) / (2 * np.pi)
     band = np.nonzero((f >= f_c / 2) & (f <= 2 * f_c))[0]
     if band.size == 0:
         band = np.array([int(np.argmin(np.abs(f - f_c)))])
-    out = []
-    for aid in ids:
-        ab = next(a for a in model.absorbers if a.id == aid)
-        P = fz.expand(fz.system.point_map(ab.at, fz.position))[:2]
-        amp = np.array(ab.direction) @ P @ phi[:, band]
-        seen = np.abs(amp) >= 0.01 * np.abs(amp).max()
-        j = int(np.argmin(np.where(seen, np.abs(f[band] - f_c), np.inf)))
-        if amp[j] == 0:
-            raise InputError(
-                f'[[absorber]] "{aid}": its point does not move along its direction in any mode near the chatter'
-                f" frequency {f_c:.4g} Hz, so it cannot act; attach it where the structure vibrates"
-            )
-        out.append((float(f[band[j]]), float(1.0 / amp[j] ** 2)))
-    return out
+    amp = row @ phi[:, band]
+    seen = np.abs(amp) >= 0.01 * np.abs(amp).max()
+    j = int(np.argmin(np.where(seen, np.abs(f[band] - f_c), np.inf)))
+    if amp[j] == 0:
+        raise InputError(
+            f"{what} does not move along its direction in any mode near the chatter frequency {f_c:.4g} Hz,"
+            " so it cannot act; put it where the structure vibrates"
+        )
+    return float(f[band[j]]), float(1.0 / amp[j] ** 2)
 
 
 def tune_absorbers(

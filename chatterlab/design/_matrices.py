@@ -57,7 +57,7 @@ from ..process._loop import Actuators
 from ..structure import assemble
 from ._fields import field_affinity, field_unit, field_value
 
-__all__ = ["LoopMatrices", "FieldDerivative", "loop_matrices", "field_derivative"]
+__all__ = ["LoopMatrices", "FieldDerivative", "loop_matrices", "matrices_of", "field_derivative"]
 
 _EPS = float(np.finfo(float).eps)
 _AFFINE_TOL = 1e-9  #: relative size of a second difference accepted as round-off (affine field)
@@ -130,8 +130,14 @@ def loop_matrices(
     with warnings.catch_warnings():  # b = 1 m is the reference of beta, not a user's width
         warnings.simplefilter("ignore", UnitWarning)
         loop = closed_loop(frozen, width=1.0, delay=1.0, terms=terms, couplings=couplings)
+    return matrices_of(loop, model.process, speeds)
+
+
+def matrices_of(loop: Any, process: Any = None, speeds: np.ndarray | None = None) -> LoopMatrices:
+    """The :class:`LoopMatrices` of a closed loop at b = 1 m (its CE matrices
+    are taken as they are), with the delays of ``process`` at ``speeds``."""
     M, C, K = structure_matrices(loop)
-    proc = model.process
+    proc = process
     if speeds is None or proc is None:
         T = np.zeros(0)
     elif proc.kind == "delay":

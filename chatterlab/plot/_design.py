@@ -1,5 +1,6 @@
-"""Design plots: the ranked sensitivity bar chart, and the lobes of two
-designs (before and after a change) on one axis."""
+"""Design plots: the ranked sensitivity bar chart, the lobes of two
+designs (before and after a change) on one axis, and an active damper's
+trade-off of limit against actuator force."""
 
 from __future__ import annotations
 
@@ -90,4 +91,54 @@ def plot_lobes_compare(
     ax.set_title(title or "stability lobes: before and after", fontsize=10)
     ax.legend(fontsize=8, loc="upper right")
     ax.grid(alpha=0.3)
+    return ax
+
+
+def plot_tradeoff(
+    force_limit: Any,
+    width: Any,
+    *,
+    ax: Any = None,
+    bare: float | None = None,
+    design: float | None = None,
+    chosen: tuple[float, float] | None = None,
+    title: str | None = None,
+) -> Any:
+    """The trade-off of an active damper: the best minimum limit width (mm)
+    against the actuator's force limit (N) at the design width, with the
+    bare structure's limit and the design width as horizontal lines and the
+    chosen design marked (``chosen`` = (force N, width m)).  Force limits
+    that no design meets are left out (nan).  Returns the Axes."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6.0, 4.5))
+    f = np.asarray(force_limit, dtype=float)
+    w = np.asarray(width, dtype=float)
+    ok = np.isfinite(w)
+    order = np.argsort(f[ok])
+    ax.plot(
+        f[ok][order],
+        w[ok][order] * 1e3,
+        "o-",
+        color="tab:blue",
+        lw=1.2,
+        ms=4,
+        label="best design within the limit",
+    )
+    if bare is not None and np.isfinite(bare):
+        ax.axhline(
+            bare * 1e3, color="tab:red", ls="--", lw=0.9, label=f"without actuator: {bare * 1e3:.4g} mm"
+        )
+    if design is not None and np.isfinite(design):
+        ax.axhline(design * 1e3, color="0.4", ls=":", lw=0.9, label=f"design width {design * 1e3:.4g} mm")
+    if chosen is not None and np.all(np.isfinite(chosen)):
+        ax.plot([chosen[0]], [chosen[1] * 1e3], "*", color="tab:green", ms=11, label="optimised design")
+    if np.any(ok):
+        ax.set_xscale("log")
+    ax.set_xlabel("actuator force at the design width [N]")
+    ax.set_ylabel("minimum limit width [mm]")
+    ax.set_title(title or "limit against actuator effort", fontsize=10)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.grid(alpha=0.3, which="both")
     return ax
