@@ -59,6 +59,8 @@ _SUBPACKAGES = frozenset(
         "lobes",
         "sweep",
         "quantities",
+        "design",
+        "uncertainty",
         "selection",
         "io",
         "plot",

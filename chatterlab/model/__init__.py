@@ -47,6 +47,14 @@ from ._items import (
     tooth_period,
 )
 from ._reader import build_model, load_model, loads_model
+from ._uncertainty import (
+    CorrelatedGroup,
+    Marginal,
+    UncertaintyTable,
+    parameter_overrides,
+    parameter_value,
+    uncertainty_of,
+)
 
 __all__ = [
     "tooth_period",
@@ -71,6 +79,12 @@ __all__ = [
     "Mode",
     "Model",
     "Absorber",
+    "UncertaintyTable",
+    "Marginal",
+    "CorrelatedGroup",
+    "uncertainty_of",
+    "parameter_value",
+    "parameter_overrides",
     "DIRECTIONS",
     "GROUND",
     "load_model",

@@ -378,7 +378,7 @@ def _check_extremes(model: Model, space: InputSpace) -> None:
     """Every field's distribution stays within what the model accepts: the
     model is built at the 1e-6 and 1 - 1e-6 quantiles of each factor (the
     others at their medians), before any sample is computed."""
-    from ..model._uncertainty import parameter_overrides
+    from ..model import parameter_overrides
 
     for f, cols in zip(space.factors, space.factor_dims(), strict=True):
         if all(space.marginals[i].zero_width for i in f):

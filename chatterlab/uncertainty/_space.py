@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..model._uncertainty import CorrelatedGroup, Marginal, UncertaintyTable, uncertainty_of
+from ..model import CorrelatedGroup, Marginal, UncertaintyTable, uncertainty_of
 
 __all__ = ["InputSpace"]
 

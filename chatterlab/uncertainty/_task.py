@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ..model import parameter_overrides
 from ..model._items import Model
-from ..model._uncertainty import parameter_overrides
 from ._design import Design
 from ._space import InputSpace
 
