@@ -213,7 +213,7 @@ class Recommendation(Result):
             "method": str(self.diagram.method),
             "margin": self.margin,
             "width_max_m": self.width_max,
-            "machine": json.dumps({k: getattr(m, k) for k in m.__dataclass_fields__}, default=str),
+            "machine": json.dumps({k: _plain(getattr(m, k)) for k in m.__dataclass_fields__}),
             "feed_m": self.removal.feed,
             "cut_length_m": self.removal.length,
             "cutting_force_source": self.removal.force_source,
@@ -248,6 +248,13 @@ class Recommendation(Result):
         from ..plot._recommend import plot_recommendation
 
         return plot_recommendation(self, ax=ax, title=title)
+
+
+def _plain(x: Any) -> Any:
+    """A machine field as strict JSON: inf as the string "inf", nan (absent) as null."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else ("inf" if x > 0 else None)
+    return [list(p) for p in x] if isinstance(x, tuple) else x
 
 
 def _num(x: float, fmt: str) -> str:

@@ -1,5 +1,6 @@
 """The chatter frequency of a recording: its spectrum with the spindle
-harmonics removed, and the dominant peak that is left.
+harmonics removed, and the dominant peak that is left, if it stands out of the harmonics' leakage
+(``LEAKAGE``) and 20 dB above the noise floor (``PROMINENCE``).
 
 A cut at spindle speed n forces the structure at the spindle frequency
 f_s = n / 60 and its harmonics -- the tooth-passing frequency N f_s and its
@@ -41,6 +42,12 @@ WINDOW = "blackmanharris"
 NOTCH = 5.0
 #: the fewest spindle revolutions a record must hold: two notches of +-NOTCH bins leave two bins free
 MIN_REVOLUTIONS = 2 * NOTCH + 2
+#: a peak below this share of the largest harmonic may be its leakage (the window's side lobes are
+#: 92 dB down, 2.5e-5; four times that), not chatter
+LEAKAGE = 1e-4
+#: a peak must stand this many times (20 dB) above the median of the spectrum off the harmonics
+#: (the noise floor) to be chatter: a record without chatter has only noise there
+PROMINENCE = 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +91,7 @@ class ChatterFrequency(Result):
     removed_amp: np.ndarray
     source: str = ""
     band: tuple[float, float] = (0.0, math.inf)
+    threshold: float = 0.0  #: the least amplitude a chatter peak must have (leakage and noise floor)
 
     @property
     def found(self) -> bool:
@@ -117,8 +125,9 @@ class ChatterFrequency(Result):
                 )
         else:
             lines.append(
-                f"  no peak in {self.band[0]:.4g} .. {self.band[1]:.4g} Hz apart from the spindle harmonics:"
-                " the recording shows no chatter"
+                f"  no peak in {self.band[0]:.4g} .. {self.band[1]:.4g} Hz apart from the spindle harmonics"
+                f" above {self.threshold:.3g} (their leakage, 20 dB over the noise floor): the recording shows"
+                " no chatter"
             )
         return "\n".join(lines)
 
@@ -140,6 +149,7 @@ class ChatterFrequency(Result):
             "sample_rate_hz": self.sample_rate,
             "peaks_hz": [float(x) for x in self.peaks_hz],
             "removed_hz": [float(x) for x in self.removed_hz],
+            "threshold": self.threshold,
         }
         return {"frequency": (self.freq, "Hz", "frequency")}, data, attrs
 
@@ -235,13 +245,17 @@ def chatter_frequency(
     fp, ap = fp[keep], ap[keep]
     mp = np.maximum(np.rint(fp / f_s), 1.0)
     harm = np.abs(fp - mp * f_s) <= NOTCH * res + mp * f_s * tolerance
-    free_f, free_a = fp[~harm], ap[~harm]
+    band = (freq >= lo) & (freq <= hi) & ~near
+    floor = float(np.median(amp[band])) if np.any(band) else 0.0
+    threshold = max(LEAKAGE * float(np.max(ap[harm], initial=0.0)), PROMINENCE * floor)
+    free = ~harm & (ap > threshold)
+    free_f, free_a = fp[free], ap[free]
     f_c = float(free_f[0]) if free_f.size else math.nan
     a_c = float(free_a[0]) if free_a.size else math.nan
     return ChatterFrequency(
         frequency_hz=f_c, amplitude=a_c, resolution_hz=res, spindle_hz=f_s, teeth=int(teeth), duration=duration,
         sample_rate=fs, freq=freq, amp=amp, harmonic=near, peaks_hz=free_f, peaks_amp=free_a,
-        removed_hz=fp[harm], removed_amp=ap[harm], source=name, band=(lo, hi),
+        removed_hz=fp[harm], removed_amp=ap[harm], source=name, band=(lo, hi), threshold=threshold,
     )  # fmt: skip
 
 
