@@ -47,6 +47,7 @@ each checked speed, independently of both steps.
 from __future__ import annotations
 
 import math
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
@@ -55,11 +56,19 @@ from ..errors import InputError, check_width
 from ..frequency._bounds import Band
 from ..process._damping import DampingTerm
 from ._band import _band
-from ._diagram import Boundary, Lobe, _lobe_curves
+from ._diagram import Boundary, Lobe, LobeDiagram, _lobe_curves
 from ._envelope import _interval_candidates, _refine_rows
 from ._plant import Plant
 
-__all__ = ["DampedBoundary", "RATIO", "HOMOTOPY_STEPS", "LOBE_POINTS", "DENSE"]
+__all__ = [
+    "DampedBoundary",
+    "DampedGeometry",
+    "DampedLobeDiagram",
+    "RATIO",
+    "HOMOTOPY_STEPS",
+    "LOBE_POINTS",
+    "DENSE",
+]
 
 #: ratio g_{l+1} / g_l of the frozen-gain lattice
 RATIO = 1.5
@@ -68,6 +77,8 @@ HOMOTOPY_STEPS = 4
 _NEWTON = 12  #: Newton iterations at most at the last step of the gain (quadratic from a good start: 4..6)
 #: points of a lobe (per cell) carried to the coupled gain: each is exact, the curve between is drawn
 LOBE_POINTS = 64
+#: a cell's lobes reach this factor into its neighbours' gains (curves drawn without gaps)
+OVERLAP = RATIO**0.1
 #: more lobes than this crossing the speed range: only those forming the envelope are kept as curves
 DENSE = 400
 
@@ -504,13 +515,16 @@ class DampedBoundary(Boundary):
         T = np.asarray(T, dtype=float)
         Tlo, Thi = float(T.min()), float(T.max())
         glo, ghi = (float(x) for x in self.term.gain(np.array([Tlo, Thi])))
+        Tlo_x = max(Tlo / 1.02, 0.5 * (Tlo + float(getattr(proc, "min_delay", 0.0))))
         pieces: list[tuple[_Cell, list[Lobe]]] = []
         ks_all: set[int] = set()
         for l in range(
             int(self.cell_index(np.array([glo]))[0]), int(self.cell_index(np.array([ghi]))[0]) + 1
         ):
             c = self.cell(l)
-            Ta, Tb = _delays_of_cell(self.term, c.g, c.g_top, Tlo, Thi)
+            # each cell's lobes overlap its neighbours' (a tenth of a cell in gain, a little
+            # beyond the range at its ends) so that every lobe is drawn without a gap
+            Ta, Tb = _delays_of_cell(self.term, c.g / OVERLAP, c.g_top * OVERLAP, Tlo_x, Thi * 1.02)
             if not Tb > Ta:
                 continue
             lobes_c, _ = _lobe_curves(c.bd.segments, np.array([Ta, Tb]), lobe_k, proc, 1.0)
@@ -519,7 +533,6 @@ class DampedBoundary(Boundary):
         n_lobes = len(ks_all)
         envelope_ks = set(np.unique(lobe_k[lobe_k >= 0]).tolist())
         out: list[Lobe] = []
-        offset = 0
         for c, lobes_c in pieces:
             if n_lobes > DENSE:
                 lobes_c = [lb for lb in lobes_c if lb.k in envelope_ks]
@@ -531,7 +544,7 @@ class DampedBoundary(Boundary):
             b0 = np.concatenate([lb.width[t] for lb, t in zip(lobes_c, take, strict=True)])
             T0 = np.concatenate([lb.delay[t] for lb, t in zip(lobes_c, take, strict=True)])
             b1, T1, ok = continue_at_frequency(self.loop, self.term, w, np.full(w.size, c.g), T0, b0)
-            ok &= (T1 >= Tlo * (1 - 1e-12)) & (T1 <= Thi * (1 + 1e-12)) & (b1 <= self.width_max * (1 + 1e-9))
+            ok &= (T1 >= Tlo_x) & (T1 <= Thi * 1.02) & (b1 <= self.width_max * (1 + 1e-9))
             start = 0
             for lb, size in zip(lobes_c, sizes, strict=True):
                 sl = slice(start, start + size)
@@ -543,14 +556,13 @@ class DampedBoundary(Boundary):
                 out.append(
                     Lobe(
                         lb.k,
-                        lb.branch + offset,
+                        lb.branch,
                         Ts,
                         np.asarray(proc.speed_for_delay(Ts)) if proc.kind != "delay" else Ts,
                         b1[sl][keep],
                         w[sl][keep] / (2 * np.pi),
                     )
                 )
-            offset += 1 + max((lb.branch for lb in lobes_c), default=0)
         for lb in out:
             j = int(np.argmin(lb.width))
             self._seen.append((float(lb.width[j]), float(lb.frequency_hz[j])))
@@ -590,3 +602,98 @@ def _delays_of_cell(term: DampingTerm, g0: float, g1: float, Tlo: float, Thi: fl
         return float(brentq(lambda t: float(term.gain(t)) - gx, Tlo, Thi, xtol=1e-15 * Thi, rtol=1e-15))
 
     return at(g0), at(g1)
+
+
+# ---------------------------------------------------------------------------- the diagram's geometry
+class DampedGeometry:
+    """What the plot draws of a diagram with process damping: every lobe as
+    its own polyline of exact points (each lobe has its own phase: the
+    constant-gain geometry of :mod:`chatterlab.lobes._curves`, one phase per
+    branch for all its lobes, does not apply), and the lower envelope at any
+    speed: the diagram's exact b_lim at its requested speeds, and between
+    them the lowest lobe, linear in the delay between its exact points."""
+
+    def __init__(self, d: Any) -> None:
+        self.d = d
+        self.curves = [_Curve(lb) for lb in d.lobes]
+        self.delay_of = d.delay_of
+        m = np.isfinite(d.b_lim) & (np.asarray(d.chatter_hz) == 0)
+        self.static = float(np.min(d.b_lim[m])) if np.any(m) else float("inf")
+        parts = [(lb.delay, lb.width, lb.frequency_hz) for lb in d.lobes if lb.delay.size >= 2]
+        if parts:
+            self.T0 = np.concatenate([p[0][:-1] for p in parts])
+            self.T1 = np.concatenate([p[0][1:] for p in parts])
+            self.b0 = np.concatenate([p[1][:-1] for p in parts])
+            self.b1 = np.concatenate([p[1][1:] for p in parts])
+            self.f0 = np.concatenate([p[2][:-1] for p in parts])
+            self.f1 = np.concatenate([p[2][1:] for p in parts])
+        else:
+            self.T0 = self.T1 = self.b0 = self.b1 = self.f0 = self.f1 = np.zeros(0)
+
+    def envelope_line(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The envelope at the speeds ``v`` (sorted): speed, width (m),
+        chatter frequency (Hz)."""
+        v = np.sort(np.asarray(v, dtype=float))
+        T = np.asarray(self.delay_of(v), dtype=float)
+        env = np.full(v.size, np.inf)
+        fq = np.full(v.size, np.nan)
+        if self.T0.size:
+            o = np.argsort(T)
+            Ts = T[o]
+            lo, hi = np.minimum(self.T0, self.T1), np.maximum(self.T0, self.T1)
+            i0 = np.searchsorted(Ts, lo, "left")
+            i1 = np.searchsorted(Ts, hi, "right")
+            cnt = np.maximum(i1 - i0, 0)
+            seg = np.repeat(np.arange(lo.size), cnt)
+            if seg.size:
+                start = np.cumsum(cnt) - cnt
+                gi = o[i0[seg] + np.arange(seg.size) - start[seg]]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t = np.clip(
+                        np.nan_to_num((T[gi] - self.T0[seg]) / (self.T1[seg] - self.T0[seg])), 0.0, 1.0
+                    )
+                val = self.b0[seg] + t * (self.b1[seg] - self.b0[seg])
+                f = self.f0[seg] + t * (self.f1[seg] - self.f0[seg])
+                order = np.lexsort((val, gi))
+                gi, val, f = gi[order], val[order], f[order]
+                first = np.r_[True, gi[1:] != gi[:-1]]
+                env[gi[first]], fq[gi[first]] = val[first], f[first]
+        # the requested speeds: the engine's exact limit
+        sp = np.asarray(self.d.speed, dtype=float)
+        pos = np.searchsorted(sp[np.argsort(sp)], v)
+        srt = np.argsort(sp)
+        hit = (pos < sp.size) & (sp[srt][np.minimum(pos, sp.size - 1)] == v)
+        j = srt[np.minimum(pos, sp.size - 1)][hit]
+        env[hit], fq[hit] = np.asarray(self.d.b_lim)[j], np.asarray(self.d.chatter_hz)[j]
+        if np.isfinite(self.static):
+            st = self.static < env
+            env[st], fq[st] = self.static, 0.0
+        return v, env, fq
+
+
+class _Curve:
+    """One lobe as the plot draws it (the attributes of
+    :class:`chatterlab.lobes._curves.Curve` it reads)."""
+
+    def __init__(self, lobe: Lobe) -> None:
+        self.k, self.branch = lobe.k, lobe.branch
+        self.speed, self.width = lobe.speed, lobe.width
+        self.chain = _Chain(2 * np.pi * lobe.frequency_hz, lobe.width)
+
+
+class _Chain:
+    def __init__(self, omega: np.ndarray, width: np.ndarray) -> None:
+        self.omega, self.width = omega, width
+
+
+class DampedLobeDiagram(LobeDiagram):
+    """A :class:`~chatterlab.lobes.LobeDiagram` with process damping: the same
+    result, whose :meth:`geometry` draws each lobe as its own exact curve
+    (:class:`DampedGeometry`)."""
+
+    def geometry(self) -> Any:
+        return DampedGeometry(self)
+
+    @classmethod
+    def of(cls, d: LobeDiagram) -> DampedLobeDiagram:
+        return cls(**{f.name: getattr(d, f.name) for f in fields(d)})

@@ -193,7 +193,11 @@ def lobes(
         bd, frozen, proc, speeds, T, envelope, lobe_list, n_in_range, width_max, terms, name
     )
     if damped:
-        diagram = replace(diagram, meta={**diagram.meta, "process_damping": _damping_meta(bd)})
+        from ._damped import DampedLobeDiagram
+
+        diagram = DampedLobeDiagram.of(
+            replace(diagram, meta={**diagram.meta, "process_damping": _damping_meta(bd)})
+        )
     checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
     return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
 
