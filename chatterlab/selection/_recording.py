@@ -80,6 +80,7 @@ def _wav(p: Path, name: str, channel: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _csv(p: Path, name: str, channel: int) -> tuple[np.ndarray, np.ndarray]:
     rows: list[tuple[float, float]] = []
+    header = False
     col = channel + 1
     try:
         with open(p, newline="", encoding="utf-8") as fh:
@@ -89,12 +90,13 @@ def _csv(p: Path, name: str, channel: int) -> tuple[np.ndarray, np.ndarray]:
                 try:
                     ti, xi = float(row[0]), float(row[col])
                 except ValueError:
-                    if rows:
+                    if rows or header:
                         raise InputError(
                             f"recording {name}: line {k + 1} is not two numbers ({','.join(row)[:60]!r});"
-                            " a recording is time,signal rows after at most a header"
+                            " a recording is time,signal rows after at most one header line"
                         ) from None
-                    continue  # the header
+                    header = True  # one header line
+                    continue
                 except IndexError:
                     raise InputError(
                         f"recording {name}: line {k + 1} has {len(row)} column(s); column {col + 1} (the"
