@@ -76,6 +76,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._risk",
         "probabilistic lobes: P(chatter), quantile lobes and Sobol' indices from [uncertainty]",
     ),
+    "fit-damping": (
+        "chatterlab.cli._damping",
+        "fit the process-damping coefficient C_pd to cutting tests (stable, chatter, onset), with its error",
+    ),
     "recommend": (
         "chatterlab.cli._recommend",
         "the speeds and depths to choose: most material removed while stable, or the chatter-frequency rule",

@@ -418,7 +418,14 @@ class DampedBoundary(Boundary):
         """b_lim (m), chatter frequency (Hz) and lobe number at the delays T
         (s), each exact for the loop at its own cutting speed."""
         T = np.atleast_1d(np.asarray(T, dtype=float))
-        g = np.asarray(self.term.gain(T), dtype=float)
+        return self.envelope_at(T, np.asarray(self.term.gain(T), dtype=float))
+
+    def envelope_at(self, T: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Like :meth:`envelope` at the delays T with the gains g (N s/m^2)
+        given: the limit of another C_pd (g = C_pd / V(T)) from the same
+        cells, which depend on the gain only (the fit of C_pd uses it)."""
+        T = np.atleast_1d(np.asarray(T, dtype=float))
+        g = np.broadcast_to(np.asarray(g, dtype=float), T.shape)
         if not np.all(np.isfinite(g) & (g > 0)):
             raise InputError("process damping: a delay gives no positive finite cutting speed")
         cell = self.cell_index(g)
