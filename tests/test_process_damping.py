@@ -327,3 +327,60 @@ def test_roots_and_frf_of_the_damped_loop():
     H = cl.frf(loop, w, inputs="tool.x", outputs="tool.x").data[0, 0, :]
     ref = 1.0 / (K - M * w**2 + 1j * w * C + b * (KF * (1 - np.exp(-1j * w * T)) + 1j * w * g))
     assert np.allclose(H, ref, rtol=1e-10, atol=0)
+
+
+# ----------------------------------------------------------------------------- identification of C_pd
+def test_fit_recovers_C_pd_from_exact_onsets_and_bounds_it_by_cuts():
+    from chatterlab.lobes._fit_damping import fit_process_damping
+
+    n = np.array([195.0, 260.0, 380.0])
+    onset = np.array([exact_turning_limit(v, ST.C_PD)[0] for v in n])
+    plain = turning(None)  # the fit needs only the structure, the process and the diameter
+    fit = fit_process_damping(plain, n, onset, ["onset"] * 3)
+    # each critical C_i is the root of b_lim(T_i; C/V_i) = b_i found to 1e-12 in ln g
+    assert fit.C_pd == pytest.approx(ST.C_PD, rel=1e-9)
+    assert np.allclose(fit.critical, ST.C_PD, rtol=1e-9) and fit.consistent.all()
+    # cut tests 3 % either side of the true limit at one speed bracket C_pd
+    cuts = fit_process_damping(
+        plain, [260.0, 260.0], onset[1] * np.array([0.97, 1.03]), ["stable", "chatter"]
+    )
+    lo, hi = cuts.interval
+    assert lo < ST.C_PD < hi and np.isnan(cuts.std)
+    assert lo == pytest.approx(cuts.critical[0]) and hi == pytest.approx(cuts.critical[1])
+
+
+def test_fit_of_noisy_onsets_is_within_its_standard_error():
+    from chatterlab.lobes._fit_damping import fit_process_damping
+
+    rng = np.random.default_rng(22)
+    n = np.array([190.0, 215.0, 250.0, 320.0])
+    exact = np.array([exact_turning_limit(v, ST.C_PD)[0] for v in n])
+    sigma = 0.02 * exact
+    fit = fit_process_damping(
+        turning(None), n, exact + sigma * rng.standard_normal(n.size), ["onset"] * 4, sigma=sigma
+    )
+    # the estimate is normal about the truth with the reported standard error to first order:
+    # 4 standard errors fail with probability 6e-5 (and the seed is fixed)
+    assert abs(fit.C_pd - ST.C_PD) <= 4 * fit.std
+    assert 0.001 * ST.C_PD < fit.std < 0.05 * ST.C_PD
+
+
+@pytest.mark.parametrize(
+    ("text", "says"),
+    [
+        ("speed,width,result\n300,1,stable\n", "the header has no 'width_mm' column"),
+        ("speed,width_mm,result\n300,1,wobbly\n", "row 2: result must be stable, chatter or onset"),
+        ("speed,width_mm,result\n300,-1,stable\n", "row 2: width_mm must be a number > 0"),
+        ("speed,width_mm,result\n", "no test row follows"),
+        ("speed,width_mm,result,colour\n300,1,stable,red\n", "unknown column(s) colour"),
+    ],
+)
+def test_the_tests_file_is_checked_in_one_line(tmp_path, capsys, text, says):
+    from chatterlab.cli._main import main
+
+    cuts, model, out = tmp_path / "cuts.csv", tmp_path / "m.toml", tmp_path / "fit.json"
+    cuts.write_text(text)
+    model.write_text(BASE)
+    code = main(["fit-damping", str(cuts), "--model", str(model), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists() and says in err and len(err.strip().splitlines()) == 1, err
