@@ -40,13 +40,7 @@ def plot_recommendation(rec: Any, *, ax: Any = None, title: str | None = None) -
     marked.  Returns the two Axes."""
     top, bot = _two(ax)
     v = np.asarray(rec.grid_speed, float)
-    lim = np.asarray(rec.grid_limit, float)
-    d = rec.diagram
-    geo = d.geometry() if getattr(d, "lobes", None) else None
-    if geo is not None and geo.curves:
-        ve, env, _ = geo.envelope_line(np.union1d(np.linspace(v.min(), v.max(), 2000), v))
-    else:
-        ve, env = v, lim
+    ve, env = np.asarray(rec.line_speed, float), np.asarray(rec.line_limit, float)
     env = np.asarray(env, float)
     shown = np.where(np.isfinite(env), env, np.nan) * 1e3
     top.plot(ve, shown, color="k", lw=1.1, label=f"stability limit {rec.limit_name}")
@@ -64,11 +58,12 @@ def plot_recommendation(rec: Any, *, ax: Any = None, title: str | None = None) -
             continue
         colour, ls = _CAP_STYLE.get(name, ("tab:cyan", "-."))
         top.plot(v, np.where(np.isfinite(c), c * 1e3, np.nan), color=colour, ls=ls, lw=1.0, label=name)
-    top.plot(v, rec.grid_allowed * 1e3, color="tab:green", lw=2.4, alpha=0.7, label="largest width allowed")
+    top.plot(ve, np.asarray(rec.line_allowed, float) * 1e3, color="tab:green", lw=2.4, alpha=0.7,
+             label="largest width allowed")  # fmt: skip
     scale, rate_label, use_mrr = _rate(rec)
-    bot.plot(
-        v, (_mrr(rec) if use_mrr else np.asarray(rec.grid_rate, float)) * scale, color="tab:green", lw=1.4
-    )
+    la = np.asarray(rec.line_allowed, float)
+    y = rec.removal.mrr(la, ve) if use_mrr else rec.removal.width_rate(la, ve)
+    bot.plot(ve, np.asarray(y, float) * scale, color="tab:green", lw=1.4)
     for i in range(rec.speed.size):
         s, w = float(rec.speed[i]), float(rec.width[i]) * 1e3
         y = float(rec.mrr[i] if use_mrr else rec.width_rate[i]) * scale

@@ -51,6 +51,15 @@ __all__ = ["recommend", "check_margin", "Source", "source_of", "stable_width"]
 
 #: speeds added inside each candidate's bracket per refinement round
 REFINE_POINTS = 8
+#: speeds of the dense line through the lobe curves: 10 per lobe crossing the range, within these
+#: bounds (the line adds each cusp where the active lobe changes between two of its speeds; its cost
+#: grows with speeds x lobe segments)
+LINE_POINTS = 2000
+LINE_POINTS_MAX = 6000
+#: rounds of seeds from the lobe curves (a seed at a peak the curves have but the lobes do not --
+#: a lobe missing from a dense diagram's curves -- removes that stretch of the curves, and the next
+#: round seeds the next peak)
+SEED_ROUNDS = 3
 #: claims of a lobe diagram (LobeDiagram.CLAIMS) that establish nothing at a speed
 _UNTRUSTED = (2, 3)
 
@@ -193,11 +202,22 @@ class _Table:
         self._limit()
 
     def _limit(self) -> None:
-        v, c, m = self.v, self.cols, self.machine
+        c = self.cols
+        self.allowed, self.binding, self.caps, self.rate, self.room = self.limited(
+            self.v, c["stable"], c["ceiling"]
+        )
+
+    def limited(
+        self, v: np.ndarray, stable: np.ndarray, ceiling: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray]:
+        """At speeds ``v`` with stable widths ``stable`` (nan: undetermined; ``ceiling``: only up to
+        the width searched): the largest width every limit allows, what sets it, each limit's
+        width, the rate b/T and the room (stable width over the width allowed)."""
+        m = self.machine
         one = 1.0 - self.margin
         caps: dict[str, np.ndarray] = {
-            "stability": np.where(c["ceiling"] | np.isnan(c["stable"]), np.inf, one * c["stable"]),
-            "ceiling": np.where(c["ceiling"], one * float(self.width_max or np.inf), np.inf),
+            "stability": np.where(ceiling | np.isnan(stable), np.inf, one * stable),
+            "ceiling": np.where(ceiling, one * float(self.width_max or np.inf), np.inf),
             "max depth": np.full(v.size, m.max_depth),
         }
         if m.power:
@@ -205,7 +225,7 @@ class _Table:
         if m.torque:
             caps["torque"] = curve_at(m.torque, v) / self.removal.torque_per_width(v)
         upper = np.min(np.vstack(list(caps.values())), axis=0)
-        upper = np.where(np.isnan(c["stable"]), 0.0, upper)
+        upper = np.where(np.isnan(stable), 0.0, upper)
         for lim in self.limits:
             w = np.asarray(lim.max_width(v, upper.copy()), float)
             if w.shape != v.shape:
@@ -216,13 +236,70 @@ class _Table:
         stack = np.vstack([caps[k] for k in names])
         allowed = np.min(stack, axis=0)
         binding = np.array([names[i] for i in np.argmin(stack, axis=0)], dtype=object)
-        und = np.isnan(c["stable"])
-        self.allowed = np.where(und, 0.0, np.maximum(allowed, 0.0))
-        self.binding = np.where(und, "undetermined", binding).astype(str)
-        self.caps = caps
-        self.rate = np.where(np.isfinite(self.allowed), self.removal.width_rate(self.allowed, v), 0.0)
+        und = np.isnan(stable)
+        allowed = np.where(und, 0.0, np.maximum(allowed, 0.0))
+        binding = np.where(und, "undetermined", binding).astype(str)
+        rate = np.where(np.isfinite(allowed), self.removal.width_rate(allowed, v), 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            self.room = np.where(self.allowed > 0, c["stable"] / self.allowed, 0.0)
+            room = np.where(allowed > 0, stable / allowed, 0.0)
+        return allowed, binding, caps, rate, room
+
+    def raw_line(self) -> tuple[Any, np.ndarray, np.ndarray] | None:
+        """The lobes' envelope interpolated between their samples on a dense
+        grid (:meth:`LobeDiagram.geometry`, with its cusps): the geometry, the
+        speeds and the widths; None without lobe curves (Floquet methods)."""
+        d = self.first
+        geo = d.geometry() if getattr(d, "lobes", None) else None
+        if geo is None or not geo.curves:
+            return None
+        n = int(min(max(LINE_POINTS, 10 * int(getattr(d, "n_lobes", 0))), LINE_POINTS_MAX))
+        vv, env, _ = geo.envelope_line(np.linspace(float(self.v.min()), float(self.v.max()), n))
+        return geo, np.asarray(vv, float), np.asarray(env, float)
+
+    def line(self, raw: tuple[Any, np.ndarray, np.ndarray] | None, count: int) -> tuple[np.ndarray, ...]:
+        """The envelope where it agrees with the speeds evaluated (:func:`_trusted`),
+        the width allowed there, and the speeds of its best local maxima not yet
+        evaluated, with their neighbours: seeds for the exact search where the
+        lobes are denser than the speeds evaluated.  Without lobe curves: the
+        speeds evaluated, and no seeds."""
+        if raw is None:
+            return self.v, self.cols["limit"], self.allowed, np.zeros(0)
+        vv, env = _trusted(raw[0], self.v, self.cols["limit"], raw[1], raw[2])
+        ceiling = ~np.isfinite(env)
+        stable = np.where(ceiling, float(self.width_max or np.inf), env)
+        allowed, _, _, rate, room = self.limited(vv, stable, ceiling)
+        idx = _maxima(rate, room)
+        idx = idx[~np.isin(vv[idx], self.v)][: 3 * count]
+        seeds = (
+            np.concatenate([vv[np.clip(idx + k, 0, vv.size - 1)] for k in (-1, 0, 1)]) if idx.size else idx
+        )
+        return vv, env, allowed, seeds
+
+
+#: the lobe curves' envelope and the exact limit at a speed evaluated agree to this (the curves
+#: are cubic Hermite between the engine's frequency samples)
+LINE_RTOL = 1e-3
+
+
+def _trusted(
+    geo: Any, v: np.ndarray, exact: np.ndarray, vv: np.ndarray, env: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The dense envelope kept only between speeds evaluated where it agrees
+    with the exact limits there (a dense diagram keeps only the lobes that
+    form its envelope at the speeds requested, so between them a lower lobe
+    may be missing from the curves), joined with the exact values."""
+    gv, ge, _ = geo.envelope_line(v)
+    at = np.isin(gv, v)
+    curve = np.asarray(ge, float)[at]
+    both = np.isfinite(curve) & np.isfinite(exact)
+    ok = np.where(both, np.abs(curve / np.where(both, exact, 1.0) - 1) <= LINE_RTOL, curve == exact)
+    # an interval [v_i, v_i+1] is trusted when both its ends are
+    good = ok[:-1] & ok[1:]
+    i = np.clip(np.searchsorted(v, vv, side="right") - 1, 0, v.size - 2)
+    keep = good[i] & (vv > v[0]) & (vv < v[-1]) & ~np.isin(vv, v)
+    allv = np.r_[vv[keep], v]
+    o = np.argsort(allv, kind="stable")
+    return allv[o], np.r_[env[keep], exact][o]
 
 
 #: rates within this relative tolerance of each other are equal (a plateau: a power-limited MRR is
@@ -430,6 +507,12 @@ def _run(src: Source, speeds: Any, machine: Any, margin: float, count: int, lims
             width_max = top / (1.0 - margin) * (1 + 1e-9)
     tab = _Table(src, removal, mach, margin, lims, width_max, options)
     tab.add(v)
+    raw = tab.raw_line()
+    for _ in range(SEED_ROUNDS):  # lobes denser than the grid: their curves say where the peaks are
+        seeds = tab.line(raw, count)[3]
+        if not seeds.size:
+            break
+        tab.add(seeds)
     for _ in range(refine):
         new = []
         for i in _maxima(tab.rate, tab.room)[: max(2 * count, count + 3)]:
@@ -440,11 +523,11 @@ def _run(src: Source, speeds: Any, machine: Any, margin: float, count: int, lims
             break
         tab.add(np.concatenate(new))
     best = _maxima(tab.rate, tab.room)[:count]
-    return _result(src, tab, best, mach, margin, removal, notes, check, t0)
+    return _result(src, tab, best, mach, margin, removal, notes, check, t0, tab.line(raw, count))
 
 
 def _result(src: Source, tab: _Table, best: np.ndarray, mach: Any, margin: float, removal: Removal,
-            notes: list[str], check: bool, t0: float) -> Recommendation:  # fmt: skip
+            notes: list[str], check: bool, t0: float, line: tuple[np.ndarray, ...]) -> Recommendation:  # fmt: skip
     from ._reasons import reason
 
     v, c = tab.v, tab.cols
@@ -479,6 +562,9 @@ def _result(src: Source, tab: _Table, best: np.ndarray, mach: Any, margin: float
         grid_rate=tab.rate,
         grid_binding=tab.binding,
         caps=dict(tab.caps),
+        line_speed=line[0],
+        line_limit=line[1],
+        line_allowed=line[2],
         diagram=tab.first,
         removal=removal,
         machine=mach,

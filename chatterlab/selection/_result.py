@@ -69,7 +69,12 @@ class Recommendation(Result):
     ``grid_speed``, ``grid_limit`` (m), ``grid_allowed`` (the largest
     width every limit allows, m), ``grid_rate`` (b / T, m/s),
     ``grid_binding`` and ``caps`` (each limit's largest width there, m).
-    ``diagram`` is the lobe diagram on the requested speeds.
+    ``line_speed``, ``line_limit``, ``line_allowed``: the lobes' envelope
+    interpolated between the samples of their curves on a dense grid (with
+    the cusps) and the width allowed there -- what the plot draws, and where
+    the search looked for peaks between the speeds evaluated (the speeds
+    evaluated themselves without lobe curves).  ``diagram`` is the lobe
+    diagram on the requested speeds.
     """
 
     speed: np.ndarray
@@ -92,6 +97,9 @@ class Recommendation(Result):
     grid_rate: np.ndarray
     grid_binding: np.ndarray
     caps: dict[str, np.ndarray]
+    line_speed: np.ndarray
+    line_limit: np.ndarray
+    line_allowed: np.ndarray
     diagram: Any
     removal: Any
     machine: Any
