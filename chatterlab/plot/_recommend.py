@@ -126,7 +126,8 @@ def plot_chatter_spectrum(
     ax.set_ylabel("amplitude")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="upper right")
-    ax.set_title(title or f"spectrum of {cf.source}: tooth passing {ft:.4g} Hz (dotted)", fontsize=10)
+    name = str(cf.source).replace("\\", "/").rsplit("/", 1)[-1]
+    ax.set_title(title or f"spectrum of {name}: tooth passing {ft:.4g} Hz (dotted)", fontsize=10)
     return ax
 
 

@@ -131,7 +131,7 @@ def source_of(source: Any, position: float | None = None, method: Any = None) ->
         return Source(source, m.process, m.couplings, m.machine, m.name or str(m.source), frozen=source,
                       takes_verify=True)  # fmt: skip
     if isinstance(source, ClosedLoop) and source.process is not None:
-        return Source(source, source.process, (), None, "milling loop", loop=source)
+        return Source(source, source.process, (), None, "", loop=source)
     return Source(source, None, (), None, type(source).__name__)
 
 
@@ -569,7 +569,7 @@ def _result(src: Source, tab: _Table, best: np.ndarray, mach: Any, margin: float
         removal=removal,
         machine=mach,
         margin=margin,
-        model=src.name,
+        model=src.name or str(getattr(tab.first, "model", "")),
         width_max=float(tab.width_max or math.nan),
         notes=tuple(notes),
         evaluations=tab.evaluations,
