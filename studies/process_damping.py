@@ -15,8 +15,9 @@ holds with zeta = (c + b C_pd / V) / (2 sqrt(k m)), a quadratic equation in b
 (docs/process-damping.md, Eq. 8) whose root rises like 1/V at low speed:
 b - b_0 = b_0 (1 + 2 zeta_0) w_n C_pd / (K_f V) + O(1/V^2).
 
-Run: ``python studies/process_damping.py`` (prints the numbers; ``--figures
-DIR`` draws ``process_damping_lobes.png``).  ``tests/test_process_damping.py``
+Run: ``python studies/process_damping.py`` (prints the numbers and writes the
+model without the table and the cutting tests of docs/process-damping.md into
+``studies/process_damping/``; ``--figures DIR`` draws ``process_damping_lobes.png``).  ``tests/test_process_damping.py``
 checks them.
 
 References: Y. Altintas, M. Eynian, H. Onozuka, CIRP Annals 57 (2008)
@@ -25,6 +26,8 @@ Polacek (1963).
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -85,6 +88,28 @@ workpiece_diameter = {DIAMETER}
     return text
 
 
+#: the folder of the study's files (the model and the cutting tests the docs use)
+FILES = Path(__file__).resolve().parent / "process_damping"
+#: speeds (rpm) of the synthetic chatter onsets, and of a stable and a chattering cut
+ONSETS_RPM = (190.0, 230.0, 300.0, 400.0)
+CUT_RPM = 260.0
+
+
+def cuts_text() -> str:
+    """The cutting tests of docs/process-damping.md: the chatter onsets of
+    the model with C_PD at ONSETS_RPM, rounded to 1 um (the measurement),
+    and a cut 5 % below and one 5 % above the limit at CUT_RPM."""
+    n = np.array([*ONSETS_RPM, CUT_RPM])
+    d = cl.lobes(cl.loads_model(model_text(), source="process_damping.py"), n, width_max=0.02, verify=0)
+    b = np.round(d.b_lim * 1e3, 3)
+    rows = [f"{v:g},{w:.3f},onset,0.01" for v, w in zip(ONSETS_RPM, b[:-1], strict=True)]
+    rows += [f"{CUT_RPM:g},{0.95 * b[-1]:.3f},stable,", f"{CUT_RPM:g},{1.05 * b[-1]:.3f},chatter,"]
+    head = (
+        "# cutting tests of a 1-DOF turning tool (studies/process_damping.py: the onsets of C_pd = 2e5 N/m)\n"
+    )
+    return head + "speed,width_mm,result,sigma_mm\n" + "\n".join(rows) + "\n"
+
+
 def bottom(V: np.ndarray | float, C_pd: float = C_PD) -> np.ndarray:
     """The lowest lobe bottom at the cutting speed V (m/s), m: the root of
     K_f b = w_n (c + b g)(1 + (c + b g) / a), g = C_pd / V, a = 2 sqrt(k m)
@@ -129,6 +154,9 @@ if __name__ == "__main__":
     from _figures import figures_dir
 
     folder = figures_dir(__doc__.splitlines()[0])
+    FILES.mkdir(exist_ok=True)
+    (FILES / "turning.toml").write_text(model_text(None))
+    (FILES / "cuts.csv").write_text(cuts_text())
     r = run()
     d = r["damped"]
     print(d.summary())

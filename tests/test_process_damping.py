@@ -384,3 +384,9 @@ def test_the_tests_file_is_checked_in_one_line(tmp_path, capsys, text, says):
     code = main(["fit-damping", str(cuts), "--model", str(model), "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2 and not out.exists() and says in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_shipped_files_are_what_the_study_writes():
+    files = ROOT / "studies/process_damping"
+    assert (files / "turning.toml").read_text() == ST.model_text(None)
+    assert (files / "cuts.csv").read_text() == ST.cuts_text()
