@@ -112,6 +112,7 @@ from ._controlled import (
 from ._epigraph import CANDIDATES, candidate_points, solve_epigraph
 from ._limits import limits_of
 from ._matrices import LoopMatrices, matrices_of
+from ._receptance import control_at
 
 __all__ = [
     "ActiveDesign",
@@ -239,9 +240,9 @@ class Margins:
     phase_hz: float
 
 
-def _loop_transfer(L: LoopMatrices, k: int, omega: np.ndarray) -> np.ndarray:
-    """L_k(jw) = G_k(jw) S_k Z_k(jw)^-1 F_k, the loop broken at actuator k (the
-    other actuators closed), at the angular frequencies ``omega``."""
+def plant_transfer(L: LoopMatrices, k: int, omega: np.ndarray) -> np.ndarray:
+    """P_k(jw) = S_k Z_k(jw)^-1 F_k: the structure with the other actuators
+    closed, from actuator k's force to its sensor (m/N), at ``omega`` (rad/s)."""
     acts = L.actuators
     assert acts is not None
     s = 1j * np.asarray(omega, dtype=float)
@@ -250,57 +251,112 @@ def _loop_transfer(L: LoopMatrices, k: int, omega: np.ndarray) -> np.ndarray:
     P = dynamic_receptance(
         L.M, L.C, L.K, np.asarray(omega, float), L.Sa[k : k + 1], L.Fa[:, k : k + 1], minus=others
     )
-    return np.asarray(g[:, k] * P[:, 0, 0])
+    return np.asarray(P[:, 0, 0])
 
 
-def margin_grid(L: LoopMatrices, roots: Any) -> np.ndarray:
-    """The frequencies (rad/s) the margins and the force are sampled on: every
-    structural and controlled resonance resolved (:func:`chatterlab.frequency.resonance_grid`)
-    up to 3 times the highest, at most pi / (8 T_a) apart (the delay turns
-    the phase by 22.5 degrees between samples)."""
+def _loop_point(L: LoopMatrices, k: int, w: float) -> tuple[complex, complex, dict[str, complex]]:
+    """L_k(jw), dL_k/dw and the partial derivatives of L_k in actuator k's
+    gains (``Pa``, ``Va``, ``Oa``), at one frequency."""
+    ctl = control_at(L, w)
+    assert ctl is not None
+    Fk, Sk = L.Fa[:, k], L.Sa[k]
+    Do = ctl.Da + np.outer(Fk, Sk) * ctl.G[k]  # the other actuators' term
+    dDo = ctl.dDa + np.outer(Fk, Sk) * ctl.dG[k]
+    Z = L.K - w * w * L.M + 1j * w * L.C - Do
+    x = np.linalg.solve(Z, Fk.astype(complex))
+    y = np.linalg.solve(Z.T, Sk.astype(complex))
+    P = complex(Sk @ x)
+    dP = complex(-(y @ ((-2 * w * L.M + 1j * L.C - dDo) @ x)))
+    Lw = ctl.G[k] * P
+    dLw = ctl.dG[k] * P + ctl.G[k] * dP
+    return complex(Lw), complex(dLw), {"Pa": ctl.dP[k] * P, "Va": ctl.dV[k] * P, "Oa": ctl.dO[k] * P}
+
+
+def margin_grid(L: LoopMatrices) -> np.ndarray:
+    """The frequencies (rad/s) the margins are sampled on: every structural
+    resonance resolved (:func:`chatterlab.frequency.resonance_grid`) up to 3
+    times the highest, at most pi / (8 T_a) apart (the delay turns the phase
+    by 22.5 degrees between samples)."""
     from ..frequency import resonance_grid
     from ..structure import complex_modes
 
-    lam = np.concatenate([complex_modes(L.M, L.C, L.K).lam, np.asarray(roots.roots, complex)])
+    lam = complex_modes(L.M, L.C, L.K).lam
     top = 3.0 * float(np.max(np.abs(lam.imag))) if lam.size else 1.0
     n = 2000
     tmax = float(np.max(L.Ta)) if L.Ta.size else 0.0
     if tmax > 0:
         n = int(min(max(n, top * tmax * 8 / math.pi), 200_000))
-    w = resonance_grid(lam, 0.0, top, n)
-    return np.unique(np.r_[0.0, w])
+    return np.unique(np.r_[0.0, resonance_grid(lam, 0.0, top, n)])
 
 
-def loop_margins(L: LoopMatrices, k: int, omega: np.ndarray) -> Margins:
+def loop_margins(L: LoopMatrices, k: int, omega: np.ndarray, P: np.ndarray | None = None) -> Margins:
     """The gain and phase margins of the loop broken at actuator ``k``
-    (module docstring), crossings located on ``omega`` and refined by
-    Brent's method."""
+    (module docstring): L_k = G_k P_k sampled on ``omega`` (``P`` =
+    :func:`plant_transfer` on it when known), each crossing that can set a
+    margin located by Brent's method -- the phase crossovers whose samples
+    reach half the largest |L| of any, every gain crossover."""
     from scipy.optimize import brentq
 
-    Lw = _loop_transfer(L, k, omega)
+    acts = L.actuators
+    assert acts is not None
+    if P is None:
+        P = plant_transfer(L, k, omega)
+    Lw = acts.gains(1j * omega)[:, k] * P
 
     def one(w: float) -> complex:
-        return complex(_loop_transfer(L, k, np.array([w]))[0])
+        return _loop_point(L, k, w)[0]
 
     gm, gm_w = math.inf, math.nan
     re, im = Lw.real, Lw.imag
     if omega[0] == 0.0 and re[0] < 0:  # negative static loop gain: a crossing at w = 0
         gm, gm_w = -1.0 / re[0], 0.0
-    for i in np.nonzero(np.sign(im[:-1]) * np.sign(im[1:]) < 0)[0]:
-        if re[i] >= 0 and re[i + 1] >= 0:
-            continue
-        w = brentq(lambda x: one(x).imag, omega[i], omega[i + 1], xtol=1e-12 * omega[i + 1])
-        v = one(w)
-        if v.real < 0 and 1.0 / abs(v) < gm:
-            gm, gm_w = 1.0 / abs(v), w
+    cross = np.nonzero((np.sign(im[:-1]) * np.sign(im[1:]) < 0) & ((re[:-1] < 0) | (re[1:] < 0)))[0]
+    if cross.size:
+        reach = np.maximum(np.abs(Lw[cross]), np.abs(Lw[cross + 1]))
+        for i in cross[reach >= 0.5 * reach.max()]:
+            w = brentq(lambda x: one(x).imag, omega[i], omega[i + 1], xtol=1e-13 * omega[i + 1])
+            v = one(w)
+            if v.real < 0 and 1.0 / abs(v) < gm:
+                gm, gm_w = 1.0 / abs(v), w
     pm, pm_w = math.inf, math.nan
     mag = np.log(np.abs(Lw) + 1e-300)
     for i in np.nonzero(np.sign(mag[:-1]) * np.sign(mag[1:]) < 0)[0]:
-        w = brentq(lambda x: math.log(abs(one(x))), omega[i], omega[i + 1], xtol=1e-12 * omega[i + 1])
+        w = brentq(lambda x: math.log(abs(one(x))), omega[i], omega[i + 1], xtol=1e-13 * omega[i + 1])
         p = 180.0 - abs(math.degrees(np.angle(one(w))))
         if p < pm:
             pm, pm_w = p, w
     return Margins(gm, gm_w / (2 * np.pi), pm, pm_w / (2 * np.pi))
+
+
+def margin_gradients(
+    L: LoopMatrices, k: int, mg: Margins, blocks: list[tuple[int, str]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """d log(GM) and d PM (deg) in the variables ``blocks`` at the located
+    crossings, the crossing frequency following the gains (implicit function
+    theorem on Im L = 0, resp. |L| = 1):
+
+        dw/dg = -Im L_g / Im L_w,             d log GM = -Re((L_g + L_w dw/dg) / L),
+        dw/dg = -Re(L* L_g) / Re(L* L_w),     d PM = -sign(arg L) (180/pi) Im((L_g + L_w dw/dg) / L);
+
+    the gains of the other actuators (which move P_k) count 0."""
+    gg, gp = np.zeros(len(blocks)), np.zeros(len(blocks))
+    if math.isfinite(mg.gain) and mg.gain_hz > 0:
+        Lw, dLw, part = _loop_point(L, k, 2 * np.pi * mg.gain_hz)
+        for i, (j, blk) in enumerate(blocks):
+            if j == k:
+                Lg = part[blk]
+                dw = -Lg.imag / dLw.imag if dLw.imag != 0 else 0.0
+                gg[i] = -((Lg + dLw * dw) / Lw).real
+    if math.isfinite(mg.phase_deg):
+        Lw, dLw, part = _loop_point(L, k, 2 * np.pi * mg.phase_hz)
+        sgn = 1.0 if np.angle(Lw) >= 0 else -1.0
+        for i, (j, blk) in enumerate(blocks):
+            if j == k:
+                Lg = part[blk]
+                den = (np.conj(Lw) * dLw).real
+                dw = -(np.conj(Lw) * Lg).real / den if den != 0 else 0.0
+                gp[i] = -sgn * math.degrees(((Lg + dLw * dw) / Lw).imag)
+    return gg, gp
 
 
 # ------------------------------------------------------------------ the force at the design width
@@ -403,9 +459,13 @@ class _Problem:
     phase_margin: float
     decay: float
     delays: tuple[float, float]
+    grid: np.ndarray = field(default_factory=lambda: np.zeros(0))  #: the margins' frequencies, rad/s
+    grid_poles: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))  #: the bare structure's
     scale: float = 1.0
+    root_scale: float = 1.0  #: 1e-2 |lambda_1| of the file's controller: the stability row's unit, 1/s
     evaluations: int = 0
     cache: dict[bytes, dict[str, Any]] = field(default_factory=dict)
+    plants: dict[Any, np.ndarray] = field(default_factory=dict)
 
     def gains(self, u: np.ndarray) -> dict[str, np.ndarray]:
         x = self.lo + np.clip(u, 0.0, 1.0) * (self.hi - self.lo)
@@ -429,7 +489,7 @@ class _Problem:
         # the controller's stability: Re lambda_1 <= -decay, scaled by |lambda_1|
         lam = complex(roots.roots[0]) if roots.roots.size else complex(np.nan)
         dlam = _root_gradient(L, lam, self.blocks) * span
-        sc = max(abs(lam), 1.0) * 1e-2
+        sc = self.root_scale
         cons = [(-lam.real - self.decay) / sc]
         jac = [-dlam.real / sc]
         stable = bool(np.isfinite(lam.real) and lam.real < 0)
@@ -452,20 +512,18 @@ class _Problem:
         while vals.size < CANDIDATES:
             vals, grads = np.r_[vals, vals[-1]], np.vstack([grads, grads[-1]])
         out["vals"], out["grads"] = vals, grads
-        # the control loop's margins (finite differences of the located crossings)
-        grid = margin_grid(L, roots)
-        out["grid"] = grid
-        margins = [loop_margins(L, k, grid) for k in range(len(self.ids))]
+        # the control loop's margins
+        margins = [loop_margins(L, k, self.grid, self._plant(L, k)) for k in range(len(self.ids))]
         out["margins"] = margins
         if self.gain_margin > 1 or self.phase_margin > 0:
             for k, mg in enumerate(margins):
-                gvals, gjac = self._margin_rows(u, k, mg, grid)
+                gvals, gjac = self._margin_rows(L, k, mg, span)
                 cons += gvals
                 jac += gjac
         # the force at the design width
         if np.any(np.isfinite(self.force_limits)):
             if stable and vals[0] > self.design_width:
-                F, wz, zk = force_required(L, self.f1, self.design_width, grid, self.delays)
+                F, wz, zk = force_required(L, self.f1, self.design_width, self.force_grid(roots), self.delays)
                 out["force"] = F
                 for k in range(len(self.ids)):
                     if np.isfinite(self.force_limits[k]):
@@ -481,42 +539,42 @@ class _Problem:
         self.cache[key] = out
         return out
 
+    def _plant(self, L: LoopMatrices, k: int) -> np.ndarray:
+        """P_k on the grid: once per placement for one actuator (it does not
+        depend on its own gains), else for the other actuators' gains."""
+        key = (k, np.asarray(L.Pa).tobytes() + np.asarray(L.Va).tobytes() + np.asarray(L.Oa).tobytes())
+        if len(self.ids) == 1:
+            key = (k, b"")
+        if key not in self.plants:
+            self.plants[key] = plant_transfer(L, k, self.grid)
+        return self.plants[key]
+
     def _margin_rows(
-        self, u: np.ndarray, k: int, mg: Margins, grid: np.ndarray
+        self, L: LoopMatrices, k: int, mg: Margins, span: np.ndarray
     ) -> tuple[list[float], list[np.ndarray]]:
-        """log(GM / GM_min) and (PM - PM_min) / PM_min with their gradients (a
-        central difference of the located crossing's margin over 1e-6 of the
-        unit box, the crossing relocated at each side)."""
+        """log(GM / GM_min) and (PM - PM_min) / PM_min with their gradients
+        (:func:`margin_gradients`); a fixed number of rows: a loop without a
+        crossing meets its margin (a constant row)."""
         vals: list[float] = []
         rows: list[np.ndarray] = []
-        h = 1e-6
-
-        def at(uu: np.ndarray) -> Margins:
-            return loop_margins(self.L_at(uu), k, grid)
-
-        need_g = self.gain_margin > 1
-        need_p = self.phase_margin > 0
-        gg, gp = np.zeros(u.size), np.zeros(u.size)
-        has_g, has_p = need_g and math.isfinite(mg.gain), need_p and math.isfinite(mg.phase_deg)
-        if has_g or has_p:
-            for i in range(u.size):
-                up, um = u.copy(), u.copy()
-                up[i] = min(u[i] + h, 1.0)
-                um[i] = max(u[i] - h, 0.0)
-                a, b = at(up), at(um)
-                dx = up[i] - um[i]
-                if has_g and math.isfinite(a.gain) and math.isfinite(b.gain):
-                    gg[i] = (math.log(a.gain) - math.log(b.gain)) / dx
-                if has_p and math.isfinite(a.phase_deg) and math.isfinite(b.phase_deg):
-                    gp[i] = (a.phase_deg - b.phase_deg) / dx / self.phase_margin
-        # a fixed number of rows: a loop without a crossing meets its margin (a constant row)
-        if need_g:
-            vals.append(math.log(mg.gain / self.gain_margin) if has_g else _INACTIVE)
-            rows.append(gg)
-        if need_p:
-            vals.append((mg.phase_deg - self.phase_margin) / self.phase_margin if has_p else _INACTIVE)
-            rows.append(gp)
+        gg, gp = margin_gradients(L, k, mg, self.blocks)
+        if self.gain_margin > 1:
+            has = math.isfinite(mg.gain)
+            vals.append(math.log(mg.gain / self.gain_margin) if has else _INACTIVE)
+            rows.append(gg * span if has else np.zeros(span.size))
+        if self.phase_margin > 0:
+            has = math.isfinite(mg.phase_deg)
+            vals.append((mg.phase_deg - self.phase_margin) / self.phase_margin if has else _INACTIVE)
+            rows.append(gp * span / self.phase_margin if has else np.zeros(span.size))
         return vals, rows
+
+    def force_grid(self, roots: Any) -> np.ndarray:
+        """The force (3) is sampled on the chatter band (0 .. ``top``), every
+        structural and controlled resonance in it resolved."""
+        from ..frequency import resonance_grid
+
+        lam = np.r_[np.asarray(roots.roots, complex), self.grid_poles]
+        return np.unique(np.r_[0.0, resonance_grid(lam, 0.0, self.top, 2000)])
 
     # the interface of solve_epigraph
     def candidates(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -855,8 +913,8 @@ def design_active(
     bounds : dict, optional
         ``gain -> (lo, hi)`` in N/m or N s/m (velocity: lo >= 0); default
         from the host mode the sensor sees (modal stiffness k_h, mass m_h):
-        velocity 0 .. 2 sqrt(k_h m_h) (up to critical damping of the host),
-        proportional and delayed -k_h/2 .. k_h/2.
+        velocity 0 .. 0.2 sqrt(k_h m_h) (up to 10 % of the host's critical
+        damping), proportional and delayed -k_h/10 .. k_h/10.
     places : list of (sensor, at), optional
         Candidate placements (``"POINT.DIR"`` each) of the one tuned
         actuator: the gains are optimised at each, the best is kept.
@@ -982,10 +1040,10 @@ def design_active(
             row = L0.Sa[k]
             f_h, m_h = host_mode(L0.M, L0.K, row, f_c, f'[[actuator]] "{a.id}": its sensor')
             k_h = m_h * (2 * math.pi * f_h) ** 2
-            dflt = {
-                "velocity": (0.0, 2 * math.sqrt(k_h * m_h)),
-                "proportional": (-0.5 * k_h, 0.5 * k_h),
-                "delayed": (-0.5 * k_h, 0.5 * k_h),
+            dflt = {  # 10 % of the host's critical damping, of its stiffness
+                "velocity": (0.0, 0.2 * math.sqrt(k_h * m_h)),
+                "proportional": (-0.1 * k_h, 0.1 * k_h),
+                "delayed": (-0.1 * k_h, 0.1 * k_h),
             }
             for g in free:
                 if g == "delayed" and a.delay == 0:
@@ -1007,9 +1065,14 @@ def design_active(
                 f"{mdl.source}: a force limit needs the cut's static forces: give forces = [...] (N at width_ref)"
                 " in the [[coupling]], or drop force_limit"
             )
+        from ..structure import complex_modes
+
+        lam0 = complex_modes(L0.M, L0.C, L0.K).lam
         prob = _Problem(
             L0, tuple(ids), blocks, np.array(lo), np.array(hi), inner, proc, objective, inner_kw, top, f1,
             b_d, flims, float(gain_margin), float(phase_margin), float(decay), delays,
+            grid=margin_grid(L0), grid_poles=lam0[lam0.imag > 0],
+            root_scale=1e-2 * max(abs(complex(machine_roots(L0).roots[0])), 1.0),
         )  # fmt: skip
         u_file = np.array(
             [(getattr(L0, blk)[k] - l_) / (h_ - l_) for (k, blk), l_, h_ in zip(blocks, lo, hi, strict=True)]
@@ -1072,7 +1135,9 @@ def design_active(
     # the trade-off curve: the best width for each force limit at the design width
     trade: dict[str, Any] = {}
     if tradeoff:
-        F_best = force_required(prob.L_at(u_b), prob.f1, b_d, prob.evaluate(u_b)["grid"], delays)[0][0]
+        F_best = force_required(
+            prob.L_at(u_b), prob.f1, b_d, prob.force_grid(prob.evaluate(u_b)["roots"]), delays
+        )[0][0]
         limits = np.geomspace(F_best, F_best / 20.0, tradeoff)
         wd: list[float] = []
         ff: list[float] = []
@@ -1113,19 +1178,18 @@ def design_active(
     L_t = _loop_matrices(fz_t, terms)
     width = _objective_of(after, L_t, objective)
     roots = machine_roots(L_t)
-    grid = margin_grid(L_t, roots)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnitWarning)
         f1 = closed_loop_unwarned(fz_t, width=1.0, delay=1.0, terms=terms).force
     F = (
-        force_required(L_t, f1, b_d, grid, delays)[0]
+        force_required(L_t, f1, b_d, prob.force_grid(roots), delays)[0]
         if np.any(f1) and width > b_d
         else np.full(len(tuned.actuators), np.nan)
     )
     acts = []
     for aid, k in zip(ids, idx, strict=True):
         a = tuned.actuators[k]
-        mg = loop_margins(L_t, k, grid)
+        mg = loop_margins(L_t, k, prob.grid)
         flim = force_limit if force_limit is not None else a.force_limit
         acts.append(
             {

@@ -51,6 +51,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ParamSpec, TypeVar
@@ -689,7 +690,9 @@ def _controlled_system(
     D_P and D_V, the delayed term U = -O_k B_k, V = S_k^T has the delay T_k
     (a proportional term when T_k = 0).  An actuator with a bandwidth adds
     its force f_k as a state, tau_k f_k' = -f_k - (P_k y + V_k y' + O_k
-    y(t - T_k)), and the system is written in first order, x = (q, q', f)."""
+    y(t - T_k)), and the system is written in first order, x = (q, q', x_f)
+    with f = kappa_k x_f (kappa_k the actuator's gain at a mean natural
+    frequency, so that x_f is of the size of a displacement)."""
     Mm, Cm, Km, cho = structure
     n = Mm.shape[0]
     DP = np.array(loop.DP, dtype=float)
@@ -725,22 +728,26 @@ def _controlled_system(
         Vf = np.zeros((m, V.shape[1]))
         Vf[:n] = V
         fparts.append((Uf, Vf, t))
+    # the force state in units of a displacement, f = kappa x_f with kappa the actuator's gain at a
+    # mean natural frequency: q and x_f of one size keep the eigenvectors well conditioned
+    w_mean = math.sqrt(max(float(np.trace(Km) / np.trace(Mm)), 0.0))
     for j, k in enumerate(lagged):
         b, c, tk = acts.B[:, k], acts.S[k], float(acts.lag[k])
+        kap = abs(acts.P[k]) + abs(acts.O[k]) + w_mean * abs(acts.V[k]) or 1.0
         row = 2 * n + j
-        A[n : 2 * n, row] = sla.cho_solve(cho, b)
-        A[row, :n] = -acts.P[k] * c / tk
-        A[row, n : 2 * n] = -acts.V[k] * c / tk
+        A[n : 2 * n, row] = sla.cho_solve(cho, b) * kap
+        A[row, :n] = -acts.P[k] * c / (tk * kap)
+        A[row, n : 2 * n] = -acts.V[k] * c / (tk * kap)
         A[row, row] = -1.0 / tk
         if acts.O[k] != 0:
             e = np.zeros((m, 1))
-            e[row, 0] = -acts.O[k] / tk
+            e[row, 0] = -acts.O[k] / (tk * kap)
             Vf = np.zeros((m, 1))
             Vf[:n, 0] = c
             if acts.delay[k] > 0:
                 fparts.append((e, Vf, float(acts.delay[k])))
             else:
-                A[row, :n] += -acts.O[k] * c / tk
+                A[row, :n] += -acts.O[k] * c / (tk * kap)
     U, V, tau, taus = _merge_delayed(fparts, m)
     sys = DelaySystem(
         coeffs=(-A, np.eye(m)),
