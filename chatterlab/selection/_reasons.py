@@ -21,11 +21,9 @@ def _v(unit: str, x: float) -> str:
     return f"{x:.0f} {unit}" if unit == "rpm" else f"{x:.4g} {unit}"
 
 
-def _plateau(rate: np.ndarray, i: int) -> tuple[int, int]:
+def _plateau(rate: np.ndarray, i: int, rtol: float) -> tuple[int, int]:
     """The run of speeds around ``i`` with the same rate (the search's plateau tolerance)."""
-    from ._recommend import PLATEAU_RTOL
-
-    tol = PLATEAU_RTOL * float(np.max(rate))
+    tol = rtol * float(np.max(rate))
     lo = hi = i
     while lo > 0 and abs(rate[lo - 1] - rate[i]) <= tol:
         lo -= 1
@@ -46,7 +44,9 @@ def _where(tab: Any, i: int, mach: Any, unit: str) -> str:
         return "the machine's lowest speed" if low else "the bottom of the speeds searched"
     b = str(tab.binding[i])
     right = str(tab.binding[i + 1])
-    lo, hi = _plateau(tab.rate, i)
+    from ._recommend import PLATEAU_RTOL
+
+    lo, hi = _plateau(tab.rate, i, PLATEAU_RTOL)
     if hi > lo:
         what = {"max depth": "the tool's largest depth"}.get(
             b, f"the spindle's {b}" if b in ("power", "torque") else b
@@ -72,7 +72,10 @@ def _where(tab: Any, i: int, mach: Any, unit: str) -> str:
             )
         k = int(c["lobe"][i])
         return f"the top of lobe k = {k}" if k >= 0 else "a local maximum of the stable width over the speed"
-    return "a local maximum of the removal rate"
+    what = {"max depth": "the tool's largest depth"}.get(
+        b, f"the spindle's {b}" if b in ("power", "torque") else b
+    )
+    return f"where the removal rate that {what} allows peaks"
 
 
 def _what(tab: Any, i: int, mach: Any, margin: float, removal: Any, unit: str) -> str:

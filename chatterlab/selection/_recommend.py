@@ -158,6 +158,8 @@ class _Table:
                  width_max: float | None, options: dict[str, Any]) -> None:  # fmt: skip
         self.src, self.removal, self.machine, self.margin = src, removal, machine, margin
         self.limits, self.width_max, self.options = limits, width_max, options
+        #: rates equal to this relative accuracy are a plateau (a plug-in limit's bisection tolerance)
+        self.rtol = max([PLATEAU_RTOL] + [float(getattr(lim, "rtol", 0.0)) for lim in limits])
         self.v = np.zeros(0)
         self.cols: dict[str, np.ndarray] = {}
         self.first: Any = None
@@ -268,7 +270,7 @@ class _Table:
         ceiling = ~np.isfinite(env)
         stable = np.where(ceiling, float(self.width_max or np.inf), env)
         allowed, _, _, rate, room = self.limited(vv, stable, ceiling)
-        idx = _maxima(rate, room)
+        idx = _maxima(rate, room, self.rtol)
         idx = idx[~np.isin(vv[idx], self.v)][: 3 * count]
         seeds = (
             np.concatenate([vv[np.clip(idx + k, 0, vv.size - 1)] for k in (-1, 0, 1)]) if idx.size else idx
@@ -307,15 +309,16 @@ def _trusted(
 PLATEAU_RTOL = 1e-9
 
 
-def _maxima(rate: np.ndarray, room: np.ndarray) -> np.ndarray:
+def _maxima(rate: np.ndarray, room: np.ndarray, rtol: float = PLATEAU_RTOL) -> np.ndarray:
     """Local maxima of the rate over sorted speeds (ends included), best
-    first.  A plateau of equal rates (within :data:`PLATEAU_RTOL`) counts
-    once, at its speed with the most ``room`` (the stability limit over the
-    width: the cut farthest from the lobes)."""
+    first.  A plateau of equal rates (within ``rtol`` of the largest:
+    :data:`PLATEAU_RTOL`, or a plug-in limit's accuracy) counts once, at its
+    speed with the most ``room`` (the stability limit over the width: the cut
+    farthest from the lobes)."""
     n = rate.size
     if n == 0 or not np.any(rate > 0):
         return np.zeros(0, int)
-    tol = PLATEAU_RTOL * float(np.max(rate))
+    tol = rtol * float(np.max(rate))
     starts = np.r_[0, np.nonzero(np.abs(np.diff(rate)) > tol)[0] + 1]
     ends = np.r_[starts[1:] - 1, n - 1]
     out = []
@@ -515,14 +518,14 @@ def _run(src: Source, speeds: Any, machine: Any, margin: float, count: int, lims
         tab.add(seeds)
     for _ in range(refine):
         new = []
-        for i in _maxima(tab.rate, tab.room)[: max(2 * count, count + 3)]:
+        for i in _maxima(tab.rate, tab.room, tab.rtol)[: max(2 * count, count + 3)]:
             lo, hi = _bracket(tab.v, int(i))
             if hi > lo:
                 new.append(np.linspace(lo, hi, REFINE_POINTS + 2)[1:-1])
         if not new:
             break
         tab.add(np.concatenate(new))
-    best = _maxima(tab.rate, tab.room)[:count]
+    best = _maxima(tab.rate, tab.room, tab.rtol)[:count]
     return _result(src, tab, best, mach, margin, removal, notes, check, t0, tab.line(raw, count))
 
 
