@@ -202,10 +202,11 @@ def test_a_fault_during_a_milling_diagram_leaves_nothing_and_the_rerun_gives_its
 
 
 def test_resume_and_engine_options_on_a_single_diagram_are_refused(tmp_path, capsys):
+    """--jobs is not among them: a milling diagram splits its speeds among
+    --jobs processes (bit-identical, tests/test_milling_defaults.py)."""
     for extra in (
         ["--resume"],
         ["--checkpoint", str(tmp_path / "ck")],
-        ["--jobs", "1"],
         ["--backend", "dask"],
     ):
         code = main([*LOBES, "--out", str(tmp_path / "l.csv"), *extra])

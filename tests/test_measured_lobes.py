@@ -351,12 +351,14 @@ def test_plot_of_a_measured_frf_draws_no_envelope_between_the_requested_speeds()
 
     from chatterlab.cli._main import build_parser
     from chatterlab.cli._measured import frf_model
+    from chatterlab.cli._units import resolve_units
     from chatterlab.lobes._measured import lobes_model_frf
     from chatterlab.plot import plot_lobes
 
     csv = Path(__file__).resolve().parents[1] / "studies" / "tap_test" / "tool_point.csv"
     args = build_parser().parse_args(["lobes", "--frf", str(csv), "--kf", "1e9", "--normal-angle", "90",
                                       "--force-angle", "90", "--speed", "3000", "30000"])  # fmt: skip
+    resolve_units(args)  # as the command does after parsing: numbers may carry units
     v = np.linspace(3000.0, 30000.0, 300)
     d = lobes_model_frf(frf_model(args), v, width_max=20e-3)
     axes = plot_lobes(d)

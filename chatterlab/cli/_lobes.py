@@ -117,13 +117,12 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     if args.positions is None:
         _engine_options_unused(args, milling=milling_model)
     v = speeds(args, model.process)
-    if args.width_max is None and milling_model:
-        wmax = None  # from the problem (lobes.milling_ceiling)
-    else:
-        if args.width_max is None:
-            args.width_max = 20.0
-        wmax = width_max_m(args)
-        warn(args, width_slips(wmax, "--width-max"))
+    if milling_model:  # without --width-max the ceiling comes from the problem (lobes.milling_ceiling)
+        return _report(args, model, milling_lobes(args, model, v, _width_max(args)), outs)
+    if args.width_max is None:
+        args.width_max = 20.0
+    wmax = width_max_m(args)
+    warn(args, width_slips(wmax, "--width-max"))
     if model.frf is not None:
         if args.method not in (None, "zoa"):
             raise InputError(
@@ -132,14 +131,21 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
                 ".to_model(), docs/tap-test.md) for Floquet lobes"
             )
         return _report(args, model, _measured_diagram(args, model, v, wmax), outs)
-    if model.process.kind == "milling" and args.method != "zoa":
-        return _report(args, model, milling_lobes(args, model, v, wmax), outs)
     if args.method not in (None, "zoa"):
         raise InputError(f'--method {args.method} is for milling models ([process] kind = "milling")')
     sy = assemble(model)
     if args.positions is not None:
         return _atlas(args, model, v, wmax, outs)
     return _report(args, model, _diagram(args, sy, v, wmax), outs)
+
+
+def _width_max(args: argparse.Namespace) -> float | None:
+    """--width-max in m (None when not given), with a unit-slip warning."""
+    if args.width_max is None:
+        return None
+    wmax = width_max_m(args)
+    warn(args, width_slips(wmax, "--width-max"))
+    return wmax
 
 
 def _engine_options_unused(args: argparse.Namespace, milling: bool = False) -> None:
@@ -163,8 +169,8 @@ def _engine_options_unused(args: argparse.Namespace, milling: bool = False) -> N
     ]
     if given:
         raise InputError(
-            f"{', '.join(given)}: for an atlas (--positions A B N) only; a single diagram runs in this process"
-            " with no checkpoint (an interrupted one is run again)"
+            f"{', '.join(given)}: for an atlas (--positions A B N) only; a single diagram has no checkpoint"
+            " (an interrupted one is run again) and runs here (milling: --jobs N splits its speeds)"
         )
 
 

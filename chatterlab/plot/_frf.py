@@ -241,7 +241,14 @@ def plot_nyquist(
 
     def draw(a: Any, legend: bool) -> None:
         a.plot(det.real, det.imag, lw=1, color="tab:blue", label="ω > 0" if legend else None, gid="nyquist")
-        a.plot(det.real, -det.imag, lw=0.8, ls="--", color="tab:orange", label="ω < 0 (mirror)" if legend else None)
+        a.plot(
+            det.real,
+            -det.imag,
+            lw=0.8,
+            ls="--",
+            color="tab:orange",
+            label="ω < 0 (mirror)" if legend else None,
+        )
         a.plot([0], [0], "r+", ms=12, mew=2, label="critical point (origin)" if legend else None)
         a.plot(
             [det[j].real],
