@@ -382,3 +382,27 @@ def test_result_protocol(turning, tmp_path):
     assert rec.plot(ax=axes) == axes
     plt.close("all")
     assert "rank" in rec.summary() and "why:" in rec.summary()
+
+
+def test_a_measured_frf_model_is_ranked_but_not_checked(tmp_path):
+    """A model whose structure is a measured FRF ([frf]): its lobes rank the cuts; no model can
+    check a cut on its own, so each says 'not checked', and the note says the limits hold in
+    the measured band only."""
+    from chatterlab.structure import FRF
+
+    f = np.arange(100.0, 1500.0 + 1e-9, 1.0)
+    w = 2 * np.pi * f
+    H = 1.0 / (1e7 - w**2 + 2j * 0.03 * math.sqrt(1e7) * w)
+    FRF.from_arrays(f, H, ("tool.x",), ("tool.x",), hz=True).to_csv(tmp_path / "tool.csv")
+    text = turning_text().split("[[body]]")[0] + '[frf]\nfile = "tool.csv"\n[[point]]\nid = "tip"\n'
+    text += 'coords = { x = "tool.x" }\n[[coupling]]\nid = "cut"\na = "tip"\nb = "ground"\n'
+    text += (
+        'model = "regenerative"\nwidth_ref = 0.001\nKf = 2.0e9\n[process]\nkind = "turning"\nrpm = 3000.0\n'
+    )
+    (tmp_path / "m.toml").write_text(text)
+    model = cl.load_model(tmp_path / "m.toml")
+    rec = recommend(model, np.linspace(2000.0, 6000.0, 41), width_max=0.005, count=2)
+    assert set(rec.verdict) == {"not checked"}
+    assert any("measured" in n for n in rec.notes)
+    ref = cl.lobes(model, rec.speed, width_max=0.005)
+    np.testing.assert_allclose(rec.limit, ref.b_lim, rtol=1e-12)
