@@ -353,10 +353,13 @@ class DelaySystem:
         :math:`-L_k R_k/p_k` errs by at most
         :math:`|L_k||R_k|\\,\\text{top}/(|p_k|(|p_k| - \\text{top}))`; the
         cut is the lowest that keeps the sum of these bounds over the modes
-        left out below ``tol``.  The model's roots only *locate* the roots of
-        the band; they are refined on :math:`\\Delta` itself.
+        left out below ``tol``; the bound is the modal truncation's, so the
+        Ritz model's transfer is then compared with the exact one on the
+        band's axis, and refused beyond ``tol``.  The model's roots only
+        *locate* the roots of the band; they are refined on :math:`\\Delta`
+        itself.
 
-        None when no coordinate would be dropped, without a pole-residue form
+        None when its transfer errs by more than ``tol``, no coordinate would be dropped, without a pole-residue form
         or a delay, or for a first-order form from controller states (``A``
         not the companion matrix of the coefficients).
 
@@ -410,11 +413,22 @@ def _band_model(sys: DelaySystem, top: float, tol: float) -> DelaySystem | None:
     if not second:
         A0 = -project(sys.coeffs[0])
         red = make_first_order_system(A0, (U, V), sys.tau)
-        return dataclasses.replace(red, open_coeffs=tuple(project(c) for c in sys.open_coeffs))
-    Kt, Ct, Mr = (project(c) for c in sys.coeffs)
-    K0, C0, _ = (project(c) for c in sys.open_coeffs)
-    structure = _structure(0.5 * (Mr + Mr.T), C0, K0)
-    return _system(structure, K0 - Kt, C0 - Ct, (U, V), sys.tau)
+        red = dataclasses.replace(red, open_coeffs=tuple(project(c) for c in sys.open_coeffs))
+    else:
+        Kt, Ct, Mr = (project(c) for c in sys.coeffs)
+        K0, C0, _ = (project(c) for c in sys.open_coeffs)
+        structure = _structure(0.5 * (Mr + Mr.T), C0, K0)
+        red = _system(structure, K0 - Kt, C0 - Ct, (U, V), sys.tau)
+    # the bound above is the modal truncation's; the Ritz model is checked
+    # against it on the band's axis (every 1/2000 of the band and at each of
+    # its poles' frequencies, where the error of a residue shows), both
+    # transfers in pole-residue form
+    wp = np.abs(p[keep].imag)
+    w = np.unique(np.concatenate([np.linspace(0.0, top, 2001), wp[wp <= top]]))
+    if red.partial_fractions() is None:
+        return None
+    err = np.abs(red.transfer_fast(1j * w) - sys.transfer_fast(1j * w)).max()
+    return red if err <= tol else None
 
 
 #: eigendecompositions of first-order matrices done (a work counter, read by tests)

@@ -42,7 +42,7 @@ _DENSE_MAX = 420
 #: the ones whose static part is not accurate enough, plus the static
 #: response), its roots refined on the full system; smaller ones (the bundled
 #: models) on the full system, the reference
-REDUCE_ABOVE = 200
+REDUCE_ABOVE = 120
 #: bound on the error of the band model's loop transfer H in the band (H is
 #: dimensionless): a root with Re >= -SIGMA_TAU / tau, the certified region,
 #: has |e^{-lambda tau} mu(H)| = 1, so |mu(H)| >= e^{-2} = 0.135 there, and an
