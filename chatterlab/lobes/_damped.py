@@ -113,35 +113,57 @@ def _adj(M: np.ndarray) -> np.ndarray:
     return phase[..., None, None] * (V * c[..., None, :]) @ np.conj(np.swapaxes(U, -1, -2))
 
 
-def _frf(plant: Plant, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """H(jw) and dH/dw (N, m, m) from the pole-residue form
-    H(s) = sum_k L_k R_k / (s - p_k) + D: dH/dw = -j sum_k L_k R_k / (jw - p_k)^2."""
-    pr = plant.residues
-    if pr is None:
-        raise InputError(
-            "process damping needs the structure's poles (a model or an LTI system): a measured FRF has none"
-        )
-    s = 1j * np.asarray(omega, dtype=float)
-    f = 1.0 / (s[:, None] - pr.p[None, :])
-    LR = pr.L.T[:, :, None] * pr.R[:, None, :]  # (K, m, m)
-    H = np.einsum("nk,kij->nij", f, LR) + pr.D
-    dH = -1j * np.einsum("nk,kij->nij", f * f, LR)
-    return H, dH
+def _det(M: np.ndarray, adj: np.ndarray) -> np.ndarray:
+    """det M from its adjugate (Laplace along the first row), or LAPACK for m > 3."""
+    if M.shape[-1] > 3:
+        return np.linalg.det(M)
+    return np.einsum("nj,nj->n", M[:, 0, :], adj[:, :, 0])
 
 
 class _Loop:
-    """The matrices of Eq. (1) of the module on the process coordinates."""
+    """The matrices of Eq. (1) of the module on the rank of the structure.
+
+    H(s) = sum_k L_k R_k / (s - p_k) + D maps into the column space of
+    [L, D] and reads the row space of [R; D]: with orthonormal bases U, Y of
+    them, H = U H_r Y^H and, by Sylvester's identity,
+    det(I + beta H A) = det(I_rho + beta H_r (Y^H A U)): the same E on
+    rho x rho matrices (a tool that moves along one direction of a three-axis
+    coupling has rho = 1)."""
 
     def __init__(self, plant: Plant, W: np.ndarray) -> None:
-        self.plant = plant
-        self.P, self.V, self.O, self.W = plant.Dl_P, plant.Dl_V, plant.Dl_O, W
-        self.eye = np.eye(plant.Dl_P.shape[0])
+        pr = plant.residues
+        if pr is None:
+            raise InputError(
+                "process damping needs the structure's poles (a model or an LTI system): a measured FRF has none"
+            )
+        U = _range(np.hstack([pr.L, pr.D]))
+        Y = _range(np.hstack([pr.R.T, pr.D.T]))
+        if U.shape[1] != Y.shape[1]:  # keep one rank: the larger basis for both sides
+            U = Y = _range(np.hstack([pr.L, pr.D, pr.R.T, pr.D.T]))
+        Uh, Yh = U.conj().T, Y.conj().T
+        self.p, self.L, self.R, self.D = pr.p, Uh @ pr.L, pr.R @ Y, Uh @ pr.D @ Y
+
+        def red(X: np.ndarray) -> np.ndarray:
+            return Yh @ X @ U
+
+        self.P, self.V, self.O, self.W = red(plant.Dl_P), red(plant.Dl_V), red(plant.Dl_O), red(W)
+        self.eye = np.eye(U.shape[1])
+
+    def frf(self, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """H_r(jw) and dH_r/dw (N, rho, rho) from the pole-residue form:
+        dH/dw = -j sum_k L_k R_k / (jw - p_k)^2."""
+        s = 1j * np.asarray(omega, dtype=float)
+        f = 1.0 / (s[:, None] - self.p[None, :])
+        LR = self.L.T[:, :, None] * self.R[:, None, :]  # (K, rho, rho)
+        H = np.einsum("nk,kij->nij", f, LR) + self.D
+        dH = -1j * np.einsum("nk,kij->nij", f * f, LR)
+        return H, dH
 
     def at_delay(
         self, w: np.ndarray, b: np.ndarray, T: np.ndarray, g: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """E and its derivatives in w and beta at fixed T, g (rows)."""
-        H, dH = _frf(self.plant, w)
+        H, dH = self.frf(w)
         z = np.exp(-1j * w * T)
         Vg = self.V[None] + g[:, None, None] * self.W[None]
         A = self.P[None] + 1j * w[:, None, None] * Vg + z[:, None, None] * self.O[None]
@@ -149,7 +171,7 @@ class _Loop:
         HA = H @ A
         M = self.eye + b[:, None, None] * HA
         adj = _adj(M)
-        E = np.linalg.det(M)
+        E = _det(M, adj)
         Eb = np.einsum("nij,nji->n", adj, HA)
         Ew = b * np.einsum("nij,nji->n", adj, dH @ A + H @ dA)
         return E, Ew, Eb
@@ -157,7 +179,7 @@ class _Loop:
     def at_frequency(
         self, H: np.ndarray, w: np.ndarray, b: np.ndarray, T: np.ndarray, g: np.ndarray, dg: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """E and its derivatives in beta and T at fixed w (H = H(jw)), with
+        """E and its derivatives in beta and T at fixed w (H = H_r(jw)), with
         the gain g(T) and its slope g'(T) (rows)."""
         z = np.exp(-1j * w * T)
         Vg = self.V[None] + g[:, None, None] * self.W[None]
@@ -166,10 +188,17 @@ class _Loop:
         HA = H @ A
         M = self.eye + b[:, None, None] * HA
         adj = _adj(M)
-        E = np.linalg.det(M)
+        E = _det(M, adj)
         Eb = np.einsum("nij,nji->n", adj, HA)
         ET = b * np.einsum("nij,nji->n", adj, H @ dA)
         return E, Eb, ET
+
+
+def _range(X: np.ndarray) -> np.ndarray:
+    """An orthonormal basis (m, rho) of the column space of X."""
+    u, sv, _ = np.linalg.svd(X, full_matrices=False)
+    r = int(np.sum(sv > 1e-12 * max(float(sv[0]) if sv.size else 0.0, 1e-300)))
+    return u[:, : max(r, 1)]
 
 
 def _newton2(
@@ -208,13 +237,13 @@ def _newton2(
     return x, y, ok
 
 
-def _homotopy(solve: Any, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _homotopy(solve: Any, n: int, retry: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Newton from the frozen solution straight to the coupled one
-    (``solve(rows, steps)``); the rows where that fails, again in
-    HOMOTOPY_STEPS steps of the gain."""
+    (``solve(rows, steps)``); with ``retry``, the rows where that fails again
+    in HOMOTOPY_STEPS steps of the gain."""
     x, y, ok = solve(np.arange(n), 1)
     redo = np.nonzero(~ok)[0]
-    if redo.size:
+    if redo.size and retry:
         x2, y2, ok2 = solve(redo, HOMOTOPY_STEPS)
         x[redo], y[redo], ok[redo] = x2, y2, ok2
     return x, y, ok
@@ -252,7 +281,7 @@ def continue_at_frequency(
     g0 (exact there) to the coupled gain g(T) by Newton on Eq. (1) in
     (beta, T): the gain g0 + lambda (g(T) - g0), lambda stepped to 1.  Returns
     (beta, T, ok)."""
-    H, _ = _frf(loop.plant, w)
+    H, _ = loop.frf(w)
 
     def solve(sel: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ok = np.ones(sel.size, bool)
@@ -273,7 +302,9 @@ def continue_at_frequency(
             bs, Ts = np.where(ok, b1, bs), np.where(ok, T1, Ts)
         return bs, Ts, ok
 
-    return _homotopy(solve, w.size)
+    # a lobe point whose Newton fails from the frozen one is near a fold, or its lobe closed
+    # up between the gains: dropped (the curve is drawn through its neighbours)
+    return _homotopy(solve, w.size, retry=False)
 
 
 def _gain_and_slope(term: DampingTerm, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
