@@ -330,7 +330,8 @@ def milling_loop(
         Process damping, N/m (``[process_damping] C_pd``): each tooth's flank
         damps the tool's velocity along its radial direction with
         a_p C_pd / V, V = pi D n / 60 (:mod:`chatterlab.process._damping`);
-        the loop's ``Dl_V`` holds the averaged term.  0: none.
+        the loop's ``Dl_V`` holds the averaged term.  0: none, or the
+        ``[process_damping]`` of ``frozen``'s model when it has one.
     """
     if not isinstance(structure, Structure):
         raise InputError(
@@ -361,9 +362,14 @@ def milling_loop(
     T = milling.tooth_period(milling.rpm) if milling.rpm else None
     V = np.zeros((2, 2))
     damping = None
+    term = None
     if check_nonneg(C_pd, "process damping C_pd", "N/m") > 0.0:
+        term = milling_damping(milling, C_pd)
+    elif frozen is not None:  # the model's [process_damping] of its milling coupling
+        term = damping_term(frozen.model, milling=milling)
+    if term is not None:
         # the rubbing flanks' averaged term a_p C_pd / V W_0 (process._damping), V = pi D n / 60
-        damping = LoopDamping(milling_damping(milling, C_pd), float("nan") if T is None else T)
+        damping = LoopDamping(term, float("nan") if T is None else T)
         V = damping.matrix(float(width))
     return ClosedLoop(
         structure, J, H0, V, -H0, np.zeros(n), float(width), T, "pdo", frozen, milling, damping=damping
