@@ -732,6 +732,26 @@ class DampedLobeDiagram(LobeDiagram):
     def geometry(self) -> Any:
         return DampedGeometry(self)
 
+    def summary(self) -> str:
+        """The diagram's summary with what its process damping is."""
+        pd = self.meta.get("process_damping", {})
+        line = (
+            f"  process damping: C_pd = {pd.get('C_pd', float('nan')):g} N/m ({pd.get('model', 'linear')});"
+            f" width and delay coupled through the cutting speed ({pd.get('cells', 0)} gain cells)"
+        )
+        return super().summary() + "\n" + line
+
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The files of :class:`LobeDiagram` with the process damping's
+        fields as attributes (``process_damping_C_pd`` N/m, ...)."""
+        coords, data, attrs = super().dataset_parts()
+        pd = self.meta.get("process_damping", {})
+        attrs = {
+            **attrs,
+            **{f"process_damping_{k}": v for k, v in pd.items() if isinstance(v, int | float | str)},
+        }
+        return coords, data, attrs
+
     @classmethod
     def of(cls, d: LobeDiagram) -> DampedLobeDiagram:
         return cls(**{f.name: getattr(d, f.name) for f in fields(d)})

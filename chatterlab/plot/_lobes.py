@@ -282,6 +282,9 @@ def _subtitle(d: Any) -> str:
     else:
         ok = sum(c["agrees"] for c in d.checks)
         ver = f"verified {ok}/{len(d.checks)} checks" + ("" if d.verified else " -- CHECKS FAILED")
+    pd = getattr(d, "meta", {}).get("process_damping")
+    if pd:  # the flank's damping: the lobes couple width and delay through the cutting speed
+        terms += f" + process damping C_pd = {pd['C_pd']:.3g} N/m"
     return (
         f"{pos}; feedback {terms}; width ceiling {d.width_max * 1e3:g} mm\n{band}; {ver} (argument principle)"
     )
