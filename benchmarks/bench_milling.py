@@ -33,7 +33,7 @@ b. the competitor, :class:`PlainSDM` below: what a competent numpy user
    far below its own error).
 
 Accuracy: both against a reference computed in the same run, chatterlab's
-spectral method at degree 24 with elements half as long (omega L <= 2.5) and
+spectral method at an explicit degree 24 on elements with omega L <= 5 and
 rtol 1e-11 (its own convergence check is recorded), at **all** 201 speeds:
 the largest and median relative error of a_lim.  Times: min and median of
 the wall clock and of the process's CPU time (the machine is shared:
@@ -91,9 +91,9 @@ IMMERSIONS = (0.05, 1.0)
 DEPTH_MAX = 0.01
 #: chatterlab's 1e-6 setting (see the module docstring)
 SETTINGS: dict[str, Any] = {"rtol": 1e-7}
-#: the reference: degree 24, elements half as long, rtol 1e-11
+#: the reference: an explicit degree 24 on elements with omega L <= 5 (the 0.2.0 mesh, independent of
+#: the automatic degrees), rtol 1e-11
 REFERENCE: dict[str, Any] = {"degree": 24, "rtol": 1e-11}
-REFERENCE_SPAN = 2.5
 SDM_STEPS = 40
 SDM_RTOL = 1e-4
 GOAL = 10.0  #: issue 26: chatterlab at least this many times faster than the plain SDM
@@ -279,10 +279,7 @@ def relerr(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
 def reference(loop: Any, rpm: np.ndarray) -> Any:
     from chatterlab.lobes import milling_lobes
 
-    try:  # the span keyword (elements half as long) arrived with the FE-scale change
-        return milling_lobes(loop, rpm, depth_max=DEPTH_MAX, span=REFERENCE_SPAN, **REFERENCE)
-    except TypeError:
-        return milling_lobes(loop, rpm, depth_max=DEPTH_MAX, **REFERENCE)
+    return milling_lobes(loop, rpm, depth_max=DEPTH_MAX, **REFERENCE)
 
 
 def row_lobes(repeat: int, n_speeds: int) -> dict[str, Any]:
@@ -347,7 +344,6 @@ def row_lobes(repeat: int, n_speeds: int) -> dict[str, Any]:
                 },
                 "reference": {
                     **REFERENCE,
-                    "span": REFERENCE_SPAN,
                     "time_s": t_ref,
                     "own_estimate_max_rel": float(np.nanmax(np.where(np.isfinite(ref_est), ref_est, np.nan))),
                     "a_lim_m": [float(x) for x in ref.a_lim],
@@ -432,7 +428,7 @@ def table(data: dict[str, Any]) -> str:
         " to 10 mm, one BLAS thread, interleaved repeats. *chatterlab* is `milling_lobes(..., rtol=1e-7)` (every"
         " limit's convergence check must confirm 1e-6 relative); *SDM* is the plain numpy first-order"
         " semi-discretisation written in the benchmark (m = 40, the same scan and Brent search, rtol 1e-4). Errors"
-        " are against the spectral reference (degree 24, omega L <= 2.5, rtol 1e-11) at all 201 speeds. The ratio"
+        " are against the spectral reference (degree 24, omega L <= 5, rtol 1e-11) at all 201 speeds. The ratio"
         " is SDM time / chatterlab time within one run (goal >= 10).",
         "",
         "| run | commit | a_e/D | repeats | chatterlab min / median s (CPU min) | SDM min / median s (CPU min)"

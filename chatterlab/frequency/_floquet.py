@@ -68,11 +68,22 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InputError, check_nonneg
+from ..errors import InputError, check_nonneg, check_positive
 from ..io import Result
 from ..process._loop import ClosedLoop
-from ._floquet_sdm import sdm_monodromy, sdm_multipliers
-from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, SpectralMonodromy
+from ._floquet_sdm import finite_monodromy, matched_change, sdm_monodromy, sdm_multipliers
+from ._floquet_spectral import (
+    CHECK_DEGREE,
+    DEGREE,
+    ELEMENT_SPAN,
+    QuasiStatic,
+    SpectralMonodromy,
+    auto_degree,
+    needs_split,
+    spectral_mesh,
+    split_frequency,
+    split_structure,
+)
 
 __all__ = [
     "Multipliers",
@@ -84,6 +95,12 @@ __all__ = [
     "DEGREE",
     "ELEMENT_SPAN",
     "chatter_frequency",
+    "auto_degree",
+    "spectral_mesh",
+    "split_structure",
+    "split_frequency",
+    "needs_split",
+    "QuasiStatic",
 ]
 
 #: a multiplier within this angle of the real axis is a flip (pi) or fold (0)
@@ -295,6 +312,22 @@ def chatter_frequency(mu: complex, T: float, loop: ClosedLoop) -> float:
 
 
 # ============================================================================ entry point
+def _split_of(loop: ClosedLoop, rpm: float, depth: float, split: Any) -> QuasiStatic | None:
+    """The quasi-static split asked for (see :func:`multipliers`), None for none."""
+    if split is None:
+        return None
+    if isinstance(split, str):
+        if split != "auto":
+            raise InputError(f"split must be 'auto', a frequency in Hz or None (got {split!r})")
+        f = needs_split(loop, rpm, depth, 1e-10)
+        if f is None:
+            return None
+    else:
+        f = check_positive(split, "split", "Hz")
+    qs = split_structure(loop, f)
+    return qs if qs.kept < loop.n else None
+
+
 def multipliers(
     loop: ClosedLoop,
     rpm: float,
@@ -305,6 +338,7 @@ def multipliers(
     elements: int | None = None,
     steps: int = 40,
     check: bool = True,
+    split: float | Literal["auto"] | None = "auto",
 ) -> Multipliers:
     """Floquet multipliers of milling at spindle speed ``rpm`` and depth ``depth`` (a_p, m).
 
@@ -327,7 +361,13 @@ def multipliers(
     check : bool
         Also compute at a higher resolution (spectral: degree +
         CHECK_DEGREE; SDM: 2 x steps) and report the change of the critical
-        multiplier as ``error``.
+        multiplier as ``error`` (with a quasi-static split, plus its change
+        when the modes up to twice the split frequency are integrated).
+    split : float, "auto" or None
+        Spectral: the structure's modes above this frequency (Hz) respond
+        quasi-statically (:func:`split_structure`); "auto": where the whole
+        structure's discretisation would exceed 200 multipliers
+        (:func:`needs_split`); None: never.
 
     Returns
     -------
@@ -341,14 +381,22 @@ def multipliers(
     a = check_nonneg(depth, "depth of cut a_p", "m")
     milling = loop.milling
     if method == "spectral":
-        sm = SpectralMonodromy(loop, rpm, degree, elements, depth=a, depth_hint=a)
-        mu = sm.at(a)
+        qs = _split_of(loop, rpm, a, split)
+        sm = SpectralMonodromy(loop, rpm, degree, elements, depth=a, depth_hint=a, quasi_static=qs)
+        mu = np.linalg.eigvals(finite_monodromy(sm.monodromy(a), rpm, a))
+        mu = mu[np.argsort(-np.abs(mu))]
         f_hz = sm.critical(a)[1]
         err = float("nan")
         if check:
-            sm2 = SpectralMonodromy(loop, rpm, depth=a, depth_hint=a, mesh=sm.mesh.raised(CHECK_DEGREE))
-            err = float(abs(sm2.at(a)[0] - mu[0]))
-        res = f"degree {degree} x {sm.n_sub} elements"
+            raised = sm.mesh.raised(CHECK_DEGREE)
+            sm2 = SpectralMonodromy(loop, rpm, depth=a, depth_hint=a, mesh=raised, quasi_static=qs)
+            err = matched_change(complex(mu[0]), sm2.at(a))
+            if qs is not None:  # the split's own error: the modes up to twice its frequency in time
+                fine = split_structure(loop, 2.0 * qs.f_split)
+                if fine.kept > qs.kept:
+                    sm3 = SpectralMonodromy(loop, rpm, None, depth=a, depth_hint=a, quasi_static=fine)
+                    err += matched_change(complex(mu[0]), sm3.at(a))
+        res = f"degree {sm.degree} x {sm.n_sub} elements" + (f"; {qs.note()}" if qs is not None else "")
         T = sm.period
     elif method == "sdm":
         mu, err = sdm_multipliers(loop, rpm, a, steps, check)

@@ -10,7 +10,7 @@ import scipy.linalg as sla
 from ..errors import InputError, check_count, check_nonneg
 from ..process._loop import ClosedLoop
 
-__all__ = ["sdm_monodromy", "sdm_multipliers", "matched_change"]
+__all__ = ["sdm_monodromy", "sdm_multipliers", "matched_change", "finite_monodromy"]
 
 
 def _sdm_steps(A_i: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -68,37 +68,40 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
         i = d + (k - 1) * rho
         return slice(i, i + rho), np.eye(rho)
 
-    for i in range(m):
-        Bsum = np.zeros((d, d))
-        Gs = []
-        for j in range(milling.teeth):
-            Hj = Hr[i, j]
-            if not np.any(Hj):
-                continue
-            Bq = np.zeros((d, rho))
-            Bq[n:] = a * (W @ Hj)  # force term per unit r, q' rows
-            Bsum[:, :n] += Bq @ Jr
-            Gs.append((j, Bq))
-        P, F1, F2 = _sdm_steps(A - Bsum, dt)
-        G = np.zeros((D, D))
-        G[:d, :d] = P
-        for j, Bq in Gs:
-            # r(t_i - tau_j) = (1 - f) r_{i-m_j} + f r_{i-m_j-1}; r(t_{i+1} - tau_j) likewise shifted by one
-            c0 = (F1 - F2 / dt) @ Bq  # weight of u0 (value at the step start)
-            c1 = (F2 / dt) @ Bq  # weight of u1 (value at the step end)
-            for k, wgt in ((mj[j], 1 - fj[j]), (mj[j] + 1, fj[j])):
-                if wgt:
-                    sl, R = r_cols(int(k))
-                    G[:d, sl] += wgt * c0 @ R
-            for k, wgt in ((mj[j] - 1, 1 - fj[j]), (mj[j], fj[j])):
-                if wgt:
-                    sl, R = r_cols(int(k))
-                    G[:d, sl] += wgt * c1 @ R
-        # shift the history: new r_{i} = Jr q_i, r_{i-k} <- r_{i-k+1}
-        G[d : d + rho, :d] = Jq
-        for k in range(1, Lh):
-            G[d + k * rho : d + (k + 1) * rho, d + (k - 1) * rho : d + k * rho] = np.eye(rho)
-        Phi = G @ Phi
+    # a cut far stiffer than the structure overflows the product: its inf and nan are the
+    # caller's to report (finite_monodromy), not a raw numpy warning on the terminal
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(m):
+            Bsum = np.zeros((d, d))
+            Gs = []
+            for j in range(milling.teeth):
+                Hj = Hr[i, j]
+                if not np.any(Hj):
+                    continue
+                Bq = np.zeros((d, rho))
+                Bq[n:] = a * (W @ Hj)  # force term per unit r, q' rows
+                Bsum[:, :n] += Bq @ Jr
+                Gs.append((j, Bq))
+            P, F1, F2 = _sdm_steps(A - Bsum, dt)
+            G = np.zeros((D, D))
+            G[:d, :d] = P
+            for j, Bq in Gs:
+                # r(t_i - tau_j) = (1 - f) r_{i-m_j} + f r_{i-m_j-1}; r(t_{i+1} - tau_j) likewise shifted by one
+                c0 = (F1 - F2 / dt) @ Bq  # weight of u0 (value at the step start)
+                c1 = (F2 / dt) @ Bq  # weight of u1 (value at the step end)
+                for k, wgt in ((mj[j], 1 - fj[j]), (mj[j] + 1, fj[j])):
+                    if wgt:
+                        sl, R = r_cols(int(k))
+                        G[:d, sl] += wgt * c0 @ R
+                for k, wgt in ((mj[j] - 1, 1 - fj[j]), (mj[j], fj[j])):
+                    if wgt:
+                        sl, R = r_cols(int(k))
+                        G[:d, sl] += wgt * c1 @ R
+            # shift the history: new r_{i} = Jr q_i, r_{i-k} <- r_{i-k+1}
+            G[d : d + rho, :d] = Jq
+            for k in range(1, Lh):
+                G[d + k * rho : d + (k + 1) * rho, d + (k - 1) * rho : d + k * rho] = np.eye(rho)
+            Phi = G @ Phi
     return Phi
 
 
@@ -142,9 +145,22 @@ def sdm_multipliers(
     (1 - 2^-p) e(m): the error estimate is 3/4 (p = 2) to 1/2 (p = 1) of
     the true error of the ``steps`` result, and a close bound on that of
     the doubled-steps one (e(2m) = e(m) / 2^p)."""
-    mu = _ranked(np.linalg.eigvals(sdm_monodromy(loop, rpm, depth, steps)))
+    mu = _ranked(np.linalg.eigvals(finite_monodromy(sdm_monodromy(loop, rpm, depth, steps), rpm, depth)))
     err = float("nan")
     if check:
-        mu2 = np.linalg.eigvals(sdm_monodromy(loop, rpm, depth, 2 * steps))
+        mu2 = np.linalg.eigvals(finite_monodromy(sdm_monodromy(loop, rpm, depth, 2 * steps), rpm, depth))
         err = matched_change(complex(mu[0]), mu2)
     return mu, err
+
+
+def finite_monodromy(X: np.ndarray, rpm: float, depth: float) -> np.ndarray:
+    """X, or an InputError when it overflowed: a cut so far beyond the structure's stiffness
+    that one period multiplies the motion past 1e308 (a model in the wrong units, a depth
+    far above any limit)."""
+    if not np.all(np.isfinite(X)):
+        raise InputError(
+            f"the Floquet multipliers at a_p = {depth * 1e3:g} mm, {rpm:g} rpm overflow (one period multiplies"
+            " the motion past 1e308): the cut is far stiffer than the structure; check the model's stiffness"
+            " and units, or give a smaller depth"
+        )
+    return X

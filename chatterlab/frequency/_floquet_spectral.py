@@ -64,7 +64,10 @@ __all__ = [
     "SpectralMonodromy",
     "QuasiStatic",
     "split_structure",
+    "split_frequency",
+    "needs_split",
     "auto_degree",
+    "spectral_mesh",
     "CHECK_DEGREE",
     "DEGREE",
     "ELEMENT_SPAN",
@@ -141,7 +144,7 @@ def auto_degree(omega_L: float, tol: float) -> int:
         if base > 1.0 and p * math.log(base) >= goal:
             break
         p += 1
-    return max(P_MIN, p + 6)
+    return max(P_MIN, p + 1 + math.ceil(wl / 10.0))
 
 
 @dataclass(frozen=True)
@@ -164,16 +167,12 @@ class _Mesh:
         return replace(self, a=a, b=b, deg=np.repeat(self.deg, 2))
 
 
-def _mesh(
-    milling: Milling,
-    rpm: float,
-    depth: float | None,
-    elements: int | None,
-    omega_max: float,
-    span: float,
-    degree: int | None,
-    tol: float,
-) -> _Mesh:
+@lru_cache(maxsize=256)
+def _pieces(
+    milling: Milling, rpm: float, depth: float | None
+) -> tuple[float, tuple[tuple[float, float], ...]]:
+    """The period and its pieces between breakpoints where a tooth cuts (cached: a search
+    builds several meshes per speed)."""
     T = milling.period(rpm)
     tb = milling.breakpoints(rpm, depth)
     if tb.size == 0:
@@ -185,13 +184,26 @@ def _mesh(
         tb = np.unique(np.r_[tb, shifted])
         tb = tb[np.r_[True, np.diff(tb) > 1e-9 * T]]
     ends = np.r_[tb, tb[0] + T]
+    mids = 0.5 * (ends[:-1] + ends[1:])
+    cut = np.any(milling.directional(mids, rpm, depth) != 0.0, axis=(-3, -2, -1))
+    return T, tuple((float(lo), float(hi)) for lo, hi, c in zip(ends[:-1], ends[1:], cut, strict=True) if c)
+
+
+def _mesh(
+    milling: Milling,
+    rpm: float,
+    depth: float | None,
+    elements: int | None,
+    omega_max: float,
+    span: float,
+    degree: int | None,
+    tol: float,
+) -> _Mesh:
+    T, pieces = _pieces(milling, float(rpm), depth)
     starts: list[float] = []
     stops: list[float] = []
     degs: list[int] = []
-    for lo, hi in zip(ends[:-1], ends[1:], strict=True):
-        mid = 0.5 * (lo + hi)
-        if not np.any(milling.directional(mid, rpm, depth) != 0.0):
-            continue
+    for lo, hi in pieces:
         L = hi - lo
         wl = omega_max * L
         if elements is not None:
@@ -213,6 +225,45 @@ def _mesh(
     return _Mesh(a, b, t0, T, np.array(degs, dtype=int))
 
 
+def spectral_mesh(
+    loop: ClosedLoop,
+    rpm: float,
+    degree: int | None = DEGREE,
+    elements: int | None = None,
+    *,
+    depth: float | None = None,
+    depth_hint: float | None = None,
+    span: float = ELEMENT_SPAN,
+    tol: float = 1e-10,
+) -> _Mesh:
+    """The mesh :class:`SpectralMonodromy` builds with these arguments (cheap: a
+    search compares meshes before setting one up)."""
+    milling = loop.milling
+    helix_depth = depth if milling.helix > 0 else None
+    om = _mesh_omega(loop, depth, depth_hint)
+    return _mesh(milling, float(rpm), helix_depth, elements, om, span, degree, tol)
+
+
+def _mesh_omega(loop: ClosedLoop, depth: float | None, depth_hint: float | None) -> float:
+    """Frequency scale for the default mesh: the structure's poles, stiffened by the cut."""
+    a_h = depth_hint if depth_hint is not None else (depth if depth is not None else 0.0)
+    om, per_depth = _stiffening(loop)
+    if a_h:
+        # capped at twice the structure's: deeper, the convergence check says what is missed
+        om = min(math.sqrt(om**2 + a_h * per_depth), 2.0 * om)
+    return max(om, 1e-9)
+
+
+@lru_cache(maxsize=32)
+def _stiffening(loop: ClosedLoop) -> tuple[float, float]:
+    """The structure's highest pole frequency (rad/s) and a bound of the cut's added
+    stiffness per unit mass and depth, |sum_j H_j| |W| |Jr| (1/(s^2 m))."""
+    milling = loop.milling
+    _, Jr, W = loop.cut_basis
+    Hs = np.abs(milling.zoa()).max() * milling.teeth  # crude bound of |sum H_j|
+    return float(loop.omega_max), float(Hs * np.linalg.norm(W, 2) * np.linalg.norm(Jr, 2))
+
+
 # ============================================================================ quasi-static modes
 @dataclass(frozen=True)
 class QuasiStatic:
@@ -224,19 +275,14 @@ class QuasiStatic:
     compliance of the other modes between the cut's coordinates r = Jr q
     (rho x rho, m/N), added to the kept modes' response at every instant
     (the static residual of modal truncation augmentation, here exact and
-    massless: it has no pseudo-frequency to resolve); ``compliance2``: the
-    next term of the mode-acceleration series, sum phi phi^T / omega^4 over
-    the other modes (its force's second derivative's response, s^2 m/N),
-    which the error estimate uses; ``kept``, ``n_full``, ``f_split``: what
-    was kept (Hz for the frequency)."""
+    massless: no pseudo-frequency to resolve in time); ``kept``,
+    ``n_full``, ``f_split``: what was kept (Hz for the frequency)."""
 
     loop: ClosedLoop
     compliance: np.ndarray
-    compliance2: np.ndarray
     kept: int
     n_full: int
     f_split: float
-    omega_full: float
 
     def note(self) -> str:
         return (
@@ -252,35 +298,67 @@ def split_structure(loop: ClosedLoop, f_split: float) -> QuasiStatic:
 
     The kept modes are exact (Rayleigh-Ritz on eigenvectors of (K, M)); the
     others' static compliance Jr (K^-1 - Phi_k Lambda_k^-1 Phi_k^T) Jr^T is
-    exact; what is neglected is their dynamic amplification
-    1/(1 - (w/w_j)^2) - 1 ~ (w/w_j)^2 at the frequencies w the cut drives,
-    and their damping's coupling to the kept modes."""
-    M, C, K = loop.M, loop.C, loop.K
+    exact (Dickens, Nakagawa & Wittbrodt, Comput. Struct. 62 (1997) 985-998,
+    without the residual's pseudo-mass); what is neglected is their dynamic
+    amplification 1/(1 - (w/w_j)^2) - 1 ~ (w/w_j)^2 at the frequencies w
+    the cut drives, and their damping's coupling to the kept modes."""
+    C, K = loop.C, loop.K
     _, Jr, _ = loop.cut_basis
-    lam, Phi = sla.eigh(K, M)  # mass-normalised
-    lam = np.maximum(lam, np.finfo(float).tiny)
+    lam, Phi = _modes(loop)
     keep = np.sqrt(lam) < 2 * np.pi * f_split
     if not np.any(keep):
         keep[0] = True
     P = Phi[:, keep]
     static = Jr @ np.linalg.solve(K, Jr.T)
-    G = static - (Jr @ P) @ ((Jr @ P) / lam[keep]).T
-    Po = Phi[:, ~keep]
-    G2 = (Jr @ Po) @ ((Jr @ Po) / lam[~keep] ** 2).T
+    JP = Jr @ P
+    G = static - JP @ (JP / lam[keep]).T
     from ..structure import Structure
 
     red = Structure(np.eye(P.shape[1]), P.T @ C @ P, np.diag(lam[keep]), (), f"{loop.name} (modes)")
-    J = loop.J @ P
-    rl = replace(loop, structure=red, J=J, force=P.T @ loop.force, frozen=None)
-    return QuasiStatic(
-        rl,
-        0.5 * (G + G.T),
-        0.5 * (G2 + G2.T),
-        int(np.count_nonzero(keep)),
-        loop.n,
-        float(f_split),
-        loop.omega_max,
-    )
+    rl = replace(loop, structure=red, J=loop.J @ P, force=P.T @ loop.force, frozen=None)
+    n_kept = int(np.count_nonzero(keep))
+    return QuasiStatic(rl, 0.5 * (G + G.T), n_kept, loop.n, float(f_split))
+
+
+@lru_cache(maxsize=8)
+def _modes(loop: ClosedLoop) -> tuple[np.ndarray, np.ndarray]:
+    """Undamped modes of the loop's structure: omega^2 ascending and mass-normalised shapes."""
+    lam, Phi = sla.eigh(loop.K, loop.M)
+    return np.maximum(lam, np.finfo(float).tiny), Phi
+
+
+#: the modes carrying at least this share of the cut's static compliance are the significant ones
+SIGNIFICANT = 0.05
+#: modes above this many times the highest significant one may respond quasi-statically
+SPLIT_RATIO = 4.0
+#: a discretisation with more multipliers than this (at the slowest speed, deepest cut) splits
+SPLIT_SIZE = 200
+
+
+def split_frequency(loop: ClosedLoop) -> float | None:
+    """SPLIT_RATIO times the highest natural frequency (Hz) among the modes
+    that carry at least SIGNIFICANT of the static compliance at the cut (its
+    trace over the cut's coordinates: the modes the cut can excite); None
+    when no mode lies above it (nothing to split)."""
+    _, Jr, _ = loop.cut_basis
+    lam, Phi = _modes(loop)
+    contrib = np.sum((Jr @ Phi) ** 2, axis=0) / lam
+    f = np.sqrt(lam) / (2 * np.pi)
+    f_split = SPLIT_RATIO * float(f[contrib >= SIGNIFICANT * contrib.sum()].max())
+    return f_split if f.max() > f_split else None
+
+
+def needs_split(loop: ClosedLoop, rpm: float, depth: float, tol: float) -> float | None:
+    """The split frequency (Hz) when the structure's own discretisation at
+    ``rpm`` and cuts to ``depth`` would have more than SPLIT_SIZE
+    multipliers and some modes may respond quasi-statically; else None."""
+    f = split_frequency(loop)
+    if f is None:
+        return None
+    mesh = spectral_mesh(loop, rpm, None, depth_hint=depth, tol=tol)
+    _, Jr, _ = loop.cut_basis
+    k = 2 * loop.n + int(mesh.deg.sum()) * Jr.shape[0]
+    return f if k > SPLIT_SIZE else None
 
 
 # ============================================================================ the monodromy
@@ -317,7 +395,7 @@ class SpectralMonodromy:
         The accuracy the automatic degree aims at (relative, multipliers).
     quasi_static : QuasiStatic, optional
         The structure split into integrated modes and a quasi-static rest
-        (:func:`split_structure`); ``loop`` is then not used for the structure.
+        (:func:`split_structure`); ``loop`` then gives the cut's coordinates only.
     """
 
     def __init__(
@@ -333,48 +411,42 @@ class SpectralMonodromy:
         *,
         tol: float = 1e-10,
         quasi_static: QuasiStatic | None = None,
-        accel: bool = False,
     ) -> None:
         if degree is not None:
             check_count(degree, "degree", 2)
         self.quasi_static = quasi_static
         self.loop = loop
+        # the cut's coordinates r = Ub^T (x, y) are the loop's: with a quasi-static rest the kept
+        # modes may not span them all (a planar tool's stiff axis has no mode below the split)
+        Ub, Jr, W = loop.cut_basis
         if quasi_static is not None:
             loop = quasi_static.loop
+            Jr = Ub.T @ loop.J
+            W = np.linalg.solve(loop.M, Jr.T)
+        self._cut = (Ub, Jr, W)
         milling = loop.milling
         self.structure, self.milling, self.rpm = loop, milling, float(rpm)
         self.helix_depth = depth if milling.helix > 0 else None
         if milling.helix > 0 and depth is None:
             raise InputError("milling with a helix angle: give the depth of cut a_p (depth, m)")
-        om = self._mesh_omega(depth, depth_hint)
         if mesh is None:
-            mesh = _mesh(milling, rpm, self.helix_depth, elements, om, span, degree, tol)
+            om = _mesh_omega(loop, depth, depth_hint)
+            mesh = _mesh(milling, float(rpm), self.helix_depth, elements, om, span, degree, tol)
         self.mesh = mesh
         self.degree = int(mesh.deg.max()) if mesh.deg.size else int(degree or DEGREE)
         self.n_sub = int(mesh.a.size)
         self.period = mesh.T
-        self._setup(accel)
+        self._eigs: dict[float, tuple[complex, np.ndarray]] = {}
+        self._setup()
+        self._I = np.eye(self.m_f)
 
     # ------------------------------------------------------------------ set-up
-    def _mesh_omega(self, depth: float | None, depth_hint: float | None) -> float:
-        """Frequency scale for the default mesh: the structure's poles, stiffened by the cut."""
-        structure, milling = self.structure, self.milling
-        _, Jr, W = structure.cut_basis
-        a_h = depth_hint if depth_hint is not None else (depth if depth is not None else 0.0)
-        om = structure.omega_max
-        if a_h:
-            Hs = np.abs(milling.zoa()).max() * milling.teeth  # crude bound of |sum H_j|
-            kc = a_h * Hs * np.linalg.norm(W, 2) * np.linalg.norm(Jr, 2)
-            # capped at twice the structure's: deeper, the convergence check says what is missed
-            om = min(math.sqrt(om**2 + kc), 2.0 * om)
-        return max(om, 1e-9)
-
-    def _setup(self, accel: bool) -> None:
+    def _setup(self) -> None:
         loop, milling, mesh = self.structure, self.milling, self.mesh
         A = loop.state_matrix
         d = A.shape[0]
         n = loop.n
-        Ub, Jr, W = loop.cut_basis
+        Ub, Jr, W = self._cut
         rho = Jr.shape[0]
         S = mesh.a.size
         T = mesh.T
@@ -448,9 +520,12 @@ class SpectralMonodromy:
             p = int(deg[s])
             L = mesh.b[s] - mesh.a[s]
             _, Dm, _ = _cheb(p)
-            blk = np.zeros(((p + 1) * d, (p + 1) * d))
-            blk[:d, :d] = I_d
-            blk[d:] = np.kron(Dm[1:, :] / (L * ws), I_d) - np.kron(np.eye(p + 1)[1:], Ah / ws)
+            B4 = np.zeros((p + 1, d, p + 1, d))
+            B4[0, :, 0, :] = I_d
+            B4[1:] = (Dm[1:, None, :, None] / (L * ws)) * I_d[None, :, None, :]
+            idx = np.arange(1, p + 1)
+            B4[idx, :, idx, :] -= Ah / ws
+            blk = B4.reshape((p + 1) * d, (p + 1) * d)
             rhs = np.zeros(((p + 1) * d, d + p * rho))
             rhs[:d, :d] = I_d
             for k in range(p):
@@ -468,6 +543,72 @@ class SpectralMonodromy:
                 enter_f = E @ nmap_f[last]
         self._nmap_z, self._nmap_f = nmap_z, nmap_f
         self._node_off, self._f_off = node_off, f_off
+        GF = self._quasi_static_response(m_f)
+        if milling.uniform:
+            self._uniform_cut(nmap_z, nmap_f, Hn, GF)
+        else:
+            self._general_cut(nmap_z, nmap_f, Hn, t_nodes, taus, GF)
+
+    def _quasi_static_response(self, m_f: int) -> np.ndarray | None:
+        """r of the quasi-static modes at the force nodes per unit nodal forces (m_f x m_f,
+        block diagonal: G F_i); None without a quasi-static rest."""
+        qs = self.quasi_static
+        return None if qs is None else np.kron(np.eye(m_f // self.rho), qs.compliance)
+
+    def _uniform_cut(
+        self, nmap_z: np.ndarray, nmap_f: np.ndarray, Hn: np.ndarray, GF: np.ndarray | None
+    ) -> None:
+        """The cut's part of (1) for a uniform pitch: every force node reads its own r one
+        period back, so z = (x^_end, r at every force node) and, with H_i = sum_j H_j(t_i),
+        P = (x^_end, C x^_i + (GF F)_i) per unit force, K = H P_r, Q = H (-C x^_i from x^_end, I)."""
+        S, d, rho = self.mesh.a.size, self.d, self.rho
+        deg, node_off = self.mesh.deg, self._node_off
+        Nn = int(node_off[-1])
+        m_nodes = Hn.shape[0]
+        m_f = m_nodes * rho
+        xnode = np.concatenate([node_off[s] + np.arange(1, int(deg[s]) + 1) for s in range(S)])
+        Ch = self._Ch
+        CZ = np.einsum("rd,ndk->nrk", Ch, nmap_z.reshape(Nn, d, d)[xnode])  # (m, rho, d)
+        CX = np.einsum("rd,ndk->nrk", Ch, nmap_f.reshape(Nn, d, m_f)[xnode])  # (m, rho, m_f)
+        if GF is not None:
+            CX = CX + GF.reshape(m_nodes, rho, m_f)
+        Hsum = Hn.sum(axis=1)  # (m, rho, rho)
+        k_z = d + m_f
+        last = slice((Nn - 1) * d, Nn * d)
+        self.P = np.vstack([nmap_f[last], CX.reshape(m_f, m_f)])
+        X0 = np.zeros((k_z, k_z))
+        X0[:d, :d] = nmap_z[last]
+        X0[d:, :d] = CZ.reshape(m_f, d)
+        self.X0 = X0
+        self.K = np.einsum("nrs,nsk->nrk", Hsum, CX).reshape(m_f, m_f)
+        Q = np.zeros((m_f, k_z))
+        Q[:, :d] = -np.einsum("nrs,nsk->nrk", Hsum, CZ).reshape(m_f, d)
+        Qr = Q[:, d:].reshape(m_nodes, rho, m_nodes, rho)
+        idx = np.arange(m_nodes)
+        Qr[idx, :, idx, :] = Hsum
+        self.Q = Q
+        self.k = k_z
+        self.z_blocks = [("x", S - 1, 0)] + [("r", s, k) for s in range(S) for k in range(1, int(deg[s]) + 1)]
+        self._zindex = {key: (0 if i == 0 else d + (i - 1) * rho) for i, key in enumerate(self.z_blocks)}
+
+    def _general_cut(
+        self,
+        nmap_z: np.ndarray,
+        nmap_f: np.ndarray,
+        Hn: np.ndarray,
+        t_nodes: list[np.ndarray],
+        taus: np.ndarray,
+        GF: np.ndarray | None,
+    ) -> None:
+        """The cut's part of (1) for any pitch: each delayed argument located in the mesh."""
+        mesh, milling, d, rho = self.mesh, self.milling, self.d, self.rho
+        S, T, deg = mesh.a.size, mesh.T, mesh.deg
+        node_off, f_off = self._node_off, self._f_off
+        Nn = int(node_off[-1])
+        m_f = self.m_f
+        teeth = milling.teeth
+        Ch = self._Ch
+        I_d = np.eye(d)
         # ---- what the next period needs of this one (z) and the cut's equations
         # F + a (Lx x^ + LF F + Lz z) = 0 at every force node; z_new = Rx x^ + RF F.  z holds
         # ("x", s, 0): the state at the end of element s, and ("r", s, l): r at node l of element s
@@ -483,8 +624,6 @@ class SpectralMonodromy:
                 zsize.append(d if key[0] == "x" else rho)
             return zindex[key]
 
-        qs = self.quasi_static
-        Gr = qs.compliance if qs is not None else None
         s_nodes_cache = {int(p): _cheb(int(p)) for p in set(deg.tolist())}
 
         def x_rows(s2: int, l2: int) -> slice:
@@ -514,8 +653,8 @@ class SpectralMonodromy:
                 ri = slice(i * rho, (i + 1) * rho)
                 Hsum = Hn[i].sum(axis=0)
                 Lx[ri, x_rows(s, k)] += Hsum @ Ch
-                if Gr is not None:
-                    LF[ri, ri] += Hsum @ Gr
+                if GF is not None:
+                    LF[ri] += Hsum @ GF[ri]
                 for j in range(teeth):
                     Hj = Hn[i, j]
                     if not np.any(Hj):
@@ -534,9 +673,9 @@ class SpectralMonodromy:
                             Lz_entries.append((i, zcol((kind, s2, l2)), -Hj @ wgt))
                         elif kind == "r":
                             Lx[ri, x_rows(s2, l2)] -= Hj @ (wgt @ Ch)
-                            if Gr is not None:
+                            if GF is not None:
                                 for i2, e2 in r_forces(s2, l2):
-                                    LF[ri, i2 * rho : (i2 + 1) * rho] -= e2 * (Hj @ (wgt @ Gr))
+                                    LF[ri] -= e2 * (Hj @ (wgt @ GF[i2 * rho : (i2 + 1) * rho]))
                         else:  # an element's end state, across a free gap
                             Lx[ri, x_rows(s2, int(deg[s2]))] -= Hj @ wgt
         k_z = int(sum(zsize))
@@ -551,9 +690,9 @@ class SpectralMonodromy:
                 Rx[c : c + d, x_rows(s2, int(deg[s2]))] = I_d
             else:
                 Rx[c : c + rho, x_rows(s2, l2)] = Ch
-                if Gr is not None:
+                if GF is not None:
                     for i2, e2 in r_forces(s2, l2):
-                        RF[c : c + rho, i2 * rho : (i2 + 1) * rho] += e2 * Gr
+                        RF[c : c + rho] += e2 * GF[i2 * rho : (i2 + 1) * rho]
         self.z_blocks = zb
         self._zindex = zindex
         self.k = k_z
@@ -566,35 +705,6 @@ class SpectralMonodromy:
         X0 = np.zeros((k_z, k_z))
         X0[:, :d] = Rx @ nmap_z
         self.X0 = X0
-        self._Lx, self._LF, self._Rx = Lx, LF, Rx
-        # the next term of the quasi-static modes' response (mode acceleration: - G2 F''), for the
-        # error estimate of the split: its effect on K and P per unit G2
-        self.Q2 = None
-        if qs is not None and accel:
-            self._accel(qs.compliance2)
-
-    def _accel(self, G2: np.ndarray) -> None:
-        """Add the mode-acceleration term -G2 F'' to the quasi-static response
-        (F'' from each element's collocation polynomial of the nodal forces)."""
-        mesh, rho, deg = self.mesh, self.rho, self.mesh.deg
-        f_off = self._f_off
-        m_f = self.m_f
-        D2F = np.zeros((m_f, m_f))  # F'' at the force nodes from the forces at nodes 1..p of the element
-        for s in range(mesh.a.size):
-            p = int(deg[s])
-            L = mesh.b[s] - mesh.a[s]
-            _, Dm, _ = _cheb(p)
-            D2 = (Dm @ Dm)[1:, 1:] / L**2  # F at node 0 continued from inside: dropped (F(t0+) ~ F_1)
-            blk = slice(int(f_off[s]) * rho, int(f_off[s + 1]) * rho)
-            D2F[blk, blk] = np.kron(D2, np.eye(rho))
-        corr = -np.kron(np.eye(self.m_f // rho), G2) @ D2F
-        Hsum = self._Hn.sum(axis=1)  # (m_nodes, rho, rho)
-        Hb = sla.block_diag(*Hsum) if Hsum.shape[0] else np.zeros((0, 0))
-        self.K = self.K + Hb @ corr
-        for key, c in self._zindex.items():
-            if key[0] == "r" and key[2] >= 1:
-                i2 = int(f_off[key[1]]) + key[2] - 1
-                self.P[c : c + rho] += corr[i2 * rho : (i2 + 1) * rho]
 
     def _locate(self, td: float, cache: dict[int, Any]) -> list[tuple[str, int, int, np.ndarray]]:
         """What x(td) is made of: [(kind, element, node, weight)] with kind "r" (the cut
@@ -650,14 +760,33 @@ class SpectralMonodromy:
         return X, dX
 
     def tangents(self, depths: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """:meth:`tangent` at several depths in one batch (the same numbers)."""
-        X, dX = self._batch(np.atleast_1d(depths), True)
-        assert dX is not None
+        """:meth:`tangent` at several depths in one batch (the same numbers); the
+        eigenvectors are kept for :meth:`critical` at those depths."""
+        a = np.atleast_1d(np.asarray(depths, dtype=float))
+        if a.size == 1 and self.m_f:  # one depth: plain 2-D LAPACK calls
+            lu = sla.lu_factor(self._I + a[0] * self.K, check_finite=False)
+            W = sla.lu_solve(lu, self.Q, check_finite=False)
+            X = (self.X0 + a[0] * (self.P @ W))[None]
+            dX = (self.P @ sla.lu_solve(lu, W, check_finite=False))[None]
+        else:
+            X, dX_ = self._batch(a, True)
+            assert dX_ is not None
+            dX = dX_
         mu, vr = np.linalg.eig(X)
-        out = []
-        for i in range(X.shape[0]):
-            out.append(_derivatives(mu[i], vr[i], dX[i]))
-        return out
+        try:  # the rows of vr^-1 are the left eigenvectors scaled so that y^H x = 1
+            dmu = np.einsum("nkj,njk->nk", np.linalg.solve(vr, dX.astype(vr.dtype)), vr)
+        except np.linalg.LinAlgError:  # one of them defective: each on its own
+            return [_derivatives(mu[i], vr[i], dX[i]) for i in range(X.shape[0])]
+        dmu = np.where(np.isfinite(dmu), dmu, np.inf)
+        order = np.argsort(-np.abs(mu), axis=1)
+        mu = np.take_along_axis(mu, order, axis=1)
+        dmu = np.take_along_axis(dmu, order, axis=1)
+        if len(self._eigs) > 256:
+            self._eigs.clear()
+        for i, x in enumerate(a):
+            j = int(order[i, 0])
+            self._eigs[float(x)] = (complex(mu[i, 0]), vr[i][:, j])
+        return [(mu[i], dmu[i]) for i in range(a.size)]
 
     def tangent(self, depth: float) -> tuple[np.ndarray, np.ndarray]:
         """The Floquet multipliers mu_k at depth a_p and their derivatives
@@ -737,22 +866,29 @@ class SpectralMonodromy:
         x = self._nmap_z @ z[: self.d] + self._nmap_f @ F
         return x.reshape(-1, self.d) * self.state_scale
 
-    def critical(self, depth: float, samples: int = 128) -> tuple[complex, float]:
+    def critical(self, depth: float, samples: int = 128, near: float = 0.0) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its
         solution's dominant harmonic.
 
         The Floquet solution is x(t) = e^{lambda t} p(t) with p T-periodic and
         lambda = ln(mu) / T; its frequencies are Im(lambda) + k 2 pi / T.  The
-        eigenvector gives x on the nodes; x(t) on ``samples`` uniform times of
+        eigenvector gives x on the nodes (that of a depth :meth:`tangents` evaluated
+        within ``near`` of a_p when there is one: the limit's frequency from its last
+        Newton iterate); x(t) on ``samples`` uniform times of
         the period (interpolated on the elements, propagated exactly across
         the free gaps), times e^{-lambda t}, is p(t), and the largest
         Fourier coefficient of its displacement at the tool picks k.
         """
         a = float(depth)
-        mu, vec = np.linalg.eig(self.monodromy(a))
-        i = int(np.argmax(np.abs(mu)))
-        m = complex(mu[i])
-        return m, self._dominant_hz(m, self.nodal_states(a, vec[:, i]) if self.m_f else None, samples)
+        seen = [x for x in self._eigs if abs(x - a) <= near]
+        if seen:  # a depth evaluated within ``near`` of a_p: its top multiplier and eigenvector
+            a = min(seen, key=lambda x: abs(x - float(depth)))
+            m, v = self._eigs[a]
+        else:
+            mu, vec = np.linalg.eig(self.monodromy(a))
+            i = int(np.argmax(np.abs(mu)))
+            m, v = complex(mu[i]), vec[:, i]
+        return m, self._dominant_hz(m, self.nodal_states(a, v) if self.m_f else None, samples)
 
     def _dominant_hz(self, mu: complex, x_nodes: np.ndarray | None, samples: int) -> float:
         mesh = self.mesh
@@ -774,20 +910,23 @@ class SpectralMonodromy:
                 w = _bary(s_nodes, bw, (t[inside] - mesh.a[s]) / (mesh.b[s] - mesh.a[s]))
                 xs[inside] = w @ x_nodes[off[s] : off[s + 1]]
                 done |= inside
-        # the free gaps: from the end of the element before, exactly, one step e^{A dt} per sample
-        dt = T / samples
-        step = sla.expm(A * dt)
-        gap = np.zeros(samples, dtype=bool)  # computed in a free gap
-        for k_ in np.nonzero(~done)[0]:
-            before = np.nonzero(mesh.b <= t[k_])[0]
-            if k_ > 0 and gap[k_ - 1] and _same_gap(mesh, t, int(k_)):
-                xs[k_] = step @ xs[k_ - 1]
-            elif before.size:
-                s_ = int(before[-1])
-                xs[k_] = sla.expm(A * (t[k_] - mesh.b[s_])) @ x_nodes[off[s_ + 1] - 1]
-            else:  # before the first element: from the last one of the previous period
-                xs[k_] = sla.expm(A * (t[k_] + T - mesh.b[-1])) @ x_nodes[off[-1] - 1] / mu
-            gap[k_] = True
+        # the free gaps: from the end of the element before, exactly (e^{A t} by A's eigenvectors,
+        # or one matrix exponential per sample where they are ill-conditioned)
+        rest = np.nonzero(~done)[0]
+        if rest.size:
+            ends = (
+                np.searchsorted(mesh.b, t[rest], side="right") - 1
+            )  # the element before (-1: the last, a period ago)
+            x_end = np.stack([x_nodes[off[s_ + 1] - 1] for s_ in range(mesh.a.size)])
+            g = np.where(ends >= 0, t[rest] - mesh.b[ends], t[rest] + T - mesh.b[-1])
+            src = x_end[ends] / np.where(ends >= 0, 1.0, mu)[:, None]
+            lam_A, V = np.linalg.eig(A)
+            if np.linalg.cond(V) < 1e8:
+                c = np.linalg.solve(V, src.T)  # (d, samples)
+                xs[rest] = (V @ (np.exp(lam_A[:, None] * g[None, :]) * c)).T
+            else:
+                for j, k_ in enumerate(rest):
+                    xs[k_] = sla.expm(A * g[j]) @ src[j]
         lam = np.log(complex(mu)) / T
         r = (st.J @ xs[:, :n].T).T  # (samples, 2) tool displacement
         per = r * np.exp(-lam * (t - mesh.t0))[:, None]
@@ -796,12 +935,6 @@ class SpectralMonodromy:
         kk = int(np.argmax(power))
         k = kk if kk <= samples // 2 else kk - samples
         return float(abs(lam.imag + 2 * np.pi * k / T) / (2 * np.pi))
-
-
-def _same_gap(mesh: _Mesh, t: np.ndarray, k: int) -> bool:
-    """Samples k - 1 and k lie in the same free gap (no element between them)."""
-    lo, hi = t[k - 1], t[k]
-    return not np.any((mesh.b >= lo) & (mesh.a <= hi))
 
 
 def _derivatives(mu: np.ndarray, vr: np.ndarray, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

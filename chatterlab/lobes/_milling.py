@@ -67,6 +67,7 @@ from ..frequency import (
     classify,
 )
 from ..frequency._delay_system import single_threaded
+from ..frequency._floquet import QuasiStatic, needs_split, split_structure
 from ..process import ClosedLoop
 from ._diagram import Plant, lobes
 from ._milling_search import floquet_limit
@@ -141,12 +142,13 @@ def milling_lobes(
     depth_max: float | None = None,
     scan: int = 40,
     rtol: float = 1e-8,
-    degree: int = DEGREE,
+    degree: int | None = None,
     elements: int | None = None,
     steps: int = 40,
     check: bool = True,
     jobs: int = 1,
     progress: Callable[[float], None] | None = None,
+    split: float | Literal["auto"] | None = "auto",
 ) -> LobeDiagram:
     """Milling stability lobes a_lim(rpm).
 
@@ -172,9 +174,13 @@ def milling_lobes(
         (spectral, sdm).
     rtol : float
         Relative tolerance of Brent's method on a_lim.
-    degree, elements : int
-        Spectral: polynomial degree; sub-elements per cutting piece (default:
-        omega L <= 5, with omega the highest pole stiffened at depth_max).
+    degree, elements : int, optional
+        Spectral: polynomial degree; sub-elements per cutting piece.  Default
+        (both None): one element per piece between breakpoints, its degree
+        chosen for the accuracy asked (max(10 rtol, 1e-7) relative, the
+        check's target; :func:`chatterlab.frequency.auto_degree`) at the
+        depths searched, split only above degree 48.  An explicit degree:
+        sub-elements with omega L <= 5 (omega the highest pole frequency).
     steps : int
         SDM: steps per period.
     check : bool
@@ -185,6 +191,16 @@ def milling_lobes(
         so the diagram is the same whatever the number).
     progress : callable, optional
         Called with the fraction of speeds done (a progress bar).
+    split : float, "auto" or None
+        Spectral: integrate in time only the structure's modes below this
+        frequency (Hz), the others quasi-static through their exact static
+        compliance at the tool (:func:`chatterlab.frequency.split_structure`),
+        with the split's error checked at every limit against the modes up
+        to twice the frequency and added to ``error``.  ``"auto"`` (default):
+        four times the highest mode carrying 5 % of the tool's static
+        compliance, and only where the whole structure's discretisation at
+        the slowest speed would exceed 200 multipliers (an FE-scale tool);
+        None: never.  ``meta["split"]`` says what was done.
 
     Returns
     -------
@@ -212,9 +228,11 @@ def milling_lobes(
     refined = 0
     basis = np.full(n, "scan", dtype=object)
     certified = np.full(n, np.nan)
-    args = (method, depth_max, scan, rtol, degree, elements, steps, check, target)
+    qsplit = _split(loop, rpm, depth_max, split, target) if method == "spectral" else None
+    args = (method, depth_max, scan, rtol, degree, elements, steps, check, target, qsplit)
+    e_split = np.full(n, np.nan)
     for i, out in enumerate(_limits(loop, rpm, args, jobs, progress)):
-        a, err[i], mu, f_hz, cnt, n_ref, basis[i], certified[i] = out
+        a, err[i], mu, f_hz, cnt, n_ref, basis[i], certified[i], e_split[i] = out
         evals += cnt
         refined += n_ref
         if basis[i] == "undetermined":
@@ -251,9 +269,11 @@ def milling_lobes(
         meta={
             **({"refined": refined, "target_rtol": target} if method == "spectral" else {}),
             "ceiling": ceiling_note,
+            **(_split_meta(qsplit, e_split, a_lim) if qsplit is not None else {}),
         },  # fmt: skip
         method=method,
-        resolution=_resolution(method, degree, elements, steps),
+        resolution=_resolution(method, degree, elements, steps)
+        + (f"; {qsplit[0].note()}" if qsplit is not None else ""),
         kind=kind.astype(str),
         basis=basis.astype(str),
         certified=certified,
@@ -262,6 +282,50 @@ def milling_lobes(
         scan_step=depth_max / scan,
         evaluations=evals,
     )
+
+
+def _split(
+    loop: ClosedLoop, rpm: np.ndarray, depth_max: float, split: Any, target: float
+) -> tuple[QuasiStatic, QuasiStatic | None] | None:
+    """The structure's quasi-static split for the spectral lobes (see :func:`milling_lobes`)
+    and the finer one that checks it; None for none."""
+    if split is None:
+        return None
+    if isinstance(split, str):
+        if split != "auto":
+            raise InputError(f"split must be 'auto', a frequency in Hz or None (got {split!r})")
+        f = needs_split(loop, float(np.min(rpm)), depth_max, target / 30.0)
+        if f is None:
+            return None
+    else:
+        f = check_positive(split, "split", "Hz")
+    qs = split_structure(loop, f)
+    if qs.kept == loop.n:
+        return None
+    fine = split_structure(loop, 2.0 * f)
+    return qs, (fine if fine.kept > qs.kept else None)
+
+
+def _split_meta(
+    qsplit: tuple[QuasiStatic, QuasiStatic | None], e_split: np.ndarray, a_lim: np.ndarray
+) -> dict:
+    """The diagram's record of the split: what was kept and its largest error estimate."""
+    qs, fine = qsplit
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = e_split / a_lim
+    rel = rel[np.isfinite(rel)]
+    return {
+        "split": qs.note(),
+        "split_hz": qs.f_split,
+        "split_kept": qs.kept,
+        "split_check": (
+            f"against {fine.kept} modes (below {fine.f_split:.4g} Hz): largest change"
+            f" {float(rel.max()) if rel.size else float('nan'):.1e} of a_lim, in the error"
+            if fine is not None
+            else "no finer split to check against (every mode below twice the frequency)"
+        ),
+        "split_error_max_rel": float(rel.max()) if rel.size else float("nan"),
+    }
 
 
 def _limits(loop: ClosedLoop, rpm: np.ndarray, args: tuple, jobs: int, progress: Any) -> list[tuple]:
@@ -316,13 +380,14 @@ def milling_ceiling(loop: ClosedLoop, rpm: np.ndarray) -> tuple[float, str]:
     )
 
 
-def _resolution(method: str, degree: int, elements: int | None, steps: int) -> str:
+def _resolution(method: str, degree: int | None, elements: int | None, steps: int) -> str:
     """The discretisation, as the result states it."""
     if method != "spectral":
         return f"{steps} steps per period"
-    return (
-        f"degree {degree}, omega L <= 5 per element" if elements is None else f"degree {degree} x {elements}"
-    )
+    if degree is None and elements is None:
+        return "degree per element for the accuracy asked"
+    p = DEGREE if degree is None else degree
+    return f"degree {p}, omega L <= 5 per element" if elements is None else f"degree {p} x {elements}"
 
 
 def _checked(

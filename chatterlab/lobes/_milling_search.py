@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from ..frequency import (
     chatter_frequency,
     sdm_monodromy,
 )
+from ..frequency._floquet import QuasiStatic, spectral_mesh
 from ..process import ClosedLoop
 
 __all__ = ["Certified", "certified_crossing", "floquet_limit"]
@@ -75,6 +77,9 @@ def _first_crossing(
 MIN_WIDTH = 1e-7
 #: evaluations of the multipliers and their derivatives allowed per speed (beyond the scan)
 MAX_TANGENTS = 400
+#: the automatic mesh's depth stages are merged while the deeper one has at most this many
+#: times the nodes of the shallower one (a set-up and its flip/fold eigenproblems cost more)
+MERGE = 1.2
 
 
 @dataclass(frozen=True)
@@ -118,6 +123,25 @@ def _end_safe(
         if np.any(np.abs(mu[others] - mu[i]) <= step[others] + step[i]):
             return False
     return True
+
+
+def _all_inside(
+    lo: list[tuple[np.ndarray, np.ndarray]], hi: list[tuple[np.ndarray, np.ndarray]], h: list[float]
+) -> list[bool]:
+    """:func:`_interval_safe` of several intervals at once where it holds by its first branch:
+    every multiplier at both ends has |mu| + |d mu| h + miss < 1 (the real-axis branch and
+    the known +-1 at a right end are left to :func:`_interval_safe`, interval by interval)."""
+    if not lo:
+        return []
+    mu0, d0 = np.stack([x[0] for x in lo]), np.stack([x[1] for x in lo])
+    mu1, d1 = np.stack([x[0] for x in hi]), np.stack([x[1] for x in hi])
+    hh = np.asarray(h)[:, None]
+    with np.errstate(invalid="ignore", over="ignore"):
+        miss0 = np.min(np.abs((mu0 + d0 * hh)[:, :, None] - mu1[:, None, :]), axis=2)
+        miss1 = np.min(np.abs((mu1 - d1 * hh)[:, :, None] - mu0[:, None, :]), axis=2)
+        ok0 = np.abs(mu0) + (np.abs(d0) * hh + miss0) < 1.0
+        ok1 = np.abs(mu1) + (np.abs(d1) * hh + miss1) < 1.0
+    return [bool(x) for x in np.all(ok0 & ok1, axis=1)]
 
 
 def _simple_bracket(lo: tuple[np.ndarray, np.ndarray], hi: tuple[np.ndarray, np.ndarray], h: float) -> bool:
@@ -170,48 +194,74 @@ def _miss(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], h:
     return np.where(np.isfinite(d), d, np.inf)
 
 
+def _slope(mu: np.ndarray, dmu: np.ndarray, i: int) -> float:
+    """d|mu_i|/da from a multiplier and its rate."""
+    return float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
+
+
 def certified_crossing(
-    sm: SpectralMonodromy, depth_max: float, scan: int, rtol: float, max_tangents: int | None = None
+    sm: SpectralMonodromy,
+    depth_max: float,
+    scan: int,
+    rtol: float,
+    max_tangents: int | None = None,
+    *,
+    start: float = 0.0,
+    stop: float | None = None,
 ) -> Certified:
-    """The first depth in (0, depth_max] at which a multiplier of ``sm``
-    (spectral elements, no helix: affine in a_p) reaches the unit circle.
+    """The first depth in (start, stop] (default (0, depth_max]) at which a
+    multiplier of ``sm`` (spectral elements, no helix: affine in a_p) reaches
+    the unit circle, with stability established on (0, start] before.
 
     1. Flip and fold: every depth with a multiplier at -1 or +1 in
-       (0, depth_max], exactly, from two real eigenproblems
+       (start, stop], exactly, from two real eigenproblems
        (:meth:`SpectralMonodromy.unit_depths`); no sampling.
     2. Complex pairs (secondary Hopf): the multipliers and their exact
        derivatives (:meth:`SpectralMonodromy.tangent`) on the scan depths
-       below the first flip/fold depth; every interval is bisected until
-       :func:`_interval_safe` passes (no multiplier comes within its own
-       rate of change of the unit circle, nor a real one within its rate
-       of change of another real one), or until it is ``MIN_WIDTH`` short:
-       then a radius >= 1 at its right end brackets the crossing (refined by
-       Brent's method to ``rtol``), and otherwise the multiplier touches the
-       circle within the resolution: undetermined.
+       (depth_max i / scan) below the first flip/fold depth; every interval
+       is bisected until :func:`_interval_safe` passes (no multiplier comes
+       within its own rate of change of the unit circle, nor a real one
+       within its rate of change of another real one), or until it is
+       ``MIN_WIDTH`` short: then a radius >= 1 at its right end brackets the
+       crossing, and otherwise the multiplier touches the circle within the
+       resolution: undetermined.  A bracket is refined to ``rtol`` by
+       Newton's method on |mu| with its exact derivative, safeguarded by
+       bisection (every iterate stays in the bracket).
 
-    The limit is the first depth either finds; stability below it rests on
-    step 1 (exact) and the first-order test of step 2 on every interval."""
-    from scipy.optimize import brentq  # here: import chatterlab stays light
-
+    The scan depths ahead of the current interval are evaluated in batches
+    (:meth:`SpectralMonodromy.tangents`, the same numbers one by one); the
+    tests and the intervals are those of the depth-by-depth search.  The
+    limit is the first depth either finds; stability below it rests on step
+    1 (exact) and the first-order test of step 2 on every interval."""
     budget = MAX_TANGENTS if max_tangents is None else max_tangents
-    flips = sm.unit_depths(-1.0, depth_max)
-    folds = sm.unit_depths(1.0, depth_max)
+    stop = depth_max if stop is None else stop
+    flips = sm.unit_depths(-1.0, stop)
+    folds = sm.unit_depths(1.0, stop)
+    flips, folds = flips[flips > start], folds[folds > start]
     reals = [(float(a), "flip", -1.0) for a in flips] + [(float(a), "fold", 1.0) for a in folds]
     a_real, kind_real, z_real = min(reals) if reals else (np.inf, "", 0.0)
-    end = min(a_real, depth_max)
+    end = min(a_real, stop)
     cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
     count = [0]
+    # batch as many scan depths as cost about one evaluation's Python overhead (small monodromies)
+    chunk = max(1, min(8, int(3000 // max(sm.size, 1) ** 2)))
+
+    def fetch(points: list[float]) -> None:
+        todo = [a for a in dict.fromkeys(points) if a not in cache]
+        if todo:
+            count[0] += len(todo)
+            for a, v in zip(todo, sm.tangents(np.array(todo)), strict=True):
+                cache[a] = v
 
     def data(a: float) -> tuple[np.ndarray, np.ndarray]:
         if a not in cache:
-            count[0] += 1
-            cache[a] = sm.tangent(a)
+            fetch([a])
         return cache[a]
 
     def radius(a: float) -> float:
         return float(np.max(np.abs(data(a)[0])))
 
-    certified = [0.0]
+    certified = [start]
 
     class _Stop(Exception):
         pass
@@ -235,10 +285,34 @@ def certified_crossing(
         mid = 0.5 * (lo + hi)
         return refine(lo, mid) or refine(mid, hi)
 
-    grid = [0.0] + [float(g) for g in depth_max * np.arange(1, scan + 1) / scan if g < end] + [float(end)]
+    grid = (
+        [start]
+        + [float(g) for g in depth_max * np.arange(1, scan + 1) / scan if start < g < end]
+        + [float(end)]
+    )
     found: tuple[str, float] | None = None
+    passed: dict[int, bool] = {}
     try:
-        for lo, hi in zip(grid[:-1], grid[1:], strict=True):
+        for i, (lo, hi) in enumerate(zip(grid[:-1], grid[1:], strict=True)):
+            if grid[i + 1] not in cache:  # the next batch of scan depths
+                fetch(grid[i : i + 1 + chunk])
+            if i not in passed:  # the batch's intervals by the test's all-inside branch at once
+                js = [
+                    j
+                    for j in range(i, min(i + chunk, len(grid) - 1))
+                    if grid[j + 1] in cache and grid[j + 1] != a_real
+                ]
+                ok = _all_inside(
+                    [cache[grid[j]] for j in js],
+                    [cache[grid[j + 1]] for j in js],
+                    [grid[j + 1] - grid[j] for j in js],
+                )
+                passed.update(zip(js, ok, strict=True))
+            if passed.get(i, False):
+                if count[0] > budget + scan:
+                    raise _Stop
+                certified[0] = hi
+                continue
             found = refine(lo, hi)
             if found:
                 break
@@ -246,36 +320,77 @@ def certified_crossing(
         found = ("undetermined", certified[0])
     fl, fo = tuple(float(a) for a in flips), tuple(float(a) for a in folds)
     if found is None:
-        if np.isfinite(a_real):
+        if np.isfinite(a_real) and a_real <= stop:
             mu, dmu = data(a_real)
             i = int(np.argmin(np.abs(mu - z_real)))
-            slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
-            return Certified("crossing", a_real, kind_real, a_real, count[0], slope, fl, fo)
-        return Certified("stable", np.inf, "", depth_max, count[0], np.nan, fl, fo)
+            return Certified("crossing", a_real, kind_real, a_real, count[0], _slope(mu, dmu, i), fl, fo)
+        return Certified("stable", np.inf, "", stop, count[0], np.nan, fl, fo)
     status, a = found
     if status == "real":
         mu, dmu = data(a_real)
         i = int(np.argmin(np.abs(mu - z_real)))
-        slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
-        return Certified("crossing", a_real, kind_real, certified[0], count[0], slope, fl, fo)
+        return Certified("crossing", a_real, kind_real, certified[0], count[0], _slope(mu, dmu, i), fl, fo)
     if status == "undetermined":
         return Certified("undetermined", a, "undetermined", certified[0], count[0], np.nan, fl, fo)
-    # a bracket [a (1 - MIN_WIDTH), a] with rho < 1 at the left end, >= 1 at the right: Brent
+    # a bracket [lo, a] with rho < 1 at the left end, >= 1 at the right
     lo = max(k for k in cache if k < a)
-    f = lambda x: float(np.max(np.abs(sm.at(x)))) - 1.0  # noqa: E731  (dense, as the tracking)
-    root = brentq(f, lo, a, xtol=rtol * a, rtol=4 * np.finfo(float).eps) if f(lo) < 0.0 <= f(a) else a
-    mu, dmu = data(float(root))
+    root = _newton(data, lo, a, rtol) if radius(lo) < 1.0 <= radius(a) else a
+    mu, dmu = data(root)
     i = int(np.argmax(np.abs(mu)))
-    slope = float(np.real(np.conj(mu[i]) * dmu[i]) / abs(mu[i]))
     # the bracket passed _simple_bracket (one crossing in it) or is MIN_WIDTH short: stable to the root
-    return Certified("crossing", float(root), "hopf", float(root), count[0], slope, fl, fo)
+    return Certified("crossing", float(root), "hopf", float(root), count[0], _slope(mu, dmu, i), fl, fo)
+
+
+def _newton(
+    data: Callable[[float], tuple[np.ndarray, np.ndarray]], lo: float, hi: float, rtol: float
+) -> float:
+    """The depth in [lo, hi] where the spectral radius is 1 (rho(lo) < 1 <= rho(hi)), to
+    ``rtol`` relative: Newton's method on rho - 1 with d|mu|/da of the top multiplier, a
+    bisection wherever a step would leave the bracket or not halve it (rtsafe, Press et al.,
+    Numerical Recipes, sec. 9.4); it converges quadratically at a simple crossing, so the
+    iterate after a step shorter than rtol a is within ~(rtol a)^2 |rho''| / rho' of the root."""
+
+    def g(a: float) -> tuple[float, float]:
+        mu, dmu = data(a)
+        i = int(np.argmax(np.abs(mu)))
+        return float(abs(mu[i])) - 1.0, _slope(mu, dmu, i)
+
+    f_lo, s_lo = g(lo)
+    f_hi, s_hi = g(hi)
+    x, fx, sx = (hi, f_hi, s_hi) if abs(f_hi) < abs(f_lo) else (lo, f_lo, s_lo)
+    step_old = hi - lo
+    for _ in range(100):
+        if fx == 0.0:
+            return x
+        newton_ok = np.isfinite(sx) and sx > 0.0
+        nx = x - fx / sx if newton_ok else np.nan
+        if not (newton_ok and lo < nx < hi and abs(nx - x) < 0.5 * abs(step_old)):
+            nx = 0.5 * (lo + hi)  # bisection
+            newton_ok = False
+        step = nx - x
+        step_old, x = step, nx
+        fx, sx = g(x)
+        if fx < 0.0:
+            lo = x
+        else:
+            hi = x
+        if abs(step_old) <= rtol * x or hi - lo <= rtol * x:
+            break
+    return x
 
 
 def _helix_rho(
-    loop: ClosedLoop, rpm: float, degree: int, elements: int | None, span: float
+    loop: ClosedLoop,
+    rpm: float,
+    degree: int | None,
+    elements: int | None,
+    span: float,
+    qs: QuasiStatic | None,
 ) -> Callable[[float], float]:
     def rho(a: float) -> float:
-        sm = SpectralMonodromy(loop, rpm, degree, elements, depth=a, depth_hint=0.0, span=span)
+        sm = SpectralMonodromy(
+            loop, rpm, degree, elements, depth=a, depth_hint=0.0, span=span, quasi_static=qs
+        )
         return sm.radius(a)
 
     return rho
@@ -300,16 +415,24 @@ def floquet_limit(
     depth_max: float,
     scan: int,
     rtol: float,
-    degree: int,
+    degree: int | None,
     elements: int | None,
     steps: int,
     check: bool,
     target: float,
-) -> tuple[float, float, complex, float, int, int, str, float]:
+    split: tuple[QuasiStatic, QuasiStatic | None] | None = None,
+) -> tuple[float, float, complex, float, int, int, str, float, float]:
     """a_lim at speed ``r`` (rpm), its error estimate, the critical multiplier
     and chatter frequency there, the evaluations and the mesh refinements,
-    the basis of the claim and the depth to which stability is established:
-    (a, error, mu, frequency_hz, evaluations, refined, basis, certified).
+    the basis of the claim, the depth to which stability is established and
+    the part of the error estimate that is the split's:
+    (a, error, mu, frequency_hz, evaluations, refined, basis, certified, split_error).
+
+    ``split``: the structure's quasi-static split (:func:`split_structure`)
+    and the finer one that checks it (its modes up to twice the frequency),
+    for a structure whose own discretisation is too large
+    (:func:`needs_split`); the check's change of rho at the limit, through
+    the slope, is added to the error.
 
     ``basis`` is ``"complete"`` (spectral without helix:
     :func:`certified_crossing`), ``"undetermined"`` (that search could not
@@ -319,8 +442,9 @@ def floquet_limit(
     a is inf (mu and the frequency nan) when no crossing is found."""
     milling = loop.milling
     helix = milling.helix > 0
+    qs = split[0] if split is not None else None
     if method == "spectral" and not helix:
-        return _complete_limit(loop, r, depth_max, scan, rtol, degree, elements, check, target)
+        return _complete_limit(loop, r, depth_max, scan, rtol, degree, elements, check, target, split)
     T = milling.period(float(r))
     rho: Callable[[float], float]
     mu_at: Callable[[float], complex]
@@ -329,7 +453,7 @@ def floquet_limit(
     err = np.nan
     for attempt in range(4):
         if method == "spectral":
-            rho = _helix_rho(loop, float(r), degree, elements, span)
+            rho = _helix_rho(loop, float(r), degree, elements, span, qs)
         else:
             mu_at = _sdm_top(loop, float(r), steps)
             rho = _abs_of(mu_at)
@@ -337,8 +461,12 @@ def floquet_limit(
         evals += cnt
         if method != "spectral" or not check or not np.isfinite(a):
             break
-        sm = SpectralMonodromy(loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span)
-        sm2 = SpectralMonodromy(loop, float(r), mesh=sm.mesh.raised(CHECK_DEGREE), depth=a, depth_hint=0.0)
+        sm = SpectralMonodromy(
+            loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span, quasi_static=qs
+        )
+        sm2 = SpectralMonodromy(
+            loop, float(r), mesh=sm.mesh.raised(CHECK_DEGREE), depth=a, depth_hint=0.0, quasi_static=qs
+        )
         if not np.isfinite(slope):  # Brent's last points too far apart: a central difference
             da = max(1e-6 * a, 10 * rtol * a)
             slope = (rho(a + da) - rho(a - da)) / (2 * da)
@@ -350,15 +478,17 @@ def floquet_limit(
         span /= 2.0
         refined += 1
     if not np.isfinite(a):
-        return a, err, complex(np.nan, 0.0), np.nan, evals, refined, "scan", np.nan
+        return a, err, complex(np.nan, 0.0), np.nan, evals, refined, "scan", np.nan, np.nan
     if method == "spectral":
         if not check:
-            sm = SpectralMonodromy(loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span)
+            sm = SpectralMonodromy(
+                loop, float(r), degree, elements, depth=a, depth_hint=0.0, span=span, quasi_static=qs
+            )
         mu, freq = sm.critical(a)
     else:
         mu = mu_at(a)
         freq = chatter_frequency(mu, T, loop)
-    return a, err, mu, freq, evals, refined, "scan", np.nan
+    return a, err, mu, freq, evals, refined, "scan", np.nan, np.nan
 
 
 def _complete_limit(
@@ -367,33 +497,109 @@ def _complete_limit(
     depth_max: float,
     scan: int,
     rtol: float,
-    degree: int,
+    degree: int | None,
     elements: int | None,
     check: bool,
     target: float,
-) -> tuple[float, float, complex, float, int, int, str, float]:
+    split: tuple[QuasiStatic, QuasiStatic | None] | None = None,
+) -> tuple[float, float, complex, float, int, int, str, float, float]:
     """:func:`floquet_limit` for the spectral method without helix: the
     complete search (:func:`certified_crossing`) and the convergence check
-    of its limit, on a finer mesh where the check asks for one."""
+    of its limit, on a finer discretisation where the check asks for one.
+
+    The automatic mesh (``degree`` and ``elements`` None) is sized for the
+    depths it searches: the cut stiffens the structure (at a_p it adds
+    ~a_p |H| to its stiffness), so the search runs in stages (0, D/16],
+    (D/16, D/4], (D/4, D] (D = depth_max), each on the mesh whose degrees
+    resolve the solution at the stage's deepest cut (:func:`auto_degree`
+    aiming at target / 30); a stage whose mesh is that of the one before
+    continues on it.  Stability established on a stage rests on that stage's
+    mesh.  Where the check misses ``target`` the stage of the limit is
+    searched again on a finer mesh (degrees for a tolerance 100 times
+    smaller at the limit's depth; an explicit degree: elements half as
+    long), up to three times."""
+    auto = degree is None and elements is None
+    tol = target / 30.0
+    qs, qs2 = split if split is not None else (None, None)
+    base = qs.loop if qs is not None else loop  # the modes integrated in time set the mesh
+    stages = [depth_max / 16.0, depth_max / 4.0, depth_max] if auto else [depth_max]
     span = ELEMENT_SPAN
     evals = refined = 0
     err = np.nan
-    for attempt in range(4):
-        sm = SpectralMonodromy(loop, float(r), degree, elements, span=span)
-        c = certified_crossing(sm, depth_max, scan, rtol)
+    lo = 0.0
+
+    sm: SpectralMonodromy | None = None
+
+    def mesh_for(hint: float, tol_: float, span_: float) -> Any:
+        if auto:
+            return spectral_mesh(base, float(r), None, depth_hint=hint, tol=tol_)
+        return spectral_mesh(base, float(r), degree, elements, span=span_)
+
+    def build(mesh: Any) -> SpectralMonodromy:
+        """The discretisation on ``mesh``; the current one if its mesh is that."""
+        if sm is not None and _same_mesh(sm.mesh, mesh):
+            return sm
+        return SpectralMonodromy(loop, float(r), mesh=mesh, quasi_static=qs)
+
+    # a stage whose mesh has at most MERGE times the nodes of the next one's is searched on the next
+    # one's (finer) mesh: a new set-up costs more than the few extra nodes
+    meshes = [mesh_for(h, tol, span) for h in stages]
+    plan: list[tuple[float, Any]] = []
+    for h, m in zip(stages, meshes, strict=True):
+        while plan and int(m.deg.sum()) <= MERGE * int(plan[-1][1].deg.sum()):
+            plan.pop()
+        plan.append((h, m))
+    # each planned stage covers the depths down to the previous planned stage's end
+    for hi, mesh in plan:
+        sm = build(mesh)
+        c = certified_crossing(sm, depth_max, scan, rtol, start=lo, stop=hi)
         evals += c.evaluations
+        if c.status != "stable":
+            break
+        lo = hi
+    assert sm is not None
+    for attempt in range(4):
         if not check or c.status != "crossing":
             break
-        sm2 = SpectralMonodromy(loop, float(r), mesh=sm.mesh.raised(CHECK_DEGREE))
+        sm2 = SpectralMonodromy(loop, float(r), mesh=sm.mesh.raised(CHECK_DEGREE), quasi_static=qs)
         err = abs(sm2.radius(c.depth) - 1.0) / abs(c.slope) if c.slope else np.inf
         evals += 1
-        if err <= target * c.depth or elements is not None or attempt == 3:
+        if err <= target * c.depth or (elements is not None and not auto) or attempt == 3:
             break
+        # the stage of the limit again, finer (stability below it rests on the stages before)
+        tol /= 100.0
         span /= 2.0
+        sm = build(mesh_for(c.depth, tol, span))
+        c = certified_crossing(sm, depth_max, scan, rtol, start=lo, stop=hi)
+        evals += c.evaluations
         refined += 1
+    e_split = np.nan
     if c.status == "stable":
-        return np.inf, err, complex(np.nan, 0.0), np.nan, evals, refined, "complete", depth_max
+        return np.inf, err, complex(np.nan, 0.0), np.nan, evals, refined, "complete", depth_max, e_split
     if c.status == "undetermined":
-        return c.depth, np.nan, complex(np.nan, 0.0), np.nan, evals, refined, "undetermined", c.certified
-    mu, freq = sm.critical(c.depth)
-    return c.depth, err, mu, freq, evals, refined, "complete", c.certified
+        return (
+            c.depth,
+            np.nan,
+            complex(np.nan, 0.0),
+            np.nan,
+            evals,
+            refined,
+            "undetermined",
+            c.certified,
+            e_split,
+        )
+    if (
+        check and qs2 is not None
+    ):  # the split: the same limit with the modes up to twice its frequency in time
+        mesh2 = spectral_mesh(qs2.loop, float(r), None, depth_hint=c.depth, tol=tol)
+        sm3 = SpectralMonodromy(loop, float(r), mesh=mesh2, quasi_static=qs2)
+        e_split = abs(sm3.radius(c.depth) - 1.0) / abs(c.slope) if c.slope else np.inf
+        err = err + e_split
+        evals += 1
+    mu, freq = sm.critical(c.depth, near=max(rtol, 1e-12) * c.depth)
+    return c.depth, err, mu, freq, evals, refined, "complete", c.certified, e_split
+
+
+def _same_mesh(ma: Any, mb: Any) -> bool:
+    """Two meshes with the same elements and degrees."""
+    return bool(ma.a.size == mb.a.size and np.array_equal(ma.deg, mb.deg) and np.array_equal(ma.a, mb.a))
