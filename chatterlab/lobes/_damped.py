@@ -55,10 +55,13 @@ import numpy as np
 from ..errors import InputError, check_width
 from ..frequency._bounds import Band
 from ..process._damping import DampingTerm
+from ..structure._assembly import FrozenSystem
 from ._band import _band
-from ._diagram import Boundary, Lobe, LobeDiagram, _lobe_curves
+from ._envelope import Boundary as _ConstantBoundary
 from ._envelope import _interval_candidates, _refine_rows
+from ._lobe_set import _lobe_curves
 from ._plant import Plant
+from ._result import Lobe, LobeDiagram
 
 __all__ = [
     "DampedBoundary",
@@ -318,6 +321,38 @@ def _gain_and_slope(term: DampingTerm, T: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 # ---------------------------------------------------------------------------- the boundary
+class Boundary(_ConstantBoundary):
+    """The stability boundary of one frozen configuration, computed once and
+    evaluated at any delays (:meth:`envelope`): the constant-coefficient
+    engine of :mod:`chatterlab.lobes._envelope`, or, when the model has
+    ``[process_damping]`` (or ``damping=`` is given with a plant), a
+    :class:`~chatterlab.lobes._damped.DampedBoundary`, whose width and delay
+    are coupled through the cutting speed.  Same arguments and methods;
+    ``Boundary(frozen, ...)`` returns the one the model needs."""
+
+    def __new__(cls, frozen: FrozenSystem | None = None, *args: Any, **kw: Any) -> Boundary:
+        if cls is Boundary and _damped(frozen, kw):
+            return super().__new__(DampedBoundary)
+        return super().__new__(cls)
+
+    def __init__(
+        self, frozen: FrozenSystem | None = None, *args: Any, damping: Any = None, **kw: Any
+    ) -> None:
+        super().__init__(frozen, *args, **kw)
+
+
+def _damped(frozen: FrozenSystem | None, kw: dict[str, Any]) -> bool:
+    """The boundary needs process damping: a ``damping=`` term, or the
+    model's ``[process_damping]`` with the velocity terms on."""
+    if kw.get("damping") is not None:
+        return True
+    if frozen is None or kw.get("plant") is not None or kw.get("terms", "pdo") != "pdo":
+        return False
+    from ..process._damping import damping_term
+
+    return damping_term(frozen.model, kw.get("couplings")) is not None
+
+
 class _Cell:
     """The constant-gain boundary at the floor g_l of one lattice cell."""
 

@@ -58,8 +58,9 @@ import numpy as np
 from ..errors import InputError, check_speed, check_width
 from ..frequency._delay_system import single_threaded
 from ..structure._assembly import FrozenSystem
-from ._envelope import Boundary as _ConstantBoundary
-from ._envelope import _check_terms, _Segment, boundary
+from ._damped import Boundary, DampedLobeDiagram
+from ._envelope import _check_terms, boundary
+from ._lobe_set import _lobe_curves
 from ._plant import Plant
 from ._result import Lobe, LobeDiagram
 from ._verification import VERIFY_OFFSET as VERIFY_OFFSET
@@ -67,40 +68,6 @@ from ._verification import _check_speeds as _check_speeds
 from ._verification import _verify
 
 __all__ = ["Lobe", "LobeDiagram", "Boundary", "Plant", "lobes", "boundary"]
-
-
-class Boundary(_ConstantBoundary):
-    """The stability boundary of one frozen configuration, computed once and
-    evaluated at any delays (:meth:`envelope`): the constant-coefficient
-    engine of :mod:`chatterlab.lobes._envelope`, or, when the model has
-    ``[process_damping]`` (or ``damping=`` is given with a plant), a
-    :class:`~chatterlab.lobes._damped.DampedBoundary`, whose width and delay
-    are coupled through the cutting speed.  Same arguments and methods;
-    ``Boundary(frozen, ...)`` returns the one the model needs."""
-
-    def __new__(cls, frozen: FrozenSystem | None = None, *args: Any, **kw: Any) -> Boundary:
-        if cls is Boundary and _damped(frozen, kw):
-            from ._damped import DampedBoundary
-
-            return super().__new__(DampedBoundary)
-        return super().__new__(cls)
-
-    def __init__(
-        self, frozen: FrozenSystem | None = None, *args: Any, damping: Any = None, **kw: Any
-    ) -> None:
-        super().__init__(frozen, *args, **kw)
-
-
-def _damped(frozen: FrozenSystem | None, kw: dict[str, Any]) -> bool:
-    """The boundary needs process damping: a ``damping=`` term, or the
-    model's ``[process_damping]`` with the velocity terms on."""
-    if kw.get("damping") is not None:
-        return True
-    if frozen is None or kw.get("plant") is not None or kw.get("terms", "pdo") != "pdo":
-        return False
-    from ..process._damping import damping_term
-
-    return damping_term(frozen.model, kw.get("couplings")) is not None
 
 
 @single_threaded
@@ -193,8 +160,6 @@ def lobes(
         bd, frozen, proc, speeds, T, envelope, lobe_list, n_in_range, width_max, terms, name
     )
     if damped:
-        from ._damped import DampedLobeDiagram
-
         diagram = DampedLobeDiagram.of(
             replace(diagram, meta={**diagram.meta, "process_damping": _damping_meta(bd)})
         )
@@ -239,46 +204,6 @@ def _checked_speeds(speeds: np.ndarray, proc: Any) -> np.ndarray:
     ):
         check_speed(v, "speeds", proc.speed_unit)
     return speeds
-
-
-def _lobe_curves(
-    segs: list[_Segment], T: np.ndarray, lobe_k: np.ndarray, proc: Any, b_ref: float
-) -> tuple[list[Lobe], int]:
-    """Every lobe in the range of delays, as curves on the frequency grid, and
-    the number of lobes crossing the range (when more than 400 of a branch do,
-    only the lobe numbers k of the envelope are kept as curves, on every
-    branch)."""
-    lobe_list: list[Lobe] = []
-    Tlo, Thi = float(T.min()), float(T.max())
-    n_in_range = 0
-    for sg in segs:
-        phi = np.mod(-np.angle(sg.z), 2 * np.pi)  # w T = phi + 2 pi k, phi in [0, 2 pi)
-        kmin = max(int(np.floor((sg.omega * Tlo - phi).min() / (2 * np.pi))), 0)
-        kmax = int(np.ceil((sg.omega * Thi - phi).max() / (2 * np.pi)))
-        n_in_range += _lobes_crossing(sg.omega, phi, Tlo, Thi)
-        if kmax - kmin > 400:  # a dense diagram: keep the lobes that form the envelope
-            ks = np.unique(lobe_k[lobe_k >= 0])
-            krange = ks if ks.size else np.arange(kmin, kmin + 50)
-        else:
-            krange = np.arange(kmin, kmax + 1)
-        for k in krange:
-            with np.errstate(divide="ignore", invalid="ignore"):  # w = 0: T = inf, outside
-                Tk = (phi + 2 * np.pi * k) / sg.omega
-            inside = (Tk >= Tlo) & (Tk <= Thi) & (Tk > proc.min_delay)
-            if np.count_nonzero(inside) < 2:
-                continue
-            Ts = Tk[inside]
-            lobe_list.append(
-                Lobe(
-                    int(k),
-                    sg.branch,
-                    Ts,
-                    np.asarray(proc.speed_for_delay(Ts)) if proc.kind != "delay" else Ts,
-                    sg.beta[inside] * b_ref,
-                    sg.omega[inside] / (2 * np.pi),
-                )
-            )
-    return lobe_list, n_in_range
 
 
 def _diagram_of(
@@ -326,23 +251,3 @@ def _diagram_of(
         n_lobes=n_in_range,
         band_measured=bd.plant.measured_band is not None,
     )
-
-
-def _lobes_crossing(omega: np.ndarray, phi: np.ndarray, Tlo: float, Thi: float) -> int:
-    """Number of lobes k of one branch that cross [Tlo, Thi]: the union over
-    the branch's samples of the integers k with T_k = (phi + 2 pi k) / w in it."""
-    ok = omega > 0
-    lo = np.ceil((omega[ok] * Tlo - phi[ok]) / (2 * np.pi)).astype(np.int64)
-    hi = np.floor((omega[ok] * Thi - phi[ok]) / (2 * np.pi)).astype(np.int64)
-    lo = np.maximum(lo, 0)
-    keep = hi >= lo
-    if not np.any(keep):
-        return 0
-    order = np.argsort(lo[keep])
-    a, b = lo[keep][order], hi[keep][order]
-    reach = np.maximum.accumulate(b)
-    starts = np.r_[True, a[1:] > reach[:-1] + 1]
-    # merge overlapping intervals: each run from a start to the next start
-    idx = np.nonzero(starts)[0]
-    ends = np.r_[idx[1:] - 1, a.size - 1]
-    return int(np.sum(reach[ends] - a[idx] + 1))
