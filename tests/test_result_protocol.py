@@ -48,6 +48,7 @@ SUBPACKAGES = (
     "sweep",
     "design",
     "uncertainty",
+    "selection",
 )
 #: public classes with such methods that are not results: the protocol itself,
 #: and the base class every time history shares
@@ -60,7 +61,7 @@ PENDING = {
     "Confirmation": "time domain being moved onto one integrator core (issue 19, finding 1)",
     "Sensitivity": "design subpackage in progress (issue 23)",
     "AbsorberDesign": "design subpackage in progress (issue 23)",
-    "ProbabilisticLobes": "uncertainty subpackage in progress (issue 24)",
+    "ActiveDesign": "design subpackage in progress (issue 23, item 3)",
 }
 
 
@@ -102,9 +103,13 @@ def milling_loop():
 
 
 def _instances(shaper, milling_loop) -> dict[str, object]:
+    from conftest import turning_text
+
     from chatterlab.frequency import characteristic_roots, multipliers
+    from chatterlab.selection import chatter_frequency, chatter_rule, recommend
     from chatterlab.structure import fit_modes
     from chatterlab.sweep import Grid, sweep
+    from chatterlab.uncertainty import risk
 
     w = 2 * np.pi * np.linspace(70.0, 90.0, 7)
     loop = cl.closed_loop(shaper, width=2e-4, speed=0.5)
@@ -117,7 +122,23 @@ def _instances(shaper, milling_loop) -> dict[str, object]:
     def rate(width: float, speed: float) -> dict[str, float]:
         return {"abscissa": float(cl.stability(shaper, width=width, speed=speed, winding=False).abscissa)}
 
+    turning = cl.loads_model(
+        turning_text(name="1-DOF turning")
+        + '\n[uncertainty]\n"coupling.cut.Kf" = { distribution = "lognormal", cv = 0.1 }\n',
+        source="turning.toml",
+    )
+    rpm = np.linspace(2000.0, 12000.0, 40)
+    # a 2-tooth cutter at 10000 rpm (166.7 Hz) and its harmonics, with a chatter tone at
+    # 951.3 Hz between the 5th and the 6th
+    fs, f_sp = 20000.0, 10000.0 / 60.0
+    t = np.arange(int(0.5 * fs)) / fs
+    signal = sum((3.0 / m) * np.sin(2 * np.pi * m * f_sp * t + m) for m in range(1, 50))
+    heard = chatter_frequency((t, signal + 0.1 * np.sin(2 * np.pi * 951.3 * t)), spindle_hz=f_sp, teeth=2)
     return {
+        "ProbabilisticLobes": risk(turning, rpm, width_max=2e-3, samples=4, replicates=2, backend="serial"),
+        "Recommendation": recommend(turning, rpm, margin=0.2, count=2, check=False),
+        "ChatterFrequency": heard,
+        "SpeedRule": chatter_rule(heard, 60.0 * f_sp, teeth=2, count=2),
         "LobeDiagram": cl.lobes(shaper, np.linspace(0.4, 0.6, 5), width_max=1e-3, verify=0),
         "Stability": cl.stability(shaper, width=2e-4, speed=0.5),
         "RootsResult": characteristic_roots(loop, count=4),
@@ -146,7 +167,7 @@ def test_every_public_result_type_is_covered(shaper, milling_loop):
 @pytest.mark.parametrize(
     "name",
     ["LobeDiagram", "Stability", "RootsResult", "Multipliers", "Modes", "FRF", "ModalFit", "Stabilisation",
-     "SweepResult"],
+     "SweepResult", "ProbabilisticLobes", "Recommendation", "ChatterFrequency", "SpeedRule"],
 )  # fmt: skip
 def test_the_protocol(name, shaper, milling_loop, tmp_path):
     import matplotlib

@@ -54,7 +54,7 @@ def test_risk_writes_what_it_prints(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     assert (tmp_path / "again.csv").read_text() == (tmp_path / "resumed.csv").read_text()
     header = (tmp_path / "again.csv").read_text().splitlines()[0]
-    assert header.startswith("speed [rpm],width [m],p_stable [1]") and "b_lim_q50 [m]" in header
+    assert header.startswith("speed [rpm],width [m],p_stable [1]") and "b_lim_quantile_0.5 [m]" in header
     p = np.loadtxt(tmp_path / "again.csv", delimiter=",", skiprows=1, usecols=2)
     assert np.array_equal(p, d.data["p_stable"][0].ravel())
 

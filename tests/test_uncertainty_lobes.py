@@ -153,7 +153,7 @@ def test_files_and_plots(full_run, tmp_path):
     lines = Path(c).read_text().splitlines()
     assert (
         lines[0].startswith("speed [rpm],width [m],p_stable [1],p_stable_se [1]")
-        and "b_lim_q95 [m]" in lines[0]
+        and "b_lim_quantile_0.95 [m]" in lines[0]
     )
     assert len(lines) == 1 + r.speed.size * r.width.size
     pytest.importorskip("matplotlib")

@@ -497,8 +497,8 @@ class ProbabilisticLobes(Result):
     def to_csv(self, path: Any) -> Path | None:
         """One row per (speed, width): ``speed``, ``width [m]``, ``p_stable``
         with its standard error and interval, then on every row of a speed
-        that speed's quantile lobes (``b_lim_q5 [m]`` ...) with their
-        standard errors and the nominal limit; exact floats, written
+        that speed's quantile lobes (``b_lim_quantile_0.05 [m]`` ...: the
+        netCDF variable and the level) with their standard errors and the nominal limit; exact floats, written
         atomically.  (The samples, points and Sobol' indices are in the
         netCDF file.)"""
         from ..io import write_csv
@@ -510,10 +510,10 @@ class ProbabilisticLobes(Result):
             k: data[k][:3] for k in ("p_stable", "p_stable_se", "p_stable_low", "p_stable_high")
         }
         for i, q in enumerate(self.quantile_levels):
-            tag = f"{100 * q:g}".replace(".", "_")
-            for key, what in ((f"{lim}_quantile", ""), (f"{lim}_quantile_se", "_se")):
+            # a variable over quantiles: one column per level, the netCDF name and the level
+            for key in (f"{lim}_quantile", f"{lim}_quantile_se"):
                 vals = np.asarray(data[key][0])[i]
-                out[f"{lim}_q{tag}{what}"] = (np.repeat(vals[:, None], nb, axis=1), "m", f"{q:g} quantile")
+                out[f"{key}_{q:g}"] = (np.repeat(vals[:, None], nb, axis=1), "m", f"{q:g} quantile")
         out[f"{lim}_nominal"] = (
             np.repeat(np.asarray(data[f"{lim}_nominal"][0])[:, None], nb, axis=1),
             "m",
