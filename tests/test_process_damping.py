@@ -390,3 +390,35 @@ def test_the_shipped_files_are_what_the_study_writes():
     files = ROOT / "studies/process_damping"
     assert (files / "turning.toml").read_text() == ST.model_text(None)
     assert (files / "cuts.csv").read_text() == ST.cuts_text()
+
+
+# ----------------------------------------------------------------------------- the indentation model
+def test_the_indentation_force_has_the_linear_models_first_harmonic():
+    """Eqs. 5-6 of docs/process-damping.md: for u = X sin(w t) the flank's
+    force K_sp b A(t) has, in phase with the velocity, the first harmonic of
+    C_pd b / V u' with C_pd = K_sp w^2 / 4, up to the two small parameters of
+    the linearisation: the wear land against the wave (the surface under the
+    land is a sine, not its tangent: relative (w w / V)^2 / 6) and the slope
+    of the wave against the clearance (the clearance face's extra triangle:
+    X w / (V tan gamma))."""
+    from chatterlab.process._damping import flank_interference, indented_area
+
+    K_sp, b, land, gamma, om = ST.K_SP, 1e-3, ST.WEAR_LAND, math.radians(ST.CLEARANCE_DEG), 2 * np.pi * 500.0
+    C_pd = K_sp * land**2 / 4
+    n = 1000  # samples of a period: the Fourier coefficient of the kinked force to ~1/n^2
+    t = np.arange(n) * (2 * np.pi / om) / n
+    for V in (5.0, 50.0):
+        for X in (1e-8, 1e-7, 1e-6):
+            F = []
+            for ti in t:
+                end = land + 3 * X / math.tan(gamma)  # beyond it the clearance face is above any surface
+                xi = np.unique(np.r_[np.linspace(0, land, 201), np.linspace(land, end, 201)])
+                u, surf = X * np.sin(om * ti), X * np.sin(om * (ti - xi / V))
+                F.append(K_sp * b * indented_area(flank_interference(u, xi, surf, land, gamma), xi))
+            first = 2 * np.mean(np.array(F) * np.cos(om * t))
+            ratio = first / (C_pd * b / V * om * X)
+            bound = (om * land / V) ** 2 / 6 + X * om / (V * math.tan(gamma)) + 2.0 / n**2
+            assert abs(ratio - 1) <= bound, (V, X, ratio)
+            # and it is a half-wave force: none while the tool moves out of the material
+            # (delta = X [theta cos(w t) + theta^2 sin(w t) / 2 + ...] < 0 for cos(w t) < -theta_max)
+            assert np.all(np.array(F)[np.cos(om * t) < -om * land / V] == 0.0)

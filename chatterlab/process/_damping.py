@@ -195,3 +195,39 @@ def damping_term(model: Any, couplings: list[str] | None = None, milling: Any = 
         W[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = np.outer(n, n)
         diameter = model.machine.workpiece_diameter if proc.kind == "turning" else None
     return DampingTerm(W, pd.C_pd, proc, diameter, block=slice(3 * k, 3 * k + 3), **extra)
+
+
+# ---------------------------------------------------------------------------- the indentation model
+def flank_interference(
+    u_now: float, xi: np.ndarray, surface: np.ndarray, wear_land: float, clearance: float
+) -> np.ndarray:
+    """The interference depth of the flank with the surface behind the edge,
+    m, at the distances ``xi`` (m, increasing from 0) where the surface is
+    ``surface`` (the tool's penetration into the material when it passed
+    there, m; the edge cuts at ``u_now`` now): the flank is flat along the
+    wear land and rises at the clearance angle beyond it,
+
+        delta(xi) = u_now - max(xi - w, 0) tan(gamma) - surface(xi)
+
+    (positive: material under the flank; docs/process-damping.md, Eq. 5)."""
+    xi = np.asarray(xi, dtype=float)
+    return u_now - np.maximum(xi - wear_land, 0.0) * math.tan(clearance) - np.asarray(surface, dtype=float)
+
+
+def indented_area(delta: np.ndarray, xi: np.ndarray) -> float:
+    """Area of material under the flank per unit width, m^2: the integral of
+    the positive part of ``delta`` over ``xi``, exact for ``delta`` linear
+    between the samples (a crossing of zero is located in its interval; the
+    wear land's end should be a sample)."""
+    d = np.asarray(delta, dtype=float)
+    x = np.asarray(xi, dtype=float)
+    d0, d1, h = d[:-1], d[1:], np.diff(x)
+    both = (d0 > 0) & (d1 > 0)
+    area = np.sum(np.where(both, 0.5 * (d0 + d1) * h, 0.0))
+    cross = (d0 > 0) != (d1 > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # the positive part is a triangle from the positive end to the zero crossing
+        pos = np.where(d0 > 0, d0, d1)
+        frac = np.abs(pos) / (np.abs(d0) + np.abs(d1))
+    area += np.sum(np.where(cross, 0.5 * pos * frac * h, 0.0))
+    return float(area)
