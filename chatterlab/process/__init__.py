@@ -1,11 +1,13 @@
 """The cutting process as feedback D(s) = D_P + s D_V + D_O e^{-sT} and the
 closed loop it makes with the structure (:class:`ClosedLoop`, the value every
 engine consumes); the kinematics (speed <-> delay, the slide's motion) and
-milling (the rotating cutter's periodic directional matrices)."""
+milling (the rotating cutter's periodic directional matrices); process
+damping (the flank's speed-dependent ideal-derivative term, ``_damping``)."""
 
 from __future__ import annotations
 
 from ._cutting import Feedback, ce_maps, feedback
+from ._damping import DampingTerm, LoopDamping, damping_term, milling_damping
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ._loop import TERMS, ClosedLoop, closed_loop, coupling_matrix, delay_for, milling_loop
 from ._milling import Milling
@@ -24,4 +26,8 @@ __all__ = [
     "SteadyKinematics",
     "kinematics_for",
     "Milling",
+    "DampingTerm",
+    "LoopDamping",
+    "damping_term",
+    "milling_damping",
 ]
