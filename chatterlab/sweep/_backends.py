@@ -149,35 +149,109 @@ def _alive(pid: int) -> bool:
     return True
 
 
+#: the thread-count variables loky sets to 1 in its workers (joblib's list):
+#: the calling process, when it computes chunks, shows its tasks the same
+_THREAD_VARS = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMBA_NUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+)
+
+
+@contextmanager
+def _worker_environment() -> Iterator[None]:
+    """This process as one of the workers: one BLAS/OpenMP thread
+    (:func:`_blas_limit`) and the thread-count variables a loky worker has,
+    so that a task sees the same environment wherever it runs (restored
+    afterwards)."""
+    old = {v: os.environ.get(v) for v in _THREAD_VARS}
+    os.environ.update(dict.fromkeys(_THREAD_VARS, "1"))
+    try:
+        with _blas_limit():
+            yield
+    finally:
+        for v, val in old.items():
+            if val is None:
+                os.environ.pop(v, None)
+            else:
+                os.environ[v] = val
+
+
 def _loky_runner(
     payload: _Payload, chunks: Iterator[tuple[int, int, int]], jobs: int
 ) -> Generator[_ChunkOut, None, None]:
-    from joblib import Parallel, delayed, parallel_config
+    """``jobs`` processes compute the chunks: ``jobs - 1`` loky workers and
+    this one.  This process has everything a task needs already imported
+    and built (a worker pays its start-up -- the interpreter, numpy, scipy,
+    chatterlab, the task's caches -- on its first chunk), and it would
+    otherwise only wait: it computes a chunk whenever no worker's result is
+    ready, while the workers keep two chunks each in flight.  Results are
+    placed by chunk index, so where a chunk ran does not change a bit."""
+    from concurrent.futures import FIRST_COMPLETED, Future, wait
 
-    # an interrupted or failed sweep stops the generator early on purpose: joblib's warning about the
-    # tasks it cancels (raised from a thread of its own, after this runner is gone) would be a raw
-    # Python warning on the command's standard error; what is kept is said by the sweep itself
-    warnings.filterwarnings(
-        "ignore", message=r".*You could benefit from adjusting the input task iterator", module=r"joblib\b"
-    )
-    # inner_max_num_threads=1: loky starts its workers with OMP/OPENBLAS/MKL/...
-    # _NUM_THREADS=1 so that BLAS does not oversubscribe the cores.  Each
-    # worker watches this process and exits when it dies (_watch_parent).
-    with parallel_config(
-        backend="loky",
-        n_jobs=jobs,
-        inner_max_num_threads=1,
+    from joblib.externals.loky import get_reusable_executor
+
+    helpers = jobs - 1
+    if helpers < 1:
+        yield from _serial_runner(payload, chunks)
+        return
+    # the workers start with OMP/OPENBLAS/MKL/..._NUM_THREADS=1 (no BLAS
+    # oversubscription) and watch this process, exiting when it dies (_watch_parent)
+    executor = get_reusable_executor(
+        max_workers=helpers,
+        timeout=300,
         initializer=_watch_parent,
         initargs=(os.getpid(),),
-    ):
-        par = Parallel(return_as="generator_unordered", pre_dispatch="2*n_jobs", batch_size=1)
-        gen = par(delayed(_run_chunk)(payload, c, s, e) for c, s, e in chunks)
+        env=dict.fromkeys(_THREAD_VARS, "1"),
+    )
+    futures: set[Future[_ChunkOut]] = set()
+    exhausted = False
+    clean = False
+
+    def take() -> tuple[int, int, int] | None:
+        nonlocal exhausted
+        nxt = None if exhausted else next(chunks, None)
+        exhausted = nxt is None
+        return nxt
+
+    def fill() -> None:
+        while len(futures) < 2 * helpers:
+            nxt = take()
+            if nxt is None:
+                return
+            futures.add(executor.submit(_run_chunk, payload, *nxt))
+
     try:
-        yield from gen
+        with _worker_environment():
+            fill()
+            while True:
+                ready = [f for f in futures if f.done()]
+                if ready:
+                    for f in ready:
+                        futures.discard(f)
+                        yield f.result()
+                    fill()
+                    continue
+                nxt = take()
+                if nxt is not None:
+                    yield _run_chunk(payload, *nxt)
+                    fill()
+                elif futures:
+                    wait(futures, return_when=FIRST_COMPLETED)
+                else:
+                    break
+        clean = True
     finally:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            gen.close()
+        if not clean:
+            # interrupted, failed or closed early: nothing more is computed
+            for f in futures:
+                f.cancel()
+            if any(not f.done() for f in futures):
+                executor.shutdown(wait=False, kill_workers=True)
 
 
 @contextmanager

@@ -191,7 +191,9 @@ def sweep(
         ``name -> unit`` (or ``name -> (unit, long_name)``), e.g.
         ``{"abscissa": "1/s", "freq": "Hz"}``.
     jobs : int, default 2
-        Worker processes (loky; the local dask cluster).  ``-1``: all CPUs.
+        Processes that compute (loky: this one and ``jobs - 1`` worker
+        processes, this one computing whenever no worker's result waits; the
+        local dask cluster: ``jobs`` workers).  ``-1``: all CPUs.
     backend : {"loky", "serial", "dask"}, default "loky"
         ``"serial"`` runs in this process; ``"dask"`` uses
         :class:`distributed.Client` on ``scheduler`` (or a local cluster of
@@ -375,7 +377,7 @@ def _sweep_locked(
         bar = Progress(size, n_resumed, progress, "sweep")
         workers = {
             "serial": "1 process",
-            "loky": f"{jobs} loky workers",
+            "loky": f"{jobs} processes (this one and {jobs - 1} loky workers)" if jobs > 1 else "1 process",
             "dask": "dask" if scheduler is None else f"dask at {scheduler}",
         }[backend]
         bar.note(
