@@ -307,7 +307,7 @@ def test_files_and_plot(turning_sens, tmp_path):
     s = turning_sens
     p = s.to_csv(tmp_path / "s.csv")
     rows = list(csv.reader(open(p)))
-    assert rows[0][:3] == ["rank", "field", "unit"]
+    assert rows[0][:3] == ["rank", "field", "field_unit"]
     assert rows[1][1] == "spring.holder.d1"
     col = rows[0].index("d_minimum [m/unit]")
     got = {r[1]: float(r[col]) for r in rows[1:]}

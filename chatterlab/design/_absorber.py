@@ -61,6 +61,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..errors import ChatterlabError, InputError, check_width
+from ..io import Result
 from ..model import Model
 from ..structure import assemble
 from ._controlled import design_lobes
@@ -200,7 +201,7 @@ def _with_values(model: Model, values: dict[str, tuple[float, float, float]]) ->
 
 # ------------------------------------------------------------------ the result
 @dataclass(frozen=True, eq=False)
-class AbsorberDesign:
+class AbsorberDesign(Result):
     """A tuned absorber design and what it buys.
 
     Attributes
@@ -226,6 +227,10 @@ class AbsorberDesign:
         (f_a Hz, zeta_a[, m_a kg])), ``width`` (m), ``iterations``, ``label``.
     model : Model
         The tuned model.
+
+    Files through the result protocol (:class:`chatterlab.io.Result`):
+    ``to_csv`` (the lobes before and after, one row per speed),
+    ``to_netcdf``, ``to_xarray``, ``to_json``.
     """
 
     absorbers: tuple[dict[str, float | str], ...]
@@ -306,6 +311,36 @@ class AbsorberDesign:
                 "  CHECK FAILED: the tuned design's lobes are contradicted by the argument principle"
             )
         return "\n".join(lines)
+
+    def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """``(coords, data, attrs)`` of the files (:class:`chatterlab.io.Result`):
+        the lobes before and after on the speeds (``b_lim_before``,
+        ``b_lim_after`` and their chatter frequencies), the tuning in the
+        attributes."""
+        d0, d1 = self.before, self.after
+        coords = {"speed": (d1.speed, d1.speed_unit, str(d1.speed_name))}
+        data = {
+            "b_lim_before": (d0.b_lim, "m", "limit width without the absorbers"),
+            "b_lim_after": (d1.b_lim, "m", "limit width with the tuned absorbers"),
+            "chatter_hz_before": (d0.chatter_hz, "Hz", "chatter frequency without the absorbers"),
+            "chatter_hz_after": (d1.chatter_hz, "Hz", "chatter frequency with the tuned absorbers"),
+        }
+
+        def plain(d: dict[str, Any]) -> dict[str, Any]:
+            return {k: (float(v) if isinstance(v, float | np.floating) else v) for k, v in d.items()}
+
+        attrs = {
+            "title": "chatterlab tuned vibration absorbers",
+            "model": str(getattr(self.model, "name", "") or d1.model),
+            "objective": self.objective,
+            "width_m": self.width,
+            "bare_width_m": self.bare_width,
+            "den_hartog_width_m": self.den_hartog_width,
+            "absorbers": json.dumps([plain(a) for a in self.absorbers]),
+            "den_hartog": json.dumps([plain(a) for a in self.den_hartog]),
+            "verified": str(self.verified),
+        }
+        return coords, data, attrs
 
     def plot(self, ax: Any = None, *, title: str | None = None) -> Any:
         """The lobes before and after on one axis (:func:`chatterlab.plot.plot_lobes_compare`)."""

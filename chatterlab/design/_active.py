@@ -58,9 +58,14 @@ Margins and force constraints are written log(GM/GM_min), log(F_max/F),
 (PM - PM_min)/PM_min (order 1, >= 0 when met).  Each start is solved by
 SLSQP on the epigraph form; the best design is drawn again on the requested
 speeds and checked by the argument principle on the full two-delay loop.
-The trade-off curve solves (2) again for a range of force limits (warm
-started from the next larger limit): the largest minimum width each force
-buys at the design width.
+The trade-off of width against actuator effort: for widths b from the
+optimum's limit down to the bare structure's, the least force (3) at b of
+any gains stable at b (minimum limit above b) and meeting the other
+constraints -- the force an actuator needs to cut at b.  (For a damper the
+force does not grow with the gain: it saturates at the cutting force it
+fights, and falls as the damping lowers the regenerative amplification; what
+grows without bound is the force near the limit, so the effort is a
+function of the width cut.)
 
 Oracle (tests/test_active_design.py): velocity feedback without delay on a
 1-DOF tool is extra damping, b_min = 2 k zeta' (1 + zeta') / K_f with
@@ -494,10 +499,12 @@ class _Problem:
         jac = [-dlam.real / sc]
         stable = bool(np.isfinite(lam.real) and lam.real < 0)
         # the objective's candidates
+        ceiling = False
         if stable:
             try:
                 d = plant_lobes(L, roots, self.speeds, self.process, top=self.top, **self.lobe_kw)
-                cps = candidate_points(d, L, self.objective)
+                ceiling = not np.any(np.isfinite(d.b_lim))
+                cps = candidate_points(d, L, self.objective) if not ceiling else []
             except (ChatterlabError, ArithmeticError):
                 cps = []
         else:
@@ -505,7 +512,9 @@ class _Problem:
         if cps:
             vals = np.array([cp.b for cp in cps])
             grads = np.array([[getattr(cp.S, blk)[k] for k, blk in self.blocks] for cp in cps]) * span
-        else:
+        elif ceiling:  # no boundary below the width ceiling: the objective is the ceiling, flat
+            vals, grads = np.array([float(self.lobe_kw["width_max"])]), np.zeros((1, u.size))
+        else:  # an unstable controller or no lobe: nothing (the stability row says why)
             vals, grads = np.zeros(1), np.zeros((1, u.size))
         order = np.argsort(vals)[:CANDIDATES]
         vals, grads = vals[order], grads[order]
@@ -520,21 +529,23 @@ class _Problem:
                 gvals, gjac = self._margin_rows(L, k, mg, span)
                 cons += gvals
                 jac += gjac
-        # the force at the design width
-        if np.any(np.isfinite(self.force_limits)):
-            if stable and vals[0] > self.design_width:
-                F, wz, zk = force_required(L, self.f1, self.design_width, self.force_grid(roots), self.delays)
-                out["force"] = F
-                for k in range(len(self.ids)):
-                    if np.isfinite(self.force_limits[k]):
-                        cons.append(math.log(self.force_limits[k] / max(F[k], 1e-300)))
-                        g = _force_gradient(L, self.f1, self.design_width, k, wz[k], zk[k], self.blocks)
-                        jac.append(-g * span / max(F[k], 1e-300))
-            else:  # the design width chatters: the force is unbounded; the bound t >= b_d pushes back
-                for k in range(len(self.ids)):
-                    if np.isfinite(self.force_limits[k]):
-                        cons.append(-1.0)
-                        jac.append(np.zeros(u.size))
+        out["n_cons"] = len(cons)  # stability and margins: the rows before the force's
+        # the force at the design width (when the design width is stable: else it is unbounded)
+        m = len(self.ids)
+        F, dF = np.full(m, np.inf), np.zeros((m, u.size))
+        if self.f1_any and stable and vals[0] > self.design_width:
+            F, wz, zk = force_required(L, self.f1, self.design_width, self.force_grid(roots), self.delays)
+            for k in range(m):
+                dF[k] = _force_gradient(L, self.f1, self.design_width, k, wz[k], zk[k], self.blocks) * span
+        out["force"], out["force_grad"] = F, dF
+        for k in range(m):
+            if np.isfinite(self.force_limits[k]):
+                if np.isfinite(F[k]):
+                    cons.append(math.log(self.force_limits[k] / max(F[k], 1e-300)))
+                    jac.append(-dF[k] / max(F[k], 1e-300))
+                else:  # the design width chatters: the bound t >= b_d pushes back
+                    cons.append(-1.0)
+                    jac.append(np.zeros(u.size))
         out["cons"], out["jac"] = np.array(cons, float), np.array(jac, float)
         self.cache[key] = out
         return out
@@ -567,6 +578,11 @@ class _Problem:
             vals.append((mg.phase_deg - self.phase_margin) / self.phase_margin if has else _INACTIVE)
             rows.append(gp * span / self.phase_margin if has else np.zeros(span.size))
         return vals, rows
+
+    @property
+    def f1_any(self) -> bool:
+        """The cut has static forces (the force (3) can be computed)."""
+        return bool(np.any(self.f1))
 
     def force_grid(self, roots: Any) -> np.ndarray:
         """The force (3) is sampled on the chatter band (0 .. ``top``), every
@@ -643,9 +659,11 @@ class ActiveDesign(Result):
         Every start of the chosen placement: ``label``, ``start``, ``end``
         (gains), ``width``, ``iterations``.
     tradeoff : dict
-        The trade-off curve: ``force_limit`` (N), ``width`` (m; nan where no
-        design meets the limit at the design width), ``force`` (N) and the
-        gains of each point (arrays), empty when not computed.
+        The trade-off curve of width against actuator effort: ``width`` (m,
+        a width to cut at), ``force`` (N: the least force (3) at that width
+        of any gains whose minimum limit exceeds it; nan where the
+        optimiser found none) and the gains of each point (arrays), empty
+        when not computed.
     model : Model
         The optimised model.
     """
@@ -737,12 +755,13 @@ class ActiveDesign(Result):
                 f" {self.evaluations} evaluations, {self.elapsed:.1f} s"
             )
         if self.tradeoff:
-            fl, wd = np.asarray(self.tradeoff["force_limit"]), np.asarray(self.tradeoff["width"])
+            fl, wd = np.asarray(self.tradeoff["force"]), np.asarray(self.tradeoff["width"])
             lines.append(
-                "  trade-off (force limit -> width): "
+                "  trade-off (width cut <- least actuator force it needs): "
                 + ", ".join(
-                    f"{a:.3g} N -> {b * 1e3:.4g} mm" if np.isfinite(b) else f"{a:.3g} N -> none"
+                    f"{b * 1e3:.4g} mm <- {a:.3g} N"
                     for a, b in zip(fl, wd, strict=True)
+                    if np.isfinite(a * b)
                 )
             )
         n = len(self.after.checks)
@@ -776,19 +795,13 @@ class ActiveDesign(Result):
             ),
         }
         if self.tradeoff:
-            k = np.arange(len(self.tradeoff["force_limit"]))
+            k = np.arange(len(self.tradeoff["width"]))
             coords["point"] = (k, "1", "point of the trade-off curve")
-            data["tradeoff_force_limit"] = (self.tradeoff["force_limit"], "N", "force limit", ("point",))
-            data["tradeoff_width"] = (
-                self.tradeoff["width"],
-                "m",
-                "the best minimum width within it",
-                ("point",),
-            )
+            data["tradeoff_width"] = (self.tradeoff["width"], "m", "the width cut", ("point",))
             data["tradeoff_force"] = (
                 self.tradeoff["force"],
                 "N",
-                "the force at the design width",
+                "the least actuator force (3) that cutting at that width needs",
                 ("point",),
             )
             for g, (_, _, unit) in GAINS.items():
@@ -844,7 +857,7 @@ class ActiveDesign(Result):
             return a0
         a1 = ax[1] if isinstance(ax, tuple | list | np.ndarray) and len(ax) > 1 else None
         a1 = plot_tradeoff(
-            self.tradeoff["force_limit"], self.tradeoff["width"], ax=a1, bare=self.bare_width,
+            self.tradeoff["force"], self.tradeoff["width"], ax=a1, bare=self.bare_width,
             design=self.design_width, chosen=(self.actuators[0]["force"], self.width),
         )  # fmt: skip
         return (a0, a1)
@@ -1132,39 +1145,11 @@ def design_active(
             + (", the force limit at the design width" if np.any(np.isfinite(prob.force_limits)) else "")
             + "): widen the bounds, lower the margins or raise the force limit"
         )
-    # the trade-off curve: the best width for each force limit at the design width
+    # the trade-off curve: the least force at the design width for each minimum width
     trade: dict[str, Any] = {}
     if tradeoff:
-        F_best = force_required(
-            prob.L_at(u_b), prob.f1, b_d, prob.force_grid(prob.evaluate(u_b)["roots"]), delays
-        )[0][0]
-        limits = np.geomspace(F_best, F_best / 20.0, tradeoff)
-        wd: list[float] = []
-        ff: list[float] = []
-        gains_t: dict[str, list[float]] = {g: [] for g in GAINS}
-        u = u_b
-        for Fl in limits:
-            pt = replace(prob, force_limits=np.full(len(ids), Fl), cache={}, evaluations=0)
-            try:
-                u2, w2, _ = solve(pt, u)
-                ok = feasible(pt, u2) and w2 > b_d
-            except (ChatterlabError, ArithmeticError, np.linalg.LinAlgError):
-                ok = False
-            evaluations += pt.evaluations
-            if ok:
-                u = u2
-                e = pt.evaluate(u2)
-                wd.append(w2)
-                ff.append(float(e.get("force", [np.nan])[0]))
-                gv = pt.gains(u2)
-            else:
-                wd.append(np.nan)
-                ff.append(np.nan)
-                gv = {b: np.full(len(ids), np.nan) for b in ("Pa", "Va", "Oa")}
-            for g, (blk, _, _) in GAINS.items():
-                gains_t[g].append(float(gv[blk][0]))
-        trade = {"force_limit": limits, "width": np.array(wd), "force": np.array(ff)}
-        trade.update({f"{g}_gain": np.array(v) for g, v in gains_t.items()})
+        trade, n_ev = _pareto(prob, u_b, w_b, bare_width, tradeoff)
+        evaluations += n_ev
     # the optimised model, drawn again and verified
     gains = prob.gains(u_b)
     idx = [[a.id for a in mdl.actuators].index(i) for i in ids]
@@ -1247,6 +1232,100 @@ def design_active(
         elapsed=time.perf_counter() - t0,
         evaluations=evaluations,
     )
+
+
+def _min_force(prob: _Problem, u0: np.ndarray, target: float) -> tuple[np.ndarray, bool]:
+    """The gains of least actuator force (3) at the design width whose
+    minimum width is at least ``target`` (m), the other constraints held:
+    SLSQP on the epigraph form, minimise s subject to log(F_k / F_0) <= s,
+    b_i >= target (every candidate), stability and margins >= 0; from
+    ``u0``.  Returns the gains and whether they meet the constraints."""
+    from scipy.optimize import minimize
+
+    n, m = u0.size, len(prob.ids)
+    F0 = prob.evaluate(u0)["force"]
+    Fref = np.where(np.isfinite(F0) & (F0 > 0), F0, 1.0)
+    sc = prob.scale
+
+    def e(y: np.ndarray) -> dict[str, Any]:
+        return prob.evaluate(y[:n])
+
+    def logF(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ev = e(y)
+        F, dF = ev["force"], ev["force_grad"]
+        ok = np.isfinite(F)
+        val = np.where(ok, np.log(np.where(ok, F, 1.0) / Fref), 10.0)
+        grad = np.where(ok[:, None], dF / np.where(ok, F, 1.0)[:, None], 0.0)
+        return val, grad
+
+    def c_vals(y: np.ndarray) -> np.ndarray:
+        ev = e(y)
+        lf, _ = logF(y)
+        return np.r_[(ev["vals"] - target) / sc, ev["cons"][: ev["n_cons"]], y[n] - lf]
+
+    def c_jac(y: np.ndarray) -> np.ndarray:
+        ev = e(y)
+        _, dlf = logF(y)
+        k0 = ev["n_cons"]
+        rows = [np.c_[ev["grads"] / sc, np.zeros((ev["grads"].shape[0], 1))]]
+        rows.append(np.c_[ev["jac"][:k0], np.zeros((k0, 1))])
+        rows.append(np.c_[-dlf, np.ones((m, 1))])
+        return np.vstack(rows)
+
+    y0 = np.r_[u0, float(np.max(logF(np.r_[u0, 0.0])[0]))]
+    res = minimize(
+        lambda y: y[n],
+        y0,
+        jac=lambda y: np.r_[np.zeros(n), 1.0],
+        method="SLSQP",
+        bounds=[(0.0, 1.0)] * n + [(None, None)],
+        constraints=[{"type": "ineq", "fun": c_vals, "jac": c_jac}],
+        options={"ftol": 1e-9, "maxiter": 60},
+    )
+    u = np.clip(res.x[:n], 0.0, 1.0)
+    ok = bool(np.all(c_vals(np.r_[u, res.x[n]])[:-m] >= -1e-6) and np.all(np.isfinite(e(u)["force"])))
+    return u, ok
+
+
+def _pareto(
+    prob: _Problem, u_best: np.ndarray, w_best: float, bare: float, points: int
+) -> tuple[dict[str, Any], int]:
+    """The trade-off of width against actuator effort: for ``points`` widths
+    b from the optimum's minimum down to 2 % above the bare structure's, the
+    least force (3) that cutting at b needs (the force at the design width b,
+    the minimum width of the gains at least b, :func:`_min_force`; each
+    warm-started from the previous, wider one).  Returns the curve (``width``
+    m, ``force`` N, the gains) and the evaluations it took."""
+    hi = 0.98 * min(w_best, float(prob.lobe_kw["width_max"]))
+    lo = 1.02 * bare
+    targets = np.linspace(hi, lo, points) if hi > lo else np.array([hi])
+    u = u_best
+    wd: list[float] = []
+    ff: list[float] = []
+    gains: dict[str, list[float]] = {g: [] for g in GAINS}
+    n_ev = 0
+    for t in targets:
+        pt = replace(
+            prob, design_width=float(t), force_limits=np.full(len(prob.ids), np.inf), cache={}, evaluations=0
+        )
+        try:
+            u2, ok = _min_force(pt, u, float(t) * (1 + 1e-3))
+        except (ChatterlabError, ArithmeticError, np.linalg.LinAlgError):
+            ok = False
+        n_ev += pt.evaluations
+        if ok:
+            u = u2
+            ff.append(float(np.max(pt.evaluate(u2)["force"])))
+            gv = pt.gains(u2)
+        else:
+            ff.append(np.nan)
+            gv = {b: np.full(len(prob.ids), np.nan) for b in ("Pa", "Va", "Oa")}
+        wd.append(float(t))
+        for g, (blk, _, _) in GAINS.items():
+            gains[g].append(float(gv[blk][0]))
+    out: dict[str, Any] = {"width": np.array(wd), "force": np.array(ff)}
+    out.update({f"{g}_gain": np.array(v) for g, v in gains.items()})
+    return out, n_ev
 
 
 def _where(model: Model, aid: str) -> tuple[str, str]:

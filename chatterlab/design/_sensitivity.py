@@ -20,6 +20,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..errors import InputError, check_width
+from ..io import Result
 from ..model import Model
 from ..structure import assemble
 from ._controlled import design_lobes
@@ -34,7 +35,7 @@ LIMITS = ("minimum", "absolute")
 
 
 @dataclass(frozen=True, eq=False)
-class Sensitivity:
+class Sensitivity(Result):
     """Derivatives of the stability limit with respect to model fields.
 
     Attributes
@@ -63,6 +64,10 @@ class Sensitivity:
         minimum has no derivative there (d_* are nan).
     diagram : LobeDiagram
         The lobe diagram the critical points come from.
+
+    Files through the result protocol (:class:`chatterlab.io.Result`):
+    :meth:`to_csv` (the ranked table), ``to_netcdf``, ``to_xarray`` and
+    ``to_json`` from :meth:`dataset_parts`.
     """
 
     model: str
@@ -155,7 +160,7 @@ class Sensitivity:
 
     def to_csv(self, path: Any) -> Any:
         """One row per field, ranked by p d(minimum)/dp: ``rank``, ``field``,
-        ``unit``, then :meth:`columns`; every number as the shortest decimal
+        ``field_unit``, then :meth:`columns`; every number as the shortest decimal
         that reads back to the same double; written atomically.  Returns the
         path."""
         import csv
@@ -167,7 +172,8 @@ class Sensitivity:
         with text_out(path) as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(
-                ["rank", "field", "unit"] + [f"{n} [{'-' if u in ('1', '') else u}]" for n, u, _, _ in cols]
+                ["rank", "field", "field_unit"]
+                + [f"{n} [{'-' if u in ('1', '') else u}]" for n, u, _, _ in cols]
             )
             for r, i in enumerate(self.ranked(), start=1):
                 w.writerow(
@@ -187,6 +193,9 @@ class Sensitivity:
             "speed": (self.speed, self.speed_unit, str(self.diagram.speed_name)),
         }
         data: dict[str, Any] = {n: (v, u, what, ("field",)) for n, u, v, what in self.columns()}
+        rank = np.empty(len(self.fields), dtype=float)
+        rank[self.ranked()] = np.arange(1, len(self.fields) + 1)
+        data["rank"] = (rank, "1", "rank by p d(minimum)/dp (1: raises the minimum most)", ("field",))
         data["b_lim"] = (self.b_lim, "m", "limit width at each speed", ("speed",))
         data["d_b_lim"] = (self.d_b_lim, "m/unit", "db_lim/dp at each speed", ("field", "speed"))
         attrs = {
@@ -205,19 +214,6 @@ class Sensitivity:
             "degenerate": str(self.degenerate),
         }
         return coords, data, attrs
-
-    def to_xarray(self) -> Any:
-        """The sensitivities as an :class:`xarray.Dataset` (:meth:`dataset_parts`)."""
-        from ..io import make_dataset
-
-        return make_dataset(*self.dataset_parts())
-
-    def to_netcdf(self, path: Any) -> Any:
-        """Labelled netCDF-4 file of :meth:`to_xarray`, written atomically;
-        returns the path."""
-        from ..io import write_netcdf
-
-        return write_netcdf(path, *self.dataset_parts())
 
     def plot(self, ax: Any = None, *, by: str = "relative", limit: str = "minimum", count: int = 15) -> Any:
         """The ranked bar chart (:func:`chatterlab.plot.plot_sensitivity`); returns the Axes."""

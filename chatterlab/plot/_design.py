@@ -95,7 +95,7 @@ def plot_lobes_compare(
 
 
 def plot_tradeoff(
-    force_limit: Any,
+    force: Any,
     width: Any,
     *,
     ax: Any = None,
@@ -104,18 +104,19 @@ def plot_tradeoff(
     chosen: tuple[float, float] | None = None,
     title: str | None = None,
 ) -> Any:
-    """The trade-off of an active damper: the best minimum limit width (mm)
-    against the actuator's force limit (N) at the design width, with the
-    bare structure's limit and the design width as horizontal lines and the
-    chosen design marked (``chosen`` = (force N, width m)).  Force limits
-    that no design meets are left out (nan).  Returns the Axes."""
+    """The trade-off of an active damper: a width to cut at (mm) against the
+    least actuator force (N) that cutting there needs, with the bare
+    structure's limit and the design width as horizontal lines and the
+    chosen design marked (``chosen`` = (its force at the design width N, its
+    limit m)).  Points the optimiser did not reach are left out (nan).
+    Returns the Axes."""
     import matplotlib.pyplot as plt
 
     if ax is None:
         _, ax = plt.subplots(figsize=(6.0, 4.5))
-    f = np.asarray(force_limit, dtype=float)
+    f = np.asarray(force, dtype=float)
     w = np.asarray(width, dtype=float)
-    ok = np.isfinite(w)
+    ok = np.isfinite(w) & np.isfinite(f)
     order = np.argsort(f[ok])
     ax.plot(
         f[ok][order],
@@ -124,7 +125,7 @@ def plot_tradeoff(
         color="tab:blue",
         lw=1.2,
         ms=4,
-        label="best design within the limit",
+        label="least force to cut at the width",
     )
     if bare is not None and np.isfinite(bare):
         ax.axhline(
@@ -136,9 +137,9 @@ def plot_tradeoff(
         ax.plot([chosen[0]], [chosen[1] * 1e3], "*", color="tab:green", ms=11, label="optimised design")
     if np.any(ok):
         ax.set_xscale("log")
-    ax.set_xlabel("actuator force at the design width [N]")
-    ax.set_ylabel("minimum limit width [mm]")
-    ax.set_title(title or "limit against actuator effort", fontsize=10)
+    ax.set_xlabel("actuator force [N]")
+    ax.set_ylabel("width cut [mm]")
+    ax.set_title(title or "width against actuator effort", fontsize=10)
     ax.legend(fontsize=8, loc="lower right")
     ax.grid(alpha=0.3, which="both")
     return ax
