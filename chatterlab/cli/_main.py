@@ -72,6 +72,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._design",
         "tune vibration absorbers to maximise the minimum chatter-free width; lobes before and after",
     ),
+    "active": (
+        "chatterlab.cli._active",
+        "co-design an active damper's gains (and placement) for the widest chatter-free cut; lobes before and after",
+    ),
     "risk": (
         "chatterlab.cli._risk",
         "probabilistic lobes: P(chatter), quantile lobes and Sobol' indices from [uncertainty]",
