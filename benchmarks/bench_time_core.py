@@ -32,7 +32,11 @@ interpreter.  The cases:
 
 The first run of each version also saves its trajectories; the largest
 difference after - before of every case (absolute, and relative to the
-largest value of the history) is written beside the times.  Results:
+largest value of the history) is written beside the times.  On a shared,
+loaded machine the wall times scatter by tens of per cent; ``--instructions
+CASE ...`` also counts the machine instructions of one run of those cases
+under valgrind's callgrind (two runs minus one, in one interpreter each),
+which the load does not change.  Results:
 ``benchmarks/results/time_core_refactor.json``.
 """
 
@@ -154,9 +158,10 @@ def _cases() -> dict[str, Any]:
     }
 
 
-def worker(save: str | None) -> None:
-    """Time every case once after a warm-up; print the wall times as JSON
-    (and save the histories to ``save``, an .npz)."""
+def worker(save: str | None, only: str | None = None, runs: int = 1) -> None:
+    """Time every case (or ``only`` that one, ``runs`` times) once after a
+    warm-up; print the wall times as JSON (and save the histories to
+    ``save``, an .npz)."""
     import time
     import warnings
 
@@ -172,13 +177,31 @@ def worker(save: str | None) -> None:
         simulate(cl.assemble(cl.load_model(str(ROOT / "studies/traverse_shaper/model.toml"))), duration=0.05)
         walls, saved = {}, {}
         for name, run in cases.items():
-            t0 = time.perf_counter()
-            out = run()
-            walls[name] = time.perf_counter() - t0
+            if only is not None and name != only:
+                continue
+            for _ in range(runs):
+                t0 = time.perf_counter()
+                out = run()
+                walls[name] = time.perf_counter() - t0
             saved.update({f"{name}/{k}": np.asarray(v) for k, v in out.items()})
     if save:
         np.savez(save, **saved)
     print(json.dumps(walls))
+
+
+def instructions(tree: Path, case: str) -> float:
+    """Machine instructions of one run of ``case`` in the version in ``tree``
+    (callgrind's ``Ir`` of two runs minus one, in one interpreter each): a
+    cost the load of a shared machine does not change."""
+    env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    counts = []
+    for runs in (1, 2):
+        cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", sys.executable,
+               str(Path(__file__).resolve()), "--worker", "--only", case, "--runs", str(runs)]  # fmt: skip
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True, cwd=ROOT)
+        line = [ln for ln in out.stderr.splitlines() if "Collected" in ln][-1]
+        counts.append(float(line.split()[-1]))
+    return counts[1] - counts[0]
 
 
 # =========================================================================== the driver
@@ -224,12 +247,21 @@ def main() -> None:
     ap.add_argument("--before", default=BEFORE, help="the commit before the move (default: %(default)s)")
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--out", default=str(OUT))
+    ap.add_argument(
+        "--instructions", nargs="*", default=[], metavar="CASE",
+        help="also count the machine instructions of these cases under valgrind (slow: minutes each)",
+    )  # fmt: skip
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--save", help=argparse.SUPPRESS)
+    ap.add_argument("--only", help=argparse.SUPPRESS)
+    ap.add_argument("--runs", type=int, default=1, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
-        worker(args.save)
+        worker(args.save, args.only, args.runs)
         return
+    import signal
+
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a kill still removes the worktree
     tmp = Path(tempfile.mkdtemp(prefix="time_core_"))
     old = tmp / "before"
     subprocess.run(["git", "worktree", "add", "--detach", str(old), args.before], cwd=ROOT, check=True,
@@ -251,6 +283,11 @@ def main() -> None:
                 + ", ".join(f"{c} {times['after'][c][-1]:.3f} s" for c in times["after"])
             )
         diffs = differences(str(tmp / "before.npz"), str(tmp / "after.npz"))
+        counts = {}
+        for case in args.instructions:
+            counts[case] = {"before": instructions(old, case), "after": instructions(ROOT, case)}
+            c = counts[case]
+            print(f"  {case}: {c['before'] / 1e6:.1f}M -> {c['after'] / 1e6:.1f}M instructions per run")
     finally:
         subprocess.run(
             ["git", "worktree", "remove", "--force", str(old)], cwd=ROOT, check=False, capture_output=True
@@ -268,6 +305,10 @@ def main() -> None:
             "ratio_min": min(a) / min(b), "ratio_median": statistics.median(a) / statistics.median(b),
             **{f"difference_{k}": v for k, v in diffs.get(case, {}).items()},
         }  # fmt: skip
+        if case in counts:
+            row["instructions_before"] = counts[case]["before"]
+            row["instructions_after"] = counts[case]["after"]
+            row["instructions_ratio"] = counts[case]["after"] / counts[case]["before"]
         rows[case] = row
         d = diffs.get(case, {})
         dtext = "identical" if d.get("identical") else f"{d.get('max_rel', math.nan):.2g} relative"
@@ -287,7 +328,8 @@ def main() -> None:
         "repeats": args.repeats,
         "note": "wall time of each call in a fresh interpreter after a warm-up, single-threaded BLAS; "
         "before and after alternate; min and median over the repeats; difference = largest "
-        "|after - before| over each case's histories (relative: to max |before|)",
+        "|after - before| over each case's histories (relative: to max |before|); instructions: "
+        "callgrind's count of one run (two runs minus one), independent of the machine's load",
         "cases": rows,
     }
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)

@@ -57,6 +57,7 @@ import threading
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Any
 
@@ -402,6 +403,7 @@ class _Stepper:
         bounds.append(p.n_total)
         chunks = [(a, b - a) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         futures: deque[Any] = deque()
+        quiet = nullcontext if self.cut is not None else (lambda: np.errstate(all="ignore"))
         try:
             if pool is not None:
                 for ch in chunks[:n_workers]:
@@ -413,7 +415,7 @@ class _Stepper:
                         futures.append(pool.submit(self.prepare, *chunks[ci + n_workers]))
                 else:
                     data = self.prepare(i0, c)
-                with np.errstate(all="ignore"):
+                with quiet():  # a coupling's loop is in Python floats: no numpy state to set
                     done, interrupted = self.steps(i0, c, data)
                 if interrupted:
                     status = "interrupted"
