@@ -135,6 +135,29 @@ def test_shaper_envelope_between_samples_is_the_exact_boundary(shaper, shaper_di
         assert np.max(err / exact[fin]) < 2e-3
 
 
+def test_a_sparse_dense_diagram_misses_no_lobe_between_its_speeds(shaper):
+    """Eight speeds over 0.92-0.935 m/s: the shaper's branches reach lobe
+    numbers in the thousands, so the diagram keeps as curves only the few
+    lobes on its envelope at those speeds.  The picture between them was
+    drawn from those lobes alone and said 1.0 mm where the boundary is at
+    0.19 mm (437 % too high; found by the speed selection, which refines
+    between speeds).  The curves now come from the boundary itself
+    (``LobeDiagram.branches``), so no lobe is missing; what remains between
+    the speeds is the interpolation of the frequency grid, which with only
+    eight refined points is larger than in a 300-speed diagram: measured
+    2.1e-3 above and 6.3e-3 below the exact limit (0.92-0.935 m/s: 8 speeds;
+    0.1-1 m/s: 30; 0.4-0.6 m/s: 12).  Asserted: 1e-2 relative, which a
+    missing lobe (a factor, not a per cent) cannot pass."""
+    d = lobes(shaper, np.linspace(0.92, 0.935, 8), width_max=1e-3, verify=0)
+    assert d.branches and len(d.lobes) < 10
+    axes = plot_lobes(d)
+    x, y = _envelope(axes[0])
+    pick = np.nonzero(~np.isin(x, d.speed))[0][::3]
+    exact = lobes(shaper, x[pick], width_max=d.width_max, verify=0).b_lim * 1e3
+    assert np.isfinite(exact).all() and np.isfinite(y[pick]).all()
+    assert np.max(np.abs(y[pick] / exact - 1)) < 1e-2
+
+
 def test_turning_envelope_is_tlusty_closed_form(tb, turning_diagram):
     """The 1-DOF envelope drawn at random vertices equals Tlusty's closed form
     b_lim = -1 / (2 K_f Re G(jw)) solved independently per speed and lobe."""
@@ -271,9 +294,7 @@ def test_branches_are_named_by_their_mode(shaper_diagram):
     minimum's) and the 76.2 Hz one."""
     axes = plot_lobes(shaper_diagram)
     legend = " ".join(" ".join(t.get_text() for t in axes[1].get_legend().get_texts()).split())
-    found = {
-        int(b): float(f) for b, f in re.findall(r"branch (\d+): ([\d.]+) Hz", legend)
-    }
+    found = {int(b): float(f) for b, f in re.findall(r"branch (\d+): ([\d.]+) Hz", legend)}
     assert len(found) == 2, legend
     low = min(found, key=lambda b: abs(found[b] - shaper_diagram.absolute_minimum["chatter_hz"]))
     assert found[low] == pytest.approx(shaper_diagram.absolute_minimum["chatter_hz"], abs=0.01)

@@ -159,14 +159,17 @@ def lobe_curves(d: Any) -> list[Curve]:
     lobe continues through the point where the engine's phase wraps (there
     its number k steps by one).  Each run keeps one sample beyond the delay
     range at either end so that it reaches the ends of the range."""
-    if not d.lobes:
+    if not d.lobes and not getattr(d, "branches", ()):
         return []
     Tlo, Thi = float(np.min(d.delay)), float(np.max(d.delay))
     to_speed = d.speed_of
-    branches: dict[int, list[Any]] = {}
-    for lb in d.lobes:
-        branches.setdefault(lb.branch, []).append(lb)
-    chains = [(br, ch) for br in sorted(branches) for ch in _branch_chains(branches[br])]
+    if getattr(d, "branches", ()):  # the boundary itself, complete (a dense diagram keeps few lobes)
+        chains = [(int(a[0, 0]), a[:, 1:]) for a in d.branches]
+    else:  # restored from the lobes' samples
+        branches: dict[int, list[Any]] = {}
+        for lb in d.lobes:
+            branches.setdefault(lb.branch, []).append(lb)
+        chains = [(br, ch) for br in sorted(branches) for ch in _branch_chains(branches[br])]
     chains = _with_envelope_points(d, chains)
     out: list[Curve] = []
     for br, ch in chains:

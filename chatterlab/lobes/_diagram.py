@@ -159,6 +159,14 @@ def lobes(
     diagram = _diagram_of(
         bd, frozen, proc, speeds, T, envelope, lobe_list, n_in_range, width_max, terms, name
     )
+    if not damped:  # the boundary itself: every lobe at every speed follows from it (the plot's curves)
+        branches = tuple(
+            np.column_stack([np.full(sg.omega.size, float(sg.branch)), sg.omega,
+                             np.mod(-np.angle(sg.z), 2 * np.pi), sg.beta])
+            for sg in bd.segments
+            if sg.omega.size >= 2
+        )  # fmt: skip
+        diagram = replace(diagram, branches=branches)
     if damped:
         diagram = DampedLobeDiagram.of(
             replace(diagram, meta={**diagram.meta, "process_damping": _damping_meta(bd)})

@@ -118,6 +118,13 @@ class LobeDiagram(Result):
         Work done: folds of the boundary followed, lobes crossing the speed
         range (when denser than 400 per branch, ``lobes`` keeps only those that
         form the envelope), frequencies of the grid, monodromy evaluations.
+    branches : tuple of ndarray, shape (m, 4) each
+        The constant-gain D-subdivision boundary itself, from which every lobe
+        at every speed follows: one array per continuous branch, rows
+        (branch number, omega rad/s, phi = omega T mod 2 pi rad, width m) in
+        order along the curve.  The geometry (:meth:`geometry`, the plot's
+        curves and envelope between the requested speeds) is drawn from it;
+        empty for the Floquet methods and process damping.
     """
 
     speed: np.ndarray
@@ -152,6 +159,7 @@ class LobeDiagram(Result):
     error: np.ndarray = field(default_factory=lambda: np.zeros(0))
     scan_step: float = float("nan")
     evaluations: int = 0
+    branches: tuple[np.ndarray, ...] = ()
 
     def __post_init__(self) -> None:
         n = np.asarray(self.speed).size
