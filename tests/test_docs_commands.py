@@ -44,7 +44,13 @@ NOT_RUN = {
     ("docs/time-domain.md", "simulate turning.toml"): "a user's own turning.toml",
 }
 #: commands that take long enough (10-60 s) to be worth a mark of their own
-SLOW = ("--positions 0.6 1.1 6", "--feedback all --passes 3", "--step 1.4e-3 --passes 3", "--duration 20")
+SLOW = (
+    "--positions 0.6 1.1 6",
+    "--feedback all --passes 3",
+    "--step 1.4e-3 --passes 3",
+    "--duration 20",
+    "recommend example:traverse_shaper",
+)
 
 
 #: a number as the program prints it

@@ -8,7 +8,9 @@ draws is the diagram's own, :meth:`chatterlab.lobes.LobeDiagram.geometry`;
 ``_milling`` for a diagram of Floquet limits), ``_atlas``, ``_frf`` (FRF, Nyquist of the determinant and
 of the loop), ``_fit`` (a modal fit, its stabilisation diagram), ``_time`` (histories, spectra, one run's response), ``_modes``
 (mode shapes on the structure, frequencies), ``_sweep`` (any output, the
-stability map), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
+stability map), ``_design`` (sensitivities, lobes before and after), ``_uncertainty``
+(probabilistic lobes, Sobol' indices), ``_recommend`` (the speeds to choose, a
+recording's spectrum), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from ._fit import plot_modal_fit, plot_stabilisation
 from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
 from ._lobes import plot_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
+from ._recommend import plot_chatter_spectrum, plot_recommendation, plot_speed_rule
 from ._roots import plot_multipliers, plot_roots
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
@@ -49,5 +52,8 @@ __all__ = [
     "plot_stability_map",
     "plot_risk",
     "plot_sobol",
+    "plot_recommendation",
+    "plot_chatter_spectrum",
+    "plot_speed_rule",
     "savefig",
 ]

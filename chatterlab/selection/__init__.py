@@ -17,7 +17,7 @@ of a recording; ``_rule``: the chatter-frequency rule and
 
 from __future__ import annotations
 
-from ..model._items import Machine
+from ..model import Machine
 from ._limits import Removal, WidthLimit, width_limit
 from ._recommend import recommend
 from ._recording import read_recording

@@ -46,7 +46,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import InputError
-from ..model._items import Machine, machine_problem
+from ..model import Machine, machine_problem
 
 __all__ = ["Removal", "WidthLimit", "width_limit", "check_machine", "curve_at", "removal_of"]
 

@@ -251,9 +251,9 @@ class Recommendation(Result):
     def plot(self, ax: Any = None, *, title: str | None = None) -> Any:
         """The allowed width and the stability limit against speed with the
         ranked cuts marked, over the width rate (MRR) against speed
-        (:func:`chatterlab.plot._recommend.plot_recommendation`).  Returns
+        (:func:`chatterlab.plot.plot_recommendation`).  Returns
         the two Axes."""
-        from ..plot._recommend import plot_recommendation
+        from ..plot import plot_recommendation
 
         return plot_recommendation(self, ax=ax, title=title)
 

@@ -197,9 +197,9 @@ class SpeedRule(Result):
 
     def plot(self, ax: Any = None, *, title: str | None = None) -> Any:
         """The rule's speeds on the lobes (with a model) and the spectrum
-        (from a recording) (:func:`chatterlab.plot._recommend.plot_speed_rule`).
+        (from a recording) (:func:`chatterlab.plot.plot_speed_rule`).
         Returns the Axes (a tuple when there are two panels)."""
-        from ..plot._recommend import plot_speed_rule
+        from ..plot import plot_speed_rule
 
         return plot_speed_rule(self, ax=ax, title=title)
 

@@ -155,9 +155,9 @@ class ChatterFrequency(Result):
 
     def plot(self, ax: Any = None, *, title: str | None = None) -> Any:
         """The spectrum with the harmonic notches shaded and the chatter peak
-        marked (:func:`chatterlab.plot._recommend.plot_chatter_spectrum`).
+        marked (:func:`chatterlab.plot.plot_chatter_spectrum`).
         Returns the Axes."""
-        from ..plot._recommend import plot_chatter_spectrum
+        from ..plot import plot_chatter_spectrum
 
         return plot_chatter_spectrum(self, ax=ax, title=title)
 
