@@ -70,7 +70,7 @@ from ..frequency._delay_system import single_threaded
 from ..frequency._floquet import QuasiStatic, needs_split, split_structure
 from ..process import ClosedLoop
 from ._diagram import Plant, lobes
-from ._milling_search import floquet_limit
+from ._milling_search import TOL_SHARE, floquet_limit
 from ._result import LobeDiagram
 
 __all__ = ["milling_lobes", "milling_ceiling", "zoa_plant"]
@@ -79,34 +79,45 @@ METHODS = ("spectral", "sdm", "zoa")
 
 
 # ============================================================================ ZOA
-def zoa_plant(loop: ClosedLoop) -> Plant:
+def zoa_plant(loop: ClosedLoop, quasi_static: QuasiStatic | None = None) -> Plant:
     """The averaged milling process of a milling loop as a lobe-engine Plant.
 
     With the CE convention of the engine (force on the tool
     = -(Dl_P r + Dl_O r(t - T)) per unit width), the ZOA force
     F = -a_p H0 [r(t) - r(t - tau)] is Dl_P = H0, Dl_O = -H0 per metre of a_p.
+    ``quasi_static``: the structure as its kept modes plus the static
+    compliance of the others (:func:`chatterlab.frequency.split_structure`),
+    which enters the FRF as its constant term.
     """
-    A = loop.state_matrix
-    n = loop.n
-    d = A.shape[0]
     # the cut's coordinates r = Ub (Jr q): a rank-deficient J (a 1-DOF tool) stays regular
     Ub, Jr, W = loop.cut_basis
     rho = Jr.shape[0]
+    G = np.zeros((rho, rho))
+    if quasi_static is not None:
+        loop, G = quasi_static.loop, quasi_static.compliance
+        Jr = Ub.T @ loop.J
+        W = np.linalg.solve(loop.M, Jr.T)
+    A = loop.state_matrix
+    n = loop.n
+    d = A.shape[0]
     B = np.zeros((d, rho))
     B[n:] = W
     Cm = np.zeros((rho, d))
     Cm[:, :n] = Jr
     p, S = np.linalg.eig(A)
-    pr = PoleResidue(p, Cm @ S, np.linalg.solve(S, B.astype(complex)), np.zeros((rho, rho)))
+    pr = PoleResidue(p, Cm @ S, np.linalg.solve(S, B.astype(complex)), G.astype(complex))
     H0 = Ub.T @ loop.milling.zoa() @ Ub
+    structure = loop.structure
 
     def H(omega: np.ndarray) -> np.ndarray:
-        return loop.structure.receptance(omega, Jr)
+        return structure.receptance(omega, Jr) + G
 
     return Plant(H, p, H0, np.zeros((rho, rho)), -H0, pr)
 
 
-def _zoa(loop: ClosedLoop, rpm: np.ndarray, depth_max: float) -> LobeDiagram:
+def _zoa(
+    loop: ClosedLoop, rpm: np.ndarray, depth_max: float, quasi_static: QuasiStatic | None = None
+) -> LobeDiagram:
     """The zeroth-order approximation: the averaged cut's D-subdivision lobes,
     the cutter its process (speed in rpm, delay the tooth period)."""
     milling = loop.milling
@@ -118,7 +129,7 @@ def _zoa(loop: ClosedLoop, rpm: np.ndarray, depth_max: float) -> LobeDiagram:
         None,
         rpm,
         width_max=depth_max,
-        plant=zoa_plant(loop),
+        plant=zoa_plant(loop, quasi_static),
         process=milling,
         verify=0,
         name=loop.name,
@@ -294,7 +305,7 @@ def _split(
     if isinstance(split, str):
         if split != "auto":
             raise InputError(f"split must be 'auto', a frequency in Hz or None (got {split!r})")
-        f = needs_split(loop, float(np.min(rpm)), depth_max, target / 30.0)
+        f = needs_split(loop, float(np.min(rpm)), depth_max, target / TOL_SHARE)
         if f is None:
             return None
     else:
@@ -365,11 +376,17 @@ def milling_ceiling(loop: ClosedLoop, rpm: np.ndarray) -> tuple[float, str]:
     """The depth ceiling of a milling diagram from the problem itself, m, and
     how it was set: three times the largest limit of the zeroth-order
     approximation (the averaged cut's D-subdivision lobes, searched up to
-    1 m) over the speeds, so that Floquet limits up to well above the
-    averaged ones are found (at low immersion the averaged limits can be
+    1 m; for a structure the Floquet lobes would split, on its split) over
+    the speeds, so that Floquet limits up to well above the averaged ones
+    are found (at low immersion the averaged limits can be
     several times off; flip lobes lie below them).  With no averaged limit
     below 1 m at any speed the ceiling is 1 m."""
-    z = _zoa(loop, np.atleast_1d(np.asarray(rpm, float)), 1.0)
+    rpm = np.atleast_1d(np.asarray(rpm, float))
+    # an FE-scale tool: its modes far above the cut's band enter as their static compliance (the
+    # ceiling is a bound with a factor 3 to spare, and the whole structure's D-subdivision cost
+    # a minute on a 302-coordinate end mill)
+    f = needs_split(loop, float(np.min(rpm)), 1.0, 1e-6)
+    z = _zoa(loop, rpm, 1.0, split_structure(loop, f) if f is not None else None)
     fin = np.asarray(z.b_lim)[np.isfinite(z.b_lim)]
     if fin.size == 0:
         return 1.0, "1 m: the zeroth-order approximation has no limit below 1 m at these speeds"

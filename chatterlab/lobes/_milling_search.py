@@ -77,6 +77,9 @@ def _first_crossing(
 MIN_WIDTH = 1e-7
 #: evaluations of the multipliers and their derivatives allowed per speed (beyond the scan)
 MAX_TANGENTS = 400
+#: the automatic degrees aim at the check's target divided by this (the rest is the margin the
+#: check confirms: a speed whose check misses the target is searched again, finer)
+TOL_SHARE = 30.0
 #: the automatic mesh's depth stages are merged while the deeper one has at most this many
 #: times the nodes of the shallower one (a set-up and its flip/fold eigenproblems cost more)
 MERGE = 1.2
@@ -294,8 +297,15 @@ def certified_crossing(
     passed: dict[int, bool] = {}
     try:
         for i, (lo, hi) in enumerate(zip(grid[:-1], grid[1:], strict=True)):
-            if grid[i + 1] not in cache:  # the next batch of scan depths
-                fetch(grid[i : i + 1 + chunk])
+            if grid[i + 1] not in cache:  # the next batch of scan depths: as many as the radius's
+                # trend over the last two says stay below 1, plus one (only how many are evaluated
+                # together: every one is still tested)
+                n_next = chunk
+                if i >= 1 and grid[i - 1] in cache:
+                    r0, r1 = radius(grid[i - 1]), radius(grid[i])
+                    if r1 > r0:
+                        n_next = max(1, min(chunk, int((1.0 - r1) / (r1 - r0)) + 1))
+                fetch(grid[i : i + 1 + n_next])
             if i not in passed:  # the batch's intervals by the test's all-inside branch at once
                 js = [
                     j
@@ -335,7 +345,7 @@ def certified_crossing(
     # a bracket [lo, a] with rho < 1 at the left end, >= 1 at the right
     lo = max(k for k in cache if k < a)
     root = _newton(data, lo, a, rtol) if radius(lo) < 1.0 <= radius(a) else a
-    mu, dmu = data(root)
+    mu, dmu = data(min(cache, key=lambda x: abs(x - root)))  # within rtol a of the root
     i = int(np.argmax(np.abs(mu)))
     # the bracket passed _simple_bracket (one crossing in it) or is MIN_WIDTH short: stable to the root
     return Certified("crossing", float(root), "hopf", float(root), count[0], _slope(mu, dmu, i), fl, fo)
@@ -347,8 +357,10 @@ def _newton(
     """The depth in [lo, hi] where the spectral radius is 1 (rho(lo) < 1 <= rho(hi)), to
     ``rtol`` relative: Newton's method on rho - 1 with d|mu|/da of the top multiplier, a
     bisection wherever a step would leave the bracket or not halve it (rtsafe, Press et al.,
-    Numerical Recipes, sec. 9.4); it converges quadratically at a simple crossing, so the
-    iterate after a step shorter than rtol a is within ~(rtol a)^2 |rho''| / rho' of the root."""
+    Numerical Recipes, sec. 9.4); it converges quadratically at a simple crossing, so a Newton
+    step shorter than rtol a ends within ~(rtol a)^2 |rho''| / rho' of the root: that end is
+    returned without evaluating it (the caller takes the slope and the eigenvector at the
+    last evaluated depth, within rtol a)."""
 
     def g(a: float) -> tuple[float, float]:
         mu, dmu = data(a)
@@ -368,6 +380,8 @@ def _newton(
             nx = 0.5 * (lo + hi)  # bisection
             newton_ok = False
         step = nx - x
+        if newton_ok and abs(step) <= rtol * abs(nx):
+            return nx  # within C step^2 << rtol a of the root: no need to evaluate it
         step_old, x = step, nx
         fx, sx = g(x)
         if fx < 0.0:
@@ -512,14 +526,14 @@ def _complete_limit(
     ~a_p |H| to its stiffness), so the search runs in stages (0, D/16],
     (D/16, D/4], (D/4, D] (D = depth_max), each on the mesh whose degrees
     resolve the solution at the stage's deepest cut (:func:`auto_degree`
-    aiming at target / 30); a stage whose mesh is that of the one before
+    aiming at target / TOL_SHARE); a stage whose mesh is that of the one before
     continues on it.  Stability established on a stage rests on that stage's
     mesh.  Where the check misses ``target`` the stage of the limit is
     searched again on a finer mesh (degrees for a tolerance 100 times
     smaller at the limit's depth; an explicit degree: elements half as
     long), up to three times."""
     auto = degree is None and elements is None
-    tol = target / 30.0
+    tol = target / TOL_SHARE
     qs, qs2 = split if split is not None else (None, None)
     base = qs.loop if qs is not None else loop  # the modes integrated in time set the mesh
     stages = [depth_max / 16.0, depth_max / 4.0, depth_max] if auto else [depth_max]
