@@ -227,7 +227,7 @@ KEYS = [
     "width_ref", "coordinates", "M", "K", "file", "beams", "follows", "node", "body", "fix", "coords",
     "dependent", "equations", "elements", "name", "x",
 ]  # fmt: skip
-TABLES = list(modelfile._LISTS) + list(modelfile._TABLES) + ["other"]
+TABLES = list(modelfile.LIST_TABLES) + list(modelfile.TABLES) + ["other"]
 
 scalars = st.one_of(
     st.integers(min_value=-(2**70), max_value=2**70),

@@ -12,6 +12,29 @@ from typing import Any
 from ..errors import ModelError
 from ._items import GROUND
 
+#: the list tables of a model file ([[KIND]] items): the item kinds of messages and of
+#: parameter paths KIND.ID.FIELD
+LIST_TABLES = (
+    "body",
+    "node",
+    "beam",
+    "point",
+    "spring",
+    "attachment",
+    "support",
+    "contact",
+    "constraint",
+    "coupling",
+    "mode",
+    "absorber",
+    "actuator",
+)
+#: the single tables of a model file
+TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine", "process_damping")
+#: the single tables whose fields a parameter path TABLE.FIELD addresses (--set, variants,
+#: sweeps, [uncertainty], sensitivities)
+PARAMETER_TABLES = ("movable", "process", "model", "frf", "machine", "process_damping")
+
 #: the magnitudes a physical field of a model file may have, by unit: a
 #: nonzero value outside is refused, naming the field, before it reaches the
 #: matrices (1e300 overflows the eigen-solver; 1e-300 is a part held by

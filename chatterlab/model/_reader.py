@@ -22,7 +22,7 @@ from ..errors import ChatterlabError, ModelError
 from ._absorber import read_absorbers
 from ._actuator import read_actuators
 from ._damping import read_process_damping
-from ._fields import _Ids, _Item
+from ._fields import LIST_TABLES, PARAMETER_TABLES, TABLES, _Ids, _Item
 from ._frf import read_frf_table
 from ._items import Machine, Mode, Model, Process, machine_problem
 from ._matrices import _read_matrix_model
@@ -53,23 +53,6 @@ from ._uncertainty import read_uncertainty
 
 __all__ = ["load_model", "loads_model", "build_model"]
 
-# list tables of the file -> item kind used in messages and parameter paths
-_LISTS = (
-    "body",
-    "node",
-    "beam",
-    "point",
-    "spring",
-    "attachment",
-    "support",
-    "contact",
-    "constraint",
-    "coupling",
-    "mode",
-    "absorber",
-    "actuator",
-)
-_TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine", "process_damping")
 
 #: Limits checked before anything is parsed or allocated (docs/model-format.md, "Limits").
 MAX_MODEL_BYTES = 8 * 2**20  #: a model file larger than this is refused unread
@@ -190,7 +173,7 @@ def _where(path: tuple[Any, ...]) -> tuple[str, str]:
     if not path:
         return "", ""
     head = path[0]
-    if head in _LISTS and len(path) >= 2 and isinstance(path[1], int):
+    if head in LIST_TABLES and len(path) >= 2 and isinstance(path[1], int):
         return f"[[{head}]] #{path[1] + 1}", ".".join(str(p) for p in path[2:])
     return f"[{head}]", ".".join(str(p) for p in path[1:])
 
@@ -257,7 +240,7 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
         elif isinstance(value, np.ndarray):
             value = value.tolist()
         parts = str(path).split(".")
-        if len(parts) == 3 and parts[0] in _LISTS:
+        if len(parts) == 3 and parts[0] in LIST_TABLES:
             kind, iid, fld = parts
             items = raw.get(kind, [])
             for it in items if isinstance(items, list) else []:
@@ -273,14 +256,7 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
                     f" (known: {', '.join(map(str, known)) or 'none'})",
                     source=src,
                 )
-        elif len(parts) == 2 and parts[0] in (
-            "movable",
-            "process",
-            "model",
-            "frf",
-            "machine",
-            "process_damping",
-        ):
+        elif len(parts) == 2 and parts[0] in PARAMETER_TABLES:
             tbl, fld = parts
             table = raw.setdefault(tbl, {})
             if not isinstance(table, dict):
@@ -289,7 +265,7 @@ def _apply_overrides(src: str, raw: dict[str, Any], overrides: Mapping[str, Any]
         else:
             raise ModelError(
                 f"{what} '{path}' does not address a field: write KIND.ID.FIELD for list items"
-                f" (KIND one of {', '.join(_LISTS)}) or movable.FIELD / process.FIELD / frf.FIELD",
+                f" (KIND one of {', '.join(LIST_TABLES)}) or movable.FIELD / process.FIELD / frf.FIELD",
                 source=src,
             )
 
@@ -439,15 +415,15 @@ def _build_model(
 def _check_tables(src: str, raw: dict[str, Any]) -> None:
     """Only known tables, and the list tables written as arrays of tables."""
     for key in raw:
-        if key not in _LISTS and key not in _TABLES:
-            close = difflib.get_close_matches(key, list(_LISTS + _TABLES), n=1)
+        if key not in LIST_TABLES and key not in TABLES:
+            close = difflib.get_close_matches(key, list(LIST_TABLES + TABLES), n=1)
             hint = f" Did you mean '{close[0]}'?" if close else ""
             raise ModelError(
                 f"unknown table '{key}'.{hint} Known: "
-                + ", ".join([f"[[{k}]]" for k in _LISTS] + [f"[{k}]" for k in _TABLES]),
+                + ", ".join([f"[[{k}]]" for k in LIST_TABLES] + [f"[{k}]" for k in TABLES]),
                 source=src,
             )
-    for kind in _LISTS:
+    for kind in LIST_TABLES:
         if kind in raw and not isinstance(raw[kind], list):
             raise ModelError(f"'{kind}' must be an array of tables, written [[{kind}]]", source=src)
 

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
+from ._fields import LIST_TABLES, PARAMETER_TABLES
 
 __all__ = [
     "Marginal",
@@ -54,22 +55,6 @@ __all__ = [
 #: the distributions an entry may name
 DISTRIBUTIONS = ("normal", "lognormal", "uniform")
 
-#: the list tables and single tables a parameter path may address (as the reader's overrides)
-_LIST_KINDS = (
-    "body",
-    "node",
-    "beam",
-    "point",
-    "spring",
-    "attachment",
-    "support",
-    "contact",
-    "constraint",
-    "coupling",
-    "mode",
-    "absorber",
-)
-_SINGLE = ("movable", "process", "model", "frf")
 _KEYS = {
     "normal": ("distribution", "mean", "std", "cv", "lower", "upper", "description"),
     "lognormal": ("distribution", "mean", "std", "cv", "lower", "upper", "description"),
@@ -168,7 +153,7 @@ def _lookup(raw: Mapping[str, Any], base: str) -> tuple[bool, Any, str]:
     """(found, value, where) of a field path in the parsed file; ``where``
     says what is missing when not found."""
     parts = base.split(".")
-    if len(parts) == 3 and parts[0] in _LIST_KINDS:
+    if len(parts) == 3 and parts[0] in LIST_TABLES:
         kind, iid, fld = parts
         items = raw.get(kind, [])
         for it in items if isinstance(items, list) else []:
@@ -176,7 +161,7 @@ def _lookup(raw: Mapping[str, Any], base: str) -> tuple[bool, Any, str]:
                 return (fld in it), it.get(fld), f'[[{kind}]] "{iid}" has no field {fld!r}'
         known = [str(it.get("id")) for it in items if isinstance(it, dict)] if isinstance(items, list) else []
         return False, None, f"there is no [[{kind}]] with id {iid!r} (known: {', '.join(known) or 'none'})"
-    if len(parts) == 2 and parts[0] in _SINGLE:
+    if len(parts) == 2 and parts[0] in PARAMETER_TABLES:
         table = raw.get(parts[0])
         if not isinstance(table, dict):
             return False, None, f"the file has no [{parts[0]}] table"
