@@ -25,10 +25,12 @@ from ._entry import lobes
 from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
 from ._milling import milling_lobes, zoa_plant
 from ._milling_model import Reduction, is_milling, milling_loop_of, milling_of, reduce_structure
+from ._result import ProcessNames
 
 __all__ = [
     "Lobe",
     "LobeDiagram",
+    "ProcessNames",
     "Boundary",
     "Plant",
     "lobes",

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..io import Result
 
-__all__ = ["Lobe", "LobeDiagram", "count_failed"]
+__all__ = ["Lobe", "LobeDiagram", "ProcessNames", "count_failed"]
 
 #: what a limit can rest on (:attr:`LobeDiagram.basis`), in the order of the files' codes
 BASES = ("complete", "band", "measured", "undetermined", "scan", "zoa")
@@ -47,8 +47,37 @@ class Lobe:
     frequency_hz: np.ndarray  #: chatter frequency, Hz
 
 
+class ProcessNames:
+    """What a result calls its speed and its limit: its process's names (the
+    one place they are written is the process: :class:`~chatterlab.model.Process`,
+    :class:`~chatterlab.process.Milling`).  A result with a ``process``
+    inherits them."""
+
+    process: Any
+
+    @property
+    def speed_unit(self) -> str:
+        """Unit of the speeds (the process's: ``"m/s"``, ``"rpm"``, ``"s"``)."""
+        return str(self.process.speed_unit)
+
+    @property
+    def speed_name(self) -> str:
+        """What the speed is (``"spindle speed"``, ``"work speed"``, ``"delay"``)."""
+        return str(self.process.speed_name)
+
+    @property
+    def limit_name(self) -> str:
+        """``"a_lim"`` for milling, ``"b_lim"`` otherwise."""
+        return str(self.process.limit_name)
+
+    @property
+    def width_name(self) -> str:
+        """``"axial depth of cut a_p"`` for milling, ``"width of cut b"`` otherwise."""
+        return str(self.process.width_name)
+
+
 @dataclass(frozen=True, eq=False)
-class LobeDiagram(Result):
+class LobeDiagram(Result, ProcessNames):
     """The stability limit against speed: b_lim (or a_lim) for every process.
 
     Attributes
@@ -179,27 +208,7 @@ class LobeDiagram(Result):
         if np.asarray(self.error).size != n:
             object.__setattr__(self, "error", np.full(n, np.nan))
 
-    # ------------------------------------------------------------------ names and maps
-    @property
-    def speed_unit(self) -> str:
-        """Unit of :attr:`speed` (the process's)."""
-        return str(self.process.speed_unit)
-
-    @property
-    def speed_name(self) -> str:
-        """What the speed is (``"spindle speed"``, ``"work speed"``, ``"delay"``)."""
-        return str(self.process.speed_name)
-
-    @property
-    def limit_name(self) -> str:
-        """``"a_lim"`` for milling, ``"b_lim"`` otherwise (the process's)."""
-        return str(getattr(self.process, "limit_name", "b_lim"))
-
-    @property
-    def width_name(self) -> str:
-        """``"axial depth of cut a_p"`` for milling, ``"width of cut b"`` otherwise."""
-        return str(getattr(self.process, "width_name", "width of cut b"))
-
+    # ------------------------------------------------------------------ maps
     @property
     def a_lim(self) -> np.ndarray:
         """The limit axial depth of a milling diagram: :attr:`b_lim`."""

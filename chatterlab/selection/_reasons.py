@@ -10,6 +10,10 @@ from typing import Any
 
 import numpy as np
 
+#: rates within this relative tolerance of each other are equal (a plateau: a power-limited MRR is
+#: the same at every speed, b* = P / p(v), up to the round-off of the formulas)
+PLATEAU_RTOL = 1e-9
+
 __all__ = ["reason"]
 
 
@@ -44,8 +48,6 @@ def _where(tab: Any, i: int, mach: Any, unit: str) -> str:
         return "the machine's lowest speed" if low else "the bottom of the speeds searched"
     b = str(tab.binding[i])
     right = str(tab.binding[i + 1])
-    from ._recommend import PLATEAU_RTOL
-
     lo, hi = _plateau(tab.rate, i, PLATEAU_RTOL)
     if hi > lo:
         what = {"max depth": "the tool's largest depth"}.get(

@@ -45,6 +45,7 @@ import numpy as np
 
 from ..errors import InputError, check_count
 from ._limits import Removal, WidthLimit, check_machine, curve_at, removal_of
+from ._reasons import PLATEAU_RTOL
 from ._result import Recommendation
 
 __all__ = ["recommend", "check_margin", "Source", "source_of", "stable_width"]
@@ -302,11 +303,6 @@ def _trusted(
     allv = np.r_[vv[keep], v]
     o = np.argsort(allv, kind="stable")
     return allv[o], np.r_[env[keep], exact][o]
-
-
-#: rates within this relative tolerance of each other are equal (a plateau: a power-limited MRR is
-#: the same at every speed, b* = P / p(v), up to the round-off of the formulas)
-PLATEAU_RTOL = 1e-9
 
 
 def _maxima(rate: np.ndarray, room: np.ndarray, rtol: float = PLATEAU_RTOL) -> np.ndarray:

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..io import Result
+from ..lobes import ProcessNames
 
 __all__ = ["Recommendation", "BINDINGS", "VERDICTS"]
 
@@ -30,7 +31,7 @@ def _binding_code(names: Any) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class Recommendation(Result):
+class Recommendation(Result, ProcessNames):
     """The cuts that maximise the material removal rate while stable with a
     margin and within every limit, ranked (:func:`chatterlab.selection.recommend`).
 
@@ -115,22 +116,6 @@ class Recommendation(Result):
     @property
     def process(self) -> Any:
         return self.removal.process
-
-    @property
-    def speed_unit(self) -> str:
-        return str(self.process.speed_unit)
-
-    @property
-    def speed_name(self) -> str:
-        return str(self.process.speed_name)
-
-    @property
-    def limit_name(self) -> str:
-        return str(getattr(self.process, "limit_name", "b_lim"))
-
-    @property
-    def width_name(self) -> str:
-        return "axial depth a_p" if self.process.kind == "milling" else "width of cut b"
 
     @property
     def best(self) -> dict[str, float]:
