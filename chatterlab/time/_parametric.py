@@ -192,6 +192,8 @@ class ParametricProblem(Sealed):
         The end of the simulated span, s: the process's breakpoints (cut
         entry and exit, reversal) up to it are reported to the integrator.
 
+    Notes
+    -----
     The problem is immutable (:class:`~chatterlab.time._problems.Sealed`);
     it caches its last evaluation and the coefficient polynomials it built.
     """
