@@ -376,7 +376,7 @@ def test_growth_rate_equals_rightmost_root(turning, boundary, factor):
     (4 sigma(h/2) - sigma(h))/3 matches it to 0.01 1/s (measured 5e-4).
     """
     from chatterlab.frequency._stability import stability
-    from chatterlab.process._cutting import feedback
+    from chatterlab.process import closed_loop as feedback
 
     fz, b_lim = boundary
     T = 0.02

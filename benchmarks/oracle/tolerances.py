@@ -142,8 +142,9 @@ def loop_of_frozen(fz: Any, T: float | None, terms: str = "pdo") -> StructLoop:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        fb = cl.feedback(fz, width=1.0, delay=T, terms=terms)  # type: ignore[arg-type]
-        fb2 = cl.feedback(fz, width=0.5, delay=T, terms=terms)  # type: ignore[arg-type]
+        close = cl.closed_loop if hasattr(cl, "closed_loop") else cl.feedback  # 0.3 / 0.2
+        fb = close(fz, width=1.0, delay=T, terms=terms)  # type: ignore[arg-type]
+        fb2 = close(fz, width=0.5, delay=T, terms=terms)  # type: ignore[arg-type]
     # D is linear in the width: the CE matrices at 1 m are the ones per metre
     for x, y in ((fb.Dl_P, fb2.Dl_P), (fb.Dl_V, fb2.Dl_V), (fb.Dl_O, fb2.Dl_O)):
         assert np.allclose(0.5 * x, y, rtol=1e-14, atol=0), "feedback not linear in the width"

@@ -6,10 +6,9 @@ damping (the flank's speed-dependent ideal-derivative term, ``_damping``)."""
 
 from __future__ import annotations
 
-from ._cutting import Feedback, ce_maps, feedback
 from ._damping import DampingTerm, LoopDamping, damping_term, milling_damping
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
-from ._loop import TERMS, ClosedLoop, closed_loop, coupling_matrix, delay_for, milling_loop
+from ._loop import TERMS, ClosedLoop, ce_maps, closed_loop, coupling_matrix, delay_for, milling_loop
 from ._milling import Milling
 
 __all__ = [
@@ -17,8 +16,6 @@ __all__ = [
     "closed_loop",
     "milling_loop",
     "coupling_matrix",
-    "Feedback",
-    "feedback",
     "delay_for",
     "ce_maps",
     "TERMS",

@@ -28,8 +28,8 @@ import numpy as np
 
 from ..errors import InputError, check_width
 from ..model._items import DIRECTIONS
-from ..process._cutting import ce_maps
 from ..process._kinematics import ShapingKinematics, SteadyKinematics
+from ..process._loop import ce_maps
 from ..structure._assembly import MovingReduction, System
 from ._problems import Sealed
 
