@@ -32,7 +32,7 @@ import pytest
 
 import chatterlab as cl
 from chatterlab.cli._main import main
-from chatterlab.frequency import characteristic_roots_system, make_system
+from chatterlab.frequency import characteristic_roots, make_system
 from chatterlab.lobes import lobes
 from chatterlab.time import Excitation, Initial, Integration
 from chatterlab.time._signals import ROOT_REL_ERROR, GrowthEstimate, growth_rate, time_verdict
@@ -116,7 +116,7 @@ delay = 0.01
 def frozen_roots(system, width, delay, position=None):
     """The certified rightmost roots of the system simulate integrates."""
     A, B, C, G, T = constant_loop(system, width=width, delay=delay, position=position)
-    return characteristic_roots_system(make_system(A, B, C, DO=G, tau=T), count=12)
+    return characteristic_roots(make_system(A, B, C, DO=G, tau=T), count=12)
 
 
 def b_lim(system, speed, delay, position=None):

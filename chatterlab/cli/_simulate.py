@@ -239,7 +239,7 @@ def _frozen_roots(sy: Any, fb: Any, width: float | None, args: argparse.Namespac
     """The rightmost characteristic roots of the frozen system a continuous
     cut integrates (the same matrices, :func:`chatterlab.time._simulate.constant_loop`),
     in the band the loop's gain bound certifies; None for a moving slide."""
-    from ..frequency import characteristic_roots_system, make_system
+    from ..frequency import characteristic_roots, make_system
     from ..time._simulate import constant_loop
 
     mats = constant_loop(
@@ -252,7 +252,7 @@ def _frozen_roots(sy: Any, fb: Any, width: float | None, args: argparse.Namespac
         ds = make_system(A, B, C, DO=G, tau=T if G is not None else None)
     except InputError:  # e.g. a mass matrix that is not symmetric: no roots to show
         return None
-    return characteristic_roots_system(ds, count=ROOTS_COUNT)
+    return characteristic_roots(ds, count=ROOTS_COUNT)
 
 
 def _summary(sim: Any, fb: str) -> list[str]:

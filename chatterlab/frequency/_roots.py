@@ -113,7 +113,6 @@ __all__ = [
     "make_first_order_system",
     "loop_system",
     "characteristic_roots",
-    "characteristic_roots_system",
     "newton_refine",
     "chebyshev_nodes",
     "certified_top",
@@ -317,7 +316,3 @@ def characteristic_roots(
     """
     sys = as_delay_system(system)
     return _dispatch(sys, count, method, omega_max, n_nodes, match_tol, max_windows)
-
-
-#: the 0.2 name of :func:`characteristic_roots` (which now takes the system itself)
-characteristic_roots_system = characteristic_roots

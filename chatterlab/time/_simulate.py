@@ -308,7 +308,7 @@ def simulate(
         name itself is its ``long_name``).
     roots : RootsResult or array of complex, optional
         The characteristic roots (1/s) of the same frozen system, e.g.
-        ``chatterlab.frequency.characteristic_roots_system`` on
+        ``chatterlab.frequency.characteristic_roots`` on
         :func:`constant_loop`'s matrices: they set the default step of a
         continuous cut and are compared with :meth:`Simulation.verdict`.  A
         ``RootsResult`` that converged with a band proven to hold every root
