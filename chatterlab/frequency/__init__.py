@@ -16,6 +16,7 @@ from ._floquet import (
     multipliers,
     sdm_monodromy,
 )
+from ._floquet_ssv import VaryingDelayLoop, ssv_loop, ssv_monodromy, ssv_multipliers
 from ._frf import (
     FRF,
     ComplexModes,
@@ -75,6 +76,10 @@ __all__ = [
     "multipliers",
     "SpectralMonodromy",
     "sdm_monodromy",
+    "ssv_multipliers",
+    "ssv_loop",
+    "ssv_monodromy",
+    "VaryingDelayLoop",
     "classify",
     "chatter_frequency",
     "CHECK_DEGREE",

@@ -10,7 +10,7 @@ import scipy.linalg as sla
 from ..errors import InputError, check_count, check_nonneg
 from ..process._loop import ClosedLoop
 
-__all__ = ["sdm_monodromy", "sdm_multipliers", "matched_change", "finite_monodromy"]
+__all__ = ["sdm_monodromy", "sdm_multipliers", "sd_step_product", "matched_change", "finite_monodromy"]
 
 
 def _sdm_steps(A_i: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -26,14 +26,17 @@ def _sdm_steps(A_i: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.n
 
 def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -> np.ndarray:
     """Monodromy matrix of first-order semi-discretisation (Insperger, Stepan
-    & Turi 2008), ``steps`` steps per period, built as a product of dense
-    step matrices (as the method's authors do).
+    & Turi 2008), ``steps`` steps per period, built as a product of the
+    step matrices (:func:`sd_step_product`).
 
     The state is (x_i, r_{i-1}, ..., r_{i-L}) with r = Jr q the cut
     coordinates; on step i the coefficients are their exact mean over the
     step and r(t - tau_j) is linear between its values at the step's ends,
     each interpolated linearly on the grid.  Helix is not supported (the
-    spectral method takes it).
+    spectral method takes it).  A cutter whose spindle speed varies
+    (:class:`~chatterlab.process.VaryingSpeedMilling`) gives its delays at
+    every step's ends (``delays_at``), its period and its steps' mean
+    coefficients: the same product (:func:`sd_step_product`).
     """
     m = check_count(steps, "steps", 2)
     milling = loop.milling
@@ -47,21 +50,75 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
     rho = Jr.shape[0]
     T = milling.period(rpm)
     dt = T / m
-    taus = milling.delays(rpm) / dt
-    mj = np.floor(taus + 1e-9).astype(int)
-    fj = np.clip(taus - mj, 0.0, None)
-    if np.any(mj < 1):
-        raise InputError(f"sdm: steps must make the step shorter than the shortest delay (steps >= {m * 2})")
-    Lh = int(mj.max()) + 1  # history r_{i-1} .. r_{i-Lh}
-    D = d + rho * Lh
     t = np.arange(m + 1) * dt
+    delays_at = getattr(milling, "delays_at", None)  # a spindle-speed variation's delays tau_j(t)
+    if delays_at is None:
+        lags = lag_end = np.broadcast_to(milling.delays(rpm) / dt, (m, milling.teeth))
+    else:
+        lags, lag_end = delays_at(t[:-1], rpm) / dt, delays_at(t[1:], rpm) / dt
     Hm = milling.directional_mean(t[:-1], t[1:], rpm)  # (m, N, 2, 2)
     Hr = np.einsum("ai,kjab,bl->kjil", Ub, Hm, Ub)
-    Phi = np.eye(D)
-    # r at grid index i - k for k >= 0: k = 0 is Jr q_i (from x), k >= 1 history slot k - 1
     Jq = np.zeros((rho, d))
     Jq[:, :n] = Jr
+    A_steps = np.empty((m, d, d))
+    B_steps = np.zeros((m, milling.teeth, d, rho))
+    for i in range(m):
+        Bsum = np.zeros((d, d))
+        for j in range(milling.teeth):
+            Hj = Hr[i, j]
+            if not np.any(Hj):
+                continue
+            Bq = np.zeros((d, rho))
+            Bq[n:] = a * (W @ Hj)  # force term per unit r, q' rows
+            Bsum[:, :n] += Bq @ Jr
+            B_steps[i, j] = Bq
+        A_steps[i] = A - Bsum
+    return sd_step_product(A_steps, B_steps, Jq, lags, lag_end, dt)
 
+
+def sd_step_product(
+    A_steps: np.ndarray,
+    B_steps: np.ndarray,
+    Jq: np.ndarray,
+    lag_start: np.ndarray,
+    lag_end: np.ndarray,
+    dt: float,
+) -> np.ndarray:
+    """The monodromy of first-order semi-discretisation as the product of its
+    step matrices (dense in their first d rows, a shift below): the one step of the method, for constant delays
+    (:func:`sdm_monodromy`) and for delays that vary along the period
+    (spindle-speed variation, :mod:`chatterlab.frequency._floquet_ssv`).
+
+    On step i (length ``dt``) the state obeys x' = A_i x + sum_j B_ij r(t - tau_j(t))
+    with r = Jq x; the delayed r is linear in time over the step between its
+    values at the step's ends, each interpolated linearly on the grid at
+    ``lag_start[i, j]`` and ``lag_end[i, j]`` steps back (the delay at the
+    step's start and end, in steps; both >= 1).  The state is
+    (x_i, r_{i-1}, ..., r_{i-L}).  Shapes: A_steps (m, d, d), B_steps
+    (m, J, d, rho) (an all-zero B_ij is skipped), Jq (rho, d), lags (m, J).
+
+    References
+    ----------
+    T. Insperger, G. Stepan, Updated semi-discretization method for periodic
+    delay-differential equations with discrete delay, Int. J. Numer. Meth.
+    Engng 61 (2004) 117-141; T. Insperger, G. Stepan, Stability analysis of
+    turning with periodic spindle speed modulation via semidiscretization,
+    J. Vib. Control 10 (2004) 1835-1855.
+    """
+    m, d = A_steps.shape[0], A_steps.shape[1]
+    rho = Jq.shape[0]
+    mj = np.floor(lag_start + 1e-9).astype(int)
+    fj = np.clip(lag_start - mj, 0.0, None)
+    e1 = np.floor(lag_end + 1e-9).astype(int)  # the step's end is one step later: offset lag - 1
+    fe = np.clip(lag_end - e1, 0.0, None)
+    me = e1 - 1
+    if np.any(mj < 1) or np.any(me < 0):
+        raise InputError(f"sdm: steps must make the step shorter than the shortest delay (steps >= {m * 2})")
+    Lh = int(max(mj.max(), me.max())) + 1  # history r_{i-1} .. r_{i-Lh}
+    D = d + rho * Lh
+    Phi = np.eye(D)
+
+    # r at grid index i - k for k >= 0: k = 0 is Jq x_i (from x), k >= 1 history slot k - 1
     def r_cols(k: int) -> tuple[slice, np.ndarray]:
         if k == 0:
             return slice(0, d), Jq
@@ -72,36 +129,31 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
     # caller's to report (finite_monodromy), not a raw numpy warning on the terminal
     with np.errstate(over="ignore", invalid="ignore"):
         for i in range(m):
-            Bsum = np.zeros((d, d))
-            Gs = []
-            for j in range(milling.teeth):
-                Hj = Hr[i, j]
-                if not np.any(Hj):
-                    continue
-                Bq = np.zeros((d, rho))
-                Bq[n:] = a * (W @ Hj)  # force term per unit r, q' rows
-                Bsum[:, :n] += Bq @ Jr
-                Gs.append((j, Bq))
-            P, F1, F2 = _sdm_steps(A - Bsum, dt)
-            G = np.zeros((D, D))
+            P, F1, F2 = _sdm_steps(A_steps[i], dt)
+            G = np.zeros((d, D))
             G[:d, :d] = P
-            for j, Bq in Gs:
+            for j in range(B_steps.shape[1]):
+                Bq = B_steps[i, j]
+                if not np.any(Bq):
+                    continue
                 # r(t_i - tau_j) = (1 - f) r_{i-m_j} + f r_{i-m_j-1}; r(t_{i+1} - tau_j) likewise shifted by one
                 c0 = (F1 - F2 / dt) @ Bq  # weight of u0 (value at the step start)
                 c1 = (F2 / dt) @ Bq  # weight of u1 (value at the step end)
-                for k, wgt in ((mj[j], 1 - fj[j]), (mj[j] + 1, fj[j])):
+                for k, wgt in ((mj[i, j], 1 - fj[i, j]), (mj[i, j] + 1, fj[i, j])):
                     if wgt:
                         sl, R = r_cols(int(k))
                         G[:d, sl] += wgt * c0 @ R
-                for k, wgt in ((mj[j] - 1, 1 - fj[j]), (mj[j], fj[j])):
+                for k, wgt in ((me[i, j], 1 - fe[i, j]), (me[i, j] + 1, fe[i, j])):
                     if wgt:
                         sl, R = r_cols(int(k))
                         G[:d, sl] += wgt * c1 @ R
-            # shift the history: new r_{i} = Jr q_i, r_{i-k} <- r_{i-k+1}
-            G[d : d + rho, :d] = Jq
-            for k in range(1, Lh):
-                G[d + k * rho : d + (k + 1) * rho, d + (k - 1) * rho : d + k * rho] = np.eye(rho)
-            Phi = G @ Phi
+            # shift the history: new r_{i} = Jq x_i, r_{i-k} <- r_{i-k+1}; the step matrix is
+            # dense in its first d rows only, so the product costs O(d D^2), not O(D^3)
+            out = np.empty_like(Phi)
+            out[:d] = G[:d] @ Phi
+            out[d : d + rho] = Jq @ Phi[:d]
+            out[d + rho :] = Phi[d : D - rho]
+            Phi = out
     return Phi
 
 

@@ -2,7 +2,8 @@
 closed loop it makes with the structure (:class:`ClosedLoop`, the value every
 engine consumes); the kinematics (speed <-> delay, the slide's motion) and
 milling (the rotating cutter's periodic directional matrices); process
-damping (the flank's speed-dependent ideal-derivative term, ``_damping``)."""
+damping (the flank's speed-dependent ideal-derivative term, ``_damping``);
+spindle-speed variation (the speed program and its time-varying delay, ``_ssv``)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from ._damping import DampingTerm, LoopDamping, damping_term, milling_damping
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ._loop import TERMS, ClosedLoop, ce_maps, closed_loop, coupling_matrix, delay_for, milling_loop
 from ._milling import Milling
+from ._ssv import SpeedVariation, VaryingSpeedMilling, varying_milling
 
 __all__ = [
     "ClosedLoop",
@@ -27,4 +29,7 @@ __all__ = [
     "LoopDamping",
     "damping_term",
     "milling_damping",
+    "SpeedVariation",
+    "VaryingSpeedMilling",
+    "varying_milling",
 ]

@@ -1,0 +1,570 @@
+"""Floquet multipliers of a cut under spindle-speed variation (SSV).
+
+The equation.  With the spindle on the program Omega(t) of
+:mod:`chatterlab.process._ssv` (Eq. 1 there) the regeneration reads the
+surface one pitch angle back, at the time-varying delay tau_j(t) of its
+Eq. (3).  With the state x = (q, q') of the structure and the width (depth)
+b of the cut the closed loop is
+
+    x'(t) = [A + b A_c(t)] x(t) + b sum_j B_j(t) C x(t - tau_j(t))            (1)
+
+with A the free structure's state matrix and, per unit width,
+
+* turning / shaping (one delay, coefficients constant): A_c the state form
+  of D_P + s D_V, B C that of the delayed term D_O = U V^T
+  (:class:`~chatterlab.process.ClosedLoop`), tau(t) from phi_p = 2 pi;
+* milling: A_c(t) = -[0; W sum_j H_j(t)] C, B_j(t) = [0; W H_j(t)] with
+  H_j the tooth's directional matrix at its angle theta(t) - lag_j and C
+  the tool point (:class:`~chatterlab.process.VaryingSpeedMilling`).
+
+(1) is periodic with the period of the program and the cut together
+(:meth:`SpeedVariation.period_phase`), taken here a whole number of times
+when one period is shorter than the longest delay (a history of one period
+then suffices; the multipliers of the k-fold map are the k-th powers).
+
+Two discretisations, each with its accuracy knob:
+
+``"sdm"``.  First-order semi-discretisation (Insperger & Stepan 2004, J. Vib.
+Control, for turning; Seguy et al. 2010 for milling): ``steps`` steps per
+period, the coefficients their exact mean over a step, the delayed output
+C x(t - tau_j(t)) linear in time over the step between its values at the
+step's ends, each interpolated linearly on the grid at the delay of that
+instant (:func:`~chatterlab.frequency._floquet_sdm.sd_step_product`, the
+one step of the method, which the constant-speed milling engine uses too).
+Its multipliers converge as steps^-2.
+
+``"spectral"``.  Spectral elements marched along the period (Butcher et al.
+2004; Khasawneh & Mann 2011; Lehotzky, Insperger & Stepan 2016): the period
+is cut where a coefficient jumps (a tooth enters or leaves the arc; the
+triangle's corners and their delayed images), each piece into elements no
+longer than the shortest delay and turning the fastest solution by at most
+``span`` radians, on which x is the polynomial of degree p through its
+Chebyshev-Lobatto nodes and (1) is collocated at nodes 1..p.  Because an
+element is shorter than every delay, the delayed argument of its nodes lies
+in elements already solved (or in the last period's history): each element
+is one small linear solve, its nodal states linear maps of the history z
+(the end state and C x at the history's nodes).  The delayed value is the
+element's interpolant at t - tau_j(t) (barycentric).  Where no tooth cuts the
+motion is free and exact, x(t) = e^{A (t - a)} x(a).  The multipliers are the
+eigenvalues of the map z -> z one period later; their error falls
+geometrically with p (algebraically for the triangle, whose delay has
+corners).
+
+References
+----------
+T. Insperger, G. Stepan, Stability analysis of turning with periodic
+spindle speed modulation via semidiscretization, J. Vib. Control 10 (2004)
+1835-1855.
+S. Seguy, T. Insperger, L. Arnaud, G. Dessein, G. Peigne, On the stability
+of high-speed milling with spindle speed variation, Int. J. Adv. Manuf.
+Technol. 48 (2010) 883-895.
+E. A. Butcher, H. Ma, E. Bueler, V. Averina, Z. Szabo, Stability of linear
+time-periodic delay-differential equations via Chebyshev polynomials, Int.
+J. Numer. Meth. Engng 59 (2004) 895-922.
+F. A. Khasawneh, B. P. Mann, A spectral element approach for the stability
+of delay systems, Int. J. Numer. Meth. Engng 87 (2011) 566-592.
+D. Lehotzky, T. Insperger, G. Stepan, Extension of the spectral element
+method for stability analysis of time-periodic delay-differential equations
+with multiple and distributed delays, Commun. Nonlinear Sci. Numer. Simul.
+35 (2016) 177-189.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, Literal
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import InputError, check_count, check_nonneg, check_positive
+from ..process._loop import ClosedLoop
+from ..process._milling import TWO_PI, Milling
+from ..process._ssv import SpeedVariation, VaryingSpeedMilling
+from ._floquet_sdm import finite_monodromy, matched_change, sd_step_product
+from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, _bary, _cheb
+
+__all__ = ["VaryingDelayLoop", "ssv_loop", "ssv_multipliers", "ssv_monodromy", "MAX_HISTORY"]
+
+#: the largest history (multipliers) the spectral discretisation sets up
+MAX_HISTORY = 4000
+
+
+# ============================================================================ the problem (1)
+@dataclass(frozen=True, eq=False)
+class VaryingDelayLoop:
+    """Eq. (1) of the module docstring: a closed loop under a spindle-speed
+    variation at one mean speed, in scaled states (velocities in units of
+    ``ws``; the multipliers do not depend on the scaling).
+
+    Build it with :func:`ssv_loop`.  ``kind`` is ``"milling"`` or the
+    constant process's (``"turning"``, ``"shaping"``, ``"delay"``);
+    ``speed`` the mean speed in the process's unit, ``mean_delay`` the
+    delay at the mean speed (s), ``omega0`` the mean phase rate (rad/s),
+    ``angles`` the pitch angles phi_p (rad), ``period`` the computational
+    period (s) and ``folds`` how many principal periods it holds."""
+
+    loop: ClosedLoop
+    variation: SpeedVariation
+    kind: str
+    speed: float
+    mean_delay: float
+    omega0: float
+    angles: np.ndarray
+    period: float
+    folds: int
+    A: np.ndarray
+    C: np.ndarray
+    ws: float
+    milling: Milling | None = None
+    Ac0: np.ndarray | None = None  # turning: constant A_c per unit width
+    B0: np.ndarray | None = None  # turning: constant B per unit width (d, rho)
+    W: np.ndarray | None = None  # milling: scaled [0; W] (d, rho), with Ub
+    Ub: np.ndarray | None = None
+
+    @property
+    def d(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def rho(self) -> int:
+        return int(self.C.shape[0])
+
+    @property
+    def n_delays(self) -> int:
+        return int(self.angles.size)
+
+    def delays(self, t: Any) -> np.ndarray:
+        """tau_j(t), s, shape t.shape + (J,) (Eq. 3 of :mod:`chatterlab.process._ssv`)."""
+        x = self.omega0 * np.asarray(t, dtype=float)
+        return self.variation.lag(x[..., None], self.angles) / self.omega0
+
+    @cached_property
+    def tau_range(self) -> tuple[float, float]:
+        """(min, max) of the delays over a period, s (sampled densely, widened by 1 %)."""
+        tt = np.linspace(0.0, self.period, 64 * max(self.folds, 1) * 16 + 1)
+        tau = self.delays(tt)
+        return float(tau.min()) * 0.99, float(tau.max()) * 1.01
+
+    # ------------------------------------------------------------------ coefficients
+    def coefficients(self, t: np.ndarray, t_inside: float) -> tuple[np.ndarray, np.ndarray]:
+        """(A_c(t), B_j(t)) per unit width at times ``t`` of the smooth piece holding
+        ``t_inside`` (one-sided at its ends): shapes (k, d, d) and (k, J, d, rho)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.milling is None:
+            assert self.Ac0 is not None and self.B0 is not None
+            k = t.size
+            return np.broadcast_to(self.Ac0, (k,) + self.Ac0.shape), np.broadcast_to(
+                self.B0, (k, 1) + self.B0.shape
+            )
+        H = self.milling.directional_on(t, self.speed, t_inside)  # (k, N, 2, 2)
+        return self._milling_terms(H)
+
+    def mean_coefficients(self, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The exact means of (A_c, B_j) over the steps [t0, t1]: shapes (m, d, d), (m, J, d, rho)."""
+        if self.milling is None:
+            return self.coefficients(np.asarray(t0), 0.0)
+        H = self.milling.directional_mean(t0, t1, self.speed)
+        return self._milling_terms(H)
+
+    def _milling_terms(self, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        assert self.W is not None and self.Ub is not None
+        Hr = np.einsum("ai,kjab,bl->kjil", self.Ub, H, self.Ub)
+        B = np.einsum("dr,kjrs->kjds", self.W, Hr)  # (k, N, d, rho)
+        Ac = -np.einsum("kjds,se->kde", B, self.C)
+        return Ac, B
+
+    def breakpoints(self) -> np.ndarray:
+        """Times in [0, period) where a coefficient jumps or the delay has a corner, s."""
+        T = self.period
+        pts: list[np.ndarray] = [np.zeros(1)]
+        var, w0, X = self.variation, self.omega0, self.omega0 * T
+        if self.milling is not None:
+            tb = self.milling.breakpoints(self.speed)
+            Tp = self.milling.period(self.speed)
+            tb = (tb[None, :] + Tp * np.arange(self.folds)[:, None]).ravel()
+            pts.append(tb)
+            if not self.milling.uniform:
+                # the breakpoints' delayed images, where t - tau_j(t) is one (x'' jumps there)
+                th = var.phase(w0 * tb)
+                pts.append(np.mod(var.inverse(th[:, None] + self.angles[None, :]), X).ravel() / w0)
+        if var.shape == "triangle" and not var.is_constant:
+            # the speed's corners at RVF x = pi/2 + k pi, and where the delayed argument meets one
+            F = var.frequency
+            u = 0.5 * math.pi + math.pi * np.arange(0, math.ceil(F * X / math.pi) + 1)
+            xc = u / F
+            xc = xc[xc < X]
+            th = var.phase(xc)
+            pts.append(xc / w0)
+            pts.extend(np.mod(var.inverse(th + a), X) / w0 for a in self.angles)
+        t = np.mod(np.concatenate(pts), T)
+        t = np.unique(t)
+        t = t[np.r_[True, np.diff(t) > 1e-10 * T]]
+        if t.size > 1 and T - t[-1] <= 1e-10 * T:
+            t = t[:-1]
+        return t
+
+    def pieces(self) -> list[tuple[float, float, bool]]:
+        """(start, end, cut) of the smooth pieces of one period from its first breakpoint."""
+        tb = self.breakpoints()
+        ends = np.r_[tb, tb[0] + self.period]
+        out = []
+        for lo, hi in zip(ends[:-1], ends[1:], strict=True):
+            if self.milling is None:
+                cut = True
+            else:
+                cut = bool(np.any(self.milling.directional(0.5 * (lo + hi), self.speed) != 0.0))
+            out.append((float(lo), float(hi), cut))
+        return out
+
+    def omega_scale(self, width: float) -> float:
+        """The fastest solution frequency at width b, rad/s: the structure's highest pole
+        and that of the loop with the cut's mean current-state term."""
+        tt = np.linspace(0.0, self.period, 129)[:-1]
+        Ac, _ = (
+            self.coefficients(tt, 0.0)
+            if self.milling is None
+            else self.mean_coefficients(tt, tt + 1e-3 * self.period)
+        )
+        ev = np.linalg.eigvals(self.A + width * np.mean(Ac, axis=0))
+        return max(float(np.abs(ev).max()), float(self.loop.omega_max), 1.0 / self.period)
+
+
+def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = None) -> VaryingDelayLoop:
+    """Eq. (1) for ``loop`` under ``variation`` at the mean ``speed``.
+
+    Parameters
+    ----------
+    loop : ClosedLoop
+        A milling loop (:func:`~chatterlab.process.milling_loop`; ``speed`` in rpm
+        is then required) or a constant one with its delay at the mean speed
+        (:func:`~chatterlab.process.closed_loop`: turning, shaping; ``speed``
+        optional, in the process's unit, for the record).
+    variation : SpeedVariation
+        The program (RVA, RVF, shape).
+    speed : float, optional
+        The mean speed.
+
+    Returns
+    -------
+    VaryingDelayLoop
+    """
+    if not isinstance(variation, SpeedVariation):
+        raise InputError(f"variation must be a SpeedVariation (got {type(variation).__name__})")
+    if loop.actuators is not None:
+        raise InputError(
+            "spindle-speed variation with active dampers ([[actuator]]) is not modelled: remove the"
+            " actuators or analyse them at constant speed"
+        )
+    if loop.damping is not None:
+        raise InputError(
+            "spindle-speed variation with process damping ([process_damping]) is not modelled (its gain"
+            " follows the varying cutting speed): analyse one of the two at a time"
+        )
+    struct = loop.structure
+    n = struct.n
+    A_raw = struct.state_matrix
+    ws = max(float(loop.omega_max), 1e-300)
+    sc = np.r_[np.ones(n), np.full(n, ws)]
+    A = A_raw * sc[None, :] / sc[:, None]
+    Minv = np.linalg.inv(struct.M)
+    if loop.process is not None:
+        base = loop.process
+        if not isinstance(base, Milling):
+            raise InputError(f"ssv: unknown periodic process {type(base).__name__}")
+        if base.helix > 0:
+            raise InputError("spindle-speed variation with a helix angle is not modelled: give helix_deg = 0")
+        if speed is None:
+            raise InputError("ssv: a milling loop needs its mean spindle speed (speed, rpm)")
+        rpm = check_positive(speed, "spindle speed", "rpm")
+        if isinstance(base, VaryingSpeedMilling):
+            raise InputError("ssv: give the loop at constant speed; the variation is its own argument")
+        fields = {f: getattr(base, f) for f in ("teeth", "diameter", "Kt", "Kn", "entry", "exit", "pitch")}
+        mil = VaryingSpeedMilling(**fields, Kte=base.Kte, Kne=base.Kne, rpm=base.rpm, variation=variation)
+        Ub, Jr, W = loop.cut_basis
+        rho = Jr.shape[0]
+        C = np.zeros((rho, 2 * n))
+        C[:, :n] = Jr
+        Wd = np.zeros((2 * n, rho))
+        Wd[n:] = W
+        w0 = Milling.omega(rpm)
+        T = mil.period(rpm)
+        angles = mil.pitches
+        tau_max = float(np.max(angles)) / (w0 * (1.0 - variation.amplitude))
+        folds = max(1, math.ceil(tau_max / T * (1 + 1e-12)))
+        return VaryingDelayLoop(
+            loop, variation, "milling", rpm, float(np.max(angles)) / w0, w0, angles, folds * T, folds,
+            A, C * sc[None, :], ws, milling=mil, W=Wd / sc[:, None], Ub=Ub,
+        )  # fmt: skip
+    if loop.delay is None or not np.any(loop.Dl_O):
+        raise InputError(
+            "ssv: the loop has no delayed (regenerative) term, so a speed variation changes nothing"
+        )
+    b = float(loop.width)
+    T0 = float(loop.delay)
+    Ac = np.zeros((2 * n, 2 * n))
+    Ac[n:, :n] = Minv @ loop.DP / b
+    Ac[n:, n:] = Minv @ loop.DV / b
+    U, V = loop.U, loop.V  # D_O = U V^T at width b
+    rho = U.shape[1]
+    B0 = np.zeros((2 * n, rho))
+    B0[n:] = Minv @ U / b
+    C = np.zeros((rho, 2 * n))
+    C[:, :n] = V.T
+    kind = "delay"
+    if loop.frozen is not None and loop.frozen.model.process is not None:
+        kind = str(loop.frozen.model.process.kind)
+    w0 = TWO_PI / T0
+    Tv = variation.period_phase(None) / w0
+    folds = max(1, math.ceil(T0 / (1.0 - variation.amplitude) / Tv * (1 + 1e-12)))
+    spd = float(speed) if speed is not None else float("nan")
+    return VaryingDelayLoop(
+        loop, variation, kind, spd, T0, w0, np.array([TWO_PI]), folds * Tv, folds,
+        A, C * sc[None, :], ws, Ac0=Ac * sc[None, :] / sc[:, None], B0=B0 / sc[:, None],
+    )  # fmt: skip
+
+
+# ============================================================================ semi-discretisation
+def sd_monodromy_ssv(sys: VaryingDelayLoop, width: float, steps: int) -> np.ndarray:
+    """The monodromy of first-order semi-discretisation with ``steps`` steps per period
+    (module docstring; :func:`~chatterlab.frequency._floquet_sdm.sd_step_product`)."""
+    m = check_count(steps, "steps", 2)
+    dt = sys.period / m
+    t = np.arange(m + 1) * dt
+    Ac, B = sys.mean_coefficients(t[:-1], t[1:])
+    A_steps = sys.A[None] + width * Ac
+    B_steps = width * B
+    return sd_step_product(A_steps, B_steps, sys.C, sys.delays(t[:-1]) / dt, sys.delays(t[1:]) / dt, dt)
+
+
+def sd_steps_for(sys: VaryingDelayLoop, per_delay: int) -> int:
+    """Steps per period giving ``per_delay`` steps over the mean delay."""
+    return max(2, math.ceil(per_delay * sys.period / sys.mean_delay))
+
+
+# ============================================================================ spectral elements
+@dataclass(frozen=True)
+class _Element:
+    a: float
+    b: float
+    p: int  # degree (0: a free piece, solved exactly)
+
+
+def ssv_mesh(sys: VaryingDelayLoop, width: float, degree: int, span: float) -> list[_Element]:
+    """The elements of one period (module docstring): every cutting piece split into
+    elements no longer than the shortest delay and turning the solution by at most
+    ``span`` radians at the loop's fastest frequency."""
+    om = sys.omega_scale(width)
+    tau_min = sys.tau_range[0]
+    out = []
+    for lo, hi, cut in sys.pieces():
+        L = hi - lo
+        if not cut:
+            out.append(_Element(lo, hi, 0))
+            continue
+        k = max(1, math.ceil(L / tau_min), math.ceil(om * L / span))
+        e = lo + L * np.arange(k + 1) / k
+        out.extend(_Element(float(a), float(b), int(degree)) for a, b in zip(e[:-1], e[1:], strict=True))
+    return out
+
+
+def ssv_monodromy(
+    sys: VaryingDelayLoop, width: float, degree: int = DEGREE, span: float = ELEMENT_SPAN
+) -> np.ndarray:
+    """The spectral-element monodromy of (1) at width ``width`` (module docstring):
+    the map of the history z = (x at the period's end, C x at the history's nodes)."""
+    b = check_nonneg(width, "width of cut", "m")
+    p = check_count(degree, "degree", 2)
+    els = ssv_mesh(sys, b, p, span)
+    T = sys.period
+    t0 = els[0].a
+    d, rho = sys.d, sys.rho
+    tau_max = sys.tau_range[1]
+    # the history: the elements reaching into [t0 + T - tau_max, t0 + T]
+    hist = [i for i, e in enumerate(els) if e.b > t0 + T - tau_max - 1e-12 * T]
+    cols: dict[int, int] = {}  # element -> first column of its block in z
+    nz = d
+    for i in hist:
+        cols[i] = nz
+        nz += d if els[i].p == 0 else (els[i].p + 1) * rho
+    if nz > MAX_HISTORY:
+        raise InputError(
+            f"ssv spectral: a history of {nz} values (the delay holds {len(hist)} elements of degree {p}); at"
+            f" most {MAX_HISTORY}: use method='sdm', a lower degree, or a higher speed"
+        )
+    ends = np.array([e.b for e in els])
+    expm_cache: dict[float, np.ndarray] = {}
+
+    def expA(g: float) -> np.ndarray:
+        key = round(g / T, 13)
+        if key not in expm_cache:
+            expm_cache[key] = sla.expm(sys.A * g) if g > 0 else np.eye(d)
+        return expm_cache[key]
+
+    # the period's nodal values as maps of z: R[i] (p+1, rho, nz) for a cut element, X0[i] (d, nz)
+    # the state entering element i
+    R: dict[int, np.ndarray] = {}
+    X0: dict[int, np.ndarray] = {}
+
+    def r_at(td: float, current: bool) -> np.ndarray:
+        """C x(td) as a (rho, nz) map of z; ``current``: td in this period, else in the history."""
+        tol = 1e-12 * T
+        i = int(np.searchsorted(ends, td - tol, side="left"))
+        i = min(i, len(els) - 1)
+        e = els[i]
+        if e.p == 0:
+            g = td - e.a
+            if current:
+                return sys.C @ expA(g) @ X0[i]
+            out = np.zeros((rho, nz))
+            out[:, cols[i] : cols[i] + d] = sys.C @ expA(g)
+            return out
+        nodes, _, bw = _cheb(e.p)
+        u = min(max((td - e.a) / (e.b - e.a), 0.0), 1.0)
+        wts = _bary(nodes, bw, u)
+        if current:
+            return np.einsum("l,lrz->rz", wts, R[i])
+        out = np.zeros((rho, nz))
+        c = cols[i]
+        for l_ in np.nonzero(wts)[0]:
+            out[:, c + l_ * rho : c + (l_ + 1) * rho] += wts[l_] * np.eye(rho)
+        return out
+
+    x = np.zeros((d, nz))
+    x[:, :d] = np.eye(d)  # the state at t0: the history's end state
+    I_d = np.eye(d)
+    for i, e in enumerate(els):
+        X0[i] = x
+        L = e.b - e.a
+        if e.p == 0:
+            x = expA(L) @ x
+            continue
+        nodes, Dm, _ = _cheb(e.p)
+        tk = e.a + L * nodes
+        Ac, Bj = sys.coefficients(tk[1:], 0.5 * (e.a + e.b))
+        tau = sys.delays(tk[1:])  # (p, J)
+        pp = e.p
+        blk = np.kron(Dm[1:, 1:] / L, I_d)
+        rhs = -np.kron(Dm[1:, :1] / L, I_d) @ x
+        for k in range(pp):
+            blk[k * d : (k + 1) * d, k * d : (k + 1) * d] -= sys.A + b * Ac[k]
+            for j in range(Bj.shape[1]):
+                Bk = Bj[k, j]
+                if not np.any(Bk):
+                    continue
+                td = tk[k + 1] - tau[k, j]
+                if td > e.a + 1e-9 * L:
+                    raise AssertionError("ssv spectral: an element longer than the delay")  # pragma: no cover
+                cur = td >= t0 - 1e-12 * T
+                rd = r_at(td if cur else td + T, cur)
+                rhs[k * d : (k + 1) * d] += b * (Bk @ rd)
+        Xn = np.linalg.solve(blk, rhs).reshape(pp, d, nz)
+        Xall = np.concatenate([x[None], Xn], axis=0)
+        R[i] = np.einsum("rd,ldz->lrz", sys.C, Xall)
+        x = Xn[-1]
+    # z one period later
+    Mz = np.zeros((nz, nz))
+    Mz[:d] = x
+    for i in hist:
+        c = cols[i]
+        if els[i].p == 0:
+            Mz[c : c + d] = X0[i]
+        else:
+            Mz[c : c + (els[i].p + 1) * rho] = R[i].reshape(-1, nz)
+    return Mz
+
+
+# ============================================================================ the entry
+def _ranked(mu: np.ndarray) -> np.ndarray:
+    mu = mu[np.abs(mu) > 1e-300]
+    r = np.abs(mu)
+    key = np.round(r / max(float(r.max(initial=0.0)), 1e-300), 12)
+    return mu[np.lexsort((-mu.imag, -key))]
+
+
+def ssv_multipliers(
+    loop: ClosedLoop,
+    speed: float | None,
+    width: float,
+    variation: SpeedVariation,
+    *,
+    method: Literal["spectral", "sdm"] = "spectral",
+    degree: int = DEGREE,
+    span: float = ELEMENT_SPAN,
+    steps: int | None = None,
+    check: bool = True,
+) -> Any:
+    """Floquet multipliers of a cut under spindle-speed variation at one mean speed
+    and width (module docstring).
+
+    Parameters
+    ----------
+    loop : ClosedLoop
+        Milling (:func:`~chatterlab.process.milling_loop`) or turning/shaping at its
+        mean delay (:func:`~chatterlab.process.closed_loop`).
+    speed : float or None
+        Mean speed: rpm for milling (required); turning/shaping: for the record.
+    width : float
+        Width of cut b (milling: axial depth a_p), m.
+    variation : SpeedVariation
+        The speed program.
+    method : {"spectral", "sdm"}
+        Spectral elements (reference) or first-order semi-discretisation.
+    degree, span : int, float
+        Spectral: polynomial degree; radians the fastest solution turns per element.
+    steps : int, optional
+        SDM: steps per period (default: 40 per mean delay).
+    check : bool
+        Also at a higher resolution (degree + CHECK_DEGREE; 2 x steps): the change of
+        the critical multiplier is ``error``.
+
+    Returns
+    -------
+    Multipliers
+        ``period`` is the computational period (``meta["folds"]`` principal periods);
+        ``rpm`` the mean speed, ``depth`` the width.
+    """
+    from ._floquet import Multipliers, chatter_frequency, classify
+
+    t_start = time.perf_counter()
+    b = check_nonneg(width, "width of cut", "m")
+    sys = ssv_loop(loop, variation, speed)
+    if method == "spectral":
+
+        def mono(up: int) -> np.ndarray:
+            return finite_monodromy(ssv_monodromy(sys, b, degree + up, span), sys.speed, b)
+
+        mu = _ranked(np.linalg.eigvals(mono(0)))
+        err = matched_change(complex(mu[0]), np.linalg.eigvals(mono(CHECK_DEGREE))) if check else float("nan")
+        res = f"degree {degree}, span {span:g} rad"
+    elif method == "sdm":
+        m = sd_steps_for(sys, 40) if steps is None else check_count(steps, "steps", 2)
+
+        def mono_sd(k: int) -> np.ndarray:
+            return finite_monodromy(sd_monodromy_ssv(sys, b, k), sys.speed, b)
+
+        mu = _ranked(np.linalg.eigvals(mono_sd(m)))
+        err = matched_change(complex(mu[0]), np.linalg.eigvals(mono_sd(2 * m))) if check else float("nan")
+        res = f"{m} steps"
+    else:
+        raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+    c = complex(mu[0])
+    return Multipliers(
+        mu=mu,
+        critical=c,
+        kind=classify(c),
+        spectral_radius=abs(c),
+        stable=bool(abs(c) < 1.0),
+        error=err,
+        frequency_hz=chatter_frequency(c, sys.period, loop),
+        method=method,
+        resolution=res + f"; {variation.describe()}",
+        period=sys.period,
+        rpm=float(sys.speed),
+        depth=b,
+        elapsed=time.perf_counter() - t_start,
+        meta={"folds": float(sys.folds), "rva": variation.amplitude, "rvf": variation.frequency},
+    )
