@@ -149,6 +149,13 @@ def split_path(path: str) -> tuple[str, tuple[int, ...]]:
     return m.group(1), tuple(int(i) for i in _INDEX.findall(m.group(2)))
 
 
+#: what a path that addresses no field is told (the model's one wording, for --set, sweeps and [uncertainty])
+NOT_A_PATH = (
+    "is not a parameter path: write KIND.ID.FIELD (e.g. coupling.cut.Kf, mode.y1.damping_ratio),"
+    " TABLE.FIELD (e.g. process.rpm), or an entry of a list field, coupling.cut.DO[1][1]"
+)
+
+
 def _lookup(raw: Mapping[str, Any], base: str) -> tuple[bool, Any, str]:
     """(found, value, where) of a field path in the parsed file; ``where``
     says what is missing when not found."""
@@ -172,7 +179,7 @@ def _lookup(raw: Mapping[str, Any], base: str) -> tuple[bool, Any, str]:
             None,
             "[matrices] entries are not parameters (give the model as [[mode]] tables, or vary a factor)",
         )
-    raise ValueError(base)
+    return False, None, NOT_A_PATH
 
 
 def _resolved(
@@ -216,7 +223,7 @@ def parameter_value(model: Any, path: str) -> float:
         found, value = _index(value, idx)
         why = f"{base} has no entry {''.join(f'[{i}]' for i in idx)}"
     if not found:
-        raise ModelError(f"parameter {path!r}: {why}", source=model.source)
+        raise ModelError(f"parameter {path!r}{' ' if why == NOT_A_PATH else ': '}{why}", source=model.source)
     if not _number(value):
         raise ModelError(f"parameter {path!r} is not a number (got {value!r})", source=model.source)
     return float(value)
@@ -327,12 +334,9 @@ def _nominal(
         base, idx = split_path(path)
         found, value, why = _resolved(raw, variant, overrides, base)
     except ValueError:
-        raise _err(
-            src,
-            entry,
-            "is not a parameter path: write KIND.ID.FIELD (e.g. coupling.cut.Kf, mode.y1.damping_ratio),"
-            " TABLE.FIELD (e.g. process.rpm), or an entry of a list field, coupling.cut.DO[1][1]",
-        ) from None
+        raise _err(src, entry, NOT_A_PATH) from None
+    if why == NOT_A_PATH:
+        raise _err(src, entry, NOT_A_PATH)
     if not found:
         if "has no field" in why and not idx:
             return None  # a field the file leaves at its default: the entry must give its location

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import InputError, check_delay, check_position, check_speed, check_width
 from ..model._items import Model
+from ..model._uncertainty import parameter_value
 
 __all__ = ["AtlasTask", "QuantityTask", "QUANTITIES", "KIND_CODES", "model_fingerprint", "axis_name"]
 
@@ -251,7 +252,7 @@ class QuantityTask:
                 for v in (given[0], given[-1]):
                     self.model.with_parameters({nm: v})
             else:
-                params[nm] = _current_value(self.model, nm)
+                params[nm] = parameter_value(self.model, nm)
         if params:
             self.model.with_parameters(params)
         if (
@@ -366,29 +367,3 @@ class QuantityTask:
             "chatter_frequency": float(ml.chatter_hz[0]),
             "kind": KIND_CODES.get(str(ml.kind[0]), -1.0),
         }
-
-
-def _current_value(model: Model, path: str) -> Any:
-    import json
-
-    raw = json.loads(model.raw)
-    parts = path.split(".")
-    if len(parts) == 3:
-        for it in raw.get(parts[0], []) if isinstance(raw.get(parts[0]), list) else []:
-            if isinstance(it, dict) and it.get("id") == parts[1]:
-                if parts[2] not in it:
-                    raise InputError(
-                        f"parameter path '{path}': [[{parts[0]}]] '{parts[1]}' has no field '{parts[2]}'"
-                        f" (fields: {', '.join(k for k in it if k != 'id')})"
-                    )
-                return it[parts[2]]
-        raise InputError(
-            f"parameter path '{path}' does not exist in {model.source}: no [[{parts[0]}]] with id '{parts[1]}'"
-        )
-    if len(parts) == 2 and isinstance(raw.get(parts[0]), dict):
-        if parts[1] in raw[parts[0]]:
-            return raw[parts[0]][parts[1]]
-    raise InputError(
-        f"parameter path '{path}' does not exist in {model.source}: write KIND.ID.FIELD (e.g."
-        " spring.leg3-foundation.c2) or TABLE.FIELD (e.g. movable.position)"
-    )
