@@ -16,7 +16,7 @@ from ._floquet import (
     multipliers,
     sdm_monodromy,
 )
-from ._floquet_ssv import VaryingDelayLoop, ssv_loop, ssv_monodromy, ssv_multipliers
+from ._floquet_ssv import ssv_monodromy, ssv_multipliers
 from ._frf import (
     FRF,
     ComplexModes,
@@ -77,9 +77,7 @@ __all__ = [
     "SpectralMonodromy",
     "sdm_monodromy",
     "ssv_multipliers",
-    "ssv_loop",
     "ssv_monodromy",
-    "VaryingDelayLoop",
     "classify",
     "chatter_frequency",
     "CHECK_DEGREE",

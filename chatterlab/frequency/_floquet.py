@@ -339,7 +339,6 @@ def multipliers(
     steps: int = 40,
     check: bool = True,
     split: float | Literal["auto"] | None = "auto",
-    variation: Any = None,
 ) -> Multipliers:
     """Floquet multipliers of milling at spindle speed ``rpm`` and depth ``depth`` (a_p, m).
 
@@ -369,11 +368,6 @@ def multipliers(
         quasi-statically (:func:`split_structure`); "auto": where the whole
         structure's discretisation would exceed 200 multipliers
         (:func:`needs_split`); None: never.
-    variation : SpeedVariation, optional
-        A spindle-speed variation about ``rpm`` (:class:`~chatterlab.process.SpeedVariation`):
-        the multipliers of the varying-speed cut over its period
-        (:func:`chatterlab.frequency.ssv_multipliers`; ``steps`` per that period,
-        default 40 per mean delay; ``split`` not used).
 
     Returns
     -------
@@ -381,15 +375,9 @@ def multipliers(
 
     References
     ----------
-    See the module docstring.
+    See the module docstring.  Under a spindle-speed variation the cut has
+    its own period and delays: :func:`chatterlab.frequency.ssv_multipliers`.
     """
-    if variation is not None:  # spindle-speed variation: its own period and engines
-        from ._floquet_ssv import ssv_multipliers
-
-        return ssv_multipliers(
-            loop, rpm, depth, variation, method=method, degree=degree, check=check,
-            steps=None if steps == 40 else steps,  # the default: 40 per mean delay, not per long period
-        )  # fmt: skip
     t0 = time.perf_counter()
     a = check_nonneg(depth, "depth of cut a_p", "m")
     milling = loop.milling

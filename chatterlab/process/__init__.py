@@ -11,7 +11,7 @@ from ._damping import DampingTerm, LoopDamping, damping_term, milling_damping
 from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ._loop import TERMS, ClosedLoop, ce_maps, closed_loop, coupling_matrix, delay_for, milling_loop
 from ._milling import Milling
-from ._ssv import SpeedVariation, VaryingSpeedMilling, varying_milling
+from ._ssv import SpeedVariation, VaryingDelayLoop, VaryingSpeedMilling, ssv_loop, varying_milling
 
 __all__ = [
     "ClosedLoop",
@@ -32,4 +32,6 @@ __all__ = [
     "SpeedVariation",
     "VaryingSpeedMilling",
     "varying_milling",
+    "VaryingDelayLoop",
+    "ssv_loop",
 ]

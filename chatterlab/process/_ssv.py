@@ -76,11 +76,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, check_finite
+from ..errors import InputError, check_finite, check_positive
+from ._loop import ClosedLoop
 from ._milling import TWO_PI, Milling
 
 __all__ = [
@@ -91,6 +93,8 @@ __all__ = [
     "FREQUENCY_RANGE",
     "MAX_PASSES",
     "varying_milling",
+    "VaryingDelayLoop",
+    "ssv_loop",
 ]
 
 #: the wave shapes S of Eq. (1)
@@ -410,3 +414,238 @@ def varying_milling(milling: Milling, variation: SpeedVariation | None) -> Milli
         rpm=milling.rpm,
         variation=variation,
     )
+
+
+# ============================================================================ the closed loop under SSV
+@dataclass(frozen=True, eq=False)
+class VaryingDelayLoop:
+    """Eq. (1) of :mod:`chatterlab.frequency._floquet_ssv`: a closed loop under a spindle-speed
+    variation at one mean speed, in scaled states (velocities in units of
+    ``ws``; the multipliers do not depend on the scaling).
+
+    Build it with :func:`ssv_loop`.  ``kind`` is ``"milling"`` or the
+    constant process's (``"turning"``, ``"shaping"``, ``"delay"``);
+    ``speed`` the mean speed in the process's unit, ``mean_delay`` the
+    delay at the mean speed (s), ``omega0`` the mean phase rate (rad/s),
+    ``angles`` the pitch angles phi_p (rad), ``period`` the computational
+    period (s) and ``folds`` how many principal periods it holds."""
+
+    loop: ClosedLoop
+    variation: SpeedVariation
+    kind: str
+    speed: float
+    mean_delay: float
+    omega0: float
+    angles: np.ndarray
+    period: float
+    folds: int
+    A: np.ndarray
+    C: np.ndarray
+    ws: float
+    milling: Milling | None = None
+    Ac0: np.ndarray | None = None  # turning: constant A_c per unit width
+    B0: np.ndarray | None = None  # turning: constant B per unit width (d, rho)
+    W: np.ndarray | None = None  # milling: scaled [0; W] (d, rho), with Ub
+    Ub: np.ndarray | None = None
+
+    @property
+    def d(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def rho(self) -> int:
+        return int(self.C.shape[0])
+
+    @property
+    def n_delays(self) -> int:
+        return int(self.angles.size)
+
+    def delays(self, t: Any) -> np.ndarray:
+        """tau_j(t), s, shape t.shape + (J,) (Eq. 3 of :mod:`chatterlab.process._ssv`)."""
+        x = self.omega0 * np.asarray(t, dtype=float)
+        return self.variation.lag(x[..., None], self.angles) / self.omega0
+
+    @cached_property
+    def tau_range(self) -> tuple[float, float]:
+        """(min, max) of the delays over a period, s (sampled densely, widened by 1 %)."""
+        tt = np.linspace(0.0, self.period, 64 * max(self.folds, 1) * 16 + 1)
+        tau = self.delays(tt)
+        return float(tau.min()) * 0.99, float(tau.max()) * 1.01
+
+    # ------------------------------------------------------------------ coefficients
+    def coefficients(self, t: np.ndarray, t_inside: float) -> tuple[np.ndarray, np.ndarray]:
+        """(A_c(t), B_j(t)) per unit width at times ``t`` of the smooth piece holding
+        ``t_inside`` (one-sided at its ends): shapes (k, d, d) and (k, J, d, rho)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.milling is None:
+            assert self.Ac0 is not None and self.B0 is not None
+            k = t.size
+            return np.broadcast_to(self.Ac0, (k,) + self.Ac0.shape), np.broadcast_to(
+                self.B0, (k, 1) + self.B0.shape
+            )
+        H = self.milling.directional_on(t, self.speed, t_inside)  # (k, N, 2, 2)
+        return self._milling_terms(H)
+
+    def mean_coefficients(self, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The exact means of (A_c, B_j) over the steps [t0, t1]: shapes (m, d, d), (m, J, d, rho)."""
+        if self.milling is None:
+            return self.coefficients(np.asarray(t0), 0.0)
+        H = self.milling.directional_mean(t0, t1, self.speed)
+        return self._milling_terms(H)
+
+    def _milling_terms(self, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        assert self.W is not None and self.Ub is not None
+        Hr = np.einsum("ai,kjab,bl->kjil", self.Ub, H, self.Ub)
+        B = np.einsum("dr,kjrs->kjds", self.W, Hr)  # (k, N, d, rho)
+        Ac = -np.einsum("kjds,se->kde", B, self.C)
+        return Ac, B
+
+    def breakpoints(self) -> np.ndarray:
+        """Times in [0, period) where a coefficient jumps or the delay has a corner, s."""
+        T = self.period
+        pts: list[np.ndarray] = [np.zeros(1)]
+        var, w0, X = self.variation, self.omega0, self.omega0 * T
+        if self.milling is not None:
+            tb = self.milling.breakpoints(self.speed)
+            Tp = self.milling.period(self.speed)
+            tb = (tb[None, :] + Tp * np.arange(self.folds)[:, None]).ravel()
+            pts.append(tb)
+            if not self.milling.uniform:
+                # the breakpoints' delayed images, where t - tau_j(t) is one (x'' jumps there)
+                th = var.phase(w0 * tb)
+                pts.append(np.mod(var.inverse(th[:, None] + self.angles[None, :]), X).ravel() / w0)
+        if var.shape == "triangle" and not var.is_constant:
+            # the speed's corners at RVF x = pi/2 + k pi, and where the delayed argument meets one
+            F = var.frequency
+            u = 0.5 * math.pi + math.pi * np.arange(0, math.ceil(F * X / math.pi) + 1)
+            xc = u / F
+            xc = xc[xc < X]
+            th = var.phase(xc)
+            pts.append(xc / w0)
+            pts.extend(np.mod(var.inverse(th + a), X) / w0 for a in self.angles)
+        t = np.mod(np.concatenate(pts), T)
+        t = np.unique(t)
+        t = t[np.r_[True, np.diff(t) > 1e-10 * T]]
+        if t.size > 1 and T - t[-1] <= 1e-10 * T:
+            t = t[:-1]
+        return t
+
+    def pieces(self) -> list[tuple[float, float, bool]]:
+        """(start, end, cut) of the smooth pieces of one period from its first breakpoint."""
+        tb = self.breakpoints()
+        ends = np.r_[tb, tb[0] + self.period]
+        out = []
+        for lo, hi in zip(ends[:-1], ends[1:], strict=True):
+            if self.milling is None:
+                cut = True
+            else:
+                cut = bool(np.any(self.milling.directional(0.5 * (lo + hi), self.speed) != 0.0))
+            out.append((float(lo), float(hi), cut))
+        return out
+
+    def omega_scale(self, width: float) -> float:
+        """The fastest solution frequency at width b, rad/s: the structure's highest pole
+        and that of the loop with the cut's mean current-state term."""
+        tt = np.linspace(0.0, self.period, 129)[:-1]
+        Ac, _ = (
+            self.coefficients(tt, 0.0)
+            if self.milling is None
+            else self.mean_coefficients(tt, tt + 1e-3 * self.period)
+        )
+        ev = np.linalg.eigvals(self.A + width * np.mean(Ac, axis=0))
+        return max(float(np.abs(ev).max()), float(self.loop.omega_max), 1.0 / self.period)
+
+
+def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = None) -> VaryingDelayLoop:
+    """Eq. (1) of :mod:`chatterlab.frequency._floquet_ssv` for ``loop`` under
+    ``variation`` at the mean ``speed``.
+
+    Parameters
+    ----------
+    loop : ClosedLoop
+        A milling loop (:func:`~chatterlab.process.milling_loop`; ``speed`` in rpm
+        is then required) or a constant one with its delay at the mean speed
+        (:func:`~chatterlab.process.closed_loop`: turning, shaping; ``speed``
+        optional, in the process's unit, for the record).
+    variation : SpeedVariation
+        The program (RVA, RVF, shape).
+    speed : float, optional
+        The mean speed.
+
+    Returns
+    -------
+    VaryingDelayLoop
+    """
+    if not isinstance(variation, SpeedVariation):
+        raise InputError(f"variation must be a SpeedVariation (got {type(variation).__name__})")
+    if loop.actuators is not None:
+        raise InputError(
+            "spindle-speed variation with active dampers ([[actuator]]) is not modelled: remove the"
+            " actuators or analyse them at constant speed"
+        )
+    if loop.damping is not None:
+        raise InputError(
+            "spindle-speed variation with process damping ([process_damping]) is not modelled (its gain"
+            " follows the varying cutting speed): analyse one of the two at a time"
+        )
+    struct = loop.structure
+    n = struct.n
+    A_raw = struct.state_matrix
+    ws = max(float(loop.omega_max), 1e-300)
+    sc = np.r_[np.ones(n), np.full(n, ws)]
+    A = A_raw * sc[None, :] / sc[:, None]
+    Minv = np.linalg.inv(struct.M)
+    if loop.process is not None:
+        base = loop.process
+        if not isinstance(base, Milling):
+            raise InputError(f"ssv: unknown periodic process {type(base).__name__}")
+        if base.helix > 0:
+            raise InputError("spindle-speed variation with a helix angle is not modelled: give helix_deg = 0")
+        if speed is None:
+            raise InputError("ssv: a milling loop needs its mean spindle speed (speed, rpm)")
+        rpm = check_positive(speed, "spindle speed", "rpm")
+        if isinstance(base, VaryingSpeedMilling):
+            raise InputError("ssv: give the loop at constant speed; the variation is its own argument")
+        fields = {f: getattr(base, f) for f in ("teeth", "diameter", "Kt", "Kn", "entry", "exit", "pitch")}
+        mil = VaryingSpeedMilling(**fields, Kte=base.Kte, Kne=base.Kne, rpm=base.rpm, variation=variation)
+        Ub, Jr, W = loop.cut_basis
+        rho = Jr.shape[0]
+        C = np.zeros((rho, 2 * n))
+        C[:, :n] = Jr
+        Wd = np.zeros((2 * n, rho))
+        Wd[n:] = W
+        w0 = Milling.omega(rpm)
+        T = mil.period(rpm)
+        angles = mil.pitches
+        tau_max = float(np.max(angles)) / (w0 * (1.0 - variation.amplitude))
+        folds = max(1, math.ceil(tau_max / T * (1 + 1e-12)))
+        return VaryingDelayLoop(
+            loop, variation, "milling", rpm, float(np.max(angles)) / w0, w0, angles, folds * T, folds,
+            A, C * sc[None, :], ws, milling=mil, W=Wd / sc[:, None], Ub=Ub,
+        )  # fmt: skip
+    if loop.delay is None or not np.any(loop.Dl_O):
+        raise InputError(
+            "ssv: the loop has no delayed (regenerative) term, so a speed variation changes nothing"
+        )
+    b = float(loop.width)
+    T0 = float(loop.delay)
+    Ac = np.zeros((2 * n, 2 * n))
+    Ac[n:, :n] = Minv @ loop.DP / b
+    Ac[n:, n:] = Minv @ loop.DV / b
+    U, V = loop.U, loop.V  # D_O = U V^T at width b
+    rho = U.shape[1]
+    B0 = np.zeros((2 * n, rho))
+    B0[n:] = Minv @ U / b
+    C = np.zeros((rho, 2 * n))
+    C[:, :n] = V.T
+    kind = "delay"
+    if loop.frozen is not None and loop.frozen.model.process is not None:
+        kind = str(loop.frozen.model.process.kind)
+    w0 = TWO_PI / T0
+    Tv = variation.period_phase(None) / w0
+    folds = max(1, math.ceil(T0 / (1.0 - variation.amplitude) / Tv * (1 + 1e-12)))
+    spd = float(speed) if speed is not None else float("nan")
+    return VaryingDelayLoop(
+        loop, variation, kind, spd, T0, w0, np.array([TWO_PI]), folds * Tv, folds,
+        A, C * sc[None, :], ws, Ac0=Ac * sc[None, :] / sc[:, None], B0=B0 / sc[:, None],
+    )  # fmt: skip
