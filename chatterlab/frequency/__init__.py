@@ -17,6 +17,15 @@ from ._floquet import (
     sdm_monodromy,
 )
 from ._floquet_ssv import ssv_monodromy, ssv_multipliers
+from ._forced import (
+    ForcedResponse,
+    RunoutResponse,
+    SurfaceLocation,
+    forced_response,
+    generation_angle,
+    runout_response,
+    surface_location,
+)
 from ._frf import (
     FRF,
     ComplexModes,
@@ -83,4 +92,11 @@ __all__ = [
     "CHECK_DEGREE",
     "DEGREE",
     "ELEMENT_SPAN",
+    "ForcedResponse",
+    "SurfaceLocation",
+    "RunoutResponse",
+    "forced_response",
+    "surface_location",
+    "runout_response",
+    "generation_angle",
 ]

@@ -857,14 +857,95 @@ class SpectralMonodromy:
                 pass
         return float(np.max(np.abs(np.linalg.eigvals(self.monodromy(a)))))
 
-    def nodal_states(self, depth: float, z: np.ndarray) -> np.ndarray:
+    def nodal_states(self, depth: float, z: np.ndarray, load: np.ndarray | None = None) -> np.ndarray:
         """The states at every node (N_nodes, d, physical units) of the period
-        that follows the data z of the last one at depth a_p."""
+        that follows the data z of the last one at depth a_p (with ``load``: the
+        static force per unit depth at the force nodes of :meth:`forced`)."""
         a = float(depth)
         z = np.asarray(z)
-        F = a * np.linalg.solve(np.eye(self.m_f) + a * self.K, self.Q @ z) if self.m_f else np.zeros(0)
+        if load is None:
+            F = a * np.linalg.solve(np.eye(self.m_f) + a * self.K, self.Q @ z) if self.m_f else np.zeros(0)
+        else:
+            F = a * np.linalg.solve(np.eye(self.m_f) + a * self.K, self.Q @ z + load)
         x = self._nmap_z @ z[: self.d] + self._nmap_f @ F
         return x.reshape(-1, self.d) * self.state_scale
+
+    @property
+    def force_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+        """The collocation nodes that carry a nodal force (nodes 1..p of every
+        element), in the order of the force unknowns: their times (s) and a time
+        inside their element (which teeth cut there: the one-sided limit at an
+        element's end), shape (m_nodes,) each."""
+        mesh = self.mesh
+        times = [self.t_nodes[s][1:] for s in range(mesh.a.size)]
+        mids = [np.full(int(mesh.deg[s]), 0.5 * (mesh.a[s] + mesh.b[s])) for s in range(mesh.a.size)]
+        if not times:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate(times), np.concatenate(mids)
+
+    def forced(self, depth: float, load: np.ndarray) -> np.ndarray:
+        """The periodic solution under a T-periodic static cutting force: the
+        fixed point z* of the one-period map of this discretisation.
+
+        With a static force a_p f_i at the force nodes (``load``: f_i in the
+        cut's coordinates, per unit depth, length m_f), the collocation
+        equations' force unknowns are F = -a_p H (r - r_old) + a_p f, i.e.
+        (I + a K) F = a (Q z + f), and the next period's data is
+        z' = X0 z + P F = X(a) z + a P (I + a K)^-1 f.  The fixed point
+        solves (I - X(a)) z* = a P (I + a K)^-1 f: the same matrices as the
+        multipliers (1), one more right-hand side; regular unless a
+        multiplier is 1.  Returns z* (length :attr:`size`); the states over
+        the period are :meth:`nodal_states` with the same ``load``."""
+        a = float(depth)
+        f = np.asarray(load, dtype=float)
+        if f.shape != (self.m_f,):
+            raise InputError(
+                f"forced: the load must have one value per nodal force ({self.m_f}), got {f.shape}"
+            )
+        if self.m_f == 0:
+            return np.zeros(self.k)
+        b = a * (self.P @ np.linalg.solve(np.eye(self.m_f) + a * self.K, f))
+        return np.linalg.solve(np.eye(self.k) - self.monodromy(a), b)
+
+    def states_at(self, x_nodes: np.ndarray, t: np.ndarray, mu: complex = 1.0) -> np.ndarray:
+        """The states x(t) (len(t), d) of the solution with these nodal states
+        (:meth:`nodal_states`) at times t within one period from the mesh's
+        origin: interpolated on the elements, propagated exactly across the
+        free gaps (e^{A g} by A's eigenvectors, or one matrix exponential per
+        sample where they are ill-conditioned); a gap before the first element
+        starts from the last element's end a period earlier, divided by ``mu``
+        (a Floquet solution's multiplier; 1 for a periodic one)."""
+        mesh = self.mesh
+        T = self.period
+        A = self.structure.state_matrix
+        t = np.asarray(t, dtype=float)
+        samples = t.size
+        xs = np.zeros((samples, self.d), dtype=complex)
+        done = np.zeros(samples, dtype=bool)
+        off = self._node_off
+        for s in range(mesh.a.size):
+            inside = (~done) & (mesh.a[s] <= t) & (t <= mesh.b[s])
+            if np.any(inside):
+                s_nodes, _, bw = _cheb(int(mesh.deg[s]))
+                w = _bary(s_nodes, bw, (t[inside] - mesh.a[s]) / (mesh.b[s] - mesh.a[s]))
+                xs[inside] = w @ x_nodes[off[s] : off[s + 1]]
+                done |= inside
+        rest = np.nonzero(~done)[0]
+        if rest.size:
+            ends = (
+                np.searchsorted(mesh.b, t[rest], side="right") - 1
+            )  # the element before (-1: the last, a period ago)
+            x_end = np.stack([x_nodes[off[s_ + 1] - 1] for s_ in range(mesh.a.size)])
+            g = np.where(ends >= 0, t[rest] - mesh.b[ends], t[rest] + T - mesh.b[-1])
+            src = x_end[ends] / np.where(ends >= 0, 1.0, mu)[:, None]
+            lam_A, V = np.linalg.eig(A)
+            if np.linalg.cond(V) < 1e8:
+                c = np.linalg.solve(V, src.T)  # (d, samples)
+                xs[rest] = (V @ (np.exp(lam_A[:, None] * g[None, :]) * c)).T
+            else:
+                for j, k_ in enumerate(rest):
+                    xs[k_] = sla.expm(A * g[j]) @ src[j]
+        return xs
 
     def critical(self, depth: float, samples: int = 128, near: float = 0.0) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its
@@ -897,36 +978,8 @@ class SpectralMonodromy:
         n = st.n
         if x_nodes is None or mesh.a.size == 0 or mu == 0:
             return float(abs(np.angle(mu)) / T / (2 * np.pi))
-        d = self.d
-        A = st.state_matrix
         t = mesh.t0 + T * np.arange(samples) / samples
-        xs = np.zeros((samples, d), dtype=complex)
-        done = np.zeros(samples, dtype=bool)
-        off = self._node_off
-        for s in range(mesh.a.size):
-            inside = (~done) & (mesh.a[s] <= t) & (t <= mesh.b[s])
-            if np.any(inside):
-                s_nodes, _, bw = _cheb(int(mesh.deg[s]))
-                w = _bary(s_nodes, bw, (t[inside] - mesh.a[s]) / (mesh.b[s] - mesh.a[s]))
-                xs[inside] = w @ x_nodes[off[s] : off[s + 1]]
-                done |= inside
-        # the free gaps: from the end of the element before, exactly (e^{A t} by A's eigenvectors,
-        # or one matrix exponential per sample where they are ill-conditioned)
-        rest = np.nonzero(~done)[0]
-        if rest.size:
-            ends = (
-                np.searchsorted(mesh.b, t[rest], side="right") - 1
-            )  # the element before (-1: the last, a period ago)
-            x_end = np.stack([x_nodes[off[s_ + 1] - 1] for s_ in range(mesh.a.size)])
-            g = np.where(ends >= 0, t[rest] - mesh.b[ends], t[rest] + T - mesh.b[-1])
-            src = x_end[ends] / np.where(ends >= 0, 1.0, mu)[:, None]
-            lam_A, V = np.linalg.eig(A)
-            if np.linalg.cond(V) < 1e8:
-                c = np.linalg.solve(V, src.T)  # (d, samples)
-                xs[rest] = (V @ (np.exp(lam_A[:, None] * g[None, :]) * c)).T
-            else:
-                for j, k_ in enumerate(rest):
-                    xs[k_] = sla.expm(A * g[j]) @ src[j]
+        xs = self.states_at(x_nodes, t, mu)
         lam = np.log(complex(mu)) / T
         r = (st.J @ xs[:, :n].T).T  # (samples, 2) tool displacement
         per = r * np.exp(-lam * (t - mesh.t0))[:, None]

@@ -22,6 +22,7 @@ from ._lobes import plot_lobes
 from ._modes import plot_frequencies, plot_mode_shapes
 from ._recommend import plot_chatter_spectrum, plot_recommendation, plot_speed_rule
 from ._roots import plot_multipliers, plot_roots
+from ._sle import plot_sle
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
 from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
@@ -56,4 +57,5 @@ __all__ = [
     "plot_chatter_spectrum",
     "plot_speed_rule",
     "savefig",
+    "plot_sle",
 ]

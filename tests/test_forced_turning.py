@@ -1,0 +1,90 @@
+"""Turning: the forced response to an eccentric workpiece (chatterlab.frequency
+runout_response), a harmonic force K_f h_0 e at the spindle frequency Omega
+through the regenerative closed loop.
+
+The 1-DOF closed form (chatterlab.frequency._forced, Eq. 5):
+X(w) = G(i w) F / (1 + b K_f (1 - e^{-i w T}) G(i w)), G = 1/(k - m w^2 + i c w);
+at w = Omega, Omega T = 2 pi, so the delay term vanishes: the runout repeats
+every revolution and is not regenerated, |X| = K_f h_0 e |G(i Omega)|.
+Checked against the closed loop's FRF (the loop's own delay term in it, away
+from Omega) and against a Newmark simulation of the loop, whose steady
+amplitude converges to it at order 2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import turning_text
+
+import chatterlab as cl
+from chatterlab.errors import InputError
+from chatterlab.frequency import frf, runout_response
+from chatterlab.time import Excitation, Integration
+
+MASS, STIFF, DAMP, KF = 1.0, 1.0e7, 189.7, 2.0e9  # turning_text's defaults
+B, E, H0 = (
+    2e-4,
+    20e-6,
+    1e-4,
+)  # width of cut (stable at 3000 rpm: its roots have Re < -33 1/s), eccentricity, feed
+
+
+def G(w: np.ndarray | float) -> np.ndarray:
+    return 1.0 / (STIFF - MASS * np.asarray(w) ** 2 + 1j * DAMP * np.asarray(w))
+
+
+@pytest.fixture(scope="module")
+def system():
+    return cl.assemble(cl.loads_model(turning_text(), source="turning.toml"))
+
+
+def test_runout_is_not_regenerated(system) -> None:
+    rpm = np.array([1500.0, 3000.0, 4500.0, 6000.0])
+    loop = cl.closed_loop(system.at(), width=B, speed=3000.0)
+    r = runout_response(loop, rpm, E, H0, KF, inputs="tip.x", outputs="tip.x")
+    Om = 2 * np.pi * rpm / 60.0
+    closed = KF * H0 * E * np.abs(G(Om))
+    # one linear solve per speed against the same formula: round-off (the solve's ~1e-15
+    # times the condition of k - m w^2 + i c w near resonance, < 1e3 here)
+    np.testing.assert_allclose(r.amplitude, closed, rtol=1e-12)
+    # the loop is closed: away from Omega its delay term is in the FRF, as Eq. (5) says
+    T = 60.0 / 3000.0
+    w = 1.1 * 2 * np.pi * 3000.0 / 60.0
+    H = frf(loop, np.array([w]), inputs="tip.x", outputs="tip.x").data[0, 0, 0]
+    loop_cf = G(w) / (1 + KF * B * (1 - np.exp(-1j * w * T)) * G(w))
+    assert abs(H - loop_cf) <= 1e-12 * abs(loop_cf)
+    assert abs(loop_cf - G(w)) > 1e-3 * abs(G(w))  # ... and differs from the open loop's there
+
+
+def test_runout_response_equals_the_simulated_steady_state_at_order_two(system) -> None:
+    n, F = 3000.0, KF * H0 * E
+    Om = 2 * np.pi * n / 60.0
+    X = F * abs(G(Om))
+    errors = []
+    steps = (4e-4, 2e-4, 1e-4)
+    for h in steps:
+        sim = cl.simulate(
+            system, width=B, speed=n, outputs="tip.x", integration=Integration(duration=3.0, step=h),
+            excitation=Excitation(cutting_forces=False, loads={"tip.x": lambda t: F * np.cos(Om * t)}),
+        )  # fmt: skip
+        x = np.asarray(sim.history("tip.x"))
+        # after 2 s the transient (decay rate >= 33 1/s, the loop's abscissa) is below e^-66
+        sel = sim.t > 2.0
+        A = np.c_[np.cos(Om * sim.t[sel]), np.sin(Om * sim.t[sel]), np.ones(sel.sum())]
+        c = np.linalg.lstsq(A, x[sel], rcond=None)[0]
+        errors.append(abs(math.hypot(c[0], c[1]) - X) / X)
+    order = np.log2(errors[0] / errors[1]), np.log2(errors[1] / errors[2])
+    # Newmark's average acceleration: second order (its period error (w h)^2/12)
+    assert all(1.8 <= o <= 2.2 for o in order), (order, errors)
+    assert errors[-1] < 1e-5
+
+
+def test_bad_input(system) -> None:
+    loop = cl.closed_loop(system.at(), width=B, speed=3000.0)
+    with pytest.raises(InputError, match="eccentricity"):
+        runout_response(loop, [3000.0], -1.0, H0, KF, inputs="tip.x", outputs="tip.x")
+    with pytest.raises(InputError, match="spindle speed"):
+        runout_response(loop, [0.0], E, H0, KF, inputs="tip.x", outputs="tip.x")
