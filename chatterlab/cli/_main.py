@@ -88,6 +88,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._recommend",
         "the speeds and depths to choose: most material removed while stable, or the chatter-frequency rule",
     ),
+    "sle": (
+        "chatterlab.cli._sle",
+        "surface location error of the stable cuts against speed (milling), or the response to runout (turning)",
+    ),
     "example": (
         "chatterlab.cli._example",
         "copy a bundled example (model, FRF) into this folder; alone: list them",
