@@ -443,6 +443,21 @@ class FrozenSystem:
             raise InputError(f"'{spec}' does not move: it names no independent coordinate")
         return row
 
+    def with_process(self, model: Model) -> FrozenSystem:
+        """This configuration with the cut and the kinematics of ``model``: a
+        model that differs from this one only in ``[[coupling]]`` and
+        ``[process]`` fields, which enter neither the mass, damping and
+        stiffness matrices nor the constraints (the caller's promise; the
+        uncertainty and sweep tasks vary a cutting coefficient this way).
+        The structure's matrices, its complex modes and its reduction are
+        this one's (the same arrays, computed once); the coupling maps are
+        ``model``'s."""
+        from dataclasses import replace
+
+        out = FrozenSystem(replace(self.system, model=model), self.position, self.A, self.B, self.C, self.W)
+        out.__dict__["structure"] = self.structure  # the cached property: the modes come with it
+        return out
+
     def couplings(self) -> tuple[CouplingMatrices, ...]:
         """The model's coupling elements in reduced coordinates."""
         out = []

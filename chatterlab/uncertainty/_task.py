@@ -14,7 +14,7 @@ What samples share is computed once per worker: when only the cut is
 uncertain (fields of ``[[coupling]]`` and ``[process]``), the structure --
 its assembly, its reduced matrices at the position, its complex modes -- is
 the nominal model's, and each sample only swaps the process in
-(:func:`_with_process`).
+(:meth:`~chatterlab.structure.FrozenSystem.with_process`).
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ class LobeSampleTask:
         v = np.asarray(self.speeds, float)
         opts = dict(self.options)
         if self._shared_route():
-            frozen = _with_process(self._nominal_frozen(), mdl)
+            frozen = self._nominal_frozen().with_process(mdl)
             return lobes(frozen, v, width_max=self.width_max, **opts)
         return lobes(mdl, v, width_max=self.width_max, position=self.position, **opts)
 
@@ -168,25 +168,3 @@ class LobeSampleTask:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-
-
-def _with_process(frozen: Any, model: Model) -> Any:
-    """``frozen`` (the nominal structure at its position) with the cut and
-    the kinematics of ``model`` -- a model that differs from the nominal one
-    only in ``[[coupling]]`` and ``[process]`` fields, which enter neither
-    the mass, damping and stiffness matrices nor the constraints.  The
-    structure's matrices, its complex modes and its reduction are the
-    nominal ones (the same arrays); the coupling maps are the new model's.
-
-    (The structure package has no public "same structure, other process"
-    yet: this builds the System and FrozenSystem by their dataclass fields
-    and hands the nominal structure -- the owner of the complex modes -- to
-    the new configuration.)"""
-    from dataclasses import replace
-
-    from ..structure import FrozenSystem
-
-    system = replace(frozen.system, model=model)
-    out = FrozenSystem(system, frozen.position, frozen.A, frozen.B, frozen.C, frozen.W)
-    out.__dict__["structure"] = frozen.structure  # the cached property's value: the modes come with it
-    return out
