@@ -206,3 +206,75 @@ def test_refused_combinations_are_one_line(turning, milling):
         ssv_loop(milling, SpeedVariation(0.1, 0.3333), 10000.0)
     with pytest.raises(InputError, match="method"):
         ssv_multipliers(turning, RPM, 1e-3, SpeedVariation(0.1, 0.5), method="euler")  # type: ignore[arg-type]
+
+
+# ============================================================================ limits
+def _tlusty_limit(rpm: float) -> float:
+    """The constant-speed limit of the 1-DOF turning benchmark in closed form (Tlusty; Altintas
+    2012 ch. 3): on lobe k the chatter frequency w > w_n solves w T = 3 pi + 2 arg G(jw) + 2 pi k
+    and b = -1 / (2 K_f Re G); the limit at a speed is the least over the lobes."""
+    from scipy.optimize import brentq
+
+    m, k, c, kf = 2.0, 2.0e7, 400.0, 2.0e9
+    T = 60.0 / rpm
+    G = lambda w: 1.0 / (k - m * w * w + 1j * c * w)  # noqa: E731
+    wn = math.sqrt(k / m)
+    w = np.linspace(wn * (1 + 1e-9), 3 * wn, 200001)
+    eps = 3 * np.pi + 2 * np.angle(G(w))
+    best = math.inf
+    for lobe in range(0, 200):
+        f = w * T - eps - 2 * np.pi * lobe
+        idx = np.nonzero(np.sign(f[:-1]) != np.sign(f[1:]))[0]
+        for i in idx:
+            g = lambda x, k=lobe: x * T - (3 * np.pi + 2 * np.angle(G(x))) - 2 * np.pi * k  # noqa: E731
+            r = brentq(g, w[i], w[i + 1])
+            best = min(best, -1.0 / (2 * kf * G(r).real))
+    return best
+
+
+def test_the_limit_at_rva_zero_is_the_closed_form_and_the_sweep_runs_the_grid():
+    from chatterlab.frequency._floquet_ssv_limit import SsvLimitTask, ssv_limits
+
+    fz = cl.assemble(cl.loads_model(TURNING)).at()
+    speeds = [1500.0, 6000.0]
+    res = ssv_limits(fz, speeds, [0.0, 0.2], [0.5], width_max=4e-3, scan=8, rtol=1e-7)
+    for i, s in enumerate(speeds):
+        # Brent to rtol 1e-7 on a spectral radius exact to ~1e-10: 1e-6 covers both
+        assert res.b_lim[i, 0, 0] == pytest.approx(_tlusty_limit(s), rel=1e-6)
+    assert res.speed_unit == "rpm" and res.limit_name == "b_lim"
+    # the classic finding at the low speed: the variation raises the limit
+    assert res.gain()[0, 1, 0] > 1.5
+    import pickle
+
+    task = SsvLimitTask.of(fz, width_max=4e-3, scan=8)
+    assert pickle.loads(pickle.dumps(task))(6000.0, 0.0, 0.5)["b_lim"] == pytest.approx(
+        res.b_lim[1, 0, 0], rel=1e-6
+    )
+
+
+def test_the_limits_are_a_result(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import json
+
+    import matplotlib.pyplot as plt
+    import xarray as xr
+
+    from chatterlab.frequency._floquet_ssv_limit import SsvLimits
+
+    b = np.array([[[1e-3, np.inf]], [[2e-3, 3e-3]]]).transpose(0, 2, 1)  # (speeds, rva, rvf)
+    r = SsvLimits(
+        np.array([1000.0, 2000.0]), np.array([0.0, 0.1]), np.array([0.5]), b.reshape(2, 2, 1), np.ones((2, 2, 1)),
+        np.ones((2, 2, 1)), "sine", "spectral", 5e-3, 10,
+    )  # fmt: skip
+    p = r.to_netcdf(tmp_path / "s.nc")
+    with xr.open_dataset(p) as ds:
+        assert np.array_equal(ds["b_lim"].values, r.b_lim)
+        assert ds["b_lim"].attrs["units"] == "m"
+    json.loads(r.to_json())
+    assert r.to_csv(tmp_path / "s.csv").read_text().splitlines()[0].startswith("speed [rpm]")
+    fig, ax = plt.subplots()
+    assert r.plot(ax=ax) is ax
+    plt.close(fig)
+    assert "> 5" in r.table()

@@ -23,6 +23,7 @@ from ._modes import plot_frequencies, plot_mode_shapes
 from ._recommend import plot_chatter_spectrum, plot_recommendation, plot_speed_rule
 from ._roots import plot_multipliers, plot_roots
 from ._sle import plot_sle
+from ._ssv import plot_ssv
 from ._style import savefig
 from ._sweep import plot_stability_map, plot_sweep
 from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
@@ -57,5 +58,6 @@ __all__ = [
     "plot_chatter_spectrum",
     "plot_speed_rule",
     "savefig",
+    "plot_ssv",
     "plot_sle",
 ]

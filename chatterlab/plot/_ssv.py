@@ -1,0 +1,39 @@
+"""Stability limits under spindle-speed variation: the limit against the mean
+speed, one curve per (RVA, RVF), the constant speed (RVA = 0) drawn black."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def plot_ssv(result: Any, ax: Any = None, *, title: str | None = None, **style: Any) -> Any:
+    """The limits of an :class:`~chatterlab.frequency.SsvLimits` against the mean
+    speed (mm), one line per (RVA, RVF); returns the Axes."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(8.0, 4.5))
+    speeds = np.asarray(result.speeds, dtype=float)
+    b = np.asarray(result.b_lim, dtype=float)
+    cmap = plt.get_cmap("viridis")
+    pairs = [(j, k) for j in range(len(result.rva)) for k in range(len(result.rvf))]
+    varied = [p for p in pairs if result.rva[p[0]] != 0.0]
+    for j, k in pairs:
+        a, f = float(result.rva[j]), float(result.rvf[k])
+        y = np.where(np.isfinite(b[:, j, k]), b[:, j, k], np.nan) * 1e3
+        if a == 0.0:
+            if k > 0:
+                continue  # the constant speed does not depend on RVF: drawn once
+            ax.plot(speeds, y, color="k", lw=1.6, label="constant speed", **style)
+        else:
+            c = cmap(varied.index((j, k)) / max(len(varied) - 1, 1) * 0.85)
+            ax.plot(speeds, y, color=c, lw=1.2, marker=".", ms=4, label=f"RVA {a:g}, RVF {f:g}", **style)
+    ax.set_xlabel(f"mean speed [{result.speed_unit}]")
+    ax.set_ylabel(f"{result.limit_name} [mm]")
+    ax.set_ylim(bottom=0.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or f"stability limit under {result.shape} spindle-speed variation", fontsize=10)
+    return ax
