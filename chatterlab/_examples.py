@@ -52,12 +52,19 @@ EXAMPLES: dict[str, tuple[str, str]] = {
     "tool_point": ("tap_test/tool_point.csv", "tap-test FRF at the tool point (x and y, receptance, m/N)"),
     "holder_x": ("tap_test/holder_x.csv", "tap-test FRF of the holder, x"),
     "holder_y": ("tap_test/holder_y.csv", "tap-test FRF of the holder, y"),
+    "damped_turning": (
+        "process_damping/turning.toml",
+        "1-DOF turning tool with process damping (C_pd; docs/process-damping.md)",
+    ),
+    "damping_cuts": ("process_damping/cuts.csv", "stable/unstable test cuts to fit C_pd from (fit-damping)"),
+    "chatter": ("speed_selection/chatter.wav", "a chatter recording (WAV) for the chatter-frequency rule"),
 }
 
 #: group -> its examples (``chatterlab example tap_test`` copies all three)
 GROUPS: dict[str, tuple[str, ...]] = {
     "milling": ("benchmark_1dof", "benchmark_2dof", "tool_cantilever"),
     "tap_test": ("tool_point", "holder_x", "holder_y"),
+    "process_damping": ("damped_turning", "damping_cuts"),
 }
 
 #: the folder of the examples in a source tree (an editable install, a checkout)
