@@ -497,7 +497,10 @@ def _secant_on_nu(
 
     def f(xx: np.ndarray, rows: np.ndarray) -> np.ndarray:
         v = nu(ops, beta_max * xx, rows)
-        g = np.log(np.abs(v))
+        with np.errstate(
+            divide="ignore"
+        ):  # a zero eigenvalue of a rank-deficient N: -inf, never the nearest to 0
+            g = np.log(np.abs(v))
         if index is not None:
             return g[..., index]
         return np.take_along_axis(g, np.argmin(np.abs(g), axis=-1)[..., None], axis=-1)[..., 0]

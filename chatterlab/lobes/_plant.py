@@ -113,7 +113,8 @@ def _solve_beta(
     fidx = np.arange(N)
     t = np.linspace(0.0, 1.0, n_grid)
     lb = np.log(lo)[:, None] + (np.log(hi) - np.log(lo))[:, None] * t[None, :]
-    mag = np.log(np.abs(_nu(ops, np.exp(lb), idx)))  # (N, K, r)
+    with np.errstate(divide="ignore"):  # a rank-deficient N's zero eigenvalue: -inf, no sign change
+        mag = np.log(np.abs(_nu(ops, np.exp(lb), idx)))  # (N, K, r)
     sgn = np.sign(mag)
     ch = np.nonzero(sgn[:, :-1, :] * sgn[:, 1:, :] < 0)
     fi, ki, ri = ch
@@ -128,7 +129,8 @@ def _solve_beta(
     last = np.zeros(a.size)
     for _ in range(40):
         c = np.where(fb_ != fa, b - fb_ * (b - a) / (fb_ - fa), 0.5 * (a + b))
-        fc = np.log(np.abs(_nu_pick(ops, np.exp(c), sel, ri)))
+        with np.errstate(divide="ignore"):
+            fc = np.log(np.abs(_nu_pick(ops, np.exp(c), sel, ri)))
         left = np.sign(fc) == np.sign(fa)
         fb_ = np.where(left, np.where(last == 1, 0.5 * fb_, fb_), fc)
         fa = np.where(left, fc, np.where(last == -1, 0.5 * fa, fa))
@@ -207,5 +209,6 @@ def _nearest_width(
 def _z_at(ops: Ops, beta: np.ndarray, freq: np.ndarray) -> np.ndarray:
     """z = -1/nu for the eigenvalue of N(beta) nearest the unit circle."""
     v = _nu(ops, beta[:, None], freq)[:, 0, :]
-    j = np.argmin(np.abs(np.log(np.abs(v))), axis=1)
+    with np.errstate(divide="ignore"):
+        j = np.argmin(np.abs(np.log(np.abs(v))), axis=1)
     return -1.0 / v[np.arange(beta.size), j]
