@@ -278,3 +278,29 @@ def test_the_limits_are_a_result(tmp_path):
     assert r.plot(ax=ax) is ax
     plt.close(fig)
     assert "> 5" in r.table()
+
+
+# ============================================================================ the model file
+_BASE = TURNING.split("[process]")[0] + '[process]\nkind = "turning"\nrpm = 3000\n'
+
+
+def test_the_model_file_ssv_table_and_its_errors():
+    from chatterlab.errors import ChatterlabError
+
+    m = cl.loads_model(_BASE + '[ssv]\nshape = "triangle"\nrva = 0.1\nrvf = 0.5\n', source="t.toml")
+    assert SpeedVariation.of_model(m) == SpeedVariation(0.1, 0.5, "triangle")
+    assert SpeedVariation.of_model(cl.loads_model(_BASE, source="t.toml")) is None
+    assert cl.loads_model(_BASE + "[ssv]\nrva = 0.1\nrvf = 0.5\n").ssv.shape == "sine"
+    bad = {
+        "rva = 1.5\nrvf = 0.5": "rva",
+        "rva = 0.1\nrvf = 0": "rvf",
+        "rva = 0.1\nrvf = 20": "rvf",
+        "rva = 0.1": "rvf",
+        'shape = "square"\nrva = 0.1\nrvf = 0.5': "shape",
+        "rva = 0.1\nrvf = 0.5\nrfv = 2": "rfv",
+    }
+    for text, word in bad.items():
+        with pytest.raises(ChatterlabError) as e:
+            cl.loads_model(_BASE + "[ssv]\n" + text + "\n", source="t.toml")
+        msg = str(e.value)
+        assert "\n" not in msg and "t.toml" in msg and "[ssv]" in msg and word in msg, msg

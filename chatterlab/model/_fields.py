@@ -30,10 +30,10 @@ LIST_TABLES = (
     "actuator",
 )
 #: the single tables of a model file
-TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine", "process_damping")
+TABLES = ("model", "movable", "process", "matrices", "frf", "variant", "machine", "process_damping", "ssv")
 #: the single tables whose fields a parameter path TABLE.FIELD addresses (--set, variants,
 #: sweeps, [uncertainty], sensitivities)
-PARAMETER_TABLES = ("movable", "process", "model", "frf", "machine", "process_damping")
+PARAMETER_TABLES = ("movable", "process", "model", "frf", "machine", "process_damping", "ssv")
 
 #: the magnitudes a physical field of a model file may have, by unit: a
 #: nonzero value outside is refused, naming the field, before it reaches the

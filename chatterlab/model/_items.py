@@ -402,6 +402,28 @@ class Process:
         return "a_lim" if self.kind == "milling" else "b_lim"
 
 
+#: the spindle-speed variation's wave shapes (``[ssv] shape``)
+SSV_SHAPES = ("sine", "triangle")
+#: the largest relative amplitude RVA: the speed 1 - RVA of its mean stays well above 0
+#: (a spindle that stops has no delay); programs use 0.05..0.3
+SSV_AMPLITUDE_MAX = 0.9
+#: the relative frequencies RVF accepted: from a variation over 1e5 revolutions (which no
+#: discretisation resolves) to ten per revolution (a spindle follows at most ~1 per revolution)
+SSV_FREQUENCY_RANGE = (1e-5, 10.0)
+
+
+@dataclass(frozen=True)
+class SpindleSpeedVariation:
+    """A spindle-speed variation program (``[ssv]``, docs/ssv.md): the speed
+    Omega(t) = Omega_0 [1 + rva S(rvf Omega_0 t)] about the mean speed, S the
+    unit ``shape`` (sine or triangle); rva and rvf are ratios (1).  The analysis
+    takes it as :class:`chatterlab.process.SpeedVariation`."""
+
+    rva: float
+    rvf: float
+    shape: str = "sine"
+
+
 @dataclass(frozen=True)
 class Machine:
     """The limits of the machine and its tool that a recommended cut must
@@ -602,6 +624,7 @@ class Model:
     frf: FrfSource | None = None  #: a measured FRF as the structure ([frf])
     machine: Machine | None = None  #: the machine's and tool's limits ([machine])
     process_damping: ProcessDamping | None = None  #: [process_damping] of the cut
+    ssv: SpindleSpeedVariation | None = None  #: [ssv]: a spindle-speed variation program
     variant: str | None = None
     overrides: tuple[tuple[str, Any], ...] = ()
     text: str = ""  #: the model file's text (kept for result files)

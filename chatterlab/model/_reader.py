@@ -24,7 +24,17 @@ from ._actuator import read_actuators
 from ._damping import read_process_damping
 from ._fields import LIST_TABLES, PARAMETER_TABLES, TABLES, _Ids, _Item
 from ._frf import read_frf_table
-from ._items import Machine, Mode, Model, Process, machine_problem
+from ._items import (
+    SSV_AMPLITUDE_MAX,
+    SSV_FREQUENCY_RANGE,
+    SSV_SHAPES,
+    Machine,
+    Mode,
+    Model,
+    Process,
+    SpindleSpeedVariation,
+    machine_problem,
+)
 from ._matrices import _read_matrix_model
 from ._modes import read_modal_model, shape_coordinates
 from ._points import (
@@ -370,6 +380,7 @@ def _build_model(
     actuators = read_actuators(src, raw, ids, ctx)
     machine = _read_machine(src, raw, process)
     process_damping = read_process_damping(src, raw, process, couplings, machine)
+    ssv = _read_ssv(src, raw, process)
 
     model = Model(
         name=name,
@@ -393,6 +404,7 @@ def _build_model(
         frf=frf,
         machine=machine,
         process_damping=process_damping,
+        ssv=ssv,
         variant=variant,
         overrides=tuple((overrides or {}).items()),
         text=text,
@@ -528,3 +540,35 @@ def _curve(it: _Item, key: str, what: str, unit: str) -> tuple[tuple[float, floa
             raise it.err(key, f"point {i + 1} must be [speed {unit}, {key} {what}], got {p!r}")
         out.append((float(p[0]), float(p[1])))
     return tuple(out)
+
+
+def _read_ssv(src: str, raw: dict[str, Any], process: Process | None) -> SpindleSpeedVariation | None:
+    """The ``[ssv]`` table (docs/ssv.md): shape, rva, rvf, or None when the file has none."""
+    if "ssv" not in raw:
+        return None
+    it = _Item(src, "[ssv]", raw["ssv"], ("shape", "rva", "rvf", "description"))
+    if process is None or process.kind == "delay":
+        raise it.err(
+            None,
+            "needs a [process] of kind turning, shaping or milling: the variation is of its speed, which a"
+            " delay process does not have",
+        )
+    shape = it.str("shape", "sine")
+    if shape not in SSV_SHAPES:
+        raise it.err("shape", f"must be one of {', '.join(SSV_SHAPES)} (got {shape!r})")
+    rva = it.num("rva", nonneg=True)
+    if rva > SSV_AMPLITUDE_MAX:
+        raise it.err(
+            "rva",
+            f"{rva:g} is above {SSV_AMPLITUDE_MAX:g}: rva is the speed's amplitude over its mean (a ratio, 1),"
+            " e.g. 0.1 for +-10 %",
+        )
+    rvf = it.num("rvf", positive=True)
+    lo, hi = SSV_FREQUENCY_RANGE
+    if not lo <= rvf <= hi:
+        raise it.err(
+            "rvf",
+            f"{rvf:g} is outside {lo:g}..{hi:g}: rvf is the variation's frequency over the mean rotation"
+            " frequency (a ratio, 1), e.g. 0.5 for one cycle in two revolutions",
+        )
+    return SpindleSpeedVariation(rva, rvf, shape)

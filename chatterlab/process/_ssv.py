@@ -82,6 +82,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, check_finite, check_positive
+from ..model._items import SSV_AMPLITUDE_MAX, SSV_FREQUENCY_RANGE, SSV_SHAPES
 from ._loop import ClosedLoop
 from ._milling import TWO_PI, Milling
 
@@ -97,15 +98,10 @@ __all__ = [
     "ssv_loop",
 ]
 
-#: the wave shapes S of Eq. (1)
-SHAPES = ("sine", "triangle")
-#: the largest relative amplitude RVA accepted: theta' = 1 + RVA S >= 1 - RVA stays
-#: well away from 0 (a spindle that stops has no delay); programs use 0.05..0.3
-AMPLITUDE_MAX = 0.9
-#: the ratios RVF accepted: a variation from a hundred-thousandth of the rotation frequency
-#: (a period of 1e5 revolutions, which no discretisation resolves anyway) to ten times it
-#: (a spindle's inertia follows at most a fraction of its rotation frequency: 0.005..1)
-FREQUENCY_RANGE = (1e-5, 10.0)
+#: the wave shapes S of Eq. (1); the largest RVA (theta' = 1 + RVA S >= 1 - RVA stays well away
+#: from 0: a spindle that stops has no delay); the RVF accepted -- the model file's limits
+#: (``[ssv]``), one place for both
+SHAPES, AMPLITUDE_MAX, FREQUENCY_RANGE = SSV_SHAPES, SSV_AMPLITUDE_MAX, SSV_FREQUENCY_RANGE
 #: the most tooth passes (pitch angles) one period of a milling cut under SSV may span
 MAX_PASSES = 400
 #: a ratio RVF is taken as p / q when within this (relative) of it
@@ -183,6 +179,12 @@ class SpeedVariation:
             raise InputError(f"speed variation shape must be one of {', '.join(SHAPES)} (got {self.shape!r})")
         object.__setattr__(self, "amplitude", a)
         object.__setattr__(self, "frequency", f)
+
+    @classmethod
+    def of_model(cls, model: Any) -> SpeedVariation | None:
+        """The model file's ``[ssv]`` program (None when it has none)."""
+        item = getattr(model, "ssv", None)
+        return None if item is None else cls(item.rva, item.rvf, item.shape)
 
     # ------------------------------------------------------------------ kinematics (mean phase x = Omega_0 t)
     @property
