@@ -17,6 +17,7 @@ from ._floquet import (
     sdm_monodromy,
 )
 from ._floquet_ssv import ssv_monodromy, ssv_multipliers
+from ._floquet_ssv_limit import SsvLimitTask, ssv_limit, ssv_limits
 from ._forced import (
     ForcedResponse,
     RunoutResponse,
@@ -87,6 +88,9 @@ __all__ = [
     "sdm_monodromy",
     "ssv_multipliers",
     "ssv_monodromy",
+    "ssv_limit",
+    "ssv_limits",
+    "SsvLimitTask",
     "classify",
     "chatter_frequency",
     "CHECK_DEGREE",
