@@ -1,7 +1,7 @@
 """Time domain: one Newmark core (``_core``: the scheme, the delayed
 history, the step loop; ``_contact``: its unilateral coupling -- an implicit
 force with an active set, the instants a gap crosses zero located) under
-every time integration: the generic solver (``_newmark``: :func:`newmark`;
+every Newmark integration: the generic solver (``_newmark``: :func:`newmark`;
 ``_problems``: what it integrates; ``_plan``: the checks and setup before
 the first step), the parametric problem of Eq. 2.28 (``_parametric``) and
 the simulation of a cut (``_simulate``, ``_initial``), milling with the tool
@@ -9,10 +9,13 @@ leaving the cut (``_milling``: :func:`simulate_milling`; ``_milling_cut``:
 the cut as the core's coupling; ``_milling_verdict``, ``_milling_result``);
 the option objects and :class:`TimeResponse` (``_options``), spectra and
 growth rates (``_signals``), and what every time-history result shares
-(``_history``: :class:`TimeHistory`)."""
+(``_history``: :class:`TimeHistory`); the exponential step map of a
+time-invariant loop (``_exponential``: :func:`exponential`, selected in
+:func:`simulate` by ``Integration(integrator="exponential")``)."""
 
 from __future__ import annotations
 
+from ._exponential import exponential
 from ._history import TimeHistory
 from ._milling import MillingSimulation, default_steps_per_period, simulate_milling
 from ._newmark import (
@@ -43,6 +46,7 @@ __all__ = [
     "TimeResponse",
     "TimeHistory",
     "newmark",
+    "exponential",
     "ParametricProblem",
     "Simulation",
     "simulate",

@@ -66,8 +66,8 @@ estimate
 
 .. math::
 
-    \\hat e_h = \frac{d_1}{\\min(\rho, 2^q) - 1} \\; (\rho > 2), \\qquad
-    \\hat e_h = d_1 \\; (\rho \\le 2)                                        (6)
+    \\hat e_h = \\frac{d_1}{\\min(\\rho, 2^q) - 1} \\; (\\rho > 2), \\qquad
+    \\hat e_h = d_1 \\; (\\rho \\le 2)                                        (6)
 
 (each output relative to its largest value) is Richardson's when the order
 is observed and more cautious otherwise.  Above ``rtol`` the steps per delay
@@ -413,6 +413,7 @@ def exponential(
     outputs: Any = None,
     record_every: int = 1,
     history: Any = None,
+    control: ArrayLike | None = None,
     divergence_limit: float = 1e12,
 ) -> TimeResponse:
     """Integrate ``A q'' + B q' + C q = f(t) + G q(t - T)`` (constant
@@ -437,6 +438,9 @@ def exponential(
         Degree ``p`` of the history's interpolant (1 .. 7): order ``p + 1``.
     outputs, record_every, history
         As :func:`~chatterlab.time.newmark`.
+    control : array_like, shape (k, n), optional
+        The rows ``y = control @ q`` whose relative error ``rtol`` bounds
+        (default: the recorded outputs).
     divergence_limit : float, default 1e12
         ``max |q|`` beyond which the run stops with ``status="diverged"``.
 
@@ -474,6 +478,9 @@ def exponential(
     q0v, v0v = _vector("q0", q0, n), _vector("v0", v0, n)
     out_idx, out_sel, out_names = _outputs(outputs, n, getattr(problem, "names", None))
     sel = np.eye(n)[out_idx] if out_idx is not None else np.asarray(out_sel)
+    ctl = sel if control is None else np.asarray(control, dtype=float)
+    if ctl.ndim != 2 or ctl.shape[1] != n or not np.all(np.isfinite(ctl)):
+        raise InputError(f"control must be a finite (k, {n}) matrix of output rows (got shape {ctl.shape})")
     hist = _history_function(history, n, t0) if lp.G is not None else None
     span = t1 - t0
 
@@ -519,7 +526,7 @@ def exponential(
             if reason or half[2] or quarter[2]:
                 est = math.nan
                 break
-            est = _richardson(X, half[0], quarter[0], sel, n, p)
+            est = _richardson(X, half[0], quarter[0], ctl, n, p)
             if est <= rtol or tries >= MAX_TRIES:
                 if est > rtol:
                     notes.append(f"the error estimate {est:.3g} is above rtol = {rtol:g} after {tries} tries")

@@ -275,6 +275,10 @@ _FIELDS = {"q": "displacement", "v": "velocity", "a": "acceleration"}
 # =========================================================================== the options of a simulation
 
 
+#: the schemes of a simulation (:attr:`Integration.integrator`)
+INTEGRATORS = ("newmark", "exponential")
+
+
 @dataclass(frozen=True)
 class Integration:
     """How a simulation is integrated: its length, its step and the scheme.
@@ -300,9 +304,18 @@ class Integration:
         How the coefficients of Eq. 2.28 are evaluated
         (:class:`~chatterlab.time.ParametricProblem`).
     scheme : NewmarkOptions
-        gamma, beta, worker threads, divergence and memory limits.
+        gamma, beta, worker threads, divergence and memory limits (Newmark).
     progress : callable, optional
-        ``progress(fraction)`` after each chunk of steps.
+        ``progress(fraction)`` after each chunk of steps (Newmark).
+    integrator : {"newmark", "exponential"}, default "newmark"
+        The scheme of :func:`~chatterlab.time.simulate`: the seed paper's
+        Newmark (every run), or the exponential step map of a continuous
+        cut (constant coefficients: ``delay=`` or ``position=``, or
+        turning; :func:`~chatterlab.time.exponential`), whose step is
+        chosen for ``rtol`` unless ``step`` is given.
+    rtol : float, default 1e-3
+        The relative error of the recorded histories (each relative to its
+        largest value) the exponential integrator's step is chosen for.
     """
 
     duration: float | None = None
@@ -313,8 +326,17 @@ class Integration:
     method: Literal["auto", "polynomial", "direct", "generic"] = "auto"
     scheme: NewmarkOptions = field(default_factory=NewmarkOptions)
     progress: Callable[[float], Any] | None = field(default=None, compare=False)
+    integrator: Literal["newmark", "exponential"] = "newmark"
+    rtol: float = 1e-3
 
     def __post_init__(self) -> None:
+        if self.integrator not in INTEGRATORS:
+            raise InputError(
+                f"integrator must be one of {', '.join(repr(i) for i in INTEGRATORS)} (got {self.integrator!r})"
+            )
+        r_tol = self.rtol
+        if isinstance(r_tol, bool) or not isinstance(r_tol, (int, float)) or not 0.0 < float(r_tol) < 1.0:
+            raise InputError(f"rtol must be a number in (0, 1), e.g. 1e-3 (got {r_tol!r})")
         if self.duration is not None:
             object.__setattr__(self, "duration", check_positive(self.duration, "duration", "s"))
         if self.periods is not None:

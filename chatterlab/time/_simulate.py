@@ -233,7 +233,9 @@ class Simulation(TimeHistory):
 
     def file_attrs(self) -> dict[str, Any]:
         a: dict[str, Any] = {
-            "title": "chatterlab transient simulation (Newmark, Eq. 2.28)",
+            "title": "chatterlab transient simulation (Eq. 2.28, "
+            + ("exponential step map" if self.response.attrs.get("method") == "exponential" else "Newmark")
+            + ")",
             "model": self.model,
             "feedback": self.terms,
             "width_m": self.width,
@@ -431,21 +433,26 @@ def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Exc
         t_end=duration,
     )
     lam, certain = _roots_of(roots)
-    step, rule = _time_step(system, kin, feedback, integ.step, cut.position, duration, prob, lam)
     run_prob = _run_problem(prob, exc.loads, exc.ground_motion)
     q0v, v0v, hist, initial = initial_state(prob, kin, init.q0, init.v0, init.history)
-    with _blas_limits():
-        res = newmark(
-            run_prob,
-            (0.0, float(duration)),
-            step,
-            q0v,
-            v0v,
-            history=hist,
-            options=integ.scheme,
-            record_every=integ.record_every,
-            progress=integ.progress,
+    if integ.integrator == "exponential":
+        res, step, rule = _exponential_run(
+            prob, kin, run_prob, integ, feedback, duration, q0v, v0v, hist, outs
         )
+    else:
+        step, rule = _time_step(system, kin, feedback, integ.step, cut.position, duration, prob, lam)
+        with _blas_limits():
+            res = newmark(
+                run_prob,
+                (0.0, float(duration)),
+                step,
+                q0v,
+                v0v,
+                history=hist,
+                options=integ.scheme,
+                record_every=integ.record_every,
+                progress=integ.progress,
+            )
     data, units = _histories(prob, res, outs, out_rows)
     s, _, in_cut, cd = kin.state(res.t)
     rerun = None
@@ -481,6 +488,56 @@ def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Exc
         roots_certain=certain,
         _rerun=rerun,
     )
+
+
+def _exponential_run(
+    prob: ParametricProblem,
+    kin: ShapingKinematics | SteadyKinematics,
+    run_prob: Any,
+    integ: Integration,
+    feedback: str,
+    duration: float,
+    q0v: np.ndarray,
+    v0v: np.ndarray,
+    hist: Any,
+    outs: list[str],
+) -> tuple[TimeResponse, float, str]:
+    """A continuous cut by :func:`exponential`: its step chosen for
+    ``integ.rtol`` on the histories the run records (the CE relative
+    displacements and the outputs), or ``integ.step``; ``(response, step, rule)``."""
+    from ._exponential import exponential
+
+    if not isinstance(kin, SteadyKinematics):
+        raise InputError(
+            "integrator='exponential' needs constant coefficients, a continuous cut (delay= or position=, or "
+            "turning); the moving slide runs with integrator='newmark'"
+        )
+    rows = np.vstack([prob.J] + [_output_map(prob.system, name)[None, :] for name in outs])
+    control = prob.maps(np.array([0.0]), rows)[0]
+    with _blas_limits():
+        res = exponential(
+            run_prob,
+            (0.0, float(duration)),
+            q0v,
+            v0v,
+            rtol=float(integ.rtol),
+            h=integ.step,
+            record_every=integ.record_every,
+            history=hist,
+            control=control,
+            divergence_limit=float(integ.scheme.divergence_limit),
+        )
+    a = res.attrs
+    if integ.step is not None:
+        rule = f"given, {a['steps_per_delay']} steps per delay (exponential step map, order {a['order']})"
+    else:
+        rule = (
+            f"exponential step map of order {a['order']}: {a['steps_per_delay']} steps per delay for rtol = "
+            f"{float(integ.rtol):g} (estimated error {a['error_estimate']:.2g}, {a['tries']} tries)"
+        )
+    if feedback != "pdo" and integ.step is None:
+        rule = f"exponential step map, exact without a delayed term: {res.n_steps} steps record the run"
+    return res, float(res.h), rule
 
 
 def _check_run(
