@@ -88,3 +88,11 @@ def test_bad_input(system) -> None:
         runout_response(loop, [3000.0], -1.0, H0, KF, inputs="tip.x", outputs="tip.x")
     with pytest.raises(InputError, match="spindle speed"):
         runout_response(loop, [0.0], E, H0, KF, inputs="tip.x", outputs="tip.x")
+
+
+def test_a_chattering_turning_cut_gets_no_response(system) -> None:
+    """b = 2 mm is above the unconditional limit 2 zeta (1 + zeta) k / K_f = 0.31 mm
+    (zeta = c / (2 sqrt(k m)) = 0.030): at 3000 rpm it chatters."""
+    loop = cl.closed_loop(system.at(), width=2e-3, speed=3000.0)
+    r = runout_response(loop, [3000.0], E, H0, KF, inputs="tip.x", outputs="tip.x")
+    assert r.verdict == ["unstable"] and math.isnan(r.amplitude[0])

@@ -114,7 +114,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
             raise InputError("--no-lobes is for milling's SLE plot; the turning plot has no lobes")
         res, lobes = _turning(args, model, v), None
     _write(args, res, lobes, outs, model)
-    if proc.kind == "milling" and any(x != "stable" for x in res.verdict):
+    if any(x != "stable" for x in res.verdict):
         return 1
     return 0
 
@@ -164,6 +164,8 @@ def _milling(args: argparse.Namespace, model: Any, v: Any) -> tuple[Any, Any]:
 
 
 def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
+    import numpy as np
+
     from ..frequency._forced import runout_response
     from ..process._loop import closed_loop
     from ..structure._assembly import assemble
@@ -191,6 +193,8 @@ def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
             " computed along x or y (angle 0 or 90 deg)"
         )
     named = [pt.id for pt in model.points if pt.ref == c.a]
+    if not named and c.a.kind in ("body", "node") and c.a.offset == (0.0, 0.0):
+        named = [c.a.target]  # a body's (node's) own name is a point: its reference point
     if not named:
         raise InputError(
             f"{model.source}: coupling {c.id}'s tool side is not a named [[point]]: name it to read its response"
@@ -202,13 +206,22 @@ def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
     b = width_m(args)
     loop = closed_loop(assemble(model).at(_position(args)), width=b, speed=float(v[0]))
     res = runout_response(loop, v, e, feed, float(kf), inputs=point, outputs=point)
-    i = int(res.amplitude.argmax())
-    print(
+    ok = np.array([x == "stable" for x in res.verdict])
+    head = (
         f"runout response: {model.name or model.source}, b = {b * 1e3:.4g} mm, e = {e * 1e3:.4g} mm,"
         f" h_0 = {feed * 1e3:.4g} mm: force amplitude K_f h_0 e = {res.force:.4g} N at the spindle frequency\n"
-        f"{len(v)} speeds {v[0]:g}..{v[-1]:g} rpm: amplitude {res.amplitude.min() * 1e6:.4g} to"
-        f" {res.amplitude.max() * 1e6:.4g} um (largest at {v[i]:.6g} rpm); the runout is not regenerated"
+        f"{len(v)} speeds {v[0]:g}..{v[-1]:g} rpm: {int(ok.sum())} stable,"
+        f" {res.verdict.count('unstable')} unstable (chatter, no response), {res.verdict.count('undetermined')}"
+        " undetermined"
     )
+    if ok.any():
+        amp = res.amplitude[ok]
+        i = int(amp.argmax())
+        head += (
+            f"\namplitude {amp.min() * 1e6:.4g} to {amp.max() * 1e6:.4g} um (largest at {v[ok][i]:.6g} rpm);"
+            " the runout is not regenerated"
+        )
+    print(head)
     return res
 
 

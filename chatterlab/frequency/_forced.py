@@ -282,7 +282,7 @@ def _setup(loop: ClosedLoop, rpm: float, a: float, degree: int | None, tol: floa
 
 
 def _check_loop(loop: ClosedLoop, feed: float) -> float:
-    if not isinstance(loop, ClosedLoop) or loop.milling is None:
+    if not isinstance(loop, ClosedLoop) or loop.process is None:
         raise InputError(
             "forced response: give a milling ClosedLoop (chatterlab.process.milling_loop or"
             " chatterlab.lobes.milling_loop_of(frozen))"
@@ -546,6 +546,10 @@ class RunoutResponse(Result):
         Its phase relative to the force, rad.
     force : float
         The force amplitude K_f h_0 e, N.
+    verdict : list of str
+        Per speed, the loop's stability (:func:`chatterlab.frequency.stability`):
+        an amplitude only where "stable" (NaN where the cut chatters: there is
+        no steady forced vibration to speak of).
     """
 
     speeds: np.ndarray
@@ -555,6 +559,7 @@ class RunoutResponse(Result):
     eccentricity: float
     feed: float
     width: float
+    verdict: list[str] = field(default_factory=list)
 
     def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
         """Per speed: the amplitude and phase; the excitation as attributes."""
@@ -563,6 +568,11 @@ class RunoutResponse(Result):
             {
                 "amplitude": (self.amplitude, "m", "vibration amplitude at the spindle frequency"),
                 "phase": (self.phase, "rad", "phase of the vibration relative to the force"),
+                "verdict": (
+                    np.array([VERDICTS.index(v) if v in VERDICTS else 2 for v in self.verdict], dtype=int),
+                    "1",
+                    "0 stable, 1 unstable (chatter), 2 undetermined",
+                ),
             },
             {
                 "title": "chatterlab runout response (turning)",
@@ -609,20 +619,37 @@ def runout_response(
         The cutting coefficient, N/m^2, whose force the width varies.
     inputs, outputs : str
         ``"POINT.DIR"``: where and along what the force acts, what is read.
+
+    Returns
+    -------
+    RunoutResponse
+        With the stability of the cut at each speed; a speed where it
+        chatters (or is undetermined) gets no amplitude (NaN).
     """
     from ._frf import frf
+    from ._stability import stability
 
     e = check_nonneg(eccentricity, "eccentricity e", "m")
     h0 = check_positive(feed, "feed per revolution h_0", "m")
     kf = check_positive(Kf, "cutting coefficient K_f", "N/m^2")
+    if not isinstance(loop, ClosedLoop) or loop.frozen is None or loop.process is not None:
+        raise InputError(
+            "runout response: give a turning ClosedLoop of a model (chatterlab.process.closed_loop(frozen, ...))"
+        )
     v = np.atleast_1d(np.asarray(speeds, dtype=float))
     F = kf * h0 * e
-    amp, ph = [], []
+    amp, ph, verdict = [], [], []
     for n in v:
         T = float(tooth_period(check_positive(float(n), "spindle speed", "rpm")))
         L = loop.at(delay=T)
+        st = stability(loop.frozen, width=loop.width, delay=T, terms=loop.terms)  # type: ignore[arg-type]
+        verdict.append(st.verdict if st.verdict in ("stable", "unstable") else "undetermined")
+        if verdict[-1] != "stable":
+            amp.append(float("nan"))
+            ph.append(float("nan"))
+            continue
         G = frf(L, np.array([TWO_PI / T]), inputs=inputs, outputs=outputs)
         x = complex(G.data[0, 0, 0]) * F
         amp.append(abs(x))
         ph.append(float(np.angle(x)))
-    return RunoutResponse(v, np.array(amp), np.array(ph), F, e, h0, float(loop.width))
+    return RunoutResponse(v, np.array(amp), np.array(ph), F, e, h0, float(loop.width), verdict)
