@@ -92,6 +92,10 @@ _COMMAND_TABLE: dict[str, tuple[str, str]] = {
         "chatterlab.cli._sle",
         "surface location error of the stable cuts against speed (milling), or the response to runout (turning)",
     ),
+    "ssv": (
+        "chatterlab.cli._ssv",
+        "stability limit under spindle-speed variation (RVA, RVF) against the mean speed",
+    ),
     "example": (
         "chatterlab.cli._example",
         "copy a bundled example (model, FRF) into this folder; alone: list them",
