@@ -140,6 +140,37 @@ def test_fixed_point_is_the_steady_state_of_the_time_simulation_at_order_two() -
     assert errors[-1] < 2e-2
 
 
+def test_variable_pitch_fixed_point_is_the_simulated_steady_state() -> None:
+    """A variable pitch regenerates on its orbit (period: the revolution), and each tooth's
+    static chip is the feed since the tooth before it, f_z p_j N / 2 pi: the general cut's
+    collocation with the load, against the Newmark steady state at order 2.  The depth is
+    small (0.01 mm) so that the vibration (0.3 um) stays well inside the chip and no tooth
+    leaves the material (simulate_milling's fraction_out_of_cut is 0), the linear model's
+    premise."""
+    M, C, K = _structure().M, _structure().C, _structure().K
+    mil = Milling.from_immersion(2, 0.02, KT, KN, 0.3, "up", pitch=(math.radians(160), math.radians(200)))
+    loop = milling_loop(_structure(), mil)
+    rpm, a = 10000.0, 1e-5
+    sm = _setup(loop, rpm, a, None, 1e-12)
+    assert sm.radius(a) < 0.7  # 80 revolutions: the transient below 0.7^80 ~ 4e-13
+    load = static_load(sm, FZ)
+    errors = []
+    steps = (40, 80, 160)
+    for m in steps:
+        sim = simulate_milling(
+            (M, C, K), mil, rpm, a, feed=FZ, tool_point=np.array([[0.0], [1.0]]),
+            integration=Integration(periods=80, steps_per_period=m),
+        )  # fmt: skip
+        assert sim.fraction_out_of_cut == 0.0
+        n = 2 * m
+        y = _orbit(sm, a, load, sim.t[-n:])[:, 1]
+        errors.append(np.max(np.abs(sim.y[-n:] - y)) / np.max(np.abs(y)))
+    order = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 1.8 <= order <= 2.2, (order, errors)  # measured 2.01, 1.98
+    r = forced_response(loop, rpm, a, FZ)
+    assert r.sle == min(r.sle_teeth) and abs(r.sle_teeth[0] - r.sle_teeth[1]) > 1e-3 * abs(r.sle)
+
+
 def test_fixed_point_converges_geometrically_in_the_degree() -> None:
     loop = _loop("down", 0.5, Kte=2e4, Kne=1e4)
     ref = forced_response(loop, 5000.0, 0.2e-3, FZ, degree=30, check=False)

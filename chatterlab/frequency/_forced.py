@@ -148,7 +148,10 @@ def static_load(sm: SpectralMonodromy, feed: float) -> np.ndarray:
     if t.size == 0:
         return np.zeros(0)
     H = np.stack([milling.directional_on(t[i : i + 1], rpm, float(mid[i]))[0] for i in range(t.size)])
-    f = -np.einsum("mjab,b->ma", H, np.array([feed, 0.0]))
+    # tooth j's static chip is the feed travelled since the tooth before it passed the same angle,
+    # f_z p_j / (2 pi / N) (the mean f_z for a uniform pitch)
+    feeds = feed * milling.pitches * milling.teeth / TWO_PI
+    f = -np.einsum("mja,j->ma", H[..., :, 0], feeds)  # H_j (f_j, 0)^T: the first column
     if milling.Kte or milling.Kne:
         g = milling.in_cut(milling.tooth_angles(mid, rpm))  # (m, N): one-sided at an element's ends
         phi = milling.tooth_angles(t, rpm)
