@@ -250,16 +250,6 @@ class Multipliers(Result):
             "multipliers": [{"re": float(m.real), "im": float(m.imag)} for m in self.mu],
         }
 
-    def to_json(self, path: Any = None, *, indent: int | None = 2) -> str:
-        """Strict JSON of :meth:`to_dict`, written to ``path`` when given."""
-        from ..io import json_text, text_out
-
-        text = json_text(self.to_dict(), indent)
-        if path is not None:
-            with text_out(path) as fh:
-                fh.write(text + "\n")
-        return text
-
     def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
         """The multipliers (index ``multiplier``, largest first) with their
         modulus, angle and exponent; the verdict and the cut as attributes."""

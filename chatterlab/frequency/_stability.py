@@ -120,17 +120,6 @@ class Stability(Result):
         ]
         return "\n".join(lines)
 
-    def to_json(self, path: Any = None, *, indent: int | None = 2) -> str:
-        """Strict JSON of :meth:`to_dict` (the contract of ``chatterlab roots
-        --format json``, docs/cli.md), written to ``path`` when given."""
-        from ..io import json_text, text_out
-
-        text = json_text(self.to_dict(), indent)
-        if path is not None:
-            with text_out(path) as fh:
-                fh.write(text + "\n")
-        return text
-
     def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
         """The roots' arrays (:meth:`RootsResult.dataset_parts`) with the
         verdict, the cut and the argument-principle count as attributes."""

@@ -14,7 +14,10 @@ specifications of :func:`chatterlab.io.make_dataset`), and inherits
   the path.  A result whose table has a layout of its own (words for codes,
   what was searched on every row) overrides it;
 * :meth:`Result.to_json` -- the same numbers as JSON text (strict: NaN and
-  infinities are ``null``), written to a path when one is given.
+  infinities are ``null``), written to a path when one is given (the file
+  holds exactly the text returned).  A result with a JSON contract of its
+  own (``to_dict()``: the document ``chatterlab roots --format json`` or
+  ``chatterlab modes`` prints) writes that document instead.
 
 ``plot(ax=None, **style)`` is each result's own (it draws through
 :mod:`chatterlab.plot`) and returns the Axes it drew on (a tuple of Axes for
@@ -70,9 +73,23 @@ class Result:
 
     def to_json(self, path: str | os.PathLike[str] | None = None, *, indent: int | None = 2) -> str:
         """The result's labelled arrays as JSON text (``coords``, ``data`` with
-        ``units`` and ``values``, ``attrs``); written to ``path`` when given."""
+        ``units`` and ``values``, ``attrs``), or its own document when it has
+        a ``to_dict()``; written (atomically) to ``path`` when given, the
+        file holding exactly the text returned."""
         from ._files import json_text, text_out
 
+        if isinstance(path, int) and not isinstance(path, bool):
+            raise TypeError(
+                f"{type(self).__name__}.to_json(path=None, *, indent=2): pass the indent by keyword"
+            )
+        to_dict = getattr(self, "to_dict", None)
+        text = json_text(to_dict() if to_dict is not None else self._json_doc(), indent=indent)
+        if path is not None:
+            with text_out(path) as fh:
+                fh.write(text)
+        return text
+
+    def _json_doc(self) -> dict[str, Any]:
         coords, data, attrs = self.dataset_parts()
 
         def values(x: Any) -> Any:
@@ -81,15 +98,10 @@ class Result:
                 return {"re": a.real.tolist(), "im": a.imag.tolist()}
             return a.tolist()
 
-        doc = {
+        return {
             "coords": {k: {"units": v[1], "values": values(v[0])} for k, v in coords.items()},
             "data": {
                 k: {"units": v[1] if len(v) > 1 else "", "values": values(v[0])} for k, v in data.items()
             },
             "attrs": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in attrs.items()},
         }
-        text = json_text(doc, indent=indent)
-        if path is not None:
-            with text_out(path) as fh:
-                fh.write(text + "\n")
-        return text

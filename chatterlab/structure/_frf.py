@@ -649,15 +649,9 @@ class FRF(Result):
 
     def to_json(self, path: Any = None, *, indent: int | None = None) -> str:
         """Strict JSON of :meth:`to_dict` (every float exact, non-finite
-        numbers as null), returned, and written to ``path`` (atomically)
-        when one is given."""
-        from ..io._files import json_text, text_out
-
-        s = json_text(self.to_dict(), indent)
-        if path is not None:
-            with text_out(path) as fh:
-                fh.write(s)
-        return s
+        numbers as null; compact by default: an FRF is long), returned, and
+        written to ``path`` (atomically) when one is given."""
+        return super().to_json(path, indent=indent)
 
     def to_csv(
         self,

@@ -110,20 +110,6 @@ class Modes(Result):
             "rigid_body_modes": list(self.rigid),
         }
 
-    def to_json(self, path: Any = None, *, indent: int | None = 2) -> str:
-        """Strict JSON of :meth:`to_dict` (non-finite numbers as null),
-        returned, and written to ``path`` (atomically) when one is given --
-        the signature of ``FRF.to_json``."""
-        from ..io._files import json_text, text_out
-
-        if isinstance(path, int) and not isinstance(path, bool):
-            raise TypeError("Modes.to_json(path=None, *, indent=2): pass the indent by keyword")
-        s = json_text(self.to_dict(), indent)
-        if path is not None:
-            with text_out(path) as fh:
-                fh.write(s)
-        return s
-
     def table(self) -> str:
         """A readable table: mode, frequency (Hz), period (s), damping ratio."""
         lines = [f"{'mode':>4}  {'f [Hz]':>10}  {'T [s]':>9}  {'zeta':>7}"]
