@@ -229,3 +229,35 @@ def test_bad_input_one_line() -> None:
         forced_response(
             milling_loop(_structure(), Milling(2, 0.02, KT, KN, 0.5, math.pi, helix=0.5)), 1e4, 1e-4, FZ
         )
+
+
+def test_two_dof_benchmark_fixed_point_is_the_simulated_steady_state() -> None:
+    """studies/milling/benchmark_2dof.toml (x and y, the feed force along x as well):
+    both coordinates of the orbit, from the model file, against Newmark at order 2
+    (measured slopes 2.02, 2.01)."""
+    from pathlib import Path
+
+    import chatterlab as cl
+    from chatterlab.lobes import milling_loop_of
+
+    model = cl.load_model(Path(__file__).resolve().parents[1] / "studies" / "milling" / "benchmark_2dof.toml")
+    loop = milling_loop_of(cl.assemble(model).at())
+    rpm, a = 12000.0, 0.5e-3
+    sm = _setup(loop, rpm, a, None, 1e-12)
+    assert sm.radius(a) < 0.85  # 120 tooth periods: the transient below 0.85^120 ~ 3e-9
+    load = static_load(sm, FZ)
+    errors = []
+    steps = (40, 80, 160)
+    for m in steps:
+        sim = simulate_milling(
+            (loop.M, loop.C, loop.K), loop.milling, rpm, a, feed=FZ, tool_point=loop.J,
+            integration=Integration(periods=60, steps_per_period=m),
+        )  # fmt: skip
+        n = loop.milling.teeth * m
+        r = _orbit(sm, a, load, sim.t[-n:])
+        errors.append(
+            max(np.max(np.abs(sim.x[-n:] - r[:, 0])), np.max(np.abs(sim.y[-n:] - r[:, 1])))
+            / np.max(np.abs(r))
+        )
+    order = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 1.8 <= order <= 2.2, (order, errors)
