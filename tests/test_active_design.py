@@ -339,3 +339,67 @@ def test_bad_co_design_options_are_one_line(kw, words):
 def test_with_actuator_names_the_unknown_point():
     with pytest.raises(ModelError, match="'nowhere' is not a point"):
         with_actuator(cl.loads_model(turning_text()), "d", "nowhere.x", velocity_gain=1.0)
+
+
+# ------------------------------------------------------------------ the time domain confirms
+def test_the_time_domain_confirms_velocity_feedback_proven():
+    """Velocity feedback without delay or lag: one delay (the cut's), so the
+    argument principle's count is proven and the verdict may say stable; at 1.1
+    times the old limit (below the new one, Tlusty's closed form with zeta') the
+    run decays at the rightmost root's rate within its own error bar (2 fit
+    standard errors + Richardson's step error), and above the new limit the
+    verdict is unstable."""
+    from chatterlab.design._confirm import confirm_loop
+
+    g = 300.0
+    fz = cl.assemble(tool(velocity_gain=g)).at()
+    old, new = tlusty(ZETA), tlusty(ZETA + g / (2 * np.sqrt(K * M)))
+    assert 1.1 * old < new
+    c = confirm_loop(fz, 3000.0, 1.1 * old, old)
+    assert c.verdict == "stable" and c.count_proven and c.rhp_count == 0
+    assert c.abscissa < 0 and c.time_class == "decaying"
+    assert abs(c.rate - c.abscissa) <= c.rate_error and c.rate_agrees
+    # the actuator's force is -g v: bounded by g times the largest velocity, positive
+    assert 0 < c.forces[0] < np.inf and c.force_ok
+    up = confirm_loop(fz, 3000.0, 1.05 * new, old, duration=0.02)
+    assert up.verdict == "unstable" and up.abscissa > 0
+
+
+def test_the_run_with_lag_and_delay_ends_at_the_static_force():
+    """The run of the loop with an actuator lag (its own coordinate) and
+    delay (stepped against the cut's) ends at the static balance: at s = 0 the
+    cut's proportional and delayed terms cancel (b K_f (1 - e^0) = 0), so
+    y_s = F_0 / (k + g_P + g_O) and f_a = -(g_P + g_O) y_s, whatever the lag and
+    the delays; after 10 / |sigma_1| of decay the transient is e^-10 = 4.5e-5 of
+    its start and the trapezoidal rule is exact for a constant state: 1e-4."""
+    from chatterlab.design._confirm import _augmented, _run
+    from chatterlab.process import closed_loop
+
+    gp, go = 2e5, 3e5
+    fz = cl.assemble(tool(proportional_gain=gp, velocity_gain=300.0, delayed_gain=go, delay=3e-4,
+                          bandwidth_hz=300.0)).at()  # fmt: skip
+    loop = closed_loop(fz, width=1e-4, speed=3000.0)
+    sysm = _augmented(loop)
+    assert sysm["M"].shape == (2, 2) and len(sysm["delays"]) == 2  # the lag's coordinate, two delays
+    from chatterlab.design import controller_roots
+
+    lam = controller_roots(fz).roots[0]
+    t, y, F, status = _run(sysm, 2e-5, 10.0 / 50.0)
+    assert status == "ok" and lam.real < 0
+    F0 = float(loop.force[0])
+    ys = F0 / (K + gp + go)
+    assert abs(y[-1]) == pytest.approx(ys, rel=1e-4)  # the signal's sign is its SVD's
+    assert F[0, -1] == pytest.approx(-(gp + go) * ys, rel=1e-4)
+
+
+def test_the_co_design_carries_its_confirmation(constrained):
+    """The design's confirmation: the cut at the optimised gains and 1.1 times
+    the bare limit, with the actuator's delay and lag (two delays: the count
+    sampled, so never "stable"); the run decays at the rightmost root's rate."""
+    c = constrained.confirmation
+    assert c is not None
+    assert c.width == pytest.approx(1.1 * constrained.bare_width, rel=1e-12)
+    assert c.count_proven is False and c.verdict == "undetermined" and c.rhp_count == 0
+    assert c.abscissa < 0 and c.time_class == "decaying" and c.rate_agrees
+    assert "time-domain confirmation" in constrained.summary()
+    assert "UNDETERMINED" in constrained.summary()

@@ -134,3 +134,56 @@ def test_absorber_added_at_a_point(capsys, tmp_path, tool):
 def test_absorber_bad_input(capsys, tool, extra, words):
     code, _, err = run(capsys, "absorber", tool, "--speed", "3000", "15000", "--points", "10", *extra)
     assert_clean_error(code, err, *words)
+
+
+def test_active_velocity_feedback_from_the_command_line(capsys, tmp_path, tool):
+    """``chatterlab active --sensor tip.x`` with velocity feedback alone, no delay:
+    the limit grows with the gain, so the optimum is the bound g = 300 N s/m and
+    the absolute minimum Tlusty's 2 k zeta' (1 + zeta') / K_f with zeta' = zeta +
+    g / (2 sqrt(k m)), printed to 5 digits; one delay (the cut's), so the
+    time-domain confirmation can be proven: STABLE at 1.1 x the old limit."""
+    out_json, out_csv = tmp_path / "a.json", tmp_path / "a.csv"
+    code, out, err = run(
+        capsys, "active", tool, "--speed", "3000", "15000", "--points", "30", "--sensor", "tip.x", "--free",
+        "velocity", "--velocity", "0,300", "--objective", "absolute", "--gain-margin", "1", "--phase-margin", "0",
+        "--starts", "1", "--verify", "2", "--out", str(out_json),
+    )  # fmt: skip
+    assert code == 0, err
+    zp = ZETA + 300.0 / (2 * np.sqrt(K * M))
+    want = 2 * K * zp * (1 + zp) / KF * 1e3
+    got = float(out.split("optimised: ")[1].split(" mm")[0])
+    assert got == pytest.approx(want, rel=5e-5)  # 5 significant digits printed
+    assert "g_V 300 N s/m" in out
+    assert "time-domain confirmation at" in out and ": STABLE (" in out
+    assert "checks agree" in out and "FAILED" not in out
+    import json
+
+    attrs = json.loads(out_json.read_text())["attrs"]
+    assert attrs["confirmation_verdict"] == "stable" and attrs["confirmation_count_proven"] == "True"
+    code, out2, err = run(
+        capsys, "active", tool, "--speed", "3000", "15000", "--points", "30", "--sensor", "tip.x", "--free",
+        "velocity", "--velocity", "0,300", "--objective", "absolute", "--gain-margin", "1", "--phase-margin", "0",
+        "--starts", "1", "--verify", "0", "--no-confirm", "--out", str(out_csv),
+    )  # fmt: skip
+    assert code == 0, err
+    assert "time-domain confirmation" not in out2 and "not verified" in out2
+    header = next(csv.reader(open(out_csv)))
+    assert header[0].startswith("speed") and "b_lim_after [m]" in header
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--sensor", "nowhere.x"], ["'nowhere' is not a point"]),
+        (["--sensor", "tip.z"], ["POINT.DIR"]),
+        (["--sensor", "tip.x", "--velocity", "5,1"], ["the bound is empty"]),
+        (["--sensor", "tip.x", "--velocity", "abc"], ["--velocity takes LO,HI"]),
+        (["--sensor", "tip.x", "--bandwidth", "-3"], ["--bandwidth"]),
+        (["--sensor", "tip.x", "--starts", "0"], ["--starts"]),
+        (["--bandwidth", "300"], ["--bandwidth", "--sensor"]),
+        ([], ["no [[actuator]]"]),
+    ],
+)
+def test_active_bad_input(capsys, tool, extra, words):
+    code, _, err = run(capsys, "active", tool, "--speed", "3000", "15000", "--points", "10", *extra)
+    assert_clean_error(code, err, *words)

@@ -387,3 +387,18 @@ def test_two_boundaries_meeting_have_no_derivative():
     # the limit itself is the 1-DOF closed form with c = 190 N s/m
     z = 190.0 / (2 * np.sqrt(K * M))
     assert s.absolute_minimum["width"] == pytest.approx(2 * K * z * (1 + z) / KF, rel=1e3 * EPS / z)
+
+
+def test_field_value_reads_the_model_after_its_variant_and_overrides():
+    """The value a sensitivity is taken at is the model's own
+    (chatterlab.model.parameter_value): an override (--set) and a variant
+    (--variant) change it; a field the file leaves out reads its default."""
+    text = (
+        turning_text(mass=M, stiffness=K, damping=C, Kf=KF)
+        + '\n[variant.stiff]\n"spring.holder.c1" = 2.5e7\n'
+    )
+    base = cl.loads_model(text)
+    assert field_value(base, "spring.holder.c1") == K
+    assert field_value(base.with_parameter("spring.holder.c1", 3e7), "spring.holder.c1") == 3e7
+    assert field_value(cl.loads_model(text, variant="stiff"), "spring.holder.c1") == 2.5e7
+    assert field_value(base, "spring.holder.d6") == 0.0  # not written: the spring's default

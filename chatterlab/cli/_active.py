@@ -10,12 +10,20 @@ N/m and N s/m, delays in s, speeds in the process's unit."""
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
 from ..errors import InputError, check_count, check_positive
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
-from ._common import load, mm_to_m, model_args, outputs, warn, width_max_m, width_slips
+from ._common import mm_to_m, model_args, outputs
+from ._design_common import (
+    lobe_args,
+    lobe_model,
+    objective_arg,
+    speed_args,
+    speeds_and_ceiling,
+    verified_status,
+    write,
+)
 
 HELP = "co-design an active damper's gains (and placement) for the widest chatter-free cut; lobes before and after"
 
@@ -23,15 +31,7 @@ HELP = "co-design an active damper's gains (and placement) for the widest chatte
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("active", help=HELP)
     model_args(p)
-    p.add_argument(
-        "--speed",
-        type=float,
-        nargs=2,
-        required=True,
-        metavar=("MIN", "MAX"),
-        help="speed range in the process unit",
-    )
-    p.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
+    speed_args(p)
     g = p.add_argument_group("an actuator added to the model (default: the file's [[actuator]] items)")
     g.add_argument(
         "--sensor", metavar="POINT.DIR", help="add an actuator 'damper' sensing POINT along DIR (x, y)"
@@ -69,12 +69,7 @@ def add_parser(sub: Any) -> None:
         metavar="SENSOR[:AT]",
         help="candidate placements (POINT.DIR, or SENSOR:AT for a force elsewhere); the best is kept",
     )
-    p.add_argument(
-        "--objective",
-        choices=["minimum", "absolute"],
-        default="minimum",
-        help="maximise the minimum b_lim over the speed range (default) or the absolute minimum over all speeds",
-    )
+    objective_arg(p)
     p.add_argument(
         "--design-width", type=float, metavar="MM", help="the width of the force limit, mm (default: 1.1 x the"
         " bare structure's minimum)"
@@ -93,16 +88,11 @@ def add_parser(sub: Any) -> None:
         "--tradeoff", type=int, default=0, metavar="N", help="points of the width-force trade-off (0)"
     )
     p.add_argument("--starts", type=int, default=3, metavar="N", help="optimiser starts (default 3)")
-    p.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
+    lobe_args(p)
     p.add_argument(
-        "--width-max", type=float, default=20.0, metavar="B", help="largest width considered, mm (default 20)"
-    )
-    p.add_argument(
-        "--verify",
-        type=int,
-        default=16,
-        metavar="N",
-        help="argument-principle checks of the lobes (default 16)",
+        "--no-confirm",
+        action="store_true",
+        help="skip the time-domain confirmation (the cut at the optimised gains and 1.1 x the old limit)",
     )
     p.add_argument(
         "--out", metavar="FILE.csv|FILE.nc|FILE.json", help="the lobes before and after (and the curve)"
@@ -146,13 +136,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
     starts = check_count(args.starts, "--starts")
     if args.tradeoff < 0:
         raise InputError(f"--tradeoff must be a whole number >= 0 (got {args.tradeoff})")
-    model = load(args)
-    if model.process is None:
-        raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
-    if model.process.kind == "milling":
-        raise InputError(
-            f"{model.source} is a milling model: the active co-design works on D-subdivision lobes (turning, shaping)"
-        )
+    model = lobe_model(args, "the active co-design works on D-subdivision lobes (turning, shaping)")
     if args.sensor is not None:
         if args.actuators:
             raise InputError(
@@ -185,11 +169,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         if args.design_width is None
         else mm_to_m(check_positive(args.design_width, "--design-width", "mm"))
     )
-    from ._lobes import speeds
-
-    v = speeds(args, model.process)
-    wmax = width_max_m(args)
-    warn(args, width_slips(wmax, "--width-max"))
+    v, wmax = speeds_and_ceiling(args, model)
     des = design_active(
         model,
         v,
@@ -207,22 +187,8 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         position=args.position,
         width_max=wmax,
         verify=args.verify,
+        confirm=not args.no_confirm,
     )
     print(des.summary())
-    if args.out:
-        low = args.out.lower()
-        path = outs.path(args.out)
-        if low.endswith(".csv"):
-            des.to_csv(path)
-        elif low.endswith(".json"):
-            des.to_json(path)
-        else:
-            des.to_netcdf(path, attrs={"command": " ".join(sys.argv)})
-    if args.plot:
-        from ..plot import savefig
-
-        savefig(des.plot(), outs.path(args.plot))
-    if des.verified is False:
-        print("chatterlab: the optimised design's lobes failed an argument-principle check", file=sys.stderr)
-        return 1
-    return 0
+    write(des, args, outs)
+    return verified_status(des.verified, "the optimised design")

@@ -8,12 +8,21 @@ Widths in mm, frequencies in Hz, masses in kg, speeds in the process's unit."""
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
 from ..errors import InputError, check_count, check_positive
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
-from ._common import load, model_args, outputs, warn, width_max_m, width_slips
+from ._common import model_args, outputs
+from ._design_common import (
+    lobe_args,
+    lobe_model,
+    objective_arg,
+    refuse_json,
+    speed_args,
+    speeds_and_ceiling,
+    verified_status,
+    write,
+)
 
 HELP = "tune vibration absorbers to maximise the minimum chatter-free width; lobes before and after"
 
@@ -21,15 +30,7 @@ HELP = "tune vibration absorbers to maximise the minimum chatter-free width; lob
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("absorber", help=HELP)
     model_args(p)
-    p.add_argument(
-        "--speed",
-        type=float,
-        nargs=2,
-        required=True,
-        metavar=("MIN", "MAX"),
-        help="speed range in the process unit",
-    )
-    p.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
+    speed_args(p)
     p.add_argument(
         "--at",
         metavar="POINT",
@@ -45,12 +46,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--absorbers", nargs="+", metavar="ID", help="ids of the file's absorbers to tune (default: all)"
     )
-    p.add_argument(
-        "--objective",
-        choices=["minimum", "absolute"],
-        default="minimum",
-        help="maximise the minimum b_lim over the speed range (default) or the absolute minimum over all speeds",
-    )
+    objective_arg(p)
     p.add_argument(
         "--mass-max", type=float, metavar="KG", help="tune each mass too, up to KG (default: masses kept)"
     )
@@ -63,17 +59,7 @@ def add_parser(sub: Any) -> None:
         help="absorber damping-ratio bounds (default 0.005 0.5)",
     )  # fmt: skip
     p.add_argument("--starts", type=int, default=4, metavar="N", help="optimiser starts (default 4)")
-    p.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
-    p.add_argument(
-        "--width-max", type=float, default=20.0, metavar="B", help="largest width considered, mm (default 20)"
-    )
-    p.add_argument(
-        "--verify",
-        type=int,
-        default=16,
-        metavar="N",
-        help="argument-principle checks of the lobes (default 16)",
-    )
+    lobe_args(p)
     p.add_argument("--out", metavar="FILE.csv|FILE.nc", help="the tuned design's lobe diagram")
     p.add_argument("--plot", metavar="FILE.png", help="the lobes before and after on one axis")
 
@@ -85,18 +71,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, outs: Any) -> int:
     from ..design import tune_absorbers, with_absorber
-    from ._lobes import speeds
 
-    if args.out and args.out.lower().endswith(".json"):
-        raise InputError("--out: write the tuned design's lobes as .csv or .nc (not JSON)")
+    refuse_json(args, "the tuned design's lobes")
     starts = check_count(args.starts, "--starts")
-    model = load(args)
-    if model.process is None:
-        raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
-    if model.process.kind == "milling":
-        raise InputError(
-            f"{model.source} is a milling model: absorber tuning works on D-subdivision lobes (turning, shaping)"
-        )
+    model = lobe_model(args, "absorber tuning works on D-subdivision lobes (turning, shaping)")
     if args.at is not None:
         if args.mass is None or (args.direction is None and args.angle is None):
             raise InputError(
@@ -125,9 +103,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
             raise InputError(
                 f"{opt} LO HI: the bound is empty or negative (got {pair[0]:g} {pair[1]:g}); give 0 < LO < HI"
             )
-    v = speeds(args, model.process)
-    wmax = width_max_m(args)
-    warn(args, width_slips(wmax, "--width-max"))
+    v, wmax = speeds_and_ceiling(args, model)
     des = tune_absorbers(
         model,
         v,
@@ -142,16 +118,5 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         verify=args.verify,
     )
     print(des.summary())
-    if args.out:
-        if args.out.lower().endswith(".csv"):
-            des.after.to_csv(outs.path(args.out))
-        else:
-            des.after.to_netcdf(outs.path(args.out), attrs={"command": " ".join(sys.argv)})
-    if args.plot:
-        from ..plot import savefig
-
-        savefig(des.plot(), outs.path(args.plot))
-    if des.verified is False:
-        print("chatterlab: the tuned design's lobes failed an argument-principle check", file=sys.stderr)
-        return 1
-    return 0
+    write(des.after, args, outs, plot=des.plot)
+    return verified_status(des.verified, "the tuned design")

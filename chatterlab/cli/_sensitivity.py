@@ -10,9 +10,10 @@ import argparse
 import sys
 from typing import Any
 
-from ..errors import InputError, check_count
+from ..errors import check_count
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
-from ._common import load, model_args, outputs, warn, width_max_m, width_slips
+from ._common import model_args, outputs
+from ._design_common import lobe_args, lobe_model, refuse_json, speed_args, speeds_and_ceiling, write
 
 HELP = "exact sensitivities of the stability limit to model fields, ranked (what to stiffen or damp)"
 
@@ -20,15 +21,7 @@ HELP = "exact sensitivities of the stability limit to model fields, ranked (what
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("sensitivity", help=HELP)
     model_args(p)
-    p.add_argument(
-        "--speed",
-        type=float,
-        nargs=2,
-        required=True,
-        metavar=("MIN", "MAX"),
-        help="speed range in the process unit",
-    )
-    p.add_argument("--points", type=int, default=300, help="number of speeds (default 300)")
+    speed_args(p)
     p.add_argument(
         "--fields",
         nargs="+",
@@ -36,10 +29,7 @@ def add_parser(sub: Any) -> None:
         help="parameter paths to differentiate, e.g. spring.holder.c1 beam.table.I (default: every number"
         " of the file's bodies, beams, springs, couplings, absorbers and modes, and each joint's damping)",
     )
-    p.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
-    p.add_argument(
-        "--width-max", type=float, default=20.0, metavar="B", help="largest width considered, mm (default 20)"
-    )
+    lobe_args(p, verify=False)
     p.add_argument(
         "--terms",
         choices=["pdo", "o"],
@@ -72,22 +62,15 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, outs: Any) -> int:
     from ..design import sensitivity
-    from ._lobes import speeds
 
-    if args.out and args.out.lower().endswith(".json"):
-        raise InputError("--out: write the sensitivities as .csv or .nc (not JSON)")
+    refuse_json(args, "the sensitivities")
     count = check_count(args.count, "--count")
-    model = load(args)
-    if model.process is None:
-        raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
-    if model.process.kind == "milling":
-        raise InputError(
-            f"{model.source} is a milling model: sensitivities of the milling limit (Floquet multipliers)"
-            " are not implemented; they are for turning and shaping models"
-        )
-    v = speeds(args, model.process)
-    wmax = width_max_m(args)
-    warn(args, width_slips(wmax, "--width-max"))
+    model = lobe_model(
+        args,
+        "sensitivities of the milling limit (Floquet multipliers) are not implemented; they are for turning"
+        " and shaping models",
+    )
+    v, wmax = speeds_and_ceiling(args, model)
     s = sensitivity(
         model,
         v,
@@ -101,15 +84,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
     if n > count:
         print(f"  ... {n - count} more field(s): --count {n} prints all, --out FILE.csv writes them")
     print(f"  {n} fields, {s.evaluations} model evaluations, {s.elapsed:.2f} s")
-    if args.out:
-        if args.out.lower().endswith(".csv"):
-            s.to_csv(outs.path(args.out))
-        else:
-            s.to_netcdf(outs.path(args.out))
-    if args.plot:
-        from ..plot import savefig
-
-        savefig(s.plot(by=args.by, limit=args.limit), outs.path(args.plot))
+    write(s, args, outs, command=False, plot=lambda: s.plot(by=args.by, limit=args.limit))
     if s.degenerate:
         print(
             "chatterlab: warning: two boundaries meet at the minimum (a symmetric structure): it has no"

@@ -19,12 +19,14 @@ from ._absorber import (
 from ._active import (
     ActiveDesign,
     Margins,
+    confirm_active,
     design_active,
     force_required,
     loop_margins,
     with_actuator,
     without_actuators,
 )
+from ._confirm import ActiveConfirmation
 from ._controlled import ControllerUnstable, controller_roots, design_lobes
 from ._critical import CriticalPoint
 from ._fields import design_fields, field_affinity, field_unit, field_value
@@ -35,6 +37,8 @@ from ._sensitivity import Sensitivity, sensitivity
 __all__ = [
     "design_active",
     "ActiveDesign",
+    "confirm_active",
+    "ActiveConfirmation",
     "with_actuator",
     "without_actuators",
     "design_lobes",

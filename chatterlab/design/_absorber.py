@@ -65,7 +65,16 @@ from ..io import Result
 from ..model import Model
 from ..structure import assemble
 from ._controlled import design_lobes
-from ._epigraph import CANDIDATES, candidate_points, solve_epigraph
+from ._epigraph import (
+    CANDIDATES,
+    best_start,
+    candidate_points,
+    check_bound,
+    check_starts,
+    solve_epigraph,
+    start_points,
+    starts_line,
+)
 from ._limits import limits_of
 from ._matrices import field_derivative, loop_matrices
 
@@ -290,14 +299,8 @@ class AbsorberDesign(Result):
             )
             + f"): {self.den_hartog_width * 1e3:.5g} mm"
         )
-        best = max(self.starts, key=lambda s: s["width"]) if self.starts else None
-        if best is not None:
-            agree = sum(abs(s["width"] - self.width) <= 1e-6 * self.width for s in self.starts)
-            lines.append(
-                f"  {len(self.starts)} start{'s' if len(self.starts) != 1 else ''}"
-                f" ({', '.join(s['label'] for s in self.starts)}); {agree} reach the optimum"
-                f" to 1e-6; {self.evaluations} evaluations, {self.elapsed:.1f} s"
-            )
+        if self.starts:
+            lines.append(starts_line(self.starts, self.width, self.evaluations, self.elapsed))
         ok = self.after.verified
         n = len(self.after.checks)
         lines.append(
@@ -530,8 +533,7 @@ def tune_absorbers(
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {', '.join(OBJECTIVES)} (got {objective!r})")
     width_max = check_width(width_max, "width_max")
-    if not isinstance(starts, int) or starts < 1:
-        raise InputError(f"starts must be a whole number >= 1 (got {starts!r})")
+    check_starts(starts)
     known = [a.id for a in model.absorbers]
     if not known:
         raise InputError(
@@ -541,11 +543,7 @@ def tune_absorbers(
     for aid in ids:
         if aid not in known:
             raise InputError(f"unknown absorber '{aid}' (known: {', '.join(known)})")
-    lo_z, hi_z = (float(x) for x in damping_ratio)
-    if not 0 < lo_z < hi_z:
-        raise InputError(
-            f"damping_ratio bounds must satisfy 0 < lo < hi (got {lo_z:g}, {hi_z:g}): the bound is empty"
-        )
+    lo_z, hi_z = check_bound("damping_ratio bounds", *damping_ratio, positive=True)
     if mass_max is not None and not (
         isinstance(mass_max, int | float) and math.isfinite(mass_max) and mass_max > 0
     ):
@@ -569,11 +567,11 @@ def tune_absorbers(
     if not np.isfinite(f_c):  # an undamped bare structure: its lowest mode is the host
         d0 = design_lobes(fz0, speeds, verify=0, **lobe_kw)
         f_c = float(d0.absolute_minimum["chatter_hz"])
-    lo_f, hi_f = frequency_hz if frequency_hz is not None else (0.6 * f_c, 1.4 * f_c)
-    if not 0 < lo_f < hi_f:
-        raise InputError(
-            f"frequency_hz bounds must satisfy 0 < lo < hi (got {lo_f:g}, {hi_f:g}): the bound is empty"
-        )
+    lo_f, hi_f = check_bound(
+        "frequency_hz bounds",
+        *(frequency_hz if frequency_hz is not None else (0.6 * f_c, 1.4 * f_c)),
+        positive=True,
+    )
     masses = np.array([next(a for a in model.absorbers if a.id == i).mass for i in ids])
     free = mass_max is not None
     m_max = float(mass_max) if mass_max is not None else 0.0
@@ -605,22 +603,12 @@ def tune_absorbers(
             x += [math.log(ratio * fh), z] + ([m] if free else [])
         return np.clip((np.array(x) - prob.lo) / (prob.hi - prob.lo), 0.0, 1.0)
 
-    u0 = [("Den Hartog", unit(dh)), ("real part", unit(rp))]
-    rng = np.random.default_rng(seed)
-    n_rand = max(starts - 2, 0)
-    if n_rand:
-        dim = prob.lo.size
-        lhs = (np.argsort(rng.random((dim, n_rand)), axis=1).T + rng.random((n_rand, dim))) / n_rand
-        u0 += [(f"random {i + 1}", lhs[i]) for i in range(n_rand)]
-    u0 = u0[:starts]
+    u0 = start_points([("Den Hartog", unit(dh)), ("real part", unit(rp))], prob.lo.size, starts, seed)
     # the objective's scale: the design at Den Hartog's tuning
     prob.scale = float(prob.candidates(u0[0][1])[0][0])
     if not np.isfinite(prob.scale) or prob.scale <= 0:
         prob.scale = width_max
-    runs = []
-    for label, u in u0:
-        runs.append((label, u, *solve_epigraph(prob, u)))
-    label, u_start, u_best, w_best, nit = max(runs, key=lambda r: r[3])
+    runs, (label, u_start, u_best, w_best, nit) = best_start(u0, lambda u: solve_epigraph(prob, u))
     tuned = prob.model_at(u_best)
     after = design_lobes(assemble(tuned).at(position), speeds, verify=verify, **lobe_kw)
     width, _ = _objective(after, tuned, objective, position, speeds, terms)

@@ -91,6 +91,7 @@ References
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -114,7 +115,16 @@ from ._controlled import (
     machine_roots,
     plant_lobes,
 )
-from ._epigraph import CANDIDATES, candidate_points, solve_epigraph
+from ._epigraph import (
+    CANDIDATES,
+    best_start,
+    candidate_points,
+    check_bound,
+    check_starts,
+    solve_epigraph,
+    start_points,
+    starts_line,
+)
 from ._limits import limits_of
 from ._matrices import LoopMatrices, matrices_of
 from ._receptance import control_at
@@ -128,6 +138,7 @@ __all__ = [
     "force_required",
     "Margins",
     "GAINS",
+    "confirm_active",
 ]
 
 #: the gains of (1) a co-design may vary: name -> (LoopMatrices block, model field, unit)
@@ -666,6 +677,11 @@ class ActiveDesign(Result):
         when not computed.
     model : Model
         The optimised model.
+    confirmation : ActiveConfirmation or None
+        The time-domain confirmation (:func:`confirm_active`): the cut at the
+        optimised gains and 1.1 times the old limit, its verdict ("stable"
+        only when proven), its decay against the rightmost root, the
+        actuator's largest force against its limit; None when not run.
     """
 
     name: str
@@ -685,6 +701,7 @@ class ActiveDesign(Result):
     free: tuple[str, ...] = ()
     elapsed: float = 0.0
     evaluations: int = 0
+    confirmation: Any = field(default=None, repr=False)
 
     @property
     def gain(self) -> float:
@@ -695,6 +712,24 @@ class ActiveDesign(Result):
     def verified(self) -> bool | None:
         """The optimised design's lobes passed every argument-principle check."""
         return self.after.verified
+
+    @property
+    def verification(self) -> str:
+        """The check of the optimised lobes, in one line: the same
+        argument-principle checks as any lobe diagram
+        (:func:`chatterlab.lobes.verify_diagram`: the count of roots right of
+        the axis just below and above the envelope and at the ceiling), on the
+        full loop with the actuators (two delays: the phase sampled, not
+        proven; one delay: proven)."""
+        ch = self.after.checks
+        if not ch:
+            return "optimised design not verified (verify=0)"
+        proven = sum(bool(c["proven"]) for c in ch)
+        return (
+            f"optimised design verified by the argument principle (the lobe diagram's checks below and above the"
+            f" envelope, on the loop with the actuators): {sum(c['agrees'] for c in ch)}/{len(ch)} checks agree,"
+            f" {proven} proven, {len(ch) - proven} sampled"
+        )
 
     def toml(self) -> str:
         """The optimised ``[[actuator]]`` gains, to paste into the model file."""
@@ -735,8 +770,12 @@ class ActiveDesign(Result):
             )
         bare = f"{self.bare_width * 1e3:.4g} mm" if self.bare_width > 0 else "0 (an undamped mode)"
         gain = f"x {self.gain:.3g}" if np.isfinite(self.gain) else "from 0"
+        opt = f"{self.width * 1e3:.5g} mm"
+        if not math.isfinite(self.width):
+            opt = f"above the {float(self.after.width_max) * 1e3:.4g} mm ceiling (no boundary below it)"
+            gain = "beyond the ceiling"
         lines.append(
-            f"  optimised: {self.width * 1e3:.5g} mm; without the actuator: {bare} ({gain});"
+            f"  optimised: {opt}; without the actuator: {bare} ({gain});"
             f" the file's gains: {self.file_width * 1e3:.5g} mm"
         )
         lines.append(
@@ -748,12 +787,7 @@ class ActiveDesign(Result):
                 + "; ".join(f"{p['sensor']} -> {p['at']}: {p['width'] * 1e3:.4g} mm" for p in self.places)
             )
         if self.starts:
-            agree = sum(abs(s["width"] - self.width) <= 1e-6 * self.width for s in self.starts)
-            lines.append(
-                f"  {len(self.starts)} start{'s' if len(self.starts) != 1 else ''}"
-                f" ({', '.join(s['label'] for s in self.starts)}); {agree} reach the optimum to 1e-6;"
-                f" {self.evaluations} evaluations, {self.elapsed:.1f} s"
-            )
+            lines.append(starts_line(self.starts, self.width, self.evaluations, self.elapsed))
         if self.tradeoff:
             fl, wd = np.asarray(self.tradeoff["force"]), np.asarray(self.tradeoff["width"])
             lines.append(
@@ -764,13 +798,9 @@ class ActiveDesign(Result):
                     if np.isfinite(a * b)
                 )
             )
-        n = len(self.after.checks)
-        lines.append(
-            f"  optimised design verified by the argument principle: {sum(c['agrees'] for c in self.after.checks)}/{n}"
-            " checks agree"
-            if n
-            else "  optimised design not verified (verify=0)"
-        )
+        lines.append("  " + self.verification)
+        if self.confirmation is not None:
+            lines += self.confirmation.lines(str(self.after.speed_unit))
         if self.after.verified is False:
             lines.append(
                 "  CHECK FAILED: the optimised design's lobes are contradicted by the argument principle"
@@ -819,7 +849,26 @@ class ActiveDesign(Result):
             "free_gains": json.dumps(list(self.free)),
             "actuators": json.dumps([{k: _plain(v) for k, v in a.items()} for a in self.actuators]),
             "verified": str(self.verified),
+            "verification": self.verification,
         }
+        c = self.confirmation
+        if c is not None:
+            attrs.update(
+                {
+                    "confirmation_verdict": c.verdict,
+                    "confirmation_reason": c.reason,
+                    "confirmation_speed": c.speed,
+                    "confirmation_width_m": c.width,
+                    "confirmation_abscissa_per_s": c.abscissa,
+                    "confirmation_rhp_count": c.rhp_count,
+                    "confirmation_count_proven": str(c.count_proven),
+                    "confirmation_rate_per_s": c.rate,
+                    "confirmation_rate_error_per_s": c.rate_error,
+                    "confirmation_rate_agrees": str(c.rate_agrees),
+                    "confirmation_force_max_n": json.dumps([_plain(f) for f in c.forces]),
+                    "confirmation_force_ok": str(c.force_ok),
+                }
+            )
         return coords, data, attrs
 
     def to_csv(self, path: Any) -> Any:
@@ -906,6 +955,7 @@ def design_active(
     n_frequencies: int | None = None,
     verify: int = 16,
     seed: int = 0,
+    confirm: bool = True,
 ) -> ActiveDesign:
     """Choose an actuator's gains (and placement) to maximise the minimum
     chatter-free width (module docstring).
@@ -948,6 +998,9 @@ def design_active(
         Latin-hypercube points (``seed``).
     position, width_max, terms, n_frequencies, verify
         As for :func:`chatterlab.lobes.lobes`.
+    confirm : bool
+        Confirm the optimum in the time domain (:func:`confirm_active`):
+        ``ActiveDesign.confirmation``.
 
     Returns
     -------
@@ -963,8 +1016,7 @@ def design_active(
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {', '.join(OBJECTIVES)} (got {objective!r})")
     width_max = check_width(width_max, "width_max")
-    if not isinstance(starts, int) or isinstance(starts, bool) or starts < 1:
-        raise InputError(f"starts must be a whole number >= 1 (got {starts!r})")
+    check_starts(starts)
     if not isinstance(tradeoff, int) or isinstance(tradeoff, bool) or tradeoff < 0:
         raise InputError(f"tradeoff must be a whole number >= 0 (got {tradeoff!r})")
     if not (isinstance(gain_margin, int | float) and math.isfinite(gain_margin) and gain_margin >= 1):
@@ -994,11 +1046,7 @@ def design_active(
     for g, b in bounds.items():
         if g not in GAINS:
             raise InputError(f"bounds: unknown gain {g!r} (known: {', '.join(GAINS)})")
-        lo, hi = (float(x) for x in b)
-        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-            raise InputError(
-                f"bounds of the {g} gain: the bound is empty (got {lo:g} .. {hi:g}); give lo < hi"
-            )
+        lo, hi = check_bound(f"bounds of the {g} gain", *b)
         if g == "velocity" and lo < 0:
             raise InputError(
                 f"bounds of the velocity gain must be >= 0 (got {lo:g} .. {hi:g} N s/m): a negative velocity"
@@ -1090,22 +1138,14 @@ def design_active(
         u_file = np.array(
             [(getattr(L0, blk)[k] - l_) / (h_ - l_) for (k, blk), l_, h_ in zip(blocks, lo, hi, strict=True)]
         )
-        u0 = [("file", np.clip(u_file, 0.0, 1.0))]
-        if starts > 1:
-            uv = np.array(
-                [
-                    0.25 if blk == "Va" else (0.0 - l_) / (h_ - l_)
-                    for (k, blk), l_, h_ in zip(blocks, lo, hi, strict=True)
-                ]
-            )
-            u0.append(("velocity", np.clip(uv, 0.0, 1.0)))
-        n_rand = max(starts - 2, 0)
-        if n_rand:
-            rng = np.random.default_rng(seed)
-            dim = len(blocks)
-            lhs = (np.argsort(rng.random((dim, n_rand)), axis=1).T + rng.random((n_rand, dim))) / n_rand
-            u0 += [(f"random {i + 1}", lhs[i]) for i in range(n_rand)]
-        return prob, u0[:starts]
+        uv = np.array(
+            [
+                0.25 if blk == "Va" else (0.0 - l_) / (h_ - l_)
+                for (k, blk), l_, h_ in zip(blocks, lo, hi, strict=True)
+            ]
+        )
+        named = [("file", np.clip(u_file, 0.0, 1.0)), ("velocity", np.clip(uv, 0.0, 1.0))]
+        return prob, start_points(named, len(blocks), starts, seed)
 
     def solve(prob: _Problem, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         t_min = prob.design_width * (1 + 1e-6) if np.any(np.isfinite(prob.force_limits)) else 0.0
@@ -1128,11 +1168,9 @@ def design_active(
         prob.scale = (
             max(float(prob.candidates(u0[0][1])[0][0]), bare_width * 1e-3) if bare_width > 0 else width_max
         )
-        runs = []
-        for label, u in u0:
-            ub, wb, it = solve(prob, u)
-            runs.append((label, u, ub, wb if feasible(prob, ub) else -math.inf, it))
-        label, u_s, u_b, w_b, nit = max(runs, key=lambda r: r[3])
+        runs, (label, u_s, u_b, w_b, nit) = best_start(
+            u0, functools.partial(solve, prob), functools.partial(feasible, prob)
+        )
         evaluations += prob.evaluations
         place_info.append((pl, mdl, prob, runs, u_b, w_b))
         if best is None or w_b > best[5]:
@@ -1211,7 +1249,7 @@ def design_active(
         }
         for lb, us, ub, wb, it in runs
     )
-    return ActiveDesign(
+    design = ActiveDesign(
         name=str(getattr(model, "name", "") or model.source),
         actuators=tuple(acts),
         objective=objective,
@@ -1232,6 +1270,44 @@ def design_active(
         elapsed=time.perf_counter() - t0,
         evaluations=evaluations,
     )
+    if confirm:
+        design = replace(design, confirmation=confirm_active(design, position=position, terms=terms))
+        design = replace(design, elapsed=time.perf_counter() - t0)
+    return design
+
+
+def confirm_active(
+    design: ActiveDesign,
+    *,
+    factor: float = 1.1,
+    speed: float | None = None,
+    position: float | None = None,
+    terms: Literal["pdo", "o"] = "pdo",
+) -> Any:
+    """The time domain confirms a co-design
+    (:func:`chatterlab.design._confirm.confirm_loop`): the cut at the
+    optimised gains and ``factor`` times the old (uncontrolled) limit, at
+    ``speed`` (default: where the optimised lobes are lowest, the hardest
+    speed of the range), integrated with the actuators' bandwidth and delay;
+    its verdict is "stable" only when proven, else "undetermined" (or
+    "unstable"), with the run's decay against the rightmost root and each
+    actuator's largest force against its limit.  Returns a
+    :class:`~chatterlab.design.ActiveConfirmation`."""
+    from ._confirm import confirm_loop
+
+    if not (isinstance(factor, int | float) and math.isfinite(factor) and factor > 0):
+        raise InputError(f"factor must be a number > 0 (got {factor!r})")
+    d = design.after
+    if speed is None:  # the optimised lobes' lowest speed, else (none below the ceiling) the old one's
+        for dd in (d, design.before):
+            b = np.asarray(dd.b_lim, dtype=float)
+            if np.any(np.isfinite(b)):
+                speed = float(dd.speed[int(np.nanargmin(np.where(np.isfinite(b), b, np.nan)))])
+                break
+        else:
+            speed = float(d.speed[0])
+    fz = assemble(design.model).at(position if position is not None else d.position)
+    return confirm_loop(fz, float(speed), factor * design.bare_width, design.bare_width, terms=terms)
 
 
 def _min_force(prob: _Problem, u0: np.ndarray, target: float) -> tuple[np.ndarray, bool]:

@@ -35,7 +35,17 @@ import numpy as np
 from ._critical import CriticalPoint, at_delay
 from ._limits import limits_of, lobe_bottoms
 
-__all__ = ["CANDIDATES", "candidate_points", "in_range", "solve_epigraph"]
+__all__ = [
+    "CANDIDATES",
+    "candidate_points",
+    "in_range",
+    "solve_epigraph",
+    "check_starts",
+    "check_bound",
+    "start_points",
+    "best_start",
+    "starts_line",
+]
 
 CANDIDATES = 3  #: the lowest candidates held by the constraints b_i >= t
 
@@ -120,3 +130,68 @@ def solve_epigraph(
     u = np.clip(res.x[:n], 0.0, 1.0)
     best = float(prob.candidates(u)[0][0])
     return u, best, int(res.nit)
+
+
+# ------------------------------------------------------------------ the multi-start scaffolding
+def check_starts(starts: Any) -> int:
+    """The number of optimiser starts: a whole number >= 1, else one line."""
+    if not isinstance(starts, int) or isinstance(starts, bool) or starts < 1:
+        from ..errors import InputError
+
+        raise InputError(f"starts must be a whole number >= 1 (got {starts!r})")
+    return starts
+
+
+def check_bound(what: str, lo: Any, hi: Any, *, positive: bool = False) -> tuple[float, float]:
+    """An optimiser bound ``(lo, hi)``: finite, lo < hi (and 0 < lo when
+    ``positive``), else one line naming ``what``."""
+    from ..errors import InputError
+
+    a, b = float(lo), float(hi)
+    if not (math.isfinite(a) and math.isfinite(b) and a < b and (a > 0 or not positive)):
+        raise InputError(
+            f"{what}: the bound is empty (got {a:g} .. {b:g}); give {'0 < lo < hi' if positive else 'lo < hi'}"
+        )
+    return a, b
+
+
+def start_points(
+    named: list[tuple[str, np.ndarray]], dim: int, starts: int, seed: int
+) -> list[tuple[str, np.ndarray]]:
+    """The optimiser's starts in the unit box: the ``named`` ones (a
+    classical design, the file's), then Latin-hypercube points (``seed``) up
+    to ``starts`` in all."""
+    out = list(named)
+    n_rand = max(starts - len(named), 0)
+    if n_rand:
+        rng = np.random.default_rng(seed)
+        lhs = (np.argsort(rng.random((dim, n_rand)), axis=1).T + rng.random((n_rand, dim))) / n_rand
+        out += [(f"random {i + 1}", lhs[i]) for i in range(n_rand)]
+    return out[:starts]
+
+
+def best_start(
+    u0: list[tuple[str, np.ndarray]],
+    solve: Callable[[np.ndarray], tuple[np.ndarray, float, int]],
+    feasible: Callable[[np.ndarray], bool] | None = None,
+) -> tuple[
+    list[tuple[str, np.ndarray, np.ndarray, float, int]], tuple[str, np.ndarray, np.ndarray, float, int]
+]:
+    """Every start solved (``solve(u) -> (u_best, width, iterations)``; an
+    infeasible end counts -inf) and the best: ``(runs, best)``, each run
+    ``(label, start, end, width, iterations)``."""
+    runs = []
+    for label, u in u0:
+        ub, wb, it = solve(u)
+        ok = feasible is None or feasible(ub)
+        runs.append((label, u, ub, wb if ok else -math.inf, it))
+    return runs, max(runs, key=lambda r: r[3])
+
+
+def starts_line(starts: tuple[dict[str, Any], ...], width: float, evaluations: int, elapsed: float) -> str:
+    """The summary line of a multi-start optimisation."""
+    agree = sum(abs(s["width"] - width) <= 1e-6 * width for s in starts)
+    return (
+        f"  {len(starts)} start{'s' if len(starts) != 1 else ''} ({', '.join(s['label'] for s in starts)});"
+        f" {agree} reach the optimum to 1e-6; {evaluations} evaluations, {elapsed:.1f} s"
+    )

@@ -18,7 +18,7 @@ import json
 import math
 from typing import Any
 
-from ..errors import InputError
+from ..errors import InputError, ModelError
 from ..model import Model
 
 __all__ = ["design_fields", "field_value", "field_unit", "field_affinity"]
@@ -226,43 +226,36 @@ def _split(path: str) -> tuple[str, str | None, str]:
 
 
 def field_value(model: Model, path: str) -> float:
-    """The number a field holds in ``model`` (its default when the file
-    leaves it out); an :class:`InputError` naming the field when it is not a
-    number of the model."""
+    """The number a field holds in ``model`` -- after its variant and
+    overrides (``--variant``, ``--set``), as
+    :func:`chatterlab.model.parameter_value` reads it -- or its default when
+    the file leaves it out; an :class:`InputError` naming the field when it is
+    not a number of the model."""
+    from ..model import parameter_value
+
     kind, iid, name = _split(path)
-    raw = _raw(model)
+    try:
+        return parameter_value(model, path)
+    except ModelError as exc:
+        if "is not a number" in str(exc):
+            raise InputError(f"field '{path}' is not a number; a sensitivity needs a numeric field") from None
+    # not written in the file: the item's default, if the item exists and the field has one
     if iid is None:
-        table = raw.get(kind)
-        value = table.get(name) if isinstance(table, dict) else None
         where = f"[{kind}]"
     else:
-        items = raw.get(kind, [])
-        item = next(
-            (
-                it
-                for it in (items if isinstance(items, list) else [])
-                if isinstance(it, dict) and it.get("id") == iid
-            ),
-            None,
-        )
-        if item is None:
-            known = (
-                [str(it.get("id")) for it in items if isinstance(it, dict)] if isinstance(items, list) else []
-            )
+        items = _raw(model).get(kind, [])
+        ids = [str(it.get("id")) for it in items if isinstance(it, dict)] if isinstance(items, list) else []
+        if iid not in ids:
             raise InputError(
                 f"field '{path}': {model.source} has no [[{kind}]] with id '{iid}'"
-                f" (known: {', '.join(known) or 'none'}); check the path"
+                f" (known: {', '.join(ids) or 'none'}); check the path"
             )
-        value = item.get(name, _DEFAULTS.get((kind, name)))
         where = f'[[{kind}]] "{iid}"'
+    value = _DEFAULTS.get((kind, name)) if iid is not None else None
     if value is None:
         raise InputError(
             f"field '{path}': {where} of {model.source} has no field '{name}' and it has no default;"
             " write it in the file or choose another field"
-        )
-    if not _number(value):
-        raise InputError(
-            f"field '{path}' is not a number (got {value!r}); a sensitivity needs a numeric field"
         )
     return float(value)
 
