@@ -16,7 +16,22 @@ from ..io import Result
 from ._frf import FRF
 from ._lscf import Stabilisation
 
-__all__ = ["ModalFit", "FitQuality"]
+__all__ = ["ModalFit", "FitQuality", "point_tables"]
+
+
+def point_tables(coords: list[str]) -> list[dict[str, Any]]:
+    """The ``[[point]]`` tables that name a fitted model's coordinates as
+    points: ``holder.x`` and ``holder.y`` are the x and y of point
+    ``holder``; a name without a direction is a point's x."""
+    points: dict[str, dict[str, str]] = {}
+    for c in coords:
+        pt, _, d = c.rpartition(".")
+        if pt and d in ("x", "y", "rz"):
+            points.setdefault(pt, {})[d] = c
+        else:
+            points.setdefault(c, {})["x"] = c
+    return [{"id": p, "coords": cs} for p, cs in points.items()]
+
 
 # ============================================================================ result
 
@@ -349,13 +364,6 @@ class ModalFit(Result):
         L = Pinv.T @ np.diag(2 * ze * om) @ Pinv
         sym = [0.5 * (X + X.T) for X in (M, L, K)]
         coords = [c for _, _, c in self._driving()] + [f"fit.q{k + 1}" for k in range(n - n_c)]
-        points: dict[str, dict[str, str]] = {}
-        for c in coords[:n_c]:
-            pt, _, d = c.rpartition(".")
-            if pt and d in ("x", "y", "rz"):
-                points.setdefault(pt, {})[d] = c
-            else:
-                points.setdefault(c, {})["x"] = c
         raw: dict[str, Any] = {
             "model": {"name": name, "description": f"real-mode model of the modal fit of {self.source}"},
             "matrices": {
@@ -364,7 +372,7 @@ class ModalFit(Result):
                 "L": sym[1].tolist(),
                 "K": sym[2].tolist(),
             },
-            "point": [{"id": p, "coords": cs} for p, cs in points.items()],
+            "point": point_tables(coords[:n_c]),
         }
         for key, val in (tables or {}).items():
             if key in ("matrices",):

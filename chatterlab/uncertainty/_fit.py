@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..structure._fit_result import point_tables
 
 __all__ = ["uncertain_modal_model"]
 
@@ -106,20 +107,13 @@ def uncertain_modal_model(
                         "covariance": (s * s * np.ones((len(ids),) * 2)).tolist(),
                     }
                 )
-    points: dict[str, dict[str, str]] = {}
-    for c in coords:
-        pt, _, d = c.rpartition(".")
-        if pt and d in ("x", "y", "rz"):
-            points.setdefault(pt, {})[d] = c
-        else:
-            points.setdefault(c, {})["x"] = c
     raw: dict[str, Any] = {
         "model": {
             "name": name,
             "description": f"modal model of the fit of {fit.source}, with its uncertainty",
         },
         "mode": modes,
-        "point": [{"id": p, "coords": cs} for p, cs in points.items()],
+        "point": point_tables(coords),
     }
     for key, val in (tables or {}).items():
         if key in ("mode", "uncertainty"):
