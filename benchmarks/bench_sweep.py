@@ -14,7 +14,7 @@ flagged LOADED (the machine has 2 cores, so outside load caps the speed-up).
 1. **speed-up** of the loky backend with 2 workers over the serial backend
    on the same sweep, for two workloads: 100 CPU-bound numpy tasks of ~20 ms
    (no BLAS) and a real chatterlab sweep (rightmost characteristic root of
-   the shaper on a 3 x 4 width x speed grid, BLAS-heavy); the loky executor
+   the shaper on a 6 x 12 width x speed grid: issue 26's 72-point sweep, BLAS-heavy); the loky executor
    cold (first call: worker start-up included) and warm; results checked
    bit-identical.  BLAS is checked single-threaded inside the serial backend
    and the loky workers (threadpoolctl, from within the tasks);
@@ -200,6 +200,8 @@ def bench_speedup(workloads: dict[str, tuple[Any, Grid, dict[str, str], str]], r
             "speedup_median": r_med,
             "speedup_cold": ser["min_s"] / t_cold,
             "bit_identical": same,
+            # this (driver) process's peak so far: it computes chunks too
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         }
     return out
 
@@ -346,6 +348,20 @@ def bench_memory(n: int) -> dict[str, Any]:
     return d
 
 
+def _commit() -> str:
+    """The checkout's short commit (+dirty when chatterlab/ has changes)."""
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+        )
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "chatterlab"], cwd=ROOT, capture_output=True, text=True
+        )
+    except OSError:
+        return ""
+    return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smaller sizes")
@@ -374,6 +390,7 @@ def main() -> None:
         "python": platform.python_version(),
         "cpu_count": os.cpu_count(),
         "load_average_start": list(load0),
+        "commit": _commit(),
         "loaded_threshold": LOADED,
         "repeats": rep,
     }
@@ -384,7 +401,8 @@ def main() -> None:
         per_task = min(busy(0.0, reps)["cpu"] for _ in range(5))
         n_busy = 40 if args.quick else 100
         fz = cl.assemble(cl.load_model(ROOT / "studies" / "traverse_shaper" / "model.toml")).at()
-        g_cl = Grid({"width": [0.0005, 0.001, 0.002], "speed": [0.25, 0.5, 0.75, 1.0]})
+        # issue 26's sweep row: 72 points, 6 widths x 12 speeds
+        g_cl = Grid({"width": np.linspace(0.0005, 0.002, 6), "speed": np.linspace(0.25, 1.0, 12)})
         workloads = {
             "numpy": (
                 functools.partial(busy, reps=reps),
@@ -396,7 +414,7 @@ def main() -> None:
                 functools.partial(abscissa, frozen=fz),
                 g_cl,
                 {"abscissa": "1/s"},
-                "shaper rightmost root, case c, widths 0.5-2 mm x speeds 0.25-1 m/s (BLAS: eig, LU)",
+                "shaper rightmost root, case c, 6 widths 0.5-2 mm x 12 speeds 0.25-1 m/s (BLAS: eig, LU)",
             ),
         }
         if args.quick:
@@ -417,6 +435,13 @@ def main() -> None:
                     or bool(v.get("loaded"))
                 )
     result["loaded"] = bool(loaded)
+    if args.only and Path(args.out).is_file():
+        # one part rerun: the other parts' earlier measurements stay, with their own dates
+        kept = json.loads(Path(args.out).read_text())
+        for part in ("speedup", "overhead", "memory"):
+            if part != args.only and part in kept:
+                result[part] = kept[part]
+                result.setdefault("kept_from_earlier_run", {})[part] = kept.get("date_utc", "")
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
     print(

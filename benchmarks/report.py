@@ -357,7 +357,6 @@ def read_sweep(data: dict[str, Any], source: str) -> list[Entry]:
     if not isinstance(sp, dict):
         return []
     r = _num(sp.get("speedup_min")), _num(sp.get("speedup_median"))
-    mem = data.get("memory") or {}
     return [
         Entry(
             "sweep",
@@ -367,7 +366,7 @@ def read_sweep(data: dict[str, Any], source: str) -> list[Entry]:
             ratio=(r[0], r[1]) if r[0] is not None and r[1] is not None else None,
             accuracy="bit-identical" if sp.get("bit_identical") else "NOT bit-identical",
             load=_load1(data.get("load_average_start")),
-            peak_rss_mb=_num(mem.get("driver_peak_rss_mb")) if isinstance(mem, dict) else None,
+            peak_rss_mb=_num(sp.get("peak_rss_mb")),
             date=_date(data.get("date_utc")),
             commit=str(data.get("commit", "")),
             source=source,
