@@ -105,7 +105,13 @@ def milling_loop():
 def _instances(shaper, milling_loop) -> dict[str, object]:
     from conftest import turning_text
 
-    from chatterlab.frequency import characteristic_roots, multipliers
+    from chatterlab.frequency import (
+        characteristic_roots,
+        forced_response,
+        multipliers,
+        runout_response,
+        surface_location,
+    )
     from chatterlab.selection import chatter_frequency, chatter_rule, recommend
     from chatterlab.structure import fit_modes
     from chatterlab.sweep import Grid, sweep
@@ -143,6 +149,12 @@ def _instances(shaper, milling_loop) -> dict[str, object]:
         "Stability": cl.stability(shaper, width=2e-4, speed=0.5),
         "RootsResult": characteristic_roots(loop, count=4),
         "Multipliers": multipliers(milling_loop, 18000.0, 1e-3, check=False),
+        "ForcedResponse": forced_response(milling_loop, 10000.0, 2e-4, 1e-4),
+        "SurfaceLocation": surface_location(milling_loop, [9000.0, 10000.0], 2e-4, 1e-4, check=False),
+        "RunoutResponse": runout_response(
+            cl.closed_loop(cl.assemble(turning).at(), width=2e-4, speed=3000.0), [2000.0, 3000.0], 2e-5, 1e-4, 2e9,
+            inputs="tip.x", outputs="tip.x",
+        ),
         "Modes": cl.modes(shaper, count=4),
         "FRF": cl.frf(loop, w, inputs="rfe5.x", outputs=["rfe5.x", "rfe5.y"]),
         "ModalFit": fit,
@@ -167,7 +179,8 @@ def test_every_public_result_type_is_covered(shaper, milling_loop):
 @pytest.mark.parametrize(
     "name",
     ["LobeDiagram", "Stability", "RootsResult", "Multipliers", "Modes", "FRF", "ModalFit", "Stabilisation",
-     "SweepResult", "ProbabilisticLobes", "Recommendation", "ChatterFrequency", "SpeedRule"],
+     "SweepResult", "ProbabilisticLobes", "Recommendation", "ChatterFrequency", "SpeedRule", "ForcedResponse",
+     "SurfaceLocation", "RunoutResponse"],
 )  # fmt: skip
 def test_the_protocol(name, shaper, milling_loop, tmp_path):
     import matplotlib
