@@ -6,6 +6,7 @@ Run from the repository root::
 
     python benchmarks/bench_design.py              # 5 interleaved repeats, label "current"
     python benchmarks/bench_design.py --repeat 7 --label after
+    python benchmarks/bench_design.py --part active --repeat 3 --label active   # e, f alone
 
 What is timed, in one run, interleaved (a, b, a, b, ... then c, d, c, d, ...),
 every route with one BLAS thread (threadpoolctl):
@@ -36,6 +37,23 @@ d. a brute-force search of the same objective on the same model: the lobe
    tuner's default bounds, then zoomed on the best point (+-2 cells) level
    after level until its best is within 1e-6 of the tuned optimum (at most
    20 levels): "equal optimum".  Its evaluations and its final gap are recorded.
+
+e. ``chatterlab.design.design_active`` on the same 1-DOF tool (damped, c =
+   189.7 N s/m, the oracle of tests/test_active_design.py) with a collocated
+   actuator of delay T_a = 0.3 ms and bandwidth 300 Hz: the velocity and
+   delayed gains (bounds 0 .. 3000 N s/m, -1e6 .. 1e6 N/m) that maximise the
+   absolute minimum under a 45 degree phase margin, one start (the file's
+   gains), verify 2, without the time-domain confirmation (not part of the
+   search);
+f. a brute-force search of the same problem with the same library calls a
+   user would make per design: the controller's roots (stable?), the phase
+   margin (``loop_margins``), then the lobe engine's absolute minimum, on an
+   11 x 11 grid of (g_V, g_O) over the bounds, zoomed on the best feasible
+   point (+-2 cells) level after level until it is within EQUAL_ACTIVE of the
+   co-design's optimum (at most 20 levels): "equal optimum".  The optimum
+   lies on the phase-margin boundary and the delayed gain's bound, which a
+   grid approaches linearly, so "equal" is 1e-4 here (1e-6 would take ~13
+   levels).
 
 The goals of issue 23: (b) / (a) >= 10 for the full table (both
 differences recorded: the 2-point one is cheaper but far less accurate than
@@ -73,6 +91,7 @@ GOAL_SENSITIVITY = 10.0  #: issue 23: finite differences / exact, at least
 EPS_B = 1e-12  #: the lobe engine's relative accuracy of a limit (tests/test_lobes.py: 4e-13)
 EQUAL = 1e-6  #: "equal optimum": the brute force's best within this of the tuned one
 MAX_LEVELS = 20  #: zoom levels of the brute force at most
+EQUAL_ACTIVE = 1e-4  #: "equal optimum" of the active co-design's brute force (module docstring)
 
 
 def loadavg() -> str:
@@ -287,11 +306,104 @@ def absorber_part(repeat: int) -> dict[str, Any]:
     }  # fmt: skip
 
 
+# ---------------------------------------------------------------- e, f: active damper
+def active_part(repeat: int) -> dict[str, Any]:
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import turning_text
+
+    from chatterlab.design import controller_roots, design_active, design_lobes, loop_margins
+    from chatterlab.design._active import _loop_matrices, _with_gains, margin_grid
+
+    text = turning_text(mass=1.0, stiffness=1e7, damping=189.7, Kf=2e9, forces=(200.0, 0.0, 0.0))
+    model = cl.loads_model(
+        text
+        + '\n[[actuator]]\nid = "damper"\nsensor = "tip"\nsensor_direction = "x"\nvelocity_gain = 200.0\n'
+        "delay = 3e-4\nbandwidth_hz = 300.0\n"
+    )
+    speeds = np.linspace(2000.0, 6000.0, 30)
+    bounds = {"velocity": (0.0, 3000.0), "delayed": (-1e6, 1e6)}
+    pm_min = 45.0
+
+    def codesign() -> Any:
+        return design_active(
+            model, speeds, objective="absolute", free=("velocity", "delayed"), bounds=bounds, gain_margin=1.0,
+            phase_margin=pm_min, starts=1, width_max=0.05, verify=2, confirm=False,
+        )  # fmt: skip
+
+    des, _, _ = timed(codesign)  # warm-up, and the optimum the brute force must reach
+    target = des.width
+
+    def objective(gv: float, go: float) -> float:
+        m = _with_gains(model, {"damper": {"velocity_gain": gv, "delayed_gain": go}})
+        fz = cl.assemble(m).at()
+        r = controller_roots(fz)
+        if not r.roots.size or r.roots[0].real >= 0:
+            return -math.inf
+        L = _loop_matrices(fz, "pdo")
+        if loop_margins(L, 0, margin_grid(L)).phase_deg < pm_min:
+            return -math.inf
+        return float(
+            design_lobes(fz, speeds[:2], width_max=0.05, verify=0, roots=r).absolute_minimum["width"]
+        )
+
+    def brute() -> tuple[float, int, int, tuple[float, float]]:
+        (lo_v, hi_v), (lo_o, hi_o) = bounds["velocity"], bounds["delayed"]
+        best, n, levels, where = -np.inf, 0, 0, (0.0, 0.0)
+        for levels in range(1, MAX_LEVELS + 1):  # noqa: B007  (the count reached is returned)
+            V = np.linspace(lo_v, hi_v, 11)
+            O = np.linspace(lo_o, hi_o, 11)
+            vals = np.array([[objective(v, o) for o in O] for v in V])
+            n += vals.size
+            i, j = np.unravel_index(np.argmax(vals), vals.shape)
+            if vals[i, j] > best:
+                best, where = float(vals[i, j]), (float(V[i]), float(O[j]))
+            if best >= target * (1 - EQUAL_ACTIVE):
+                break
+            dv, do = V[1] - V[0], O[1] - O[0]
+            lo_v, hi_v = (
+                max(where[0] - 2 * dv, bounds["velocity"][0]),
+                min(where[0] + 2 * dv, bounds["velocity"][1]),
+            )
+            lo_o, hi_o = (
+                max(where[1] - 2 * do, bounds["delayed"][0]),
+                min(where[1] + 2 * do, bounds["delayed"][1]),
+            )
+        return best, n, levels, where
+
+    t_t, c_t, t_b, c_b = [], [], [], []
+    load = [loadavg()]
+    out_b = None
+    for _ in range(repeat):
+        des, t, c = timed(codesign)
+        t_t.append(t)
+        c_t.append(c)
+        out_b, t, c = timed(brute)
+        t_b.append(t)
+        c_b.append(c)
+        load.append(loadavg())
+    assert out_b is not None
+    best, n, levels, where = out_b
+    (a,) = des.actuators
+    return {
+        "model": "1-DOF turning tool (m 1 kg, k 1e7 N/m, c 189.7 N s/m) + collocated actuator, T_a 0.3 ms,"
+        " 300 Hz; velocity and delayed gains, phase margin >= 45 deg, absolute minimum",
+        "codesign": {**stats(t_t, c_t), "evaluations": des.evaluations, "optimum_m": des.width,
+                     "velocity_gain": a["velocity_gain"], "delayed_gain": a["delayed_gain"],
+                     "phase_margin_deg": a["phase_margin_deg"], "verified": bool(des.verified)},
+        "brute_force": {**stats(t_b, c_b), "evaluations": n, "levels": levels, "best_m": best,
+                        "gap_rel": (target - best) / target, "best_design": where, "equal": EQUAL_ACTIVE},
+        "ratio_min": min(t_b) / min(t_t),
+        "ratio_median": float(np.median(t_b) / np.median(t_t)),
+        "ratio_cpu_min": min(c_b) / min(c_t),
+        "loadavg": load,
+    }  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--label", default="current")
-    ap.add_argument("--part", choices=["all", "sensitivity", "absorber"], default="all")
+    ap.add_argument("--part", choices=["all", "sensitivity", "absorber", "active"], default="all")
     args = ap.parse_args()
     from threadpoolctl import threadpool_limits
 
@@ -333,6 +445,21 @@ def main() -> None:
                 f" {a['brute_force']['gap_true_rel']:.1e}):"
                 f" x {a['ratio_min']:.1f} (median x {a['ratio_median']:.1f})"
             )
+        if args.part in ("all", "active"):
+            run["active"] = active_part(args.repeat)
+            a = run["active"]
+            print(
+                f"active co-design: {a['codesign']['min_s']:.2f} s (median {a['codesign']['median_s']:.2f},"
+                f" {a['codesign']['evaluations']} evaluations), brute force {a['brute_force']['min_s']:.1f} s"
+                f" (median {a['brute_force']['median_s']:.1f}, {a['brute_force']['evaluations']} evaluations,"
+                f" {a['brute_force']['levels']} levels, gap {a['brute_force']['gap_rel']:.1e}):"
+                f" x {a['ratio_min']:.1f} (median x {a['ratio_median']:.1f}, cpu x {a['ratio_cpu_min']:.1f})"
+            )
+    one = float(loadavg().split()[0])
+    print(
+        f"load average (1 min) {one:.2f}"
+        + (" LOADED: the wall times are not the machine's" if one > 1 else "")
+    )
     data = json.loads(OUT.read_text()) if OUT.exists() else {"runs": {}}
     data.setdefault("runs", {})[args.label] = run
     OUT.write_text(json.dumps(data, indent=1) + "\n")
