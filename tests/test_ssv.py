@@ -202,6 +202,28 @@ def test_a_simulation_grows_by_the_critical_multiplier_per_period(turning):
         assert (g2 > 1.0) == (mu > 1.0)
 
 
+def test_a_milling_simulation_decays_or_grows_as_the_multipliers_say(milling):
+    """The milling cut integrated with its teeth entering and leaving inside Newmark steps
+    (first order there): the sign of log |mu| is what is compared, at depths whose |mu| is
+    far from 1 (0.08 and 2.9) against the run's error (~0.02 and ~0.1 at this step)."""
+    v = SpeedVariation(0.1, 0.25)
+    sys = ssv_loop(milling, v, 5000.0)
+    for a in (2.5e-3, 4.5e-3):
+        mu = ssv_multipliers(milling, 5000.0, a, v, check=False).spectral_radius
+        g = simulate_ssv(sys, a, 6).growth()
+        assert abs(math.log(mu)) > 1.0 and (g > 1.0) == (mu > 1.0), (a, mu, g)
+
+
+def test_variable_pitch_at_rva_zero_is_the_constant_speed():
+    """A variable pitch's coefficients repeat once a revolution: with RVF = 1/2 the period is
+    two revolutions and |mu| = |mu_rev|^2 (Floquet: the map of two periods is X^2)."""
+    st = Structure.modal(2 * np.pi * np.array([900.0, 950.0]), [0.02, 0.02], [1e7, 1.2e7], ("x", "y"))
+    loop = milling_loop(st, Milling(3, 0.02, 6e8, 2e8, 0.5, 2.0, pitch=(2.0, 2.0, 2 * math.pi - 4.0)))
+    ref = multipliers(loop, 8000.0, 5e-4)
+    m = ssv_multipliers(loop, 8000.0, 5e-4, SpeedVariation(1e-12, 0.5))
+    assert m.spectral_radius == pytest.approx(ref.spectral_radius**2, rel=1e-9)
+
+
 def test_refused_combinations_are_one_line(turning, milling):
     with pytest.raises(InputError, match="speed"):
         ssv_loop(milling, SpeedVariation(0.1, 0.25))
