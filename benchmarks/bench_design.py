@@ -311,7 +311,13 @@ def active_part(repeat: int) -> dict[str, Any]:
     sys.path.insert(0, str(ROOT / "tests"))
     from conftest import turning_text
 
-    from chatterlab.design import controller_roots, design_active, design_lobes, loop_margins
+    from chatterlab.design import (
+        controller_roots,
+        design_active,
+        design_lobes,
+        loop_margins,
+        without_actuators,
+    )
     from chatterlab.design._active import _loop_matrices, _with_gains, margin_grid
 
     text = turning_text(mass=1.0, stiffness=1e7, damping=189.7, Kf=2e9, forces=(200.0, 0.0, 0.0))
@@ -334,6 +340,11 @@ def active_part(repeat: int) -> dict[str, Any]:
     target = des.width
 
     def objective(gv: float, go: float) -> float:
+        if (
+            gv == 0.0 and go == 0.0
+        ):  # no controller: the bare tool (a model refuses an actuator without gains)
+            fz0 = cl.assemble(without_actuators(model)).at()
+            return float(design_lobes(fz0, speeds[:2], width_max=0.05, verify=0).absolute_minimum["width"])
         m = _with_gains(model, {"damper": {"velocity_gain": gv, "delayed_gain": go}})
         fz = cl.assemble(m).at()
         r = controller_roots(fz)

@@ -1307,7 +1307,13 @@ def confirm_active(
         else:
             speed = float(d.speed[0])
     fz = assemble(design.model).at(position if position is not None else d.position)
-    return confirm_loop(fz, float(speed), factor * design.bare_width, design.bare_width, terms=terms)
+    # the roots' band: twice the highest chatter frequency of the lobes before and after
+    hz = np.r_[np.asarray(d.chatter_hz, float), np.asarray(design.before.chatter_hz, float)]
+    hz = hz[np.isfinite(hz)]
+    top = 2 * 2 * math.pi * float(hz.max()) if hz.size else None
+    return confirm_loop(
+        fz, float(speed), factor * design.bare_width, design.bare_width, terms=terms, omega_max=top
+    )
 
 
 def _min_force(prob: _Problem, u0: np.ndarray, target: float) -> tuple[np.ndarray, bool]:

@@ -36,7 +36,11 @@ reads, gives the envelope's growth rate (:func:`chatterlab.time.growth_rate`)
 and the verdict with the integrator's error (Richardson from a second run at
 twice the step, :func:`chatterlab.time._signals.time_verdict`), compared with
 the rightmost characteristic root of the same loop
-(:func:`chatterlab.frequency.characteristic_roots`, the exact delays).  The
+(:func:`chatterlab.frequency.characteristic_roots`, the exact delays,
+searched in the chatter band: up to twice the highest chatter frequency of
+the lobes before and after the design, where the regenerative motion's
+decay is decided; a root further up, of a mode the cut hardly moves, is not
+compared).  The
 number of roots right of the axis is counted by the argument principle
 (:func:`chatterlab.frequency.rhp_count`, or with two delays
 :func:`chatterlab.lobes._verification.multi_delay_count`, whose phase is
@@ -349,11 +353,15 @@ def confirm_loop(
     step: float | None = None,
     duration: float | None = None,
     tol: float = 0.05,
+    omega_max: float | None = None,
 ) -> ActiveConfirmation:
     """Confirm in the time domain that the cut of ``frozen`` (its actuators
     included) at ``width`` (m) and ``speed`` (the process's unit) is stable
     (module docstring); ``old_width`` is the uncontrolled limit it is
-    compared with (m).  ``step`` and ``duration`` (s) override the rules."""
+    compared with (m).  ``step`` and ``duration`` (s) override the rules;
+    ``omega_max`` (rad/s) is the top of the band the roots are searched in
+    (default 1.5 times the bare structure's certified chatter band at the
+    width, :func:`chatterlab.design._controlled.bare_band`)."""
     from ..frequency import characteristic_roots, rhp_count
     from ..frequency._delay_system import loop_systems
     from ..lobes._verification import multi_delay_count
@@ -369,7 +377,13 @@ def confirm_loop(
     acts = loop.actuators
     if acts is None:
         raise InputError(f"{frozen.model.source} has no [[actuator]]: nothing to confirm")
-    roots = characteristic_roots(loop, count=8)
+    # the roots in the chatter band: given, or 1.5 times the bare structure's certified one at this
+    # width (the gain bound: beyond it the cut moves no root across the axis)
+    if omega_max is None:
+        from ._controlled import _matrices, bare_band
+
+        omega_max = 1.5 * bare_band(_matrices(frozen, terms), width)
+    roots = characteristic_roots(loop, count=8, omega_max=omega_max)
     lam = np.asarray(roots.roots, dtype=complex)
     lam = lam[np.argsort(-lam.real)]
     conv = roots.status == "converged" and lam.size > 0
