@@ -71,8 +71,9 @@ estimate
 
 (each output relative to its largest value) is Richardson's when the order
 is observed and more cautious otherwise.  Above ``rtol`` the steps per delay
-grow by ``(\\hat e_h / (rtol/2))^{1/q}`` (between 1.4 and 8) and the three runs
-are repeated.  The first try resolves the dominant mode of the delayed loop
+are doubled once to three times, as ``(\\hat e_h / (rtol/2))^{1/q}`` asks, and
+the estimate repeated (the runs at ``2h`` and ``4h`` are then runs already
+made: a doubling costs one new run).  The first try resolves the dominant mode of the delayed loop
 (``(w h)^q = 10 rtol``).  The step chosen, the estimate and the tries are in
 the result's ``attrs``.
 
@@ -519,10 +520,17 @@ def exponential(
         est = 0.0
     else:
         c = _first_step(lp, float(rtol), p, span)
+        made: dict[int, tuple[FloatArray, int, str, float, int]] = {}
+
+        def level(k: int) -> tuple[FloatArray, int, str, float, int]:
+            if k not in made:
+                made[k] = run(k)
+            return made[k]
+
         while True:
             tries += 1
-            X, done, reason, hh, m = run(c)
-            half, quarter = run(c // 2), run(c // 4)
+            X, done, reason, hh, m = level(c)
+            half, quarter = level(c // 2), level(c // 4)
             if reason or half[2] or quarter[2]:
                 est = math.nan
                 break
@@ -531,8 +539,11 @@ def exponential(
                 if est > rtol:
                     notes.append(f"the error estimate {est:.3g} is above rtol = {rtol:g} after {tries} tries")
                 break
+            # double the steps per delay 1-3 times: the runs at 2h and 4h are then runs already made
             grow = (est / (0.5 * float(rtol))) ** (1.0 / (p + 1))
-            c = 4 * math.ceil(c * min(max(grow, 1.4), 8.0) / 4)
+            c *= 2 ** min(3, max(1, math.ceil(math.log2(max(grow, 1.0)))))
+            for k in [k for k in made if k < c // 4]:
+                del made[k]
     status = "diverged" if reason else "ok"
     rec = int(record_every)
     Xr = X[: done + 1 : rec]
