@@ -18,7 +18,7 @@ the date and the commit, and the row's goal.
 A benchmark joins the page in one of two ways:
 
 * one of the formats read below (``lobes.json``, ``milling.json``,
-  ``startup.json``, ``bench_sweep.json``), or
+  ``startup.json``, ``bench_sweep.json``, ``time.json``), or
 * any results file with a top-level list ``"issue26"`` of entries
   ``{"row": KEY, "label", "case", "competitor", "competitor_s": [min, median],
   "chatterlab_s": [min, median], "ratio": [min, median], "accuracy", "load",
@@ -374,6 +374,51 @@ def read_sweep(data: dict[str, Any], source: str) -> list[Entry]:
     ]
 
 
+#: bench_time's problems -> issue 26's rows
+TIME_ROWS = {"turning_1dof": "time-1dof", "shaper_36dof": "time-shaper"}
+
+
+def read_time(data: dict[str, Any], source: str) -> list[Entry]:
+    """bench_time: per problem and error target, each chatterlab route against
+    the fastest solve_ivp method at that target (CPU time)."""
+    out = []
+    for row in data.get("rows", []):
+        key = TIME_ROWS.get(row.get("problem", ""))
+        if key is None:
+            continue
+        for tgt in row.get("targets", []):
+            contenders = tgt.get("contenders", {})
+            ivp = {k: v for k, v in contenders.items() if k.startswith("solve_ivp") and isinstance(v, dict)}
+            best = min(
+                ivp, key=lambda k: _num(ivp[k].get("time", {}).get("cpu_min_s")) or math.inf, default=None
+            )
+            comp = _pair(ivp[best].get("time"), "cpu_min_s", "cpu_median_s") if best else None
+            for name, c in contenders.items():
+                if name.startswith("solve_ivp") or not isinstance(c, dict):
+                    continue
+                mine = _pair(c.get("time"), "cpu_min_s", "cpu_median_s")
+                err = _err(c.get("error"))
+                acc = f"error {err}" + (
+                    f" vs {best.removeprefix('solve_ivp ')} {_err(ivp[best].get('error'))}" if best else ""
+                )
+                out.append(
+                    Entry(
+                        key,
+                        case=f"error target {_num(tgt.get('target')) or 0:g}: {name}",
+                        competitor_s=comp,
+                        chatterlab_s=mine,
+                        ratio=(comp[0] / mine[0], comp[1] / mine[1]) if comp and mine else None,
+                        accuracy=acc,
+                        load=_load1(row.get("load_1min_before", data.get("load_1min_start"))),
+                        peak_rss_mb=_num(row.get("peak_rss_mb_after", data.get("peak_rss_mb"))),
+                        date=_date(data.get("date_utc")),
+                        commit=str(data.get("commit", "")),
+                        source=source,
+                    )
+                )
+    return out
+
+
 def read_generic(data: dict[str, Any], source: str) -> list[Entry]:
     """The ``"issue26"`` list any benchmark may write."""
     out = []
@@ -413,6 +458,7 @@ READERS: dict[str, Callable[[dict[str, Any], str], list[Entry]]] = {
     "milling.json": read_milling,
     "startup.json": read_startup,
     "bench_sweep.json": read_sweep,
+    "time.json": read_time,
 }
 
 
