@@ -110,6 +110,7 @@ def _instances(shaper, milling_loop) -> dict[str, object]:
         forced_response,
         multipliers,
         runout_response,
+        ssv_limits,
         surface_location,
     )
     from chatterlab.selection import chatter_frequency, chatter_rule, recommend
@@ -155,6 +156,7 @@ def _instances(shaper, milling_loop) -> dict[str, object]:
             cl.closed_loop(cl.assemble(turning).at(), width=2e-4, speed=3000.0), [2000.0, 3000.0], 2e-5, 1e-4, 2e9,
             inputs="tip.x", outputs="tip.x",
         ),
+        "SsvLimits": ssv_limits(milling_loop, [18000.0], [0.0, 0.1], [0.25], width_max=2e-3, scan=4),
         "Modes": cl.modes(shaper, count=4),
         "FRF": cl.frf(loop, w, inputs="rfe5.x", outputs=["rfe5.x", "rfe5.y"]),
         "ModalFit": fit,
@@ -180,7 +182,7 @@ def test_every_public_result_type_is_covered(shaper, milling_loop):
     "name",
     ["LobeDiagram", "Stability", "RootsResult", "Multipliers", "Modes", "FRF", "ModalFit", "Stabilisation",
      "SweepResult", "ProbabilisticLobes", "Recommendation", "ChatterFrequency", "SpeedRule", "ForcedResponse",
-     "SurfaceLocation", "RunoutResponse"],
+     "SurfaceLocation", "RunoutResponse", "SsvLimits"],
 )  # fmt: skip
 def test_the_protocol(name, shaper, milling_loop, tmp_path):
     import matplotlib

@@ -17,7 +17,7 @@ from ._floquet import (
     sdm_monodromy,
 )
 from ._floquet_ssv import ssv_monodromy, ssv_multipliers
-from ._floquet_ssv_limit import SsvLimitTask, ssv_limit, ssv_limits
+from ._floquet_ssv_limit import SsvLimits, SsvLimitTask, ssv_limit, ssv_limits
 from ._forced import (
     ForcedResponse,
     RunoutResponse,
@@ -90,6 +90,7 @@ __all__ = [
     "ssv_monodromy",
     "ssv_limit",
     "ssv_limits",
+    "SsvLimits",
     "SsvLimitTask",
     "classify",
     "chatter_frequency",
