@@ -8,6 +8,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import InputError, check_count, check_nonneg
+from ..process._damping import milling_rubbing
 from ..process._loop import ClosedLoop
 
 __all__ = ["sdm_monodromy", "sdm_multipliers", "sd_step_product", "matched_change", "finite_monodromy"]
@@ -60,6 +61,14 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
     Hr = np.einsum("ai,kjab,bl->kjil", Ub, Hm, Ub)
     Jq = np.zeros((rho, d))
     Jq[:, :n] = Jr
+    # process damping: the rubbing flanks' -a_p g W(t) r', its exact mean over each step (no delay:
+    # one more term of the step's state matrix, in its velocity columns)
+    Vd = np.zeros((m, d, d))
+    rubbing = milling_rubbing(loop, rpm)
+    if rubbing is not None:
+        g, rub = rubbing
+        Wm = np.einsum("ai,kjab,bl->kil", Ub, rub.directional_mean(t[:-1], t[1:], rpm), Ub)  # (m, rho, rho)
+        Vd[:, n:, n:] = (a * g) * np.einsum("qr,krs,sp->kqp", W, Wm, Jr)
     A_steps = np.empty((m, d, d))
     B_steps = np.zeros((m, milling.teeth, d, rho))
     for i in range(m):
@@ -72,7 +81,7 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
             Bq[n:] = a * (W @ Hj)  # force term per unit r, q' rows
             Bsum[:, :n] += Bq @ Jr
             B_steps[i, j] = Bq
-        A_steps[i] = A - Bsum
+        A_steps[i] = A - Bsum - Vd[i]
     return sd_step_product(A_steps, B_steps, Jq, lags, lag_end, dt)
 
 

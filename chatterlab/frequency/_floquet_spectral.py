@@ -58,6 +58,7 @@ import scipy.linalg as sla
 
 from ..errors import InputError, check_count
 from ..process import Milling
+from ..process._damping import milling_rubbing
 from ..process._loop import ClosedLoop
 
 __all__ = [
@@ -426,6 +427,8 @@ class SpectralMonodromy:
         self._cut = (Ub, Jr, W)
         milling = loop.milling
         self.structure, self.milling, self.rpm = loop, milling, float(rpm)
+        # process damping: the rubbing teeth's -a_p g W(t) r' (None without it: today's equations)
+        self._rubbing = milling_rubbing(self.loop, self.rpm)
         self.helix_depth = depth if milling.helix > 0 else None
         if milling.helix > 0 and depth is None:
             raise InputError("milling with a helix angle: give the depth of cut a_p (depth, m)")
@@ -461,7 +464,9 @@ class SpectralMonodromy:
         Bh[n:] = W / ws
         Ch = np.zeros((rho, d))
         Ch[:, :n] = Jr
-        self._Ah, self._Ch = Ah, Ch
+        Chv = np.zeros((rho, d))  # r' = Jr q' = ws Jr x^_v: the velocity the flanks damp
+        Chv[:, n:] = ws * Jr
+        self._Ah, self._Ch, self._Chv = Ah, Ch, Chv
         if S == 0:  # never in the cut: the free structure
             E = sla.expm(Ah * T)
             self.k, self.m_f = d, 0
@@ -500,6 +505,17 @@ class SpectralMonodromy:
             )
             Hn[f_off[s] : f_off[s + 1]] = np.einsum("ai,kjab,bl->kjil", Ub, Hk, Ub)
         self._Hn = Hn
+        # the rubbing flanks at the force nodes, g sum_j W_j(t_i) on r (process damping), or None
+        Hd = None
+        if self._rubbing is not None:
+            g, rub = self._rubbing
+            Hd = np.empty((m_nodes, rho, rho))
+            for s in range(S):
+                Wk = rub.directional_on(
+                    t_nodes[s][1:], self.rpm, 0.5 * (mesh.a[s] + mesh.b[s]), self.helix_depth
+                )
+                Hd[f_off[s] : f_off[s + 1]] = g * np.einsum("ai,kjab,bl->kil", Ub, Wk, Ub)
+        self._Hd = Hd
         # ---- the free structure, element by element: nodal states from the state entering each
         # element (d) and the unit forces at its nodes 1..p (rho each): x^ = Phi x0 + Gam F
         expm_cache: dict[float, np.ndarray] = {}
@@ -548,6 +564,53 @@ class SpectralMonodromy:
             self._uniform_cut(nmap_z, nmap_f, Hn, GF)
         else:
             self._general_cut(nmap_z, nmap_f, Hn, t_nodes, taus, GF)
+        if Hd is not None:
+            self._rubbing_flanks(nmap_z, nmap_f, Hd)
+
+    def _rubbing_flanks(self, nmap_z: np.ndarray, nmap_f: np.ndarray, Hd: np.ndarray) -> None:
+        """Process damping in the factored form (1): the force at node i gets
+        -a_p Hd_i r'_i (Hd_i = g sum_j W_j(t_i), r' the cut coordinates' velocity,
+        no delay), one more term of the nodal forces' equations, affine in a_p
+        like the cut's own: K += Hd r'(F) and Q -= Hd r'(x^_end) (the velocity
+        at the node per unit nodal force and per unit carried end state).  With
+        a quasi-static rest the velocity includes its G dF/dt, F differentiated
+        on each element's collocation polynomial (:meth:`_quasi_static_rate`)."""
+        S, d, rho = self.mesh.a.size, self.d, self.rho
+        deg, node_off = self.mesh.deg, self._node_off
+        Nn = int(node_off[-1])
+        m_f = self.m_f
+        m_nodes = m_f // rho
+        xnode = np.concatenate([node_off[s] + np.arange(1, int(deg[s]) + 1) for s in range(S)])
+        Chv = self._Chv
+        VZ = np.einsum("rd,ndk->nrk", Chv, nmap_z.reshape(Nn, d, d)[xnode])  # (m, rho, d)
+        VX = np.einsum("rd,ndk->nrk", Chv, nmap_f.reshape(Nn, d, m_f)[xnode])  # (m, rho, m_f)
+        GV = self._quasi_static_rate()
+        if GV is not None:
+            VX = VX + GV.reshape(m_nodes, rho, m_f)
+        self.K = self.K + np.einsum("nrs,nsk->nrk", Hd, VX).reshape(m_f, m_f)
+        Q = self.Q.copy()
+        Q[:, :d] -= np.einsum("nrs,nsk->nrk", Hd, VZ).reshape(m_f, d)
+        self.Q = Q
+
+    def _quasi_static_rate(self) -> np.ndarray | None:
+        """d/dt of the quasi-static modes' r = G F at the force nodes per unit nodal
+        forces (m_f x m_f, block diagonal by element), the forces a polynomial on each
+        element through its nodes 1..p (node 0 its continuation, as :meth:`_general_cut`
+        reads it); None without a quasi-static rest."""
+        qs = self.quasi_static
+        if qs is None:
+            return None
+        mesh = self.mesh
+        blocks = []
+        for s in range(mesh.a.size):
+            p = int(mesh.deg[s])
+            nodes, Dm, _ = _cheb(p)
+            inner = nodes[1:]
+            bw1 = 1.0 / np.array([np.prod(inner[i] - np.delete(inner, i)) for i in range(p)])
+            e0 = _bary(inner, bw1, 0.0)  # F at node 0 from the forces at nodes 1..p
+            Dn = (Dm[1:, 1:] + np.outer(Dm[1:, 0], e0)) / (mesh.b[s] - mesh.a[s])
+            blocks.append(np.kron(Dn, qs.compliance))
+        return sla.block_diag(*blocks) if blocks else np.zeros((0, 0))
 
     def _quasi_static_response(self, m_f: int) -> np.ndarray | None:
         """r of the quasi-static modes at the force nodes per unit nodal forces (m_f x m_f,

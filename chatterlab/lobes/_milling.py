@@ -115,6 +115,32 @@ def zoa_plant(loop: ClosedLoop, quasi_static: QuasiStatic | None = None) -> Plan
     return Plant(H, p, H0, np.zeros((rho, rho)), -H0, pr)
 
 
+def zoa_damping(loop: ClosedLoop) -> Any:
+    """The averaged process-damping term of a milling loop on the cut's
+    coordinates r of :func:`zoa_plant` (W_0 projected, its gain C_pd / V at each
+    speed's own cutting speed: :mod:`chatterlab.lobes._damped`), None without."""
+    if loop.damping is None or loop.damping.term.C_pd == 0.0:
+        return None
+    Ub = loop.cut_basis[0]
+    term = loop.damping.term
+    return replace(term, W=Ub.T @ term.W @ Ub, process=loop.milling, block=slice(None))
+
+
+def _damping_meta(loop: ClosedLoop) -> dict[str, Any]:
+    """What a Floquet diagram says of the process damping its engines integrate: the
+    rubbing teeth's periodic -a_p C_pd / V W(t) r' at each speed's own V = pi D n / 60."""
+    t = loop.damping.term  # type: ignore[union-attr]
+    return {
+        "C_pd": float(t.C_pd),
+        "model": "indentation (linearised: C_pd = K_sp w^2 / 4)" if t.indentation else "linear",
+        "K_sp": float(t.K_sp),
+        "wear_land": float(t.wear_land),
+        "clearance_deg": float(np.degrees(t.clearance)),
+        "diameter": float("nan") if t.diameter is None else float(t.diameter),
+        "periodic": "the rubbing teeth's W(t) in the Floquet engines",
+    }
+
+
 def _zoa(
     loop: ClosedLoop, rpm: np.ndarray, depth_max: float, quasi_static: QuasiStatic | None = None
 ) -> LobeDiagram:
@@ -133,6 +159,7 @@ def _zoa(
         process=milling,
         verify=0,
         name=loop.name,
+        damping=zoa_damping(loop),
     )
     n = rpm.size
     return replace(
@@ -281,6 +308,7 @@ def milling_lobes(
             **({"refined": refined, "target_rtol": target} if method == "spectral" else {}),
             "ceiling": ceiling_note,
             **(_split_meta(qsplit, e_split, a_lim) if qsplit is not None else {}),
+            **({"process_damping": _damping_meta(loop)} if zoa_damping(loop) is not None else {}),
         },  # fmt: skip
         method=method,
         resolution=_resolution(method, degree, elements, steps)

@@ -52,7 +52,14 @@ import numpy as np
 from ..errors import InputError
 from ..model._items import cutting_speed
 
-__all__ = ["DampingTerm", "LoopDamping", "damping_term", "milling_damping", "cutting_speed_at"]
+__all__ = [
+    "DampingTerm",
+    "LoopDamping",
+    "damping_term",
+    "milling_damping",
+    "milling_rubbing",
+    "cutting_speed_at",
+]
 
 
 def cutting_speed_at(process: Any, T: Any, diameter: float | None) -> Any:
@@ -142,6 +149,27 @@ class LoopDamping:
         if math.isnan(self.delay):
             return np.zeros_like(self.term.W)
         return self.term.matrix(self.delay, width)
+
+
+def milling_rubbing(loop: Any, rpm: float) -> tuple[float, Any] | None:
+    """The periodic process-damping term of a milling loop at the spindle
+    speed ``rpm`` for the Floquet engines: (g, cutter) with g = C_pd / V the
+    gain per unit depth (N s/m^2, V = pi D n / 60 at the cutter's diameter,
+    a constant at one speed) and the cutter of the rubbing teeth (the loop's
+    own cutter with K_t = 0, K_n = 1: its directional matrices are
+    W_j(t) = g_j(t) r_j r_j^T, Eq. 4 of docs/process-damping.md), so that
+    the tool feels -a_p g sum_j W_j(t) r'(t); None without process damping
+    (the loop's equations are then exactly those without the term)."""
+    damping = getattr(loop, "damping", None)
+    if damping is None or damping.term.C_pd == 0.0:
+        return None
+    if hasattr(loop.milling, "delays_at"):
+        # a varying spindle speed varies the gain too: not in the Floquet engines yet
+        # (docs/process-damping.md, "What is not there yet"); the SSV routes take the loop without it
+        return None
+    term = damping.term
+    g = term.C_pd / cutting_speed(float(rpm), term.diameter)
+    return float(g), replace(loop.milling, Kt=0.0, Kn=1.0, Kte=0.0, Kne=0.0)
 
 
 def _normal(coupling: Any, angle: float | None) -> np.ndarray:
