@@ -240,3 +240,25 @@ def test_bad_input_is_one_line():
         exponential(moving, (0.0, 1.0))
     with pytest.raises(InputError, match="degree"):
         exponential(ConstantProblem([[1.0]], [[0.0]], [[1.0]]), (0.0, 1.0), degree=9)
+
+
+@pytest.mark.parametrize("width", [6e-4, 3e-4])
+def test_verdict_of_an_exponential_run_uses_its_order(width):
+    """The verdict of an exponential run: its check run at h/2 and Richardson
+    for order p + 1 (no Newmark h^2 regime test); the class and the rate
+    agree with the rightmost root (certified by characteristic_roots) within
+    the verdict's own error bar (2 fit standard errors + the step error) and
+    the root's relative error bound; no contradiction."""
+    tool = cl.assemble(cl.loads_model(turning_text()))
+    kb = 2.0e9 * width
+    roots = characteristic_roots(make_system([[M1]], [[C1]], [[K1 + kb]], DO=[[kb]], tau=T1), count=2)
+    sim = simulate(
+        tool, width=width, delay=T1, outputs="tool.x", roots=roots,
+        integration=Integration(duration=1.0, integrator="exponential"), initial=Initial(q0={"tool.x": 1e-6}),
+    )  # fmt: skip
+    v = sim.verdict("tool.x")
+    s1 = roots.roots[0].real
+    assert v.check_step == pytest.approx(sim.step / 2)
+    assert v.classification == ("growing" if s1 > 0 else "decaying")
+    assert abs(v.rate - s1) <= v.fit_error + v.step_error + 1e-6 * abs(roots.roots[0])
+    assert not v.contradiction and f"order {sim.response.attrs['order']}" in v.message

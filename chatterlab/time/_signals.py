@@ -558,6 +558,7 @@ def time_verdict(
     roots_certain: bool = False,
     diverged: bool = False,
     delay: float = 0.0,
+    order: int = 2,
 ) -> TimeVerdict:
     """The verdict of one history from two runs of the same cut.
 
@@ -576,6 +577,11 @@ def time_verdict(
     with ``delay`` T, a phase error ``w T (w h)^2/12`` of the regeneration of
     at most ``ASYMPTOTIC_PHASE`` rad; otherwise the verdict is undetermined
     with the step that would make the estimate valid.
+
+    ``order`` is the scheme's order (2: Newmark; ``p + 1`` for the
+    exponential step map, whose error is only the delayed term's
+    interpolation: no period error, so the h^2 regime test is skipped and
+    the error is ``(main - check) / (1 - r^order)``).
 
     With ``roots`` (the characteristic roots of the same frozen system,
     1/s, from :mod:`chatterlab.frequency`) the verdict is compared with the
@@ -596,7 +602,7 @@ def time_verdict(
     ok = check is not None and math.isfinite(rate) and math.isfinite(float(check.rate)) and span > 0
     check_rate = float(check.rate) if check is not None else math.nan
     if ok:
-        r2 = (check_step / step) ** 2
+        r2 = (check_step / step) ** int(order)
         e_signed = (rate - check_rate) / (1.0 - r2)
         step_err = RICHARDSON_SAFETY * abs(e_signed)
     else:
@@ -608,7 +614,7 @@ def time_verdict(
         how = "no rate: " + (main.message if not math.isfinite(rate) else "the check run gave no rate")
     else:
         cls, how, decide, step_err = _richardson_class(
-            main, (step, check_step, check_rate), (e_signed, step_err), frequency, delay, tol
+            main, (step, check_step, check_rate), (e_signed, step_err), frequency, delay, tol, int(order)
         )
     r_rate = r_hz = math.nan
     contra = ""
@@ -641,6 +647,7 @@ def _richardson_class(
     frequency: float,
     delay: float,
     tol: float,
+    order: int = 2,
 ) -> tuple[str, str, float, float]:
     """The class of :func:`time_verdict` from a main and a check rate:
     ``steps`` = (step, check step, the check run's rate), ``err`` = (the
@@ -658,7 +665,7 @@ def _richardson_class(
     w_main = 2.0 * math.pi * frequency if frequency > 0 else 0.0
     # the phase error of the regeneration over one delay at the coarser step
     phase = w_main * delay * (w_main * coarse) ** 2 / 12.0 if delay > 0 else 0.0
-    if per_period < ASYMPTOTIC_STEPS or phase > ASYMPTOTIC_PHASE:
+    if order == 2 and (per_period < ASYMPTOTIC_STEPS or phase > ASYMPTOTIC_PHASE):
         # Richardson's estimate holds in the h^2 regime only
         scale = min(
             per_period / ASYMPTOTIC_STEPS, math.sqrt(ASYMPTOTIC_PHASE / phase) if phase > 0 else math.inf
@@ -687,7 +694,7 @@ def _richardson_class(
         cls = "undetermined"
     how = (
         f"sigma = {rate:+.6g} 1/s at h = {step:.4g} s, {check_rate:+.6g} 1/s at h = {check_step:.4g} s:"
-        f" step error {step_err:.3g} 1/s (Richardson, order 2), fit error {fit_err:.3g} 1/s (2 se),"
+        f" step error {step_err:.3g} 1/s (Richardson, order {order}), fit error {fit_err:.3g} 1/s (2 se),"
         f" over {span:.4g} s"
     )
     if cls == "undetermined":

@@ -114,13 +114,24 @@ class Simulation(TimeHistory):
 
     def check_step(self) -> float:
         """The step of the verdict's check run: twice the run's step, or
-        half of it when twice would exceed the delay (or a fifth of the run)."""
+        half of it when twice would exceed the delay (or a fifth of the run);
+        half of it for the exponential step map."""
         h, T = float(self.step), float(self.delay)
         t_end = float(self.t[-1]) if self.t.size else 0.0
+        if self._order() != 2:  # the exponential step map: the check run is finer (a whole m per delay)
+            return 0.5 * h
         return (
             2.0 * h
             if (self.terms != "pdo" or 2.0 * h <= T * (1 + 1e-12)) and 2 * h <= 0.2 * t_end
             else 0.5 * h
+        )
+
+    def _order(self) -> int:
+        """The order of the run's scheme: 2 (Newmark) or the exponential step map's."""
+        return (
+            int(self.response.attrs.get("order", 2))
+            if self.response.attrs.get("method") == "exponential"
+            else 2
         )
 
     def verdict(self, name: str, *, tol: float = 0.05) -> TimeVerdict:
@@ -130,7 +141,8 @@ class Simulation(TimeHistory):
         The envelope growth rate is fitted after :meth:`verdict_skip` (as
         :meth:`growth`); the same cut is run again at :meth:`check_step`
         (once, shared by every history) and Richardson's estimate for the
-        second-order scheme gives the step error of the rate.  A class is
+        scheme's order (2 for Newmark, ``p + 1`` for the exponential step
+        map) gives the step error of the rate.  A class is
         claimed only when the rate +- (2 fit standard errors + step error)
         lies in it (:func:`chatterlab.time.time_verdict`).  The roots given
         to :func:`simulate` are compared with it (``contradiction``).
@@ -156,7 +168,7 @@ class Simulation(TimeHistory):
             none = GrowthEstimate(math.nan, "undetermined", math.nan, "the run diverged")
             v = time_verdict(
                 name, none, None, self.step, h2, tol=tol, roots=self.roots, roots_certain=self.roots_certain,
-                diverged=True, delay=delay,
+                diverged=True, delay=delay, order=self._order(),
             )  # fmt: skip
         else:
             skip = self.verdict_skip()
@@ -168,7 +180,7 @@ class Simulation(TimeHistory):
                     check = chk.growth(name, window="all", skip=skip, tol=tol)
             v = time_verdict(
                 name, main, check, self.step, h2, frequency=self._main_frequency(name, main), tol=tol,
-                roots=self.roots, roots_certain=self.roots_certain, delay=delay,
+                roots=self.roots, roots_certain=self.roots_certain, delay=delay, order=self._order(),
             )  # fmt: skip
         self._cache[key] = v
         return v
