@@ -126,11 +126,22 @@ def zoa_damping(loop: ClosedLoop) -> Any:
     return replace(term, W=Ub.T @ term.W @ Ub, process=loop.milling, block=slice(None))
 
 
-def _damping_meta(loop: ClosedLoop) -> dict[str, Any]:
+def _damping_meta(loop: ClosedLoop, split: bool) -> dict[str, Any]:
     """What a Floquet diagram says of the process damping its engines integrate: the
-    rubbing teeth's periodic -a_p C_pd / V W(t) r' at each speed's own V = pi D n / 60."""
+    rubbing teeth's periodic -a_p C_pd / V W(t) r' at each speed's own V = pi D n / 60
+    (with a quasi-static split, what its velocity lacks)."""
     t = loop.damping.term  # type: ignore[union-attr]
+    note = (
+        {
+            "split_note": "the quasi-static modes' velocity G dF/dt is damped inside each element, but not"
+            " the impulse -a_p g W G dF of their jump where a tooth enters or leaves (an error O(a_p g G)"
+            " that the split's check against twice its frequency does not see)"
+        }
+        if split
+        else {}
+    )
     return {
+        **note,
         "C_pd": float(t.C_pd),
         "model": "indentation (linearised: C_pd = K_sp w^2 / 4)" if t.indentation else "linear",
         "K_sp": float(t.K_sp),
@@ -308,7 +319,11 @@ def milling_lobes(
             **({"refined": refined, "target_rtol": target} if method == "spectral" else {}),
             "ceiling": ceiling_note,
             **(_split_meta(qsplit, e_split, a_lim) if qsplit is not None else {}),
-            **({"process_damping": _damping_meta(loop)} if zoa_damping(loop) is not None else {}),
+            **(
+                {"process_damping": _damping_meta(loop, qsplit is not None)}
+                if zoa_damping(loop) is not None
+                else {}
+            ),
         },  # fmt: skip
         method=method,
         resolution=_resolution(method, degree, elements, steps)
