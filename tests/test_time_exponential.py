@@ -262,3 +262,33 @@ def test_verdict_of_an_exponential_run_uses_its_order(width):
     assert v.classification == ("growing" if s1 > 0 else "decaying")
     assert abs(v.rate - s1) <= v.fit_error + v.step_error + 1e-6 * abs(roots.roots[0])
     assert not v.contradiction and f"order {sim.response.attrs['order']}" in v.message
+
+
+def test_a_time_varying_force_is_interpolated_to_the_same_order():
+    """A harmonic force (no delay): the step map integrates the force's
+    degree-p interpolant over each step, so the error against DOP853 (rtol
+    1e-12) falls as h^(p+1) too (fitted slope within 0.5, as for the delay),
+    and the error control meets rtol."""
+    m, c, k = 1.0, 60.0, 4.0e6
+    wf = 2 * math.pi * 150.0
+
+    def force(t):
+        return np.sin(wf * np.asarray(t))[:, None]
+
+    prob = ConstantProblem([[m]], [[c]], [[k]], force=force)
+    sol = solve_ivp(
+        lambda t, y: [y[1], (math.sin(wf * t) - c * y[1] - k * y[0]) / m], (0.0, 0.05), [0.0, 0.0],
+        method="DOP853", rtol=1e-12, atol=1e-20, dense_output=True,
+    )  # fmt: skip
+
+    def err(r):
+        y = sol.sol(r.t)[0]
+        return float(np.abs(r.q[0] - y).max() / np.abs(y).max())
+
+    hs = 0.05 / np.array([64, 80, 100, 128, 160])  # 8.5 to 21 steps per period of the force
+    errs = [err(exponential(prob, (0.0, 0.05), h=h)) for h in hs]
+    slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    assert min(errs) > 1e-10  # the reference (rtol 1e-12) is negligible
+    assert abs(slope - 6) < 0.5, (slope, errs)
+    r = exponential(prob, (0.0, 0.05), rtol=1e-5)
+    assert r.attrs["error_estimate"] <= 1e-5 and err(r) <= 1e-5
