@@ -70,7 +70,8 @@ class IndentationResponse:
     contact : ndarray (n_t,)
         The length of flank in contact with the material, m.
     status : str
-        ``"ok"`` or ``"diverged"`` (the displacement left ``divergence_limit``).
+        ``"ok"`` or ``"diverged"`` (the displacement left ``divergence_limit``, or the
+        implicit flank force did not converge in a step: take a shorter one).
     """
 
     t: np.ndarray
@@ -197,7 +198,7 @@ def simulate_indentation(
         idx = np.arange(1, kmax + 1)
         xi = np.r_[0.0, idx * V * h]
         surf = np.r_[u_now, u[k - idx]]
-        if kmax < k or reach > xi[-1]:  # the surface before t = 0 is the flat one at u = 0
+        if kmax == k:  # the reach goes back before t = 0: the flat surface u = 0 there
             xi = np.r_[xi, max(reach, xi[-1]) + V * h]
             surf = np.r_[surf, 0.0]
         if lr != 0.0 and xi[-1] > w:  # the land's end between two samples
@@ -207,7 +208,7 @@ def simulate_indentation(
         d = flank_interference(u_now, xi, surf, w, clearance)
         d[0] = 0.0  # at the edge the surface is where the edge is
         A = indented_area(d, xi)
-        L = float(np.sum(np.diff(xi)[(d[:-1] > 0) | (d[1:] > 0)]))
+        L = float(np.sum(np.diff(xi)[(d[:-1] > 0) | (d[1:] > 0)]))  # to the sample spacing
         return A, L
 
     for k in range(1, steps + 1):
@@ -216,22 +217,23 @@ def simulate_indentation(
         Fd = b * Kf * past(k, dw, dr)  # the delayed chip: -b Kf (u - u(t - T)), u's part in Keff
         u_now = ustar + Z * Fd
         A = L = 0.0
+        F = Fd
         for _ in range(50):
-            u[k] = u_now  # the fixed point's current iterate, read as the surface at xi = 0
             A, L = area(k, u_now) if K_sp > 0.0 else (0.0, 0.0)
             F = Fd - K_sp * b * A
             nxt = ustar + Z * F
             if abs(nxt - u_now) <= FIXED_POINT_TOL * max(abs(nxt), 1e-300):
-                u_now = nxt
                 break
             u_now = nxt
+        else:  # Z dF/du >= 1: a flank this stiff needs a shorter step
+            status = "diverged"
         z = base + sm.PhiPsi[:, 3 * n :] @ np.array([F, 0.0])
         u[k] = float(row @ z[:n])
         v[k] = float(row @ z[n : 2 * n])
         flank[k] = -K_sp * b * A
         contact[k] = L
         u_min = min(u_min, u[k])
-        if not math.isfinite(u[k]) or abs(u[k]) > divergence_limit:
+        if status != "ok" or not math.isfinite(u[k]) or abs(u[k]) > divergence_limit:
             status = "diverged"
             u, v, flank, contact = u[: k + 1], v[: k + 1], flank[: k + 1], contact[: k + 1]
             break
