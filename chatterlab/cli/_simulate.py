@@ -44,6 +44,20 @@ def add_parser(sub: Any) -> None:
         "enough for the chatter band of the characteristic roots)",
     )
     si.add_argument(
+        "--integrator",
+        choices=["newmark", "exponential"],
+        default="newmark",
+        help="newmark (default: the paper's scheme, every cut) or exponential (the exact step map of the "
+        "delayed loop, order 6, its step chosen for --rtol; a continuous cut only: --delay, --position or "
+        "turning)",
+    )
+    si.add_argument(
+        "--rtol",
+        type=float,
+        metavar="R",
+        help="the exponential integrator's error target, relative to the largest displacement (default 1e-3)",
+    )
+    si.add_argument(
         "--width",
         type=float,
         metavar="B",
@@ -100,8 +114,17 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.rtol is not None and args.integrator != "exponential":
+        raise InputError(
+            "--rtol is the exponential integrator's target: add --integrator exponential, or give --step"
+        )
     model = load(args)
     if model.process is not None and model.process.kind == "milling":
+        if args.integrator != "newmark":
+            raise InputError(
+                "--integrator exponential needs a linear cut with constant coefficients; a milling run "
+                "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"
+            )
         if args.q0 or args.v0 or args.history != "zero":
             raise InputError(
                 "--q0, --v0 and --history apply to cutting-process models; a milling run starts from the "
@@ -213,6 +236,8 @@ def _runner(
             periods=args.passes,
             step=args.step,
             progress=None if args.quiet else progress_bar(f"simulate ({fb})"),
+            integrator=args.integrator,
+            **({} if args.rtol is None else {"rtol": args.rtol}),
         )
         return simulate(
             sy,

@@ -625,7 +625,7 @@ def time_verdict(
         r_err = ROOT_REL_ERROR * abs(lam[k]) + 1e-12
         if roots_certain:
             contra = _contradiction(
-                name, cls, rate, fit_err + step_err, frequency, span, step, r_rate, r_hz, r_err
+                name, cls, rate, fit_err + step_err, frequency, span, step, r_rate, r_hz, r_err, int(order)
             )
     msg = f"{name}: {cls}; " + how
     if lam.size:
@@ -719,8 +719,12 @@ def _contradiction(
     r_rate: float,
     r_hz: float,
     r_err: float,
+    order: int = 2,
 ) -> str:
-    """The reason a time-domain verdict contradicts certain roots, or ''."""
+    """The reason a time-domain verdict contradicts certain roots, or ''.
+    The frequency a rate is compared at holds the window's resolution and,
+    for Newmark (``order`` 2), its period error (w h)^2/12; the exponential
+    step map has no period error (its linear part is exact)."""
     td = f"{name} {cls}" + (f" ({rate:+.4g} +- {err:.2g} 1/s" if math.isfinite(rate) else " (")
     td += f" at {f_hz:.2f} Hz)" if math.isfinite(f_hz) else ")"
     fd = f"the rightmost characteristic root is {r_rate:+.4g} 1/s at {r_hz:.2f} Hz"
@@ -733,7 +737,8 @@ def _contradiction(
     if rate - err > r_rate + r_err:
         return f"time domain {td} grows faster than any root allows: {fd}"
     w = 2.0 * math.pi * r_hz
-    f_tol = 2.0 / span + r_hz * ((w * step) ** 2 / 12.0 + 1e-3) if span > 0 else math.inf
+    period_error = (w * step) ** 2 / 12.0 if order == 2 else 0.0
+    f_tol = 2.0 / span + r_hz * (period_error + 1e-3) if span > 0 else math.inf
     if math.isfinite(f_hz) and abs(f_hz - r_hz) <= f_tol and abs(rate - r_rate) > err + r_err:
         return f"time domain {td} at the rightmost root's frequency, but {fd}"
     return ""

@@ -545,7 +545,7 @@ def _exponential_run(
     else:
         rule = (
             f"exponential step map of order {a['order']}: {a['steps_per_delay']} steps per delay for rtol = "
-            f"{float(integ.rtol):g} (estimated error {a['error_estimate']:.2g}, {a['tries']} tries)"
+            f"{float(integ.rtol):g} (estimated error {a['error_estimate']:.2g}, {a['tries']} {'try' if a['tries'] == 1 else 'tries'})"
         )
     if feedback != "pdo" and integ.step is None:
         rule = f"exponential step map, exact without a delayed term: {res.n_steps} steps record the run"
