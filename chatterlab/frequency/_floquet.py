@@ -70,6 +70,7 @@ import numpy as np
 
 from ..errors import InputError, check_nonneg, check_positive
 from ..io import Result
+from ..process._damping import milling_rubbing
 from ..process._loop import ClosedLoop
 from ._floquet_sdm import finite_monodromy, matched_change, sdm_monodromy, sdm_multipliers
 from ._floquet_spectral import (
@@ -388,6 +389,11 @@ def multipliers(
                     sm3 = SpectralMonodromy(loop, rpm, None, depth=a, depth_hint=a, quasi_static=fine)
                     err += matched_change(complex(mu[0]), sm3.at(a))
         res = f"degree {sm.degree} x {sm.n_sub} elements" + (f"; {qs.note()}" if qs is not None else "")
+        if qs is not None and milling_rubbing(loop, rpm) is not None:
+            res += (
+                "; process damping: the quasi-static modes' impulse where a tooth enters or leaves is not"
+                " included (docs/process-damping.md)"
+            )
         T = sm.period
     elif method == "sdm":
         mu, err = sdm_multipliers(loop, rpm, a, steps, check)
