@@ -1,3 +1,3 @@
 """The package version (a leaf: imported by result writers without a cycle)."""
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
