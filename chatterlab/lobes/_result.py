@@ -512,6 +512,13 @@ def _floquet_lines(d: LobeDiagram) -> list[str]:
         f"milling lobes ({d.method}, {d.resolution}) of {d.model}: {d.speed.size} speeds "
         f"{_speed(d, d.speed.min())} .. {_speed(d, d.speed.max())}, depths to {d.width_max * 1e3:g} mm {searched}"
     ]
+    pd = d.meta.get("process_damping")
+    if pd:
+        lines.append(
+            f"  process damping C_pd = {pd['C_pd']:.6g} N/m ({pd['model']}): the rubbing teeth's"
+            " -a_p C_pd/V W(t) r' integrated at each speed's own V"
+            + ("; the quasi-static modes' impulse at tooth entry/exit is not" if "split_note" in pd else "")
+        )
     if np.any(fin):
         j = int(np.argmin(np.where(fin, d.b_lim, np.inf)))
         lines.append(
@@ -520,7 +527,7 @@ def _floquet_lines(d: LobeDiagram) -> list[str]:
         )
         counts = {k: int(np.sum(d.kind == k)) for k in ("flip", "hopf", "fold")}
         lines.append(
-            f"  flip lobes at {counts['flip']} speeds, Hopf at {counts['hopf']}"
+            f"  flip lobes at {counts['flip']} speed{'s' if counts['flip'] != 1 else ''}, Hopf at {counts['hopf']}"
             + (f", fold at {counts['fold']}" if counts["fold"] else "")
         )
     inf = ~np.isfinite(d.b_lim) & ~und

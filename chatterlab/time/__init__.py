@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from ._exponential import exponential
 from ._history import TimeHistory
+from ._indentation import IndentationResponse, simulate_indentation
 from ._milling import MillingSimulation, default_steps_per_period, simulate_milling
 from ._newmark import (
     CallbackProblem,
@@ -33,6 +34,8 @@ from ._signals import GrowthEstimate, amplitude_spectrum, growth_rate, peaks
 from ._simulate import FEEDBACK_CASES, ParametricProblem, Simulation, simulate
 
 __all__ = [
+    "simulate_indentation",
+    "IndentationResponse",
     "GrowthEstimate",
     "amplitude_spectrum",
     "growth_rate",
