@@ -772,8 +772,9 @@ class ActiveDesign(Result):
         gain = f"x {self.gain:.3g}" if np.isfinite(self.gain) else "from 0"
         opt = f"{self.width * 1e3:.5g} mm"
         if not math.isfinite(self.width):
-            opt = f"above the {float(self.after.width_max) * 1e3:.4g} mm ceiling (no boundary below it)"
-            gain = "beyond the ceiling"
+            ceiling = float(self.after.width_max)
+            opt = f"above the {ceiling * 1e3:.4g} mm ceiling (no boundary below it)"
+            gain = f"more than x {ceiling / self.bare_width:.3g}" if self.bare_width > 0 else "from 0"
         lines.append(
             f"  optimised: {opt}; without the actuator: {bare} ({gain});"
             f" the file's gains: {self.file_width * 1e3:.5g} mm"

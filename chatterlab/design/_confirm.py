@@ -330,7 +330,7 @@ def _step(lam: np.ndarray, delays: list[float], T_cut: float, h_max: float | Non
     rightmost root's frequency, and is no longer than the shorter delay."""
     from ..time._signals import ASYMPTOTIC_PHASE
 
-    top = lam[:8]
+    top = lam[:8]  # the rightmost, among the roots of the band searched
     w_hi = float(np.max(np.abs(top.imag))) if top.size else 1.0
     w1 = abs(float(lam[0].imag)) if lam.size else w_hi
     h2 = 2 * math.pi / (STEPS_PER_PERIOD * max(w_hi, 1e-300))
@@ -401,7 +401,8 @@ def confirm_loop(
             math.nan, tuple(math.nan for _ in limits), limits, "not run: more than two delays",
         )  # fmt: skip
     dl = [d for _, d in sysm["delays"]]
-    h = step if step is not None else _step(lam, dl, T, None)
+    in_band = lam[np.abs(lam.imag) <= omega_max * (1 + 1e-9)] if omega_max is not None else lam
+    h = step if step is not None else _step(in_band, dl, T, None)
     if step is not None and dl and 2 * h > min(dl):
         raise InputError(f"step {h:g} s: the check run at twice it must not exceed the delay {min(dl):g} s")
     rate_hint = max(abs(s1), 1e-3) if math.isfinite(s1) else 1.0
@@ -415,8 +416,14 @@ def confirm_loop(
     long_T = max(dl, default=0.0) if len(dl) > 1 else 0.0
     if long_T > 0:  # the stepped delay a whole number of (both runs') steps
         h = long_T / (2 * math.ceil(long_T / (2 * h)))
-    t, x, F, status = _run(sysm, h, dur)
-    t2, x2, _, status2 = _run(sysm, 2 * h, dur)
+    try:
+        t, x, F, status = _run(sysm, h, dur)
+        t2, x2, _, status2 = _run(sysm, 2 * h, dur)
+    except InputError as exc:  # the solver's memory limits: the run is not made, the verdict says so
+        return _verdict(
+            "undetermined", f"not run: {exc}", speed, T, width, old_width, lam, conv, wc, math.nan, math.nan,
+            "not run", False, h, 0.0, tuple(math.nan for _ in limits), limits, f"not run: {exc}",
+        )  # fmt: skip
     skip = min(T, 0.2 * dur)
     if status != "ok":
         none = GrowthEstimate(math.nan, "undetermined", math.nan, "the run diverged")

@@ -136,7 +136,10 @@ def plot_tradeoff(
     if chosen is not None and np.all(np.isfinite(chosen)):
         ax.plot([chosen[0]], [chosen[1] * 1e3], "*", color="tab:green", ms=11, label="optimised design")
     if np.any(ok):
+        from matplotlib.ticker import NullFormatter
+
         ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # decades labelled only: no overprinted minor labels
     ax.set_xlabel("actuator force [N]")
     ax.set_ylabel("width cut [mm]")
     ax.set_title(title or "width against actuator effort", fontsize=10)
