@@ -896,10 +896,13 @@ class ActiveDesign(Result):
             _, axs = plt.subplots(1, 2, figsize=(13.0, 4.5), width_ratios=(1.6, 1.0))
             ax = tuple(axs)
         a0 = ax[0] if isinstance(ax, tuple | list | np.ndarray) else ax
-        head = title or (
-            f"{self.name}: active damper, {self.width * 1e3:.4g} mm"
-            + (f" (x {self.gain:.3g})" if np.isfinite(self.gain) else "")
+        ceiling = float(self.after.width_max)
+        what = (
+            f"{self.width * 1e3:.4g} mm" + (f" (x {self.gain:.3g})" if np.isfinite(self.gain) else "")
+            if math.isfinite(self.width)
+            else f"no lobe below the {ceiling * 1e3:.4g} mm ceiling"
         )
+        head = title or f"{self.name}: active damper, {what}"
         a0 = plot_lobes_compare(
             [self.before, self.after], ["without actuator", "optimised actuator"], ax=a0, title=head
         )

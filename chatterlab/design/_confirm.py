@@ -324,8 +324,9 @@ def _run(sysm: dict[str, Any], h: float, duration: float) -> tuple[np.ndarray, n
 
 def _step(lam: np.ndarray, delays: list[float], T_cut: float, h_max: float | None) -> float:
     """The main run's step: its check run at twice the step keeps
-    STEPS_PER_PERIOD steps per period of every relevant root (the four
-    rightmost) and a regeneration phase error w T (w 2h)^2 / 12 of at most
+    STEPS_PER_PERIOD steps per period of every relevant root (the eight
+    rightmost of the band searched: a mode above it, which the cut hardly
+    moves, is not resolved) and a regeneration phase error w T (w 2h)^2 / 12 of at most
     half of :data:`chatterlab.time._signals.ASYMPTOTIC_PHASE` at the
     rightmost root's frequency, and is no longer than the shorter delay."""
     from ..time._signals import ASYMPTOTIC_PHASE
