@@ -167,6 +167,17 @@ class Multipliers(Result):
     elapsed: float = 0.0
     meta: dict[str, float] = field(default_factory=dict)
 
+    @classmethod
+    def ranked(cls, mu: np.ndarray, **fields: Any) -> Multipliers:
+        """The result of multipliers ``mu`` ranked largest first: the critical
+        one, its type, the spectral radius and the stability are read off
+        ``mu[0]`` here (one place for every engine: constant speed, SSV, the
+        forced orbit's check); ``fields`` are the others."""
+        c = complex(mu[0])
+        return cls(
+            mu=mu, critical=c, kind=classify(c), spectral_radius=abs(c), stable=bool(abs(c) < 1.0), **fields
+        )
+
     # ------------------------------------------------------------------ verdict
     @property
     def verdict(self) -> str:
@@ -403,13 +414,8 @@ def multipliers(
     else:
         raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
     mu = mu[np.abs(mu) > 1e-300]
-    c = complex(mu[0])
-    return Multipliers(
-        mu=mu,
-        critical=c,
-        kind=classify(c),
-        spectral_radius=abs(c),
-        stable=bool(abs(c) < 1.0),
+    return Multipliers.ranked(
+        mu,
         error=err,
         frequency_hz=f_hz,
         method=method,

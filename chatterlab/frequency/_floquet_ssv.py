@@ -290,7 +290,7 @@ def ssv_multipliers(
         ``period`` is the computational period (``meta["folds"]`` principal periods);
         ``rpm`` the mean speed, ``depth`` the width.
     """
-    from ._floquet import Multipliers, chatter_frequency, classify
+    from ._floquet import Multipliers, chatter_frequency
 
     t_start = time.perf_counter()
     b = check_nonneg(width, "width of cut", "m")
@@ -314,15 +314,10 @@ def ssv_multipliers(
         res = f"{m} steps"
     else:
         raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
-    c = complex(mu[0])
-    return Multipliers(
-        mu=mu,
-        critical=c,
-        kind=classify(c),
-        spectral_radius=abs(c),
-        stable=bool(abs(c) < 1.0),
+    return Multipliers.ranked(
+        mu,
         error=err,
-        frequency_hz=chatter_frequency(c, sys.period, loop),
+        frequency_hz=chatter_frequency(complex(mu[0]), sys.period, loop),
         method=method,
         resolution=res + f"; {variation.describe()}",
         period=sys.period,

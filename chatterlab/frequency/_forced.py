@@ -104,7 +104,7 @@ from ..errors import InputError, check_nonneg, check_positive
 from ..io._result import Result
 from ..model._items import tooth_period
 from ..process._loop import ClosedLoop
-from ._floquet import Multipliers, classify
+from ._floquet import Multipliers
 from ._floquet_sdm import finite_monodromy, matched_change
 from ._floquet_spectral import CHECK_DEGREE, SpectralMonodromy
 
@@ -351,12 +351,8 @@ def forced_response(
     if check:
         sm2 = _setup(loop, rpm, a, None, tol, mesh=sm.mesh.raised(CHECK_DEGREE))
         err = matched_change(c, sm2.at(a))
-    mult = Multipliers(
-        mu=mu,
-        critical=c,
-        kind=classify(c),
-        spectral_radius=abs(c),
-        stable=bool(abs(c) < 1.0),
+    mult = Multipliers.ranked(
+        mu,
         error=err,
         frequency_hz=sm.critical(a)[1] if sm.m_f else float("nan"),
         method="spectral",
