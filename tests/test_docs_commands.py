@@ -50,6 +50,9 @@ SLOW = (
     "--step 1.4e-3 --passes 3",
     "--duration 20",
     "recommend example:traverse_shaper",
+    "active studies/traverse_shaper",
+    "absorber studies/traverse_shaper",
+    "sensitivity studies/traverse_shaper",
 )
 
 

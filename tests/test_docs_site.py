@@ -163,8 +163,8 @@ def test_api_pages_render_the_docstrings(site):
     assert 'id="chatterlab.lobes.lobes"' in lobes
     entry = lobes[lobes.index('id="chatterlab.lobes.lobes"') :]
     entry = entry[: entry.find('id="chatterlab.lobes.', 30)]
-    assert "Stability lobe diagram" in entry  # the summary line
-    assert "width_max" in entry and "Largest width of cut considered" in entry  # a numpy Parameters entry
+    assert "The stability lobe diagram of" in entry  # the summary line
+    assert "width_max" in entry and "Largest width of cut" in entry  # a numpy Parameters entry
     freq = _html(site, "api/frequency.md")
     assert 'id="chatterlab.frequency.multipliers"' in freq
     assert "Floquet multipliers of milling" in freq

@@ -86,8 +86,9 @@ def _gain_bound(
     with np.errstate(over="ignore", divide="ignore"):
         b1 = np.sum(rn / d, axis=1)
         b2 = S0 / a + np.sum(rn * np.abs(p) / d, axis=1) / a
-    Hb = np.minimum(b1, b2) + nD
-    return beta_max * Hb * (nP + b * nV + nO)
+        Hb = np.minimum(b1, b2) + nD
+        # an overflow is an infinite bound: the strip is not certified by it (conservative)
+        return beta_max * Hb * (nP + b * nV + nO)
 
 
 _BLOCK = 64  #: partition intervals bounded together first (certified_band)

@@ -377,7 +377,9 @@ def _sweep_locked(
         bar = Progress(size, n_resumed, progress, "sweep")
         workers = {
             "serial": "1 process",
-            "loky": f"{jobs} processes (this one and {jobs - 1} loky worker{'s' if jobs > 2 else ''})" if jobs > 1 else "1 process",
+            "loky": f"{jobs} processes (this one and {jobs - 1} loky worker{'s' if jobs > 2 else ''})"
+            if jobs > 1
+            else "1 process",
             "dask": "dask" if scheduler is None else f"dask at {scheduler}",
         }[backend]
         bar.note(
