@@ -32,6 +32,11 @@ SHAPER = ROOT / "studies" / "traverse_shaper" / "model.toml"
 
 CHILD = """
 import json, resource, sys, time
+def hwm():  # this process's peak RSS, MB: VmHWM restarts at exec (ru_maxrss keeps the forking parent's)
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 import chatterlab as cl
 m = cl.load_model(sys.argv[1])
 m = m.with_parameters({f"beam.{b.id}.elements": 16 for b in m.beams})
@@ -42,7 +47,7 @@ cpu, wall = time.process_time() - t, time.perf_counter() - w
 r = st.roots.roots[0]
 print(json.dumps({"n": int(fz.structure.M.shape[0]), "cpu": cpu, "wall": wall, "verdict": st.verdict,
                   "agree": bool(st.agree), "count": st.winding.count, "re": r.real, "im": r.imag,
-                  "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "rss_mb": hwm()}))
 """
 
 

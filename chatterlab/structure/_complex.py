@@ -57,7 +57,9 @@ def complex_modes(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> ComplexModes:
     BB = np.block([[Cs, Z], [Z, -As]])
     mu, psi = scipy.linalg.eig(-BB, AA)
     a = np.einsum("ir,ij,jr->r", psi, AA, psi)
-    psi = psi / np.sqrt(a.astype(complex))  # a real negative a (overdamped pairs, real vectors): sqrt of a complex
+    psi = psi / np.sqrt(
+        a.astype(complex)
+    )  # a real negative a (overdamped pairs, real vectors): sqrt of a complex
     lam = mu * w0
     phi = S[:, None] * psi[:n] / np.sqrt(w0)
     order = np.argsort(np.abs(lam))

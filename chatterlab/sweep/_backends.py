@@ -193,15 +193,19 @@ def _loky_runner(
     placed by chunk index, so where a chunk ran does not change a bit."""
     from concurrent.futures import FIRST_COMPLETED, Future, wait
 
-    from joblib.externals.loky import get_reusable_executor
+    from joblib.externals.loky import ProcessPoolExecutor
 
     helpers = jobs - 1
     if helpers < 1:
         yield from _serial_runner(payload, chunks)
         return
     # the workers start with OMP/OPENBLAS/MKL/..._NUM_THREADS=1 (no BLAS
-    # oversubscription) and watch this process, exiting when it dies (_watch_parent)
-    executor = get_reusable_executor(
+    # oversubscription) and watch this process, exiting when it dies (_watch_parent).
+    # The sweep's own executor, not loky's process-wide reusable one: joblib's
+    # Parallel (the milling diagram's speeds) reuses that singleton and finds it
+    # without the memmapping state joblib gives the executors it makes
+    # (AttributeError '_temp_folder_manager' after a sweep in the same process).
+    executor = ProcessPoolExecutor(
         max_workers=helpers,
         timeout=300,
         initializer=_watch_parent,
@@ -227,7 +231,8 @@ def _loky_runner(
 
     try:
         with _worker_environment():
-            fill()
+            with _sigint_ignored():  # the workers start here and inherit SIG_IGN: no traceback of
+                fill()  # a Ctrl-C that lands while one imports, before its initializer runs
             while True:
                 ready = [f for f in futures if f.done()]
                 if ready:
@@ -250,8 +255,9 @@ def _loky_runner(
             # interrupted, failed or closed early: nothing more is computed
             for f in futures:
                 f.cancel()
-            if any(not f.done() for f in futures):
-                executor.shutdown(wait=False, kill_workers=True)
+            executor.shutdown(wait=False, kill_workers=True)
+        else:
+            executor.shutdown(wait=True)
 
 
 @contextmanager
