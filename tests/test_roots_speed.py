@@ -199,10 +199,11 @@ print(json.dumps({"n": int(fz.structure.M.shape[0]), "cpu": cpu, "verdict": st.v
 """
 
 
-def test_refined_shaper_stability_within_the_goal():
+def test_refined_shaper_verdict_and_rightmost_root():
     """stability() on the shaper at 306 coordinates (16 elements per beam) in a
-    fresh process: the issue's goal, <= 10 s CPU and <= 1 GB peak RSS (0.2.0:
-    19.3 s, 2.7 GB); the verdict of both routes unchanged (unstable, 2 roots in
+    fresh process, on the band model (its cost against the issue's goal, <= 10 s
+    CPU and <= 1 GB, is measured by benchmarks/bench_roots.py, not asserted
+    here: 0.75 s and 143 MB; 0.2.0: 19.3 s, 2.7 GB); the verdict of both routes unchanged (unstable, 2 roots in
     the right half plane, the two routes agree) and the rightmost root the full
     search's (recorded above) to twice Newton's stall bound."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
@@ -215,5 +216,3 @@ def test_refined_shaper_stability_within_the_goal():
     r = complex(res["re"], res["im"])
     # (2 STALL |lambda|: the stall bound without its floor ``scale``, which only matters near 0)
     assert abs(r - FULL_306_RIGHTMOST) <= 2 * STALL * abs(FULL_306_RIGHTMOST)
-    assert res["cpu"] <= 10.0, res
-    assert res["rss_mb"] <= 1024.0, res
