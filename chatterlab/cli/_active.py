@@ -14,7 +14,7 @@ from typing import Any
 
 from ..errors import InputError, check_count, check_positive
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
-from ._common import mm_to_m, model_args, outputs
+from ._common import mm_to_m, model_args, outputs, write_result
 from ._design_common import (
     lobe_args,
     lobe_model,
@@ -22,7 +22,6 @@ from ._design_common import (
     speed_args,
     speeds_and_ceiling,
     verified_status,
-    write,
 )
 
 HELP = "co-design an active damper's gains (and placement) for the widest chatter-free cut; lobes before and after"
@@ -190,5 +189,5 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         confirm=not args.no_confirm,
     )
     print(des.summary())
-    write(des, args, outs)
+    write_result(des, args, outs)
     return verified_status(des.verified, "the optimised design")

@@ -394,3 +394,35 @@ def progress_bar(label: str) -> Callable[[float], None] | None:
     from .._progress import fraction_bar
 
     return fraction_bar(label)
+
+
+def write_result(
+    result: Any,
+    args: argparse.Namespace,
+    outs: Any,
+    *,
+    model: Any = None,
+    command: bool = True,
+    plot: Callable[[], Any] | None = None,
+) -> None:
+    """``result`` to ``--out`` by its suffix (CSV, JSON, else netCDF with the
+    command line in its attributes when ``command`` and the model's text
+    when ``model`` is given) and its plot (``plot()``, default
+    ``result.plot()``) to ``--plot``: the one writer of the commands that
+    save a :class:`~chatterlab.io.Result`."""
+    if args.out:
+        low = args.out.lower()
+        path = outs.path(args.out)
+        if low.endswith(".csv"):
+            result.to_csv(path)
+        elif low.endswith(".json"):
+            result.to_json(path)
+        else:
+            attrs = {"command": " ".join(sys.argv)} if command else {}
+            if model is not None:
+                attrs["model_text"] = model.text
+            result.to_netcdf(path, attrs=attrs or None)
+    if args.plot:
+        from ..plot import savefig
+
+        savefig(plot() if plot is not None else result.plot(), outs.path(args.plot))

@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import InputError, check_count, check_positive
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
-from ._common import model_args, outputs
+from ._common import model_args, outputs, write_result
 from ._design_common import (
     lobe_args,
     lobe_model,
@@ -21,7 +21,6 @@ from ._design_common import (
     speed_args,
     speeds_and_ceiling,
     verified_status,
-    write,
 )
 
 HELP = "tune vibration absorbers to maximise the minimum chatter-free width; lobes before and after"
@@ -118,5 +117,5 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         verify=args.verify,
     )
     print(des.summary())
-    write(des.after, args, outs, plot=des.plot)
+    write_result(des.after, args, outs, plot=des.plot)
     return verified_status(des.verified, "the tuned design")

@@ -82,29 +82,6 @@ def refuse_json(args: argparse.Namespace, what: str) -> None:
         raise InputError(f"--out: write {what} as .csv or .nc (not JSON)")
 
 
-def write(
-    result: Any, args: argparse.Namespace, outs: Any, *, command: bool = True, plot: Any = None
-) -> None:
-    """``result`` to ``--out`` (by its suffix: CSV, JSON or netCDF with the
-    command line in its attributes when ``command``) and its plot (``plot``,
-    default ``result.plot()``) to ``--plot``."""
-    if args.out:
-        low = args.out.lower()
-        path = outs.path(args.out)
-        if low.endswith(".csv"):
-            result.to_csv(path)
-        elif low.endswith(".json"):
-            result.to_json(path)
-        elif command:
-            result.to_netcdf(path, attrs={"command": " ".join(sys.argv)})
-        else:
-            result.to_netcdf(path)
-    if args.plot:
-        from ..plot import savefig
-
-        savefig(plot() if plot is not None else result.plot(), outs.path(args.plot))
-
-
 def verified_status(verified: bool | None, what: str) -> int:
     """1 (with a line on stderr) when ``what``'s lobes failed an
     argument-principle check, else 0."""

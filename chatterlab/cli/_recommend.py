@@ -27,7 +27,7 @@ from typing import Any
 
 from ..errors import InputError, check_count
 from ..io._files import DATA_SUFFIXES, JSON_SUFFIXES, PLOT_SUFFIXES
-from ._common import load, model_args, outputs, warn, width_slips
+from ._common import load, model_args, outputs, warn, width_slips, write_result
 
 HELP = "the speeds and depths to choose: most material removed while stable, or the chatter-frequency rule"
 
@@ -241,7 +241,7 @@ def _speeds(args: argparse.Namespace, model: Any, margin: float, count: int, out
         points=args.points, refine=refine, check=not args.no_check, **options,
     )  # fmt: skip
     print(rec.summary())
-    _write(args, rec, outs, model)
+    write_result(rec, args, outs, model=model)
     if not rec.speed.size:
         return 1
     if any(str(v) in ("unstable", "undetermined") for v in rec.verdict):
@@ -313,23 +313,5 @@ def _rule(args: argparse.Namespace, model: Any, margin: float, count: int, outs:
         width_max=width_max, position=position, **options,
     )  # fmt: skip
     print(res.summary())
-    _write(args, res, outs, model)
+    write_result(res, args, outs, model=model)
     return 0
-
-
-def _write(args: argparse.Namespace, res: Any, outs: Any, model: Any) -> None:
-    if args.out:
-        low = args.out.lower()
-        if low.endswith(".csv"):
-            res.to_csv(outs.path(args.out))
-        elif low.endswith(".json"):
-            res.to_json(outs.path(args.out))
-        else:
-            attrs = {"command": " ".join(sys.argv)}
-            if model is not None:
-                attrs["model_text"] = model.text
-            res.to_netcdf(outs.path(args.out), attrs=attrs)
-    if args.plot:
-        from ..plot import savefig
-
-        savefig(res.plot(), outs.path(args.plot))

@@ -12,8 +12,8 @@ from typing import Any
 
 from ..errors import check_count
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
-from ._common import model_args, outputs
-from ._design_common import lobe_args, lobe_model, refuse_json, speed_args, speeds_and_ceiling, write
+from ._common import model_args, outputs, write_result
+from ._design_common import lobe_args, lobe_model, refuse_json, speed_args, speeds_and_ceiling
 
 HELP = "exact sensitivities of the stability limit to model fields, ranked (what to stiffen or damp)"
 
@@ -84,7 +84,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
     if n > count:
         print(f"  ... {n - count} more field(s): --count {n} prints all, --out FILE.csv writes them")
     print(f"  {n} fields, {s.evaluations} model evaluations, {s.elapsed:.2f} s")
-    write(s, args, outs, command=False, plot=lambda: s.plot(by=args.by, limit=args.limit))
+    write_result(s, args, outs, command=False, plot=lambda: s.plot(by=args.by, limit=args.limit))
     if s.degenerate:
         print(
             "chatterlab: warning: two boundaries meet at the minimum (a symmetric structure): it has no"

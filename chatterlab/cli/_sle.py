@@ -21,12 +21,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 from typing import Any
 
 from ..errors import InputError, check_count
 from ..io._files import DATA_SUFFIXES, JSON_SUFFIXES, PLOT_SUFFIXES
-from ._common import load, model_args, outputs, progress_bar, width_m
+from ._common import load, model_args, outputs, progress_bar, width_m, write_result
 
 HELP = (
     "surface location error of the stable cuts against speed (milling), or the response to runout (turning)"
@@ -113,7 +112,9 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         if args.no_lobes:
             raise InputError("--no-lobes is for milling's SLE plot; the turning plot has no lobes")
         res, lobes = _turning(args, model, v), None
-    _write(args, res, lobes, outs, model)
+    write_result(
+        res, args, outs, model=model, plot=(lambda: res.plot(lobes=lobes)) if lobes is not None else None
+    )
     if any(x != "stable" for x in res.verdict):
         return 1
     return 0
@@ -223,21 +224,3 @@ def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
         )
     print(head)
     return res
-
-
-def _write(args: argparse.Namespace, res: Any, lobes: Any, outs: Any, model: Any) -> None:
-    if args.out:
-        low = args.out.lower()
-        if low.endswith(".csv"):
-            res.to_csv(outs.path(args.out))
-        elif low.endswith(".json"):
-            res.to_json(outs.path(args.out))
-        else:
-            res.to_netcdf(
-                outs.path(args.out), attrs={"command": " ".join(sys.argv), "model_text": model.text}
-            )
-    if args.plot:
-        from ..plot import savefig
-
-        ax = res.plot(lobes=lobes) if lobes is not None else res.plot()
-        savefig(ax, outs.path(args.plot))
