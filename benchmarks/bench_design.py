@@ -70,7 +70,6 @@ import json
 import math
 import os
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -84,6 +83,9 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import chatterlab as cl
 
+from _common import loadavg_text as loadavg
+from _common import source_commit, stats, timed
+
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"
 OUT = ROOT / "benchmarks" / "results" / "design.json"
@@ -92,50 +94,6 @@ EPS_B = 1e-12  #: the lobe engine's relative accuracy of a limit (tests/test_lob
 EQUAL = 1e-6  #: "equal optimum": the brute force's best within this of the tuned one
 MAX_LEVELS = 20  #: zoom levels of the brute force at most
 EQUAL_ACTIVE = 1e-4  #: "equal optimum" of the active co-design's brute force (module docstring)
-
-
-def loadavg() -> str:
-    try:
-        return Path("/proc/loadavg").read_text().strip()
-    except OSError:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def source_commit() -> str:
-    src = Path(cl.__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(
-            ["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no", "chatterlab"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        return head + ("+dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def stats(times: list[float], cpu: list[float]) -> dict[str, Any]:
-    return {
-        "min_s": min(times),
-        "median_s": float(np.median(times)),
-        "times_s": times,
-        "cpu_min_s": min(cpu),
-        "cpu_median_s": float(np.median(cpu)),
-        "cpu_s": cpu,
-    }
-
-
-def timed(f: Any) -> tuple[Any, float, float]:
-    c, t = time.process_time(), time.perf_counter()
-    out = f()
-    return out, time.perf_counter() - t, time.process_time() - c
 
 
 # ---------------------------------------------------------------- a, b: sensitivities

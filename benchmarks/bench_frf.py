@@ -55,6 +55,9 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import chatterlab as cl
 
+from _common import load1 as load
+from _common import loadavg
+
 from chatterlab.frequency._frf import frequencies, frf
 from chatterlab.frequency._stability import stability
 from chatterlab.process import ClosedLoop, closed_loop
@@ -62,10 +65,6 @@ from chatterlab.process import ClosedLoop, closed_loop
 ROOT = Path(__file__).resolve().parents[1]
 POINTS = ["rfe5.x", "rfe5.y", "tool.x", "tool.y"]
 LOADED = 0.5  # 1-minute load average above which a timing is flagged
-
-
-def load() -> float:
-    return float(os.getloadavg()[0]) if hasattr(os, "getloadavg") else float("nan")
 
 
 def timed(
@@ -210,7 +209,7 @@ def main() -> None:
         blas = [{k: d.get(k) for k in ("internal_api", "num_threads", "version")} for d in threadpool_info()]
     except ImportError:
         blas = []
-    load0 = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    load0 = loadavg()
     print(
         f"chatterlab {cl.__version__}, numpy {np.__version__}, {os.cpu_count()} CPUs,"
         f" BLAS {blas}, load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}"
@@ -345,7 +344,7 @@ def main() -> None:
         f" verdict {st.verdict}, rightmost root {r.roots[0].real:+.4f} 1/s at {r.frequency_hz[0]:.3f} Hz"
         f"   load {rec['load_before']:.2f}->{rec['load_after']:.2f}" + (" LOADED" if rec["loaded"] else "")
     )
-    result["load_average_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    result["load_average_end"] = list(loadavg())
     result["loaded"] = bool(
         load0[0] > LOADED
         or any(r_["loaded"] for c in result["cases"].values() for r_ in c["routes"].values())

@@ -38,13 +38,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+from _common import loadavg as load
+
 ROOT = Path(__file__).resolve().parents[1]
 LOADED = 0.5  # 1-minute load average above which a timing is flagged
 GOAL = 2.0  # chatterlab --help / python -c pass, min over the repeats
-
-
-def load() -> tuple[float, float, float]:
-    return os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
 
 
 def chatterlab_command() -> list[str]:

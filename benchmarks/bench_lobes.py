@@ -41,8 +41,6 @@ import argparse
 import json
 import os
 import platform
-import resource
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -57,40 +55,14 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import chatterlab as cl
 
+from _common import loadavg_text as loadavg
+from _common import peak_rss_mb, source_commit, stats, timed
+
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"
 OUT = ROOT / "benchmarks" / "results" / "lobes.json"
 GOAL_LOBES = 10.0  #: issue 26 row 3: lobes(verify=0) / FRF, at most
 GOAL_VERIFY = 1.0  #: issue 26 row 4: extra time of verify=16 / lobes(verify=0), at most
-
-
-def loadavg() -> str:
-    try:
-        return Path("/proc/loadavg").read_text().strip()
-    except OSError:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def source_commit() -> str:
-    """The commit of the chatterlab actually imported (PYTHONPATH may point
-    at another checkout), with '+dirty' when its tracked files differ."""
-    src = Path(cl.__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(
-            ["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no", "chatterlab"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        return head + ("+dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def competitor(M: np.ndarray, C: np.ndarray, K: np.ndarray, J: np.ndarray, omega: np.ndarray) -> np.ndarray:
@@ -116,20 +88,6 @@ def competitor(M: np.ndarray, C: np.ndarray, K: np.ndarray, J: np.ndarray, omega
     LR = (L.T[:, :, None] * R[:, None, :]).reshape(2 * n, m * m)  # residue of each pole
     g = 1.0 / (1j * omega[:, None] - lam[None, :])  # (N, 2n)
     return (g @ LR).reshape(omega.size, m, m)
-
-
-def stats(times: list[float], cpu: list[float]) -> dict[str, Any]:
-    """Wall-clock min and median (what the issue's rows are), and the same of
-    the process's CPU time (``time.process_time``: what waiting for a core
-    shared with other processes does not add)."""
-    return {
-        "min_s": min(times),
-        "median_s": float(np.median(times)),
-        "times_s": times,
-        "cpu_min_s": min(cpu),
-        "cpu_median_s": float(np.median(cpu)),
-        "cpu_s": cpu,
-    }
 
 
 def summary(d: Any) -> dict[str, Any]:
@@ -188,13 +146,11 @@ def measure(label: str, repeat: int, n_speeds: int, width_max: float, verify: in
         load_before = loadavg()
         for _ in range(repeat):
             for k, f in routes.items():
-                c = time.process_time()
-                t = time.perf_counter()
-                out[k] = f()
-                times[k].append(time.perf_counter() - t)
-                cpu[k].append(time.process_time() - c)
+                out[k], t, c = timed(f)
+                times[k].append(t)
+                cpu[k].append(c)
         load_after = loadavg()
-    rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    rss_mb = peak_rss_mb()
     Href = Boundary(fz, width_max=width_max).plant.H(omega)
     Hc = out["frf"]
     rel = float(np.max(np.abs(Hc - Href)) / np.max(np.abs(Href)))
@@ -228,7 +184,7 @@ def measure(label: str, repeat: int, n_speeds: int, width_max: float, verify: in
         "frf_rel_diff_vs_engine": rel,
         "load_before": load_before,
         "load_after": load_after,
-        "peak_rss_mb": rss_kb / 1024.0,
+        "peak_rss_mb": rss_mb,
         "lobes_verify0": a,
         "lobes_verify": b,
         "frf": c,

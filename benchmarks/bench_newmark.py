@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
-import math
 import os
 import platform
 import statistics
@@ -46,6 +45,8 @@ try:
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _common import loadavg
+
 import chatterlab as cl
 from chatterlab.time import Integration, NewmarkOptions, simulate
 
@@ -54,10 +55,6 @@ MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"
 OUT = ROOT / "benchmarks" / "results" / "bench_newmark.json"
 #: 1-minute load average per core above which a timing is flagged as taken on a loaded machine
 LOADED = 0.5
-
-
-def load() -> list[float]:
-    return [float(x) for x in os.getloadavg()] if hasattr(os, "getloadavg") else [math.nan] * 3
 
 
 def stats(walls: list[float]) -> dict[str, Any]:
@@ -82,7 +79,7 @@ def throughput(system: cl.System, reps: int) -> list[dict[str, Any]]:
     rows = []
     for step, method, workers in cases:
         walls, n, h = [], 0, 0.0
-        la = load()
+        la = list(loadavg())
         for _ in range(reps):
             sim = simulate(
                 system,
@@ -111,7 +108,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args()
     reps = args.repeats or (3 if args.quick else 5)
-    load0 = load()
+    load0 = list(loadavg())
     print(f"before: load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f} on {os.cpu_count()} cores")
     system = cl.assemble(cl.load_model(MODEL))
     simulate(system, feedback="pdo", integration=Integration(duration=0.05))  # warm-up (imports, modes)
@@ -129,7 +126,7 @@ def main() -> None:
         "loaded_threshold_per_core": LOADED,
     }
     result["throughput"] = throughput(system, reps)
-    result["load_average_end"] = load()
+    result["load_average_end"] = list(loadavg())
     # the load before the benchmark starts: the later ones include its own one or two busy threads
     result["loaded"] = bool(load0[0] > LOADED * (os.cpu_count() or 1))
     result["note_on_loads"] = "loads after the start include this benchmark's own 1-2 busy threads"

@@ -26,6 +26,9 @@ import sys
 from datetime import UTC, datetime
 from pathlib import Path
 
+from _common import load1 as _load
+from _common import source_commit as _commit
+
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results" / "roots.json"
 SHAPER = ROOT / "studies" / "traverse_shaper" / "model.toml"
@@ -49,23 +52,6 @@ print(json.dumps({"n": int(fz.structure.M.shape[0]), "cpu": cpu, "wall": wall, "
                   "agree": bool(st.agree), "count": st.winding.count, "re": r.real, "im": r.imag,
                   "rss_mb": hwm()}))
 """
-
-
-def _load() -> float:
-    return float(Path("/proc/loadavg").read_text().split()[0])
-
-
-def _commit() -> str:
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
-        )
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "chatterlab"], cwd=ROOT, capture_output=True, text=True
-        )
-        return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
-    except OSError:
-        return ""
 
 
 def main() -> None:

@@ -51,6 +51,10 @@ try:
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _common import load1 as load
+from _common import loadavg
+from _common import source_commit as _commit
+
 from chatterlab.sweep._engine import Grid, sweep
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -101,10 +105,6 @@ def calibrate(target: float = 0.020) -> int:
         if dt > 0.02:
             return max(1, round(reps * target / dt))
         reps *= 2
-
-
-def load() -> float:
-    return float(os.getloadavg()[0]) if hasattr(os, "getloadavg") else float("nan")
 
 
 def stats(times: list[float], l0: float, l1: float) -> dict[str, Any]:
@@ -348,20 +348,6 @@ def bench_memory(n: int) -> dict[str, Any]:
     return d
 
 
-def _commit() -> str:
-    """The checkout's short commit (+dirty when chatterlab/ has changes)."""
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
-        )
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "chatterlab"], cwd=ROOT, capture_output=True, text=True
-        )
-    except OSError:
-        return ""
-    return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smaller sizes")
@@ -374,7 +360,7 @@ def main() -> None:
         memory_child(int(args.memory_child[0]), args.memory_child[1], naive_n=int(args.memory_child[0]))
         return
     rep = max(5, args.repeat)
-    load0 = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    load0 = loadavg()
     print(
         f"cpu count {os.cpu_count()}, load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}"
         + (
@@ -424,7 +410,7 @@ def main() -> None:
         result["overhead"] = bench_overhead(20_000 if args.quick else 200_000, rep)
     if args.only in (None, "memory"):
         result["memory"] = bench_memory(100_000 if args.quick else 1_000_000)
-    result["load_average_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    result["load_average_end"] = list(loadavg())
     loaded = load0[0] > LOADED or result["load_average_end"][0] > LOADED
     for part in ("speedup", "overhead"):
         for v in result.get(part, {}).values():

@@ -59,10 +59,8 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
-import math
 import os
 import platform
-import resource
 import statistics
 import sys
 import time
@@ -71,6 +69,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _common import load1, peak_rss_mb
 
 ROOT = Path(__file__).resolve().parents[1]
 try:
@@ -88,14 +87,6 @@ METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 TARGETS = (1e-2, 1e-3)
 #: a solve_ivp run longer than this (s) stops the search towards tighter rtol for that method
 RUN_CAP_S = 60.0
-
-
-def load1() -> float:
-    return float(os.getloadavg()[0]) if hasattr(os, "getloadavg") else math.nan
-
-
-def peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 # =========================================================================== the problems

@@ -56,6 +56,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from _common import load1 as load
+
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results" / "time_core_refactor.json"
 BEFORE = "63e1fc16a90e4a3b9de2b3f1a0637b86a7739835"
@@ -205,10 +207,6 @@ def instructions(tree: Path, case: str) -> float:
 
 
 # =========================================================================== the driver
-
-
-def load() -> float:
-    return float(Path("/proc/loadavg").read_text().split()[0]) if Path("/proc/loadavg").exists() else math.nan
 
 
 def run_version(tree: Path, save: str | None) -> tuple[dict[str, float], float]:

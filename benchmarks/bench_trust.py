@@ -39,6 +39,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from _common import loadavg
+
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "traverse_shaper" / "model.toml"
 
@@ -208,7 +210,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "bench_trust.json"))
     args = ap.parse_args()
-    load = os.getloadavg()
+    load = loadavg()
     print(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (2 cores)")
     results = [measure(str(ROOT), args.repeat, "this checkout")]
     if args.baseline:

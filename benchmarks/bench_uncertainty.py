@@ -49,6 +49,9 @@ try:
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _common import load1 as _load
+from _common import loadavg
+
 import chatterlab as cl
 from chatterlab.uncertainty import InputSpace, propagate, risk
 
@@ -61,10 +64,6 @@ SHAPER_UNCERTAINTY = """
 "coupling.cut.K7" = { distribution = "normal", cv = 0.1 }
 "coupling.cut.K8" = { distribution = "normal", cv = 0.1 }
 """
-
-
-def _load() -> float:
-    return float(os.getloadavg()[0])
 
 
 def _stats(times: list[float], loads: list[float]) -> dict[str, Any]:
@@ -220,7 +219,7 @@ def main() -> None:
         "python": platform.python_version(),
         "numpy": np.__version__,
         "cpu_count": os.cpu_count(),
-        "load_average_start": list(os.getloadavg()),
+        "load_average_start": list(loadavg()),
         "loaded_threshold": LOADED,
         "repeats": repeat,
     }
@@ -232,7 +231,7 @@ def main() -> None:
         )  # warm-up
         res["throughput"] = throughput(model, samples, repeat)
         res["shared_modes"] = shared_modes(model, 16, repeat)
-    res["load_average_end"] = list(os.getloadavg())
+    res["load_average_end"] = list(loadavg())
     out = ROOT / "benchmarks" / "results" / "uncertainty.json"
     if not args.quick:
         out.write_text(json.dumps(res, indent=1) + "\n")
