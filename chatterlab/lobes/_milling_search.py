@@ -80,6 +80,15 @@ MAX_TANGENTS = 400
 #: the automatic degrees aim at the check's target divided by this (the rest is the margin the
 #: check confirms: a speed whose check misses the target is searched again, finer)
 TOL_SHARE = 30.0
+#: a step of the complete search takes every multiplier's first-order path at most this share of
+#: the way to the unit circle, leaving the rest for the second-order term the test adds
+SAFE = 0.5
+#: ... except the multiplier heading out first (the least (1 - |mu|) / (d|mu|/da)): the step goes
+#: this far past its Newton prediction of the crossing, so that one step brackets it
+OVERSHOOT = 1.25
+#: a step is at most this many scan steps (depth_max / scan) long: the first-order test over it
+#: must still see a multiplier that bends out and back (its miss term is second order in h)
+STEP_CAP = 4.0
 #: the automatic mesh's depth stages are merged while the deeper one has at most this many
 #: times the nodes of the shallower one (a set-up and its flip/fold eigenproblems cost more)
 MERGE = 1.2
@@ -110,41 +119,26 @@ class Certified:
 def _end_safe(
     mu: np.ndarray, dmu: np.ndarray, h: float, skip: float | None, miss: np.ndarray | float = 0.0
 ) -> bool:
-    """One end of an interval of length h: see :func:`_interval_safe`."""
-    step = np.abs(dmu) * h + miss
-    step = np.where(np.isnan(step), np.inf, step)
-    ok = np.abs(mu) + step < 1.0
+    """One end of an interval, the other end at a distance h (signed: -h from the
+    right end): see :func:`_interval_safe`."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        move = np.abs(dmu) * abs(h) + miss
+        move = np.where(np.isnan(move), np.inf, move)
+        reach = np.maximum(np.abs(mu), np.abs(mu + dmu * h)) + miss
+    reach = np.where(np.isnan(reach), np.inf, reach)
+    ok = reach < 1.0
     if skip is not None:
         ok |= np.abs(mu - skip) <= 1e-6
     if np.all(ok):
         return True
     real = np.nonzero(mu.imag == 0.0)[0]
     for i in np.nonzero(~ok)[0]:
-        if mu[i].imag != 0.0 or abs(mu[i]) >= 1.0 or not np.isfinite(step[i]):
+        if mu[i].imag != 0.0 or abs(mu[i]) >= 1.0 or not np.isfinite(move[i]):
             return False
         others = real[real != i]
-        if np.any(np.abs(mu[others] - mu[i]) <= step[others] + step[i]):
+        if np.any(np.abs(mu[others] - mu[i]) <= move[others] + move[i]):
             return False
     return True
-
-
-def _all_inside(
-    lo: list[tuple[np.ndarray, np.ndarray]], hi: list[tuple[np.ndarray, np.ndarray]], h: list[float]
-) -> list[bool]:
-    """:func:`_interval_safe` of several intervals at once where it holds by its first branch:
-    every multiplier at both ends has |mu| + |d mu| h + miss < 1 (the real-axis branch and
-    the known +-1 at a right end are left to :func:`_interval_safe`, interval by interval)."""
-    if not lo:
-        return []
-    mu0, d0 = np.stack([x[0] for x in lo]), np.stack([x[1] for x in lo])
-    mu1, d1 = np.stack([x[0] for x in hi]), np.stack([x[1] for x in hi])
-    hh = np.asarray(h)[:, None]
-    with np.errstate(invalid="ignore", over="ignore"):
-        miss0 = np.min(np.abs((mu0 + d0 * hh)[:, :, None] - mu1[:, None, :]), axis=2)
-        miss1 = np.min(np.abs((mu1 - d1 * hh)[:, :, None] - mu0[:, None, :]), axis=2)
-        ok0 = np.abs(mu0) + (np.abs(d0) * hh + miss0) < 1.0
-        ok1 = np.abs(mu1) + (np.abs(d1) * hh + miss1) < 1.0
-    return [bool(x) for x in np.all(ok0 & ok1, axis=1)]
 
 
 def _simple_bracket(lo: tuple[np.ndarray, np.ndarray], hi: tuple[np.ndarray, np.ndarray], h: float) -> bool:
@@ -154,13 +148,13 @@ def _simple_bracket(lo: tuple[np.ndarray, np.ndarray], hi: tuple[np.ndarray, np.
     differ by less than the smaller (d|mu|/da, linear between the ends,
     keeps its sign: |mu| is monotone on the interval to second order)."""
     s = []
-    for (mu, dmu), miss in ((lo, _miss(lo, hi, h)), (hi, _miss(hi, lo, -h))):
+    for (mu, dmu), miss, hs in ((lo, _miss(lo, hi, h), h), (hi, _miss(hi, lo, -h), -h)):
         top = np.abs(mu) >= np.abs(mu).max() * (1.0 - 1e-9)
         if np.sum(top) > 2 or (np.sum(top) == 2 and mu[top][0].imag == 0.0):
             return False
         m0 = mu[top][0]
         s.append(float(np.real(np.conj(m0) * dmu[top][0]) / abs(m0)))
-        if not _end_safe(mu[~top], dmu[~top], h, None, miss[~top]):
+        if not _end_safe(mu[~top], dmu[~top], hs, None, miss[~top]):
             return False
     return bool(np.isfinite(s).all() and min(s) > 0.0 and abs(s[1] - s[0]) < min(s))
 
@@ -171,21 +165,28 @@ def _interval_safe(
     """No multiplier reaches the unit circle on an interval of length h, to
     first order, judged from each end with its own derivatives.
 
-    A multiplier moves at most |d mu/da| h to first order over h; it stays
-    inside if |mu| + |d mu/da| h < 1 at both ends.  A real multiplier can
+    To first order a multiplier follows the segment mu + (d mu/da) t, t in
+    [0, h], whose modulus is convex in t: its largest value is at one of the
+    segment's ends, max(|mu|, |mu + (d mu/da) h|); the multiplier stays inside
+    if that, widened by the second-order term (below), is < 1 from both ends
+    (from the right end the segment runs back, -h).  A real multiplier can
     leave the unit disc only through +-1 (those depths are known exactly,
     :meth:`SpectralMonodromy.unit_depths`) or by meeting another real
     multiplier and leaving the axis as a pair; so it is also safe if it
     stays further from every other real multiplier than both move,
-    |mu_k - mu_j| > (|d mu_k| + |d mu_j|) h.  ``skip_hi``: the known
+    |mu_k - mu_j| > (|d mu_k| + |d mu_j|) h (each widened by its miss).  ``skip_hi``: the known
     multiplier (+-1) at a right end that is a flip/fold depth, left out
     there.
 
     The first-order move is widened by how far the linear prediction from
     one end misses the nearest multiplier at the other (an estimate of the
-    curvature term |mu''| h^2 / 2): a multiplier that bends out and back
-    within the interval shows there."""
-    return _end_safe(*lo, h, None, _miss(lo, hi, h)) and _end_safe(*hi, h, skip_hi, _miss(hi, lo, -h))
+    remainder |mu''| h^2 / 2, which bounds it at every t in [0, h] while mu''
+    varies little over the interval): a multiplier that bends out and back
+    within the interval shows there.  (Until this change the test was the
+    triangle inequality's |mu| + |d mu/da| h + miss < 1, larger by up to
+    |d mu/da| h where the multiplier moves along the circle: the same
+    second-order claim, far shorter intervals where the multipliers turn.)"""
+    return _end_safe(*lo, h, None, _miss(lo, hi, h)) and _end_safe(*hi, -h, skip_hi, _miss(hi, lo, -h))
 
 
 def _miss(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], h: float) -> np.ndarray:
@@ -195,6 +196,50 @@ def _miss(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], h:
         pred = mu + dmu * h
         d = np.min(np.abs(pred[:, None] - b[0][None, :]), axis=1)
     return np.where(np.isfinite(d), d, np.inf)
+
+
+def _step(mu: np.ndarray, dmu: np.ndarray, room: float) -> float:
+    """The next step of the complete search from a depth with multipliers ``mu``
+    and rates ``dmu``, sized so that the interval passes :func:`_interval_safe`:
+    every multiplier's first-order path stays within |mu + (d mu/da) h| <=
+    |mu| + SAFE (1 - |mu|) (the rest of the gap left to the second-order
+    term), or, for a real one, within SAFE of its distance to the other real
+    ones (it leaves the axis only by meeting one; its passage through +-1 is
+    known exactly).  But if the complex multiplier heading out first (radial
+    rate s > 0, least Newton distance (1 - |mu|) / s) is bracketed by a step
+    OVERSHOOT times that distance while the others stay within their
+    limits, that step (the bracket :func:`_simple_bracket` then confirms).
+    ``room``: what is left of the interval searched (returned when nothing
+    limits the step)."""
+    r = np.abs(mu)
+    rate = np.abs(dmu)
+    if np.any(r >= 1.0) or not np.all(np.isfinite(rate)):
+        return 0.0
+    real = mu.imag == 0.0
+    s = np.real(np.conj(mu) * dmu) / np.where(r > 0.0, r, 1.0)
+    c = r + SAFE * (1.0 - r)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # the positive root of |mu + dmu t|^2 = c^2: rate^2 t^2 + 2 r s t + r^2 - c^2 = 0
+        limit = (np.sqrt((r * s) ** 2 + rate**2 * (c**2 - r**2)) - r * s) / rate**2
+        limit = np.where(rate > 0.0, limit, np.inf)
+        if np.count_nonzero(real) > 1:
+            mr, rr = mu.real[real], rate[real]
+            apart = np.abs(mr[:, None] - mr[None, :]) / (rr[:, None] + rr[None, :])
+            np.fill_diagonal(apart, np.inf)
+            apart = SAFE * np.min(np.where(np.isnan(apart), 0.0, apart), axis=1)
+            limit[real] = np.maximum(limit[real], apart)
+        elif np.any(real):
+            limit[real] = np.inf
+        newton = np.where((s > 0.0) & ~real, (1.0 - r) / s, np.inf)
+    limit = np.where(np.isnan(limit), 0.0, limit)
+    j = int(np.argmin(newton))
+    h_out = OVERSHOOT * float(newton[j])
+    if np.isfinite(h_out):
+        pair = np.abs(mu - mu[j]) <= 1e-12 * r[j]
+        pair |= np.abs(mu - np.conj(mu[j])) <= 1e-12 * r[j]
+        if h_out <= float(np.min(limit[~pair], initial=np.inf)):
+            return min(h_out, room)
+    return min(float(np.min(limit)), room)
 
 
 def _slope(mu: np.ndarray, dmu: np.ndarray, i: int) -> float:
@@ -220,22 +265,25 @@ def certified_crossing(
        (start, stop], exactly, from two real eigenproblems
        (:meth:`SpectralMonodromy.unit_depths`); no sampling.
     2. Complex pairs (secondary Hopf): the multipliers and their exact
-       derivatives (:meth:`SpectralMonodromy.tangent`) on the scan depths
-       (depth_max i / scan) below the first flip/fold depth; every interval
-       is bisected until :func:`_interval_safe` passes (no multiplier comes
-       within its own rate of change of the unit circle, nor a real one
-       within its rate of change of another real one), or until it is
-       ``MIN_WIDTH`` short: then a radius >= 1 at its right end brackets the
-       crossing, and otherwise the multiplier touches the circle within the
-       resolution: undetermined.  A bracket is refined to ``rtol`` by
-       Newton's method on |mu| with its exact derivative, safeguarded by
-       bisection (every iterate stays in the bracket).
+       derivatives (:meth:`SpectralMonodromy.tangent`) at depths stepped
+       from ``start`` to the first flip/fold depth, each step as long as
+       :func:`_step` predicts the interval passes :func:`_interval_safe`
+       (every multiplier's first-order path within half its gap to the unit
+       circle) or long enough to bracket the multiplier heading out first,
+       and never more than STEP_CAP scan steps (depth_max / scan); an
+       interval that fails is bisected until :func:`_interval_safe` passes (no
+       multiplier comes within its own rate of change of the unit circle,
+       nor a real one within its rate of change of another real one), or
+       until it is ``MIN_WIDTH`` short: then a radius >= 1 at its right end
+       brackets the crossing, and otherwise the multiplier touches the
+       circle within the resolution: undetermined.  A bracket is refined to
+       ``rtol`` by Newton's method on |mu| with its exact derivative,
+       safeguarded by bisection (every iterate stays in the bracket).
 
-    The scan depths ahead of the current interval are evaluated in batches
-    (:meth:`SpectralMonodromy.tangents`, the same numbers one by one); the
-    tests and the intervals are those of the depth-by-depth search.  The
-    limit is the first depth either finds; stability below it rests on step
-    1 (exact) and the first-order test of step 2 on every interval."""
+    The limit is the first depth either finds; stability below it rests on
+    step 1 (exact) and the test of step 2 on every interval (the steps only
+    choose the intervals: before, they were the scan depths, with the
+    same test)."""
     budget = MAX_TANGENTS if max_tangents is None else max_tangents
     stop = depth_max if stop is None else stop
     flips = sm.unit_depths(-1.0, stop)
@@ -246,8 +294,6 @@ def certified_crossing(
     end = min(a_real, stop)
     cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
     count = [0]
-    # batch as many scan depths as cost about one evaluation's Python overhead (small monodromies)
-    chunk = max(1, min(8, int(3000 // max(sm.size, 1) ** 2)))
 
     def fetch(points: list[float]) -> None:
         todo = [a for a in dict.fromkeys(points) if a not in cache]
@@ -288,44 +334,18 @@ def certified_crossing(
         mid = 0.5 * (lo + hi)
         return refine(lo, mid) or refine(mid, hi)
 
-    grid = (
-        [start]
-        + [float(g) for g in depth_max * np.arange(1, scan + 1) / scan if start < g < end]
-        + [float(end)]
-    )
     found: tuple[str, float] | None = None
-    passed: dict[int, bool] = {}
+    cap = (depth_max / scan) * STEP_CAP
     try:
-        for i, (lo, hi) in enumerate(zip(grid[:-1], grid[1:], strict=True)):
-            if grid[i + 1] not in cache:  # the next batch of scan depths: as many as the radius's
-                # trend over the last two says stay below 1, plus one (only how many are evaluated
-                # together: every one is still tested)
-                n_next = chunk
-                if i >= 1 and grid[i - 1] in cache:
-                    r0, r1 = radius(grid[i - 1]), radius(grid[i])
-                    if r1 > r0:
-                        n_next = max(1, min(chunk, int((1.0 - r1) / (r1 - r0)) + 1))
-                fetch(grid[i : i + 1 + n_next])
-            if i not in passed:  # the batch's intervals by the test's all-inside branch at once
-                js = [
-                    j
-                    for j in range(i, min(i + chunk, len(grid) - 1))
-                    if grid[j + 1] in cache and grid[j + 1] != a_real
-                ]
-                ok = _all_inside(
-                    [cache[grid[j]] for j in js],
-                    [cache[grid[j + 1]] for j in js],
-                    [grid[j + 1] - grid[j] for j in js],
-                )
-                passed.update(zip(js, ok, strict=True))
-            if passed.get(i, False):
-                if count[0] > budget + scan:
-                    raise _Stop
-                certified[0] = hi
-                continue
+        lo = start
+        while lo < end and found is None:
+            if count[0] > budget + scan:
+                raise _Stop
+            hi = min(end, lo + max(min(cap, _step(*data(lo), end - lo)), MIN_WIDTH * end))
+            if end - hi <= MIN_WIDTH * end:
+                hi = end
             found = refine(lo, hi)
-            if found:
-                break
+            lo = hi
     except _Stop:
         found = ("undetermined", certified[0])
     fl, fo = tuple(float(a) for a in flips), tuple(float(a) for a in folds)
