@@ -20,6 +20,7 @@ from typing import Any, Literal
 
 from ..errors import InputError
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
+from ..time._milling import refuse_milling_damping
 from ._common import load, model_args, outputs, progress_bar, width_m
 
 
@@ -125,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
                 "--integrator exponential needs a linear cut with constant coefficients; a milling run "
                 "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"
             )
+        refuse_milling_damping(model)
         if args.q0 or args.v0 or args.history != "zero":
             raise InputError(
                 "--q0, --v0 and --history apply to cutting-process models; a milling run starts from the "
@@ -298,6 +300,8 @@ def _summary(sim: Any, fb: str) -> list[str]:
             short.setdefault(what, why)
     if sim.in_cut.all():
         print(f"  step: {sim.meta.get('step_rule', 'given')}")
+    if sim.meta.get("process_damping", "none") != "none":
+        print(f"  process damping: {sim.meta['process_damping']}")
     if sim.roots is not None and sim.roots.size:
         z = sim.roots[0]
         print(

@@ -59,6 +59,7 @@ __all__ = [
     "milling_damping",
     "milling_rubbing",
     "cutting_speed_at",
+    "penetration",
 ]
 
 
@@ -259,3 +260,36 @@ def indented_area(delta: np.ndarray, xi: np.ndarray) -> float:
         frac = np.abs(pos) / (np.abs(d0) + np.abs(d1))
     area += np.sum(np.where(cross, 0.5 * pos * frac * h, 0.0))
     return float(area)
+
+
+def penetration(model: Any) -> np.ndarray:
+    """The indentation model's penetration direction p in CE axes (3,), unit,
+    pointing into the material: u = p . dw grows as the tool digs in (the
+    flank's area, docs/process-damping.md Eq. 6a, is not symmetric in u).
+
+    The sign is the chip's: ``normal_deg`` (and a ``regenerative``
+    coupling's ``normal_angle_deg``) is the direction in which a displacement
+    of a relative to b thins the chip, so p = -n; a ``grasso`` coupling's axis
+    2 thins it (its thrust points away from the workpiece); a ``matrices``
+    coupling's n is its D_O's direction signed by the static cutting force,
+    which pushes the tool out of the material (n . P0 > 0).  The linear
+    terms alone cannot tell (they are odd in dw)."""
+    pd = model.process_damping
+    c = next(c for c in model.couplings if c.id == pd.coupling)
+    if pd.normal is not None:
+        n = _normal(c, pd.normal)
+    elif c.kind == "regenerative":
+        n = _normal(c, math.radians(dict(c.params)["normal_angle_deg"]))
+    elif c.kind == "grasso":
+        n = np.array([0.0, 1.0, 0.0])
+    else:
+        n = _normal(c, None)
+        side = float(n @ np.array(c.forces, dtype=float))
+        if side == 0.0:
+            raise InputError(
+                f"[process_damping]: the indentation model needs the side of the material, which coupling"
+                f" '{c.id}' does not show (no static force along its normal): give normal_deg, the direction"
+                " that thins the chip (deg, from CE axis 1)"
+            )
+        n = n if side > 0 else -n
+    return -n

@@ -283,6 +283,7 @@ def simulate_milling(
     opt = with_legacy("simulate_milling", deprecated, legacy, integration=integration, initial=initial)
     integ, init = opt["integration"], opt["initial"]
     rpm, depth, feed, opts = _checked_cut(milling, rpm, depth, feed, integ)
+    refuse_milling_damping(getattr(structure, "model", None))
     M, C, K, P = _matrices(structure, tool_point, workpiece_point)
     n = M.shape[0]
     if init.history is not None:
@@ -400,6 +401,21 @@ def _initial_state(
         if a.shape != (n,) or not np.all(np.isfinite(a)):
             raise InputError(f"{name} must be a finite vector of {n} values (got shape {a.shape})")
     return q_init, v_init
+
+
+def refuse_milling_damping(model: Any) -> None:
+    """One line when a milling model has ``[process_damping]``: the milling
+    time domain does not integrate the flank's force (neither the linear
+    term nor the indentation model, per tooth) yet, and a run without it
+    would answer for another cut."""
+    pd = getattr(model, "process_damping", None)
+    if pd is None or pd.C_pd == 0.0:
+        return
+    raise InputError(
+        "[process_damping]: the milling time domain does not take the flank's damping yet (the Floquet"
+        " routes do: chatterlab lobes, chatterlab stability); drop the table to simulate the cut without it"
+        + (" (or --set process_damping.C_pd=0)" if not pd.indentation else "")
+    )
 
 
 # =========================================================================== structure

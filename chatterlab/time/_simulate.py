@@ -37,10 +37,12 @@ from ..errors import InputError, check_width, warn_width
 from ..process._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
 from ..structure._assembly import System
 from ._history import TimeHistory
+from ._indentation import MIN_LAND_STEPS, Flank, FlankRun, flank_run
 from ._initial import initial_state
 from ._newmark import ConstantProblem, TimeResponse, newmark
 from ._options import Excitation, Initial, Integration, with_legacy
 from ._parametric import FEEDBACK_CASES, ParametricProblem, _ExtraForce, _output_map, _WithExtraForce
+from ._problems import Sealed
 from ._signals import GrowthEstimate, TimeVerdict, amplitude_spectrum, peaks, time_verdict
 
 __all__ = ["ParametricProblem", "Simulation", "simulate", "constant_loop", "FEEDBACK_CASES"]
@@ -54,6 +56,11 @@ STEP_ERROR_FRACTION = 0.25
 #: roots whose envelope, relative to the rightmost one's, falls by less than
 #: this factor over the fitted span can still shape the fitted envelope
 RELEVANT_DECAY = 100.0
+#: the default step puts at least this many samples of the surface across the
+#: indentation model's wear land (the flank's area; the check run at twice the
+#: step keeps MIN_LAND_STEPS = 2 of them, eight moved the decay rate by < 1e-3
+#: relative on the 1-DOF tool of tests/test_indentation.py)
+LAND_STEPS = 8.0
 #: the default step costs at most this many steps (the verdict then says
 #: which step would decide it)
 MAX_DEFAULT_STEPS = 2_000_000
@@ -118,7 +125,9 @@ class Simulation(TimeHistory):
         half of it for the exponential step map."""
         h, T = float(self.step), float(self.delay)
         t_end = float(self.t[-1]) if self.t.size else 0.0
-        if self._order() != 2:  # the exponential step map: the check run is finer (a whole m per delay)
+        if self.response.attrs.get("method") == "exponential":  # the check run is finer (a whole m per delay)
+            return 0.5 * h
+        if 2.0 * h > float(self.response.attrs.get("max_step", math.inf)):  # the wear land's samples
             return 0.5 * h
         return (
             2.0 * h
@@ -130,7 +139,7 @@ class Simulation(TimeHistory):
         """The order of the run's scheme: 2 (Newmark) or the exponential step map's."""
         return (
             int(self.response.attrs.get("order", 2))
-            if self.response.attrs.get("method") == "exponential"
+            if self.response.attrs.get("method") in ("exponential", "indentation")
             else 2
         )
 
@@ -445,14 +454,27 @@ def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Exc
         t_end=duration,
     )
     lam, certain = _roots_of(roots)
-    run_prob = _run_problem(prob, exc.loads, exc.ground_motion)
+    pd = _process_damping(prob)
+    flank = pd.flank if pd is not None else None
+    if flank is not None:
+        certain = False  # the roots are the linearisation's: a nonlinear run may differ at finite amplitude
+        if integ.integrator == "exponential":
+            raise InputError(
+                "integrator='exponential' needs a linear cut; the indentation model's flank force is"
+                " nonlinear and integrates with Newmark: drop integrator='exponential' (--integrator)"
+            )
+    run_prob = _run_problem(prob, exc.loads, exc.ground_motion, pd if flank is None else None)
     q0v, v0v, hist, initial = initial_state(prob, kin, init.q0, init.v0, init.history)
     if integ.integrator == "exponential":
         res, step, rule = _exponential_run(
             prob, kin, run_prob, integ, feedback, duration, q0v, v0v, hist, outs
         )
+    elif flank is not None:
+        step, rule = _time_step(system, kin, feedback, integ.step, cut.position, duration, prob, lam, pd)
+        with _blas_limits():
+            res = _flank_response(run_prob, flank, step, duration, q0v, v0v, hist, integ)
     else:
-        step, rule = _time_step(system, kin, feedback, integ.step, cut.position, duration, prob, lam)
+        step, rule = _time_step(system, kin, feedback, integ.step, cut.position, duration, prob, lam, pd)
         with _blas_limits():
             res = newmark(
                 run_prob,
@@ -495,6 +517,7 @@ def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Exc
             "coefficients": "+".join(sorted(prob.method_used)),
             "initial_condition": initial,
             "step_rule": rule,
+            "process_damping": pd.describe() if pd is not None else "none",
         },
         roots=lam,
         roots_certain=certain,
@@ -610,12 +633,14 @@ def _time_step(
     duration: float,
     prob: ParametricProblem,
     roots: np.ndarray | None,
+    pd: _ProcessDamping | None = None,
 ) -> tuple[float, str]:
     """The step h, s, and how it was chosen: the given one, or a twentieth
     of the period of the highest natural frequency below 300 Hz and at most
-    T/20 -- for a continuous cut with roots also :func:`chatter_step` --
-    rounded down so that the process events fall on the step grid; checked
-    against the delay and the duration."""
+    T/20 -- for a continuous cut with roots also :func:`chatter_step`, with
+    the indentation model's flank also :data:`LAND_STEPS` steps across the
+    wear land -- rounded down so that the process events fall on the step
+    grid; checked against the delay and the duration."""
     T = float(kin.delay)
     rule = "given"
     if step is None:
@@ -626,12 +651,16 @@ def _time_step(
         step = min(1.0 / (20.0 * fmax), T / 20.0)
         rule = f"1/20 of the period of {fmax:.6g} Hz (the highest mode below 300 Hz), at most T/20"
         if isinstance(kin, SteadyKinematics) and roots is not None and roots.size:
-            A, B, C, G, _ = _constant_matrices(prob)
+            A, B, C, G, _ = _constant_matrices(prob, pd)
             h_c, why = chatter_step(A, B, C, G, T, roots, fit_span(duration, T))
             if h_c < step:
                 step, rule = h_c, why
             else:
                 rule += f"; the chatter band needs no finer step ({why})"
+        flank = pd.flank if pd is not None else None
+        if flank is not None and flank.land_steps(step) < LAND_STEPS:
+            step = flank.wear_land / (LAND_STEPS * flank.speed)
+            rule += f"; {LAND_STEPS:g} steps across the wear land (the flank's area)"
             if duration / step > MAX_DEFAULT_STEPS:
                 step = duration / MAX_DEFAULT_STEPS
                 rule += (
@@ -645,6 +674,8 @@ def _time_step(
             unit = T
         step = unit / math.ceil(unit / step)
     step = float(step)
+    if pd is not None and pd.flank is not None:
+        pd.flank.check_step(step, "step")
     if feedback == "pdo" and step > T * (1 + 1e-12):
         raise InputError(
             f"step {step:g} s is larger than the delay T = {T:g} s: the delayed term needs h <= T; "
@@ -746,13 +777,18 @@ def chatter_step(
 
 
 def _constant_matrices(
-    prob: ParametricProblem,
+    prob: ParametricProblem, pd: _ProcessDamping | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, float]:
-    """``(A, B, C, G, T)`` of a continuous cut at t = 0 (constant in time)."""
+    """``(A, B, C, G, T)`` of a continuous cut at t = 0 (constant in time),
+    with the process damping's linear term (the indentation model's
+    small-vibration equivalent) in B."""
     A, B, C, G = prob.matrices(np.array([0.0]))
+    B0 = np.array(B[0])
+    if pd is not None:
+        B0 = B0 + pd.linear_B(prob)
     return (
         np.array(A[0]),
-        np.array(B[0]),
+        B0,
         np.array(C[0]),
         None if G is None else np.array(G[0]),
         float(prob.kin.delay),
@@ -777,7 +813,7 @@ def constant_loop(
     if not isinstance(kin, SteadyKinematics):
         return None
     prob = ParametricProblem(system, kin, width=float(width), terms=feedback, forces=False)
-    return _constant_matrices(prob)
+    return _constant_matrices(prob, _process_damping(prob))
 
 
 def _roots_of(roots: Any) -> tuple[np.ndarray | None, bool]:
@@ -800,18 +836,167 @@ def _roots_of(roots: Any) -> tuple[np.ndarray | None, bool]:
     return lam, certain
 
 
+@dataclass(frozen=True, eq=False)
+class _ProcessDamping:
+    """The model's ``[process_damping]`` in a run at the cut's delay T
+    (:func:`chatterlab.process._damping.damping_term`, the one the closed
+    loop takes): the linear term ``b C_pd / V(T) W`` on the CE coordinates
+    (the indentation model's small-vibration equivalent C_pd = K_sp w^2 / 4)
+    and, for the indentation model, its flank on q_i."""
+
+    term: Any
+    speed: float
+    ce_matrix: np.ndarray
+    flank: Flank | None
+
+    def linear_B(self, prob: ParametricProblem) -> np.ndarray:
+        """``J_i^T (b g W) J_i`` on q_i at t = 0 (a continuous cut), N s/m."""
+        Ji = prob.ce_map(np.array([0.0]))[0]
+        out: np.ndarray = Ji.T @ self.ce_matrix @ Ji
+        return out
+
+    def describe(self) -> str:
+        """Which model the run took, in one line."""
+        t = self.term
+        g = t.C_pd / self.speed
+        if self.flank is None:
+            return f"linear, C_pd = {t.C_pd:.6g} N/m at V = {self.speed:.4g} m/s (C_pd / V = {g:.4g} N s/m^2)"
+        return (
+            f"indentation, K_sp = {t.K_sp:.4g} N/m^3, wear land {t.wear_land * 1e6:.4g} um, clearance"
+            f" {math.degrees(t.clearance):.4g} deg at V = {self.speed:.4g} m/s (small-vibration equivalent"
+            f" C_pd = K_sp w^2/4 = {t.C_pd:.4g} N/m)"
+        )
+
+
+def _process_damping(prob: ParametricProblem) -> _ProcessDamping | None:
+    """The process damping of the run of ``prob`` (None without it, with a
+    zero C_pd, or with ``feedback="none"``, as :func:`chatterlab.process.closed_loop`)."""
+    from ..process._damping import damping_term, penetration
+
+    mdl = prob.system.model
+    if prob.terms not in ("pd", "pdo") or getattr(mdl, "process_damping", None) is None:
+        return None
+    term = damping_term(mdl)
+    if term is None:
+        return None
+    T = float(prob.kin.delay)
+    V = float(term.speed(T))
+    flank = None
+    if term.indentation:
+        if not isinstance(prob.kin, SteadyKinematics):
+            raise InputError(
+                "the indentation model of [process_damping] runs on a continuous cut: hold the slide with"
+                " delay= or position= (--delay T or --position S), or give C_pd for the moving slide"
+            )
+        Ji = prob.ce_map(np.array([0.0]))[0]
+        row = penetration(mdl) @ Ji[term.block]
+        flank = Flank(row, prob.width, V, term.K_sp, term.wear_land, term.clearance)
+    return _ProcessDamping(term, V, term.matrix(T, prob.width), flank)
+
+
+class _WithProcessDamping(Sealed):
+    """A moving slide's problem with the linear process damping while in
+    the cut: B(t) + c(t) J_i(t)^T (b g W) J_i(t) (c the in-cut flag; a
+    shaper's work speed, and so g, is constant along the stroke)."""
+
+    def __init__(self, base: Any, prob: ParametricProblem, ce_matrix: np.ndarray) -> None:
+        self.base = base
+        self.prob = prob
+        self.ce_matrix = ce_matrix
+        self.n = base.n
+        self._seal()
+
+    def delay(self) -> float | None:
+        out: float | None = self.base.delay()
+        return out
+
+    def breakpoints(self) -> tuple[float, ...]:
+        out: tuple[float, ...] = self.base.breakpoints()
+        return out
+
+    def matrices(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        A, B, C, G = self.base.matrices(t)
+        Ji = self.prob.ce_map(t)
+        cut = np.asarray(self.prob.kin.state(t)[2], dtype=float)
+        extra = cut[:, None, None] * (np.transpose(Ji, (0, 2, 1)) @ self.ce_matrix @ Ji)
+        return A, B + extra, C, G
+
+    def force(self, t: np.ndarray) -> np.ndarray:
+        out: np.ndarray = self.base.force(t)
+        return out
+
+
+def _flank_response(
+    run_prob: ConstantProblem,
+    flank: Flank,
+    step: float,
+    duration: float,
+    q0v: np.ndarray,
+    v0v: np.ndarray,
+    hist: Any,
+    integ: Integration,
+) -> TimeResponse:
+    """A continuous cut with the indentation model's flank
+    (:func:`chatterlab.time._indentation.flank_run` on the run's constant
+    matrices) as the :class:`TimeResponse` the histories are read from."""
+    import time
+
+    if hist is not None and not isinstance(hist, np.ndarray):
+        raise InputError(
+            "history: the indentation model reads the surface before t = 0 from a constant history: give"
+            " None, 'zero', 'constant' or a vector"
+        )
+    wall0 = time.perf_counter()
+    sch = integ.scheme
+    run: FlankRun = flank_run(
+        (run_prob.M, run_prob.C, run_prob.K, run_prob.G), run_prob.delay(), run_prob.force, flank,
+        h=step, t_end=duration, q0=q0v, v0=v0v, history=hist, gamma=float(sch.gamma), beta=float(sch.beta),
+        divergence_limit=float(sch.divergence_limit), progress=integ.progress,
+    )  # fmt: skip
+    wall = time.perf_counter() - wall0
+    rec = slice(None, None, int(integ.record_every))
+    return TimeResponse(
+        t=run.t[rec].copy(),
+        q=run.q[rec].T.copy(),
+        v=run.v[rec].T.copy(),
+        a=run.a[rec].T.copy(),
+        names=None,
+        status=run.status,
+        message=run.message + f" in {wall:.3g} s",
+        n_steps=run.t.size - 1,
+        wall_time=wall,
+        h=step,
+        attrs={
+            "gamma": float(sch.gamma),
+            "beta": float(sch.beta),
+            "delay": run_prob.delay(),
+            "method": "indentation",
+            "order": 2,
+            "max_step": flank.wear_land / (MIN_LAND_STEPS * flank.speed),
+            "flank_force": run.flank[rec].copy(),
+            "flank_contact": run.contact[rec].copy(),
+        },
+    )
+
+
 def _run_problem(
     prob: ParametricProblem,
     loads: Mapping[str, Callable[[np.ndarray], np.ndarray]] | None,
     ground_motion: Mapping[str, Callable[[np.ndarray], Any]] | None,
+    pd: _ProcessDamping | None = None,
 ) -> Any:
     """What newmark integrates: the parametric problem (with the external
-    loads and ground motion added), or for steady kinematics its constant
-    matrices at t = 0 (factored once)."""
+    loads and ground motion added, and the linear process damping while in
+    the cut), or for steady kinematics its constant matrices at t = 0
+    (factored once)."""
     extra = _ExtraForce(prob, loads, ground_motion) if (loads or ground_motion) else None
     if not isinstance(prob.kin, SteadyKinematics):
-        return prob if extra is None else _WithExtraForce(prob, extra)
+        base: Any = prob if extra is None else _WithExtraForce(prob, extra)
+        return base if pd is None else _WithProcessDamping(base, prob, pd.ce_matrix)
     A, B, C, G = prob.matrices(np.array([0.0]))
+    if pd is not None:
+        B = B + pd.linear_B(prob)[None]
     f0 = np.array(prob.force(np.array([0.0]))[0])
     force: Any = f0
     if extra is not None:

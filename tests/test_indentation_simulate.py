@@ -1,0 +1,233 @@
+"""The model file's process damping in ``chatterlab.time.simulate`` and
+``chatterlab simulate`` (docs/process-damping.md, "In the time domain").
+
+Before, ``simulate`` took neither the linear C_pd nor the indentation
+model: a run with ``[process_damping]`` was the run without it.  Oracles:
+
+* the linear model's run decays at the rightmost characteristic root of the
+  same loop (the frequency-domain engine, an independent route) within the
+  verdict's own error bar, and moves from the undamped root by the flank's
+  share;
+* the indentation model's run (K_sp, wear_land, clearance_deg) at small
+  amplitude decays at the root of the linear model with C_pd = K_sp w^2 / 4
+  within the linearisation's small parameters (their sum, a relative error
+  of the flank's share, tests/test_indentation.py) plus the verdict's error
+  bar (Newmark's Richardson estimate and the fit);
+* with the flank's K_sp = 0 the run is the run without process damping to
+  round-off (the same Newmark recurrence in the step map's arithmetic);
+* the published trend (Altintas, Eynian & Onozuka 2008; Budak & Tunc 2010):
+  at 2.3 times the lobe minimum the cut decays at low cutting speed and
+  chatters at ten times the speed, the flank's damping b C_pd / V falling
+  like 1/V, each as the linear model's root says;
+* bad input: one line, exit 2, nothing written.
+
+The tool is the 1-DOF turning tool of studies/process_damping (m = 2 kg,
+k = 2e7 N/m, c = 400 N s/m, K_f = 2e9 N/m^2) at 20000 rpm (T = 3 ms) on a
+workpiece of D = 0.5 mm (V = 0.52 m/s) or 5 mm (5.2 m/s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import chatterlab as cl
+from chatterlab.errors import InputError
+from chatterlab.frequency import characteristic_roots
+from chatterlab.process import closed_loop
+from chatterlab.time import Initial, Integration, simulate, simulate_milling
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "studies/process_damping/turning.toml"
+RPM = 20000.0
+M, OMEGA_N = 2.0, math.sqrt(2e7 / 2.0)
+C_PD = 2e5
+GAMMA_DEG = 7.0
+V0 = {"tool.x": 1e-4}  # m/s: X ~ v0 / omega = 30 nm
+
+
+def indentation_file(tmp_path: Path, D: float, w: float, name: str = "ind.toml") -> Path:
+    """The study's tool with the indentation model whose equivalent is C_pd = 2e5 N/m."""
+    text = STUDY.read_text().replace("workpiece_diameter = 0.05", f"workpiece_diameter = {D!r}")
+    text += (
+        f"\n[process_damping]\nK_sp = {4 * C_PD / w**2!r}\nwear_land = {w!r}\nclearance_deg = {GAMMA_DEG}\n"
+    )
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def linear_model(D: float, C_pd: float) -> cl.Model:
+    model = cl.load_model(STUDY).with_parameter("machine.workpiece_diameter", D)
+    return model.with_parameter("process_damping.C_pd", C_pd)
+
+
+def root(model: cl.Model, b: float) -> complex:
+    r = characteristic_roots(closed_loop(cl.assemble(model).at(), width=b, speed=RPM), count=3)
+    assert r.converged
+    return complex(r.roots[0])
+
+
+def run(model: cl.Model, b: float, duration: float, step: float | None = None):
+    return simulate(
+        cl.assemble(model), width=b, speed=RPM,
+        integration=Integration(duration=duration, step=step), initial=Initial(v0=V0),
+    )  # fmt: skip
+
+
+def test_linear_process_damping_decays_at_the_loops_root():
+    b, D = 1e-3, 5e-4
+    lam, lam0 = root(linear_model(D, C_PD), b), root(linear_model(D, 0.0), b)
+    assert lam0.real > 0 > lam.real  # the flank turns a chattering cut into a stable one
+    # the step resolves the root: 40 steps per period (Newmark's rate error |Re c| h^2 well inside the bar)
+    sim = run(linear_model(D, C_PD), b, 0.05, step=2 * math.pi / lam.imag / 40)
+    assert sim.meta["process_damping"].startswith("linear, C_pd = 200000 N/m")
+    v = sim.verdict("tool.x")
+    assert v.classification == "decaying"
+    assert abs(v.rate - lam.real) <= v.error, (v.rate, v.error, lam)
+    # and the run is not the run without the table (what simulate gave before)
+    assert abs(v.rate - lam0.real) > 10 * v.error
+
+
+def test_indentation_run_at_small_amplitude_is_the_linear_root(tmp_path):
+    b, D, w = 1e-3, 5e-4, 30e-6
+    model = cl.load_model(indentation_file(tmp_path, D, w))
+    assert model.process_damping.indentation
+    lam, lam0 = root(linear_model(D, C_PD), b), root(linear_model(D, 0.0), b)
+    assert root(model, b) == pytest.approx(lam, rel=1e-12)  # the frequency domain takes Eq. 6
+    sim = run(model, b, 0.05)
+    assert sim.meta["process_damping"].startswith("indentation, K_sp = 8.889e+14 N/m^3, wear land 30 um")
+    assert sim.response.attrs["method"] == "indentation"
+    V = math.pi * D * RPM / 60
+    assert sim.step <= w / (8 * V) * (1 + 1e-12)  # the land holds eight samples
+    v = sim.verdict("tool.x")
+    assert v.classification == "decaying"
+    X = float(np.max(np.abs(sim.data["tool.x"])))
+    om = lam.imag
+    # the linearisation's small parameters (tests/test_indentation.py): the land against the wave, the
+    # decay over the land, the flank's own damping ratio, the wave's slope against the clearance (X / w
+    # the amplitude ratio: X om / V = (X / w)(om w / V))
+    small = (
+        (om * w / V) ** 2 / 6
+        + abs(lam.real) * w / V
+        + b * C_PD / V / (2 * M * om)
+        + X * om / (V * math.tan(math.radians(GAMMA_DEG)))
+    )
+    share = lam.real - lam0.real
+    assert abs(v.rate - lam.real) <= small * abs(share) + v.error, (v.rate, v.error, lam, small)
+    # the comparison is resolved: the bound is a small part of what the flank adds
+    assert small * abs(share) + v.error < 0.1 * abs(share)
+
+
+def test_zero_indentation_coefficient_is_the_run_without_process_damping(tmp_path):
+    b, D, w = 1e-3, 5e-4, 30e-6
+    model = cl.load_model(indentation_file(tmp_path, D, w))
+    V = math.pi * D * RPM / 60
+    h = 3e-3 / math.ceil(3e-3 / (w / (8 * V)))  # the flank's step, on the delay's grid
+    plain = run(linear_model(D, 0.0), b, 0.01, step=h)
+    # K_sp = 0 exactly (the reader asks K_sp > 0): the flank's loop with no force
+    pd = dataclasses.replace(model.process_damping, K_sp=0.0)
+    zero = run(dataclasses.replace(model, process_damping=pd), b, 0.01, step=h)
+    assert zero.response.attrs["method"] == "indentation" and plain.response.attrs.get("method") is None
+    x0, x1 = plain.data["tool.x"], zero.data["tool.x"]
+    assert x0.shape == x1.shape and np.max(np.abs(x0)) > 0
+    # the same recurrence in two arithmetic forms (increment form / step map): round-off of
+    # 1400 steps of a contracting map, steps x eps = 3e-13 of the amplitude; 1e-11 leaves 30x room
+    assert np.max(np.abs(x1 - x0)) <= 1e-11 * np.max(np.abs(x0))
+
+
+def test_low_speed_stability_far_above_the_lobe(tmp_path):
+    """Budak & Tunc (2010), Altintas et al. (2008): the flank stabilises a
+    slow cut far above the lobe; ten times faster the same width chatters."""
+    b = 1.5e-3  # 2.3 x Tlusty's lobe minimum 0.6525 mm, where the cut without the flank grows
+    assert root(linear_model(5e-4, 0.0), b).real > 0
+    rates = {}
+    for D, w in ((5e-4, 30e-6), (5e-3, 300e-6)):  # V = 0.52 and 5.2 m/s, the same w / V (same cost)
+        lam = root(linear_model(D, C_PD), b)
+        sim = run(cl.load_model(indentation_file(tmp_path, D, w, f"ind{D}.toml")), b, 0.05)
+        v = sim.verdict("tool.x")
+        rates[D] = (v.classification, lam.real)
+        # each as the linear model's root says, at the distance the small parameters allow
+        assert (v.classification == "decaying") == (lam.real < 0), (D, v, lam)
+    assert rates[5e-4][0] == "decaying" and rates[5e-3][0] == "growing", rates
+
+
+def test_moving_slide_and_exponential_are_refused_in_one_line(tmp_path):
+    model = cl.load_model(indentation_file(tmp_path, 5e-4, 30e-6))
+    with pytest.raises(InputError, match="integrates with Newmark"):
+        simulate(
+            cl.assemble(model), width=1e-3, speed=RPM,
+            integration=Integration(duration=0.01, integrator="exponential"),
+        )  # fmt: skip
+    with pytest.raises(InputError, match="wear land must hold several steps"):
+        run(model, 1e-3, 0.01, step=1e-4)
+
+
+def test_the_material_side_is_asked_for_when_the_coupling_does_not_show_it(tmp_path):
+    """The flank's area is not symmetric in the penetration: a ``matrices``
+    coupling without a static force does not say which side is material."""
+    text = STUDY.read_text().replace("workpiece_diameter = 0.05", "workpiece_diameter = 0.0005")
+    text = text.replace(
+        'model = "regenerative"\nKf = 2000000000.0',
+        'model = "matrices"\nDP = [[2e6, 0, 0], [0, 0, 0], [0, 0, 0]]\nDO = [[-2e6, 0, 0], [0, 0, 0], [0, 0, 0]]',
+    )
+    text += f"\n[process_damping]\nK_sp = {4 * C_PD / 30e-6**2!r}\nwear_land = 30e-6\nclearance_deg = 7.0\n"
+    model = cl.loads_model(text, source="m.toml")
+    with pytest.raises(InputError, match="give normal_deg, the direction that thins the chip"):
+        run(model, 1e-3, 0.01)
+    # with normal_deg (the side named) the run goes
+    ok = run(model.with_parameter("process_damping.normal_deg", 0.0), 1e-3, 0.003)
+    assert ok.status == "ok" and ok.meta["process_damping"].startswith("indentation")
+
+
+def milling_file(tmp_path: Path) -> Path:
+    text = (ROOT / "studies/milling/benchmark_2dof.toml").read_text() + "\n[process_damping]\nC_pd = 2e4\n"
+    path = tmp_path / "mill.toml"
+    path.write_text(text)
+    return path
+
+
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
+    """``chatterlab ARGS`` in this process: (exit status, stderr)."""
+    from chatterlab.cli._main import main
+
+    capsys.readouterr()
+    code = main(list(args))
+    return code, capsys.readouterr().err
+
+
+def test_milling_time_domain_refuses_process_damping(tmp_path, capsys):
+    """Not silently dropped: the milling time domain does not take the flank yet."""
+    from chatterlab.process import Milling
+
+    model = cl.load_model(milling_file(tmp_path))
+    mill = Milling.from_cut(model.process.milling, model.process.speed)
+    with pytest.raises(InputError, match=r"^\[process_damping\]: the milling time domain does not take"):
+        simulate_milling(cl.assemble(model).at(), mill, 10000.0, 1e-4, tool_point=("tool.x", "tool.y"))
+    out = tmp_path / "mill.csv"
+    code, err = _cli(capsys, "simulate", str(milling_file(tmp_path)), "--out", str(out), "--quiet")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "milling time domain" in err and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--step", "1e-4"], "step: the wear land must hold several steps"),
+        (["--integrator", "exponential"], "integrates with Newmark"),
+    ],
+)
+def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, extra, message):
+    path = indentation_file(tmp_path, 5e-4, 30e-6)
+    out = tmp_path / "run.csv"
+    code, err = _cli(
+        capsys, "simulate", str(path), "--speed", "20000", "--duration", "0.01", "--out", str(out), "--quiet",
+        *extra,
+    )  # fmt: skip
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and message in err, err
+    assert not out.exists()
