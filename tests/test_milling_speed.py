@@ -271,3 +271,47 @@ def test_explicit_degree_is_the_old_discretisation():
     d = milling_lobes(lp, [15000.0], depth_max=0.01, degree=DEGREE, check=False)
     flips = SpectralMonodromy(lp, 15000.0).unit_depths(-1.0, 0.01)
     assert d.kind[0] == "flip" and d.a_lim[0] == pytest.approx(flips[0], rel=1e-12)
+
+
+# ---------------------------------------------------------------------------- the adaptive steps
+def test_interval_test_passes_a_turning_multiplier_and_fails_one_that_bends_out():
+    """The interval test bounds the first-order path mu + mu' t (t in [0, h]) by its ends'
+    moduli (|mu + mu' t| is convex in t) plus the miss of the linear prediction at the other end.
+    A multiplier turning on the circle |mu| = 0.95 by w h = 0.2 rad passes, although it moves
+    |mu'| h = 0.19 > 1 - |mu| (the triangle inequality's test failed it): its linear path
+    reaches 0.95 sqrt(1 + 0.04) = 0.969 and the miss is ~0.95 (w h)^2 / 2 = 0.019.  One whose
+    modulus bends out to 1.01 and back within the interval, |mu(t)| = 0.95 + 4 (0.06) t (h - t) / h^2
+    at a fixed angle, fails from both ends (its slope there, 0.24 / h, points out of the circle)."""
+    h, w = 1.0, 0.2
+    others = (np.array([0.1 + 0.0j]), np.array([0.0 + 0.0j]))
+
+    def end(mu: complex, dmu: complex) -> tuple[np.ndarray, np.ndarray]:
+        return np.r_[mu, others[0]], np.r_[dmu, others[1]]
+
+    turn = [end(0.95 * np.exp(1j * w * t), 1j * w * 0.95 * np.exp(1j * w * t)) for t in (0.0, h)]
+    assert abs(turn[0][1][0]) * h > 1 - 0.95  # the old test's first-order move exceeds the gap
+    assert search._interval_safe(turn[0], turn[1], h, None)
+    phase = np.exp(0.7j)
+    bump = [end(0.95 * phase, s * 0.24 / h * phase) for s in (1.0, -1.0)]
+    assert not search._interval_safe(bump[0], bump[1], h, None)
+
+
+@pytest.mark.parametrize("immersion", [0.05, 1.0])
+def test_adaptive_steps_leave_no_instability_below_the_limit(immersion):
+    """The adaptive search's limit on a fixed discretisation against brute force (no
+    derivatives, no steps): the spectral radius on 300 uniform depths below the limit is < 1
+    at every one, and at a Hopf limit > 1 one part in 1e4 past it (|mu| moves by its slope
+    ~1e3 /m x 1e-4 a_lim there, far above the root's rtol 1e-10); a flip limit is the exact
+    flip depth of unit_depths.  Seven speeds across the benchmark's range."""
+    lp = loop(immersion)
+    for rpm in np.linspace(5000.0, 25000.0, 7):
+        sm = SpectralMonodromy(lp, float(rpm), None, tol=1e-8, depth_hint=5e-3)
+        c = search.certified_crossing(sm, 0.01, 40, 1e-10)
+        assert c.status == "crossing", (rpm, c)
+        rho = np.array([sm.radius(x) for x in c.depth * np.arange(1, 300) / 300])
+        assert np.all(rho < 1.0), (rpm, c.depth * (1 + np.nonzero(rho >= 1.0)[0][:3]) / 300)
+        if c.kind == "hopf":
+            assert sm.radius(c.depth * (1 + 1e-4)) > 1.0, rpm
+        else:
+            z = -1.0 if c.kind == "flip" else 1.0
+            assert c.depth == sm.unit_depths(z, 0.01)[0], rpm

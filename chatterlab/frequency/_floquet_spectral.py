@@ -826,15 +826,11 @@ class SpectralMonodromy:
         """:meth:`tangent` at several depths in one batch (the same numbers); the
         eigenvectors are kept for :meth:`critical` at those depths."""
         a = np.atleast_1d(np.asarray(depths, dtype=float))
-        if a.size == 1 and self.m_f:  # one depth: plain 2-D LAPACK calls
-            lu = sla.lu_factor(self._I + a[0] * self.K, check_finite=False)
-            W = sla.lu_solve(lu, self.Q, check_finite=False)
-            X = (self.X0 + a[0] * (self.P @ W))[None]
-            dX = (self.P @ sla.lu_solve(lu, W, check_finite=False))[None]
-        else:
-            X, dX_ = self._batch(a, True)
-            assert dX_ is not None
-            dX = dX_
+        if a.size == 1:
+            return [self._tangent_one(float(a[0]))]
+        X, dX_ = self._batch(a, True)
+        assert dX_ is not None
+        dX = dX_
         mu, vr = np.linalg.eig(X)
         try:  # the rows of vr^-1 are the left eigenvectors scaled so that y^H x = 1
             dmu = np.einsum("nkj,njk->nk", np.linalg.solve(vr, dX.astype(vr.dtype)), vr)
@@ -850,6 +846,29 @@ class SpectralMonodromy:
             j = int(order[i, 0])
             self._eigs[float(x)] = (complex(mu[i, 0]), vr[i][:, j])
         return [(mu[i], dmu[i]) for i in range(a.size)]
+
+    def _tangent_one(self, a: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`tangents` at one depth with plain 2-D LAPACK calls and no batch
+        bookkeeping (the same numbers: one depth costs little more than its
+        eigenproblem)."""
+        if self.m_f:
+            Minv = np.linalg.inv(self._I + a * self.K)
+            W = Minv @ self.Q
+            X = self.X0 + a * (self.P @ W)
+            dX = self.P @ (Minv @ W)
+        else:
+            X, dX = self.X0, np.zeros_like(self.X0)
+        mu, vr = np.linalg.eig(X)
+        try:
+            dmu = np.einsum("kj,jk->k", np.linalg.solve(vr, dX.astype(vr.dtype)), vr)
+        except np.linalg.LinAlgError:
+            dmu = np.full(mu.shape, np.inf + 0j)
+        dmu = np.where(np.isfinite(dmu), dmu, np.inf)
+        order = np.argsort(-np.abs(mu))
+        if len(self._eigs) > 256:
+            self._eigs.clear()
+        self._eigs[a] = (complex(mu[order[0]]), vr[:, order[0]])
+        return mu[order], dmu[order]
 
     def tangent(self, depth: float) -> tuple[np.ndarray, np.ndarray]:
         """The Floquet multipliers mu_k at depth a_p and their derivatives
@@ -1001,14 +1020,22 @@ class SpectralMonodromy:
             x_end = np.stack([x_nodes[off[s_ + 1] - 1] for s_ in range(mesh.a.size)])
             g = np.where(ends >= 0, t[rest] - mesh.b[ends], t[rest] + T - mesh.b[-1])
             src = x_end[ends] / np.where(ends >= 0, 1.0, mu)[:, None]
-            lam_A, V = np.linalg.eig(A)
-            if np.linalg.cond(V) < 1e8:
+            lam_A, V, well = self._modes_A()
+            if well:
                 c = np.linalg.solve(V, src.T)  # (d, samples)
                 xs[rest] = (V @ (np.exp(lam_A[:, None] * g[None, :]) * c)).T
             else:
                 for j, k_ in enumerate(rest):
                     xs[k_] = sla.expm(A * g[j]) @ src[j]
         return xs
+
+    def _modes_A(self) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The state matrix's eigenvalues and eigenvectors, and whether the latter are well
+        conditioned (cond < 1e8), computed once."""
+        if not hasattr(self, "_eigA"):
+            lam_A, V = np.linalg.eig(self.structure.state_matrix)
+            self._eigA = (lam_A, V, bool(np.linalg.cond(V) < 1e8))
+        return self._eigA
 
     def critical(self, depth: float, samples: int = 128, near: float = 0.0) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its

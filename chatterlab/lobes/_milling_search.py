@@ -222,14 +222,17 @@ def _step(mu: np.ndarray, dmu: np.ndarray, room: float) -> float:
         # the positive root of |mu + dmu t|^2 = c^2: rate^2 t^2 + 2 r s t + r^2 - c^2 = 0
         limit = (np.sqrt((r * s) ** 2 + rate**2 * (c**2 - r**2)) - r * s) / rate**2
         limit = np.where(rate > 0.0, limit, np.inf)
-        if np.count_nonzero(real) > 1:
-            mr, rr = mu.real[real], rate[real]
-            apart = np.abs(mr[:, None] - mr[None, :]) / (rr[:, None] + rr[None, :])
-            np.fill_diagonal(apart, np.inf)
+        # a real multiplier's distance to the others matters only where its modulus limit binds
+        bound = float(np.min(limit[~real], initial=room))
+        near = np.nonzero(real & (limit < bound))[0]
+        if near.size:
+            ri = np.nonzero(real)[0]
+            apart = np.abs(mu.real[near][:, None] - mu.real[ri][None, :]) / (
+                rate[near][:, None] + rate[ri][None, :]
+            )
+            apart[near[:, None] == ri[None, :]] = np.inf
             apart = SAFE * np.min(np.where(np.isnan(apart), 0.0, apart), axis=1)
-            limit[real] = np.maximum(limit[real], apart)
-        elif np.any(real):
-            limit[real] = np.inf
+            limit[near] = np.maximum(limit[near], apart)
         newton = np.where((s > 0.0) & ~real, (1.0 - r) / s, np.inf)
     limit = np.where(np.isnan(limit), 0.0, limit)
     j = int(np.argmin(newton))
