@@ -237,11 +237,12 @@ def _report(args: argparse.Namespace, model: Any, d: Any, outs: Outputs) -> int:
     if args.plot:
         from pathlib import Path
 
-        from ..plot import savefig
+        from ..plot import headless, savefig
 
         name = getattr(model, "name", "") or Path(str(model.source)).stem
         title = f"{name}: stability lobes"
-        savefig(d.plot(title=title), outs.path(args.plot))
+        with headless():  # saved, never shown: no pyplot
+            savefig(d.plot(title=title), outs.path(args.plot))
     if getattr(d, "verified", None) is False:
         print(check_verdict(d.checks), file=sys.stderr)
         return 1

@@ -4,54 +4,172 @@ gain bounds that prove a searched band complete."""
 
 from __future__ import annotations
 
-from ._bounds import Band, PoleResidue, certified_band
-from ._floquet import (
-    CHECK_DEGREE,
-    DEGREE,
-    ELEMENT_SPAN,
-    Multipliers,
-    SpectralMonodromy,
-    chatter_frequency,
-    classify,
-    multipliers,
-    sdm_monodromy,
-)
-from ._floquet_ssv import ssv_monodromy, ssv_multipliers
-from ._floquet_ssv_limit import SsvLimits, SsvLimitTask, ssv_limit, ssv_limits
-from ._forced import (
-    ForcedResponse,
-    RunoutResponse,
-    SurfaceLocation,
-    forced_response,
-    generation_angle,
-    runout_response,
-    surface_location,
-)
-from ._frf import (
-    FRF,
-    ComplexModes,
-    complex_modes,
-    frequencies,
-    frf,
-    loop_determinant,
-    loop_eigenvalues,
-    resonance_grid,
-)
-from ._roots import (
-    AXIS_GRID_MAX,
-    WINDOW_MAX,
-    DelaySystem,
-    RootsResult,
-    certified_top,
-    characteristic_roots,
-    chebyshev_nodes,
-    loop_system,
-    make_first_order_system,
-    make_system,
-    newton_refine,
-)
-from ._stability import MARGINAL_TOL, Stability, loop_band, stability
-from ._winding import WindingResult, rhp_count
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, on first use
+    from ._bounds import Band, PoleResidue, certified_band
+    from ._floquet import (
+        CHECK_DEGREE,
+        DEGREE,
+        ELEMENT_SPAN,
+        Multipliers,
+        SpectralMonodromy,
+        chatter_frequency,
+        classify,
+        multipliers,
+        sdm_monodromy,
+    )
+    from ._floquet_ssv import ssv_monodromy, ssv_multipliers
+    from ._floquet_ssv_limit import SsvLimits, SsvLimitTask, ssv_limit, ssv_limits
+    from ._forced import (
+        ForcedResponse,
+        RunoutResponse,
+        SurfaceLocation,
+        forced_response,
+        generation_angle,
+        runout_response,
+        surface_location,
+    )
+    from ._frf import (
+        FRF,
+        ComplexModes,
+        complex_modes,
+        frequencies,
+        frf,
+        loop_determinant,
+        loop_eigenvalues,
+        resonance_grid,
+    )
+    from ._roots import (
+        AXIS_GRID_MAX,
+        WINDOW_MAX,
+        DelaySystem,
+        RootsResult,
+        certified_top,
+        characteristic_roots,
+        chebyshev_nodes,
+        loop_system,
+        make_first_order_system,
+        make_system,
+        newton_refine,
+    )
+    from ._stability import MARGINAL_TOL, Stability, loop_band, stability
+    from ._winding import WindingResult, rhp_count
+
+#: public name -> the module that holds it, imported on first use (PEP 562): a command
+#: that needs one module of chatterlab.frequency does not load the others
+_HOME = {
+    **dict.fromkeys(
+        (
+            "Band",
+            "PoleResidue",
+            "certified_band",
+        ),
+        "_bounds",
+    ),
+    **dict.fromkeys(
+        (
+            "CHECK_DEGREE",
+            "DEGREE",
+            "ELEMENT_SPAN",
+            "Multipliers",
+            "SpectralMonodromy",
+            "chatter_frequency",
+            "classify",
+            "multipliers",
+            "sdm_monodromy",
+        ),
+        "_floquet",
+    ),
+    **dict.fromkeys(
+        (
+            "ssv_monodromy",
+            "ssv_multipliers",
+        ),
+        "_floquet_ssv",
+    ),
+    **dict.fromkeys(
+        (
+            "SsvLimits",
+            "SsvLimitTask",
+            "ssv_limit",
+            "ssv_limits",
+        ),
+        "_floquet_ssv_limit",
+    ),
+    **dict.fromkeys(
+        (
+            "ForcedResponse",
+            "RunoutResponse",
+            "SurfaceLocation",
+            "forced_response",
+            "generation_angle",
+            "runout_response",
+            "surface_location",
+        ),
+        "_forced",
+    ),
+    **dict.fromkeys(
+        (
+            "FRF",
+            "ComplexModes",
+            "complex_modes",
+            "frequencies",
+            "frf",
+            "loop_determinant",
+            "loop_eigenvalues",
+            "resonance_grid",
+        ),
+        "_frf",
+    ),
+    **dict.fromkeys(
+        (
+            "AXIS_GRID_MAX",
+            "WINDOW_MAX",
+            "DelaySystem",
+            "RootsResult",
+            "certified_top",
+            "characteristic_roots",
+            "chebyshev_nodes",
+            "loop_system",
+            "make_first_order_system",
+            "make_system",
+            "newton_refine",
+        ),
+        "_roots",
+    ),
+    **dict.fromkeys(
+        (
+            "MARGINAL_TOL",
+            "Stability",
+            "loop_band",
+            "stability",
+        ),
+        "_stability",
+    ),
+    **dict.fromkeys(
+        (
+            "WindingResult",
+            "rhp_count",
+        ),
+        "_winding",
+    ),
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'chatterlab.frequency' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "Band",

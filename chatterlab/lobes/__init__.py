@@ -14,18 +14,94 @@ for every structure and process (``_entry``).
 
 from __future__ import annotations
 
+import importlib
 import sys
 import types
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ._confirm import Confirmation, confirm
-from ._control import closed_loop_lti, coupling_matrices, lobes_lti, lti_plant
-from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary
-from ._entry import lobes
-from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
-from ._milling import milling_lobes, zoa_plant
-from ._milling_model import Reduction, is_milling, milling_loop_of, milling_of, reduce_structure
-from ._result import ProcessNames
+if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, on first use
+    from ._confirm import Confirmation, confirm
+    from ._control import closed_loop_lti, coupling_matrices, lobes_lti, lti_plant
+    from ._diagram import Boundary, Lobe, LobeDiagram, Plant, boundary
+    from ._entry import lobes
+    from ._measured import lobes_measured, lobes_model_frf, measured_plant, model_frf, regenerative_matrices
+    from ._milling import milling_lobes, zoa_plant
+    from ._milling_model import Reduction, is_milling, milling_loop_of, milling_of, reduce_structure
+    from ._result import ProcessNames
+
+#: public name -> the module that holds it, imported on first use (PEP 562): a command
+#: that needs one module of chatterlab.lobes does not load the others
+_HOME = {
+    **dict.fromkeys(
+        (
+            "Confirmation",
+            "confirm",
+        ),
+        "_confirm",
+    ),
+    **dict.fromkeys(
+        (
+            "closed_loop_lti",
+            "coupling_matrices",
+            "lobes_lti",
+            "lti_plant",
+        ),
+        "_control",
+    ),
+    **dict.fromkeys(
+        (
+            "Boundary",
+            "Lobe",
+            "LobeDiagram",
+            "Plant",
+            "boundary",
+        ),
+        "_diagram",
+    ),
+    "lobes": "_entry",
+    **dict.fromkeys(
+        (
+            "lobes_measured",
+            "lobes_model_frf",
+            "measured_plant",
+            "model_frf",
+            "regenerative_matrices",
+        ),
+        "_measured",
+    ),
+    **dict.fromkeys(
+        (
+            "milling_lobes",
+            "zoa_plant",
+        ),
+        "_milling",
+    ),
+    **dict.fromkeys(
+        (
+            "Reduction",
+            "is_milling",
+            "milling_loop_of",
+            "milling_of",
+            "reduce_structure",
+        ),
+        "_milling_model",
+    ),
+    "ProcessNames": "_result",
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'chatterlab.lobes' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "Lobe",
@@ -61,7 +137,9 @@ class _CallableModule(types.ModuleType):
     point share a name, and the call reads as the style guide writes it."""
 
     def __call__(self, *args: Any, **kwargs: Any) -> LobeDiagram:
-        return lobes(*args, **kwargs)
+        from ._entry import lobes as entry
+
+        return entry(*args, **kwargs)
 
 
 sys.modules[__name__].__class__ = _CallableModule

@@ -12,52 +12,137 @@ and the geometric checks.
 
 from __future__ import annotations
 
-from ._absorber import Absorber
-from ._geometry import (
-    TrackPosition,
-    body_centre,
-    check_geometry,
-    contact_track_position,
-    is_movable,
-    point_xy,
-)
-from ._items import (
-    DIRECTIONS,
-    GROUND,
-    Attachment,
-    Beam,
-    Body,
-    Constraint,
-    Contact,
-    Coupling,
-    Machine,
-    MatrixBlock,
-    Mode,
-    Model,
-    Movable,
-    Node,
-    Point,
-    PointRef,
-    Process,
-    Section,
-    SpindleSpeedVariation,
-    Spring,
-    Support,
-    machine_problem,
-    spindle_speed_for,
-    stroke_cycle,
-    stroke_speed,
-    tooth_period,
-)
-from ._reader import build_model, load_model, loads_model
-from ._uncertainty import (
-    CorrelatedGroup,
-    Marginal,
-    UncertaintyTable,
-    parameter_overrides,
-    parameter_value,
-    uncertainty_of,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, on first use
+    from ._absorber import Absorber
+    from ._geometry import (
+        TrackPosition,
+        body_centre,
+        check_geometry,
+        contact_track_position,
+        is_movable,
+        point_xy,
+    )
+    from ._items import (
+        DIRECTIONS,
+        GROUND,
+        Attachment,
+        Beam,
+        Body,
+        Constraint,
+        Contact,
+        Coupling,
+        Machine,
+        MatrixBlock,
+        Mode,
+        Model,
+        Movable,
+        Node,
+        Point,
+        PointRef,
+        Process,
+        Section,
+        SpindleSpeedVariation,
+        Spring,
+        Support,
+        machine_problem,
+        spindle_speed_for,
+        stroke_cycle,
+        stroke_speed,
+        tooth_period,
+    )
+    from ._reader import build_model, load_model, loads_model
+    from ._uncertainty import (
+        CorrelatedGroup,
+        Marginal,
+        UncertaintyTable,
+        parameter_overrides,
+        parameter_value,
+        uncertainty_of,
+    )
+
+#: public name -> the module that holds it, imported on first use (PEP 562): a command
+#: that needs one module of chatterlab.model does not load the others
+_HOME = {
+    "Absorber": "_absorber",
+    **dict.fromkeys(
+        (
+            "TrackPosition",
+            "body_centre",
+            "check_geometry",
+            "contact_track_position",
+            "is_movable",
+            "point_xy",
+        ),
+        "_geometry",
+    ),
+    **dict.fromkeys(
+        (
+            "DIRECTIONS",
+            "GROUND",
+            "Attachment",
+            "Beam",
+            "Body",
+            "Constraint",
+            "Contact",
+            "Coupling",
+            "Machine",
+            "MatrixBlock",
+            "Mode",
+            "Model",
+            "Movable",
+            "Node",
+            "Point",
+            "PointRef",
+            "Process",
+            "Section",
+            "SpindleSpeedVariation",
+            "Spring",
+            "Support",
+            "machine_problem",
+            "spindle_speed_for",
+            "stroke_cycle",
+            "stroke_speed",
+            "tooth_period",
+        ),
+        "_items",
+    ),
+    **dict.fromkeys(
+        (
+            "build_model",
+            "load_model",
+            "loads_model",
+        ),
+        "_reader",
+    ),
+    **dict.fromkeys(
+        (
+            "CorrelatedGroup",
+            "Marginal",
+            "UncertaintyTable",
+            "parameter_overrides",
+            "parameter_value",
+            "uncertainty_of",
+        ),
+        "_uncertainty",
+    ),
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'chatterlab.model' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "tooth_period",

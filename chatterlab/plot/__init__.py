@@ -14,20 +14,118 @@ recording's spectrum), ``_style`` (the ``ax=`` keyword, ``savefig``)."""
 
 from __future__ import annotations
 
-from ._atlas import plot_atlas
-from ._design import plot_lobes_compare, plot_sensitivity
-from ._fit import plot_modal_fit, plot_stabilisation
-from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
-from ._lobes import plot_lobes
-from ._modes import plot_frequencies, plot_mode_shapes
-from ._recommend import plot_chatter_spectrum, plot_recommendation, plot_speed_rule
-from ._roots import plot_multipliers, plot_roots
-from ._sle import plot_sle
-from ._ssv import plot_ssv
-from ._style import savefig
-from ._sweep import plot_stability_map, plot_sweep
-from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
-from ._uncertainty import plot_risk, plot_sobol
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, on first use
+    from ._atlas import plot_atlas
+    from ._design import plot_lobes_compare, plot_sensitivity
+    from ._fit import plot_modal_fit, plot_stabilisation
+    from ._frf import plot_frf, plot_loop_nyquist, plot_nyquist, touching_width, track_loci
+    from ._lobes import plot_lobes
+    from ._modes import plot_frequencies, plot_mode_shapes
+    from ._recommend import plot_chatter_spectrum, plot_recommendation, plot_speed_rule
+    from ._roots import plot_multipliers, plot_roots
+    from ._sle import plot_sle
+    from ._ssv import plot_ssv
+    from ._style import headless, new_figure, savefig
+    from ._sweep import plot_stability_map, plot_sweep
+    from ._time import plot_cases, plot_histories, plot_outputs, plot_spectra, plot_time_response
+    from ._uncertainty import plot_risk, plot_sobol
+
+#: public name -> the module that holds it, imported on first use (PEP 562): a command
+#: that needs one module of chatterlab.plot does not load the others
+_HOME = {
+    "plot_atlas": "_atlas",
+    **dict.fromkeys(
+        (
+            "plot_lobes_compare",
+            "plot_sensitivity",
+        ),
+        "_design",
+    ),
+    **dict.fromkeys(
+        (
+            "plot_modal_fit",
+            "plot_stabilisation",
+        ),
+        "_fit",
+    ),
+    **dict.fromkeys(
+        (
+            "plot_frf",
+            "plot_loop_nyquist",
+            "plot_nyquist",
+            "touching_width",
+            "track_loci",
+        ),
+        "_frf",
+    ),
+    "plot_lobes": "_lobes",
+    **dict.fromkeys(
+        (
+            "plot_frequencies",
+            "plot_mode_shapes",
+        ),
+        "_modes",
+    ),
+    **dict.fromkeys(
+        (
+            "plot_chatter_spectrum",
+            "plot_recommendation",
+            "plot_speed_rule",
+        ),
+        "_recommend",
+    ),
+    **dict.fromkeys(
+        (
+            "plot_multipliers",
+            "plot_roots",
+        ),
+        "_roots",
+    ),
+    "plot_sle": "_sle",
+    "plot_ssv": "_ssv",
+    **dict.fromkeys(("headless", "new_figure", "savefig"), "_style"),
+    **dict.fromkeys(
+        (
+            "plot_stability_map",
+            "plot_sweep",
+        ),
+        "_sweep",
+    ),
+    **dict.fromkeys(
+        (
+            "plot_cases",
+            "plot_histories",
+            "plot_outputs",
+            "plot_spectra",
+            "plot_time_response",
+        ),
+        "_time",
+    ),
+    **dict.fromkeys(
+        (
+            "plot_risk",
+            "plot_sobol",
+        ),
+        "_uncertainty",
+    ),
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'chatterlab.plot' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "plot_frf",
@@ -58,6 +156,8 @@ __all__ = [
     "plot_chatter_spectrum",
     "plot_speed_rule",
     "savefig",
+    "headless",
+    "new_figure",
     "plot_ssv",
     "plot_sle",
 ]

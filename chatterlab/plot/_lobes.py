@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ._lobe_panel import DENSE_PIXELS, DISPLAY_DPI, draw_lobe_panel, lobe_density, zoom_range
-from ._style import LAID_OUT, axes_arg
+from ._style import LAID_OUT, axes_arg, new_figure
 
 
 def plot_lobes(
@@ -119,9 +119,7 @@ def _new_lobe_figure(curves: list[Any], lo: float, hi: float) -> tuple[Any, ...]
     The layout is decided on a figure of the final size (dpi of savefig: text
     is measured once), with fixed margins (the texts are ours): a tight layout
     costs 0.15 s of the main job."""
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(11.5, 6.5), dpi=130)
+    fig = new_figure(figsize=(11.5, 6.5), dpi=130)
     dense = lobe_density(curves, lo, hi, 0.695 * 11.5 * DISPLAY_DPI) > 1  # the panels' width
     if dense:
         fig.set_size_inches(11.5, 9.5)  # legends right of the panels: the lobes fill the frame

@@ -8,8 +8,10 @@ the functions, never at import.
 
 from __future__ import annotations
 
+import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -42,12 +44,46 @@ def cell_edges(x: np.ndarray) -> np.ndarray:
     return np.r_[x[0] - (mid[0] - x[0]), mid, x[-1] + (x[-1] - mid[-1])]
 
 
-def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
-    """Save the figure holding the given Axes and close it.  The layout is
-    tightened first unless the plot laid the figure out itself (figure gid
-    ``LAID_OUT``)."""
+#: [True] while figures are made only to be saved (:func:`headless`)
+_HEADLESS = [False]
+
+
+@contextmanager
+def headless() -> Iterator[None]:
+    """Figures made inside (by :func:`new_figure`) are only saved, never
+    shown: the command line's ``--plot``.  They are matplotlib Figures on the
+    Agg canvas, the canvas pyplot gives them under the Agg backend and the one
+    every PNG is printed with, so the file is the same; pyplot, its backend
+    resolution and its figure manager are not loaded (0.02 s of the README
+    main job).  A program that imported pyplot keeps pyplot's figures."""
+    before = _HEADLESS[0]
+    _HEADLESS[0] = True
+    try:
+        yield
+    finally:
+        _HEADLESS[0] = before
+
+
+def new_figure(**kwargs: Any) -> Any:
+    """A new figure (``matplotlib.figure.Figure`` keywords): pyplot's, so that
+    ``plt.show()`` shows it, except inside :func:`headless` when pyplot is
+    not loaded."""
+    if _HEADLESS[0] and "matplotlib.pyplot" not in sys.modules:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(**kwargs)
+        FigureCanvasAgg(fig)
+        return fig
     import matplotlib.pyplot as plt
 
+    return plt.figure(**kwargs)
+
+
+def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
+    """Save the figure holding the given Axes and close it (pyplot's, if
+    pyplot made it).  The layout is tightened first unless the plot laid the
+    figure out itself (figure gid ``LAID_OUT``)."""
     ax = np.ravel(ax_or_axes)[0] if isinstance(ax_or_axes, list | tuple | np.ndarray) else ax_or_axes
     fig = ax.figure
     while getattr(fig, "figure", fig) is not fig:  # a subfigure: the figure holding it
@@ -57,7 +93,9 @@ def savefig(ax_or_axes: Any, path: str, dpi: int = 130) -> None:
     # zlib level 1: several times faster than the default 6 on a dense figure, a little larger file
     extra = {"pil_kwargs": {"compress_level": 1}} if str(path).lower().endswith(".png") else {}
     fig.savefig(path, dpi=dpi, **extra)
-    plt.close(fig)
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:  # a figure made without pyplot is not in its list: nothing to close
+        plt.close(fig)
 
 
 def model_of(result: Any) -> str:

@@ -7,11 +7,74 @@ spindle-speed variation (the speed program and its time-varying delay, ``_ssv``)
 
 from __future__ import annotations
 
-from ._damping import DampingTerm, LoopDamping, damping_term, milling_damping
-from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
-from ._loop import TERMS, ClosedLoop, ce_maps, closed_loop, coupling_matrix, delay_for, milling_loop
-from ._milling import Milling
-from ._ssv import SpeedVariation, VaryingDelayLoop, VaryingSpeedMilling, ssv_loop, varying_milling
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, on first use
+    from ._damping import DampingTerm, LoopDamping, damping_term, milling_damping
+    from ._kinematics import ShapingKinematics, SteadyKinematics, kinematics_for
+    from ._loop import TERMS, ClosedLoop, ce_maps, closed_loop, coupling_matrix, delay_for, milling_loop
+    from ._milling import Milling
+    from ._ssv import SpeedVariation, VaryingDelayLoop, VaryingSpeedMilling, ssv_loop, varying_milling
+
+#: public name -> the module that holds it, imported on first use (PEP 562): a command
+#: that needs one module of chatterlab.process does not load the others
+_HOME = {
+    **dict.fromkeys(
+        (
+            "DampingTerm",
+            "LoopDamping",
+            "damping_term",
+            "milling_damping",
+        ),
+        "_damping",
+    ),
+    **dict.fromkeys(
+        (
+            "ShapingKinematics",
+            "SteadyKinematics",
+            "kinematics_for",
+        ),
+        "_kinematics",
+    ),
+    **dict.fromkeys(
+        (
+            "TERMS",
+            "ClosedLoop",
+            "ce_maps",
+            "closed_loop",
+            "coupling_matrix",
+            "delay_for",
+            "milling_loop",
+        ),
+        "_loop",
+    ),
+    "Milling": "_milling",
+    **dict.fromkeys(
+        (
+            "SpeedVariation",
+            "VaryingDelayLoop",
+            "VaryingSpeedMilling",
+            "ssv_loop",
+            "varying_milling",
+        ),
+        "_ssv",
+    ),
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'chatterlab.process' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "ClosedLoop",
