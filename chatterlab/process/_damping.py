@@ -250,16 +250,17 @@ def indented_area(delta: np.ndarray, xi: np.ndarray) -> float:
     wear land's end should be a sample)."""
     d = np.asarray(delta, dtype=float)
     x = np.asarray(xi, dtype=float)
-    d0, d1, h = d[:-1], d[1:], np.diff(x)
-    both = (d0 > 0) & (d1 > 0)
-    area = np.sum(np.where(both, 0.5 * (d0 + d1) * h, 0.0))
-    cross = (d0 > 0) != (d1 > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # the positive part is a triangle from the positive end to the zero crossing
-        pos = np.where(d0 > 0, d0, d1)
-        frac = np.abs(pos) / (np.abs(d0) + np.abs(d1))
-    area += np.sum(np.where(cross, 0.5 * pos * frac * h, 0.0))
-    return float(area)
+    d0, d1, h = d[:-1], d[1:], x[1:] - x[:-1]
+    p0, p1 = d0 > 0, d1 > 0
+    area = 0.5 * float(np.dot(p0 & p1, (d0 + d1) * h))
+    cross = p0 != p1
+    if cross.any():
+        # the positive part is a triangle from the positive end to the zero crossing:
+        # height pos, base h pos / (|d0| + |d1|)
+        c0, c1, hc = d0[cross], d1[cross], h[cross]
+        pos = np.where(c0 > 0, c0, c1)
+        area += 0.5 * float(np.sum(pos * pos * hc / (np.abs(c0) + np.abs(c1))))
+    return area
 
 
 def penetration(model: Any) -> np.ndarray:

@@ -272,25 +272,30 @@ def flank_run(
         y0, d0 = (u[j], ud[j]) if j >= 0 else (u_pre, 0.0)
         return float(a0_ * y0 + a1_ * d0 + a2_ * u[j + 1] + a3_ * ud[j + 1])
 
+    VH = V * h
+    xi_grid = VH * np.arange(steps + 2, dtype=float)
+    land_pos = lw + 1  # where the land's end goes among the samples xi_j = j V h
+
     def area(k: int, u_now: float) -> tuple[float, float]:
         """The displaced area and the contact length with the edge at u_now at step k."""
         reach = w + max(u_now - u_min, 0.0) / tang  # beyond it the clearance face clears every surface
-        kmax = min(int(math.ceil(reach / (V * h))) + 1, k)
-        idx = np.arange(1, kmax + 1)
-        xi = np.r_[0.0, idx * V * h]
-        surf = np.r_[u_now, u[k - idx]]
+        kmax = min(int(math.ceil(reach / VH)) + 1, k)
+        xi = xi_grid[: kmax + 1]
+        surf = np.concatenate(((u_now,), u[k - kmax : k][::-1]))
         if kmax == k:  # the reach goes back before t = 0: the surface held there
-            xi = np.r_[xi, max(reach, xi[-1]) + V * h]
-            surf = np.r_[surf, u_pre]
+            xi = np.append(xi, max(reach, xi[-1]) + VH)
+            surf = np.append(surf, u_pre)
         if lr != 0.0 and xi[-1] > w:  # the land's end between two samples
-            pos = int(np.searchsorted(xi, w))
-            xi = np.insert(xi, pos, w)
-            surf = np.insert(surf, pos, past(k, lw, lr))
+            pos = min(land_pos, xi.size - 1)
+            xi = np.concatenate((xi[:pos], (w,), xi[pos:]))
+            surf = np.concatenate((surf[:pos], (past(k, lw, lr),), surf[pos:]))
         d = flank_interference(u_now, xi, surf, w, clearance)
         d[0] = 0.0  # at the edge the surface is where the edge is
         A_ = indented_area(d, xi)
-        L = float(np.sum(np.diff(xi)[(d[:-1] > 0) | (d[1:] > 0)]))  # to the sample spacing
-        return A_, L
+        if A_ == 0.0:
+            return 0.0, 0.0
+        touch = (d[:-1] > 0) | (d[1:] > 0)
+        return A_, float(np.dot(touch, np.diff(xi)))  # the contact length, to the sample spacing
 
     chunk = 4096
     pk = p_at(1, min(chunk, steps) + 1) if steps else np.zeros((0, n))
