@@ -4,6 +4,8 @@ method compared with the spectral reference in
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -11,7 +13,16 @@ from ..errors import InputError, check_count, check_nonneg
 from ..process._damping import milling_rubbing
 from ..process._loop import ClosedLoop
 
-__all__ = ["sdm_monodromy", "sdm_multipliers", "sd_step_product", "matched_change", "finite_monodromy"]
+__all__ = [
+    "sdm_monodromy",
+    "sdm_multipliers",
+    "sdm_steps",
+    "sd_step_product",
+    "sd_fixed_point",
+    "sdm_forced",
+    "matched_change",
+    "finite_monodromy",
+]
 
 
 def _sdm_steps(A_i: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -39,6 +50,14 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
     every step's ends (``delays_at``), its period and its steps' mean
     coefficients: the same product (:func:`sd_step_product`).
     """
+    return sd_step_product(*sdm_steps(loop, rpm, depth, steps))
+
+
+def sdm_steps(
+    loop: ClosedLoop, rpm: float, depth: float, steps: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """The step data of :func:`sdm_monodromy` (A_steps, B_steps, Jq, lag_start, lag_end, dt),
+    the arguments of :func:`sd_step_product`: step i is [i dt, (i + 1) dt], dt = T / steps."""
     m = check_count(steps, "steps", 2)
     milling = loop.milling
     if milling.helix > 0:
@@ -82,7 +101,30 @@ def sdm_monodromy(loop: ClosedLoop, rpm: float, depth: float, steps: int = 40) -
             Bsum[:, :n] += Bq @ Jr
             B_steps[i, j] = Bq
         A_steps[i] = A - Bsum - Vd[i]
-    return sd_step_product(A_steps, B_steps, Jq, lags, lag_end, dt)
+    return A_steps, B_steps, Jq, lags, lag_end, dt
+
+
+def sdm_forced(
+    loop: ClosedLoop, rpm: float, depth: float, steps: int, mean_force: Any
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The periodic forced motion of the semi-discretised milling loop (the steps of
+    :func:`sdm_monodromy`, the same monodromy) under the force a_p f(t) on the tool:
+    (Phi, x, dt), x (steps + 1, d) the state (q, q') at t_i = i dt on the fixed point
+    (:func:`sd_fixed_point`).
+
+    ``mean_force(t0, t1)`` gives f's mean over each step [t0_i, t1_i], per unit depth, in the
+    tool's (x, y) (N/m, shape (steps, 2)); it enters x' on the velocity rows as
+    a_p M^-1 J^T f, the process's force through the cut basis, as the regenerative one does.
+    """
+    A_steps, B_steps, Jq, lags, lag_end, dt = sdm_steps(loop, rpm, depth, steps)
+    m, d = A_steps.shape[0], A_steps.shape[1]
+    Ub, _, W = loop.cut_basis
+    t = np.arange(m + 1) * dt
+    f = np.asarray(mean_force(t[:-1], t[1:]), dtype=float)  # (m, 2)
+    forcing = np.zeros((m, d))
+    forcing[:, loop.n :] = float(depth) * (f @ Ub) @ W.T
+    Phi, x = sd_fixed_point(A_steps, B_steps, Jq, lags, lag_end, dt, forcing)
+    return Phi, x, dt
 
 
 def sd_step_product(
@@ -114,56 +156,146 @@ def sd_step_product(
     turning with periodic spindle speed modulation via semidiscretization,
     J. Vib. Control 10 (2004) 1835-1855.
     """
-    m, d = A_steps.shape[0], A_steps.shape[1]
-    rho = Jq.shape[0]
-    mj = np.floor(lag_start + 1e-9).astype(int)
-    fj = np.clip(lag_start - mj, 0.0, None)
-    e1 = np.floor(lag_end + 1e-9).astype(int)  # the step's end is one step later: offset lag - 1
-    fe = np.clip(lag_end - e1, 0.0, None)
-    me = e1 - 1
-    if np.any(mj < 1) or np.any(me < 0):
-        raise InputError(f"sdm: steps must make the step shorter than the shortest delay (steps >= {m * 2})")
-    Lh = int(max(mj.max(), me.max())) + 1  # history r_{i-1} .. r_{i-Lh}
-    D = d + rho * Lh
-    Phi = np.eye(D)
+    return _sd_product(A_steps, B_steps, Jq, lag_start, lag_end, dt)[0]
 
-    # r at grid index i - k for k >= 0: k = 0 is Jq x_i (from x), k >= 1 history slot k - 1
-    def r_cols(k: int) -> tuple[slice, np.ndarray]:
+
+class _Steps:
+    """The grid of :func:`sd_step_product`: where each step's delayed r comes from (the
+    history slots and their weights) and the state's size D = d + rho L."""
+
+    def __init__(self, Jq: np.ndarray, lag_start: np.ndarray, lag_end: np.ndarray, d: int) -> None:
+        m = lag_start.shape[0]
+        self.d, self.rho, self.Jq = d, Jq.shape[0], Jq
+        self.mj = np.floor(lag_start + 1e-9).astype(int)
+        self.fj = np.clip(lag_start - self.mj, 0.0, None)
+        e1 = np.floor(lag_end + 1e-9).astype(int)  # the step's end is one step later: offset lag - 1
+        self.fe = np.clip(lag_end - e1, 0.0, None)
+        self.me = e1 - 1
+        if np.any(self.mj < 1) or np.any(self.me < 0):
+            raise InputError(
+                f"sdm: steps must make the step shorter than the shortest delay (steps >= {m * 2})"
+            )
+        self.Lh = int(max(self.mj.max(), self.me.max())) + 1  # history r_{i-1} .. r_{i-Lh}
+        self.D = d + self.rho * self.Lh
+
+    def r_cols(self, k: int) -> tuple[slice, np.ndarray]:
+        """r at grid index i - k for k >= 0: k = 0 is Jq x_i (from x), k >= 1 history slot k - 1."""
         if k == 0:
-            return slice(0, d), Jq
-        i = d + (k - 1) * rho
-        return slice(i, i + rho), np.eye(rho)
+            return slice(0, self.d), self.Jq
+        i = self.d + (k - 1) * self.rho
+        return slice(i, i + self.rho), np.eye(self.rho)
 
+    def rows(
+        self, i: int, P: np.ndarray, F1: np.ndarray, F2: np.ndarray, B_i: np.ndarray, dt: float
+    ) -> np.ndarray:
+        """The first d rows of step i's matrix: x_{i+1} = G z_i (+ the step's forcing)."""
+        d = self.d
+        G = np.zeros((d, self.D))
+        G[:d, :d] = P
+        for j in range(B_i.shape[0]):
+            Bq = B_i[j]
+            if not np.any(Bq):
+                continue
+            # r(t_i - tau_j) = (1 - f) r_{i-m_j} + f r_{i-m_j-1}; r(t_{i+1} - tau_j) likewise shifted by one
+            c0 = (F1 - F2 / dt) @ Bq  # weight of u0 (value at the step start)
+            c1 = (F2 / dt) @ Bq  # weight of u1 (value at the step end)
+            for k, wgt in ((self.mj[i, j], 1 - self.fj[i, j]), (self.mj[i, j] + 1, self.fj[i, j])):
+                if wgt:
+                    sl, R = self.r_cols(int(k))
+                    G[:d, sl] += wgt * c0 @ R
+            for k, wgt in ((self.me[i, j], 1 - self.fe[i, j]), (self.me[i, j] + 1, self.fe[i, j])):
+                if wgt:
+                    sl, R = self.r_cols(int(k))
+                    G[:d, sl] += wgt * c1 @ R
+        return G
+
+    def shift(self, G: np.ndarray, Z: np.ndarray) -> np.ndarray:
+        """The step matrix [G; Jq 0; shift] times Z (a matrix or a vector): the new r_i = Jq x_i,
+        r_{i-k} <- r_{i-k+1}; dense in its first d rows only, so O(d D^2) for a matrix, not O(D^3)."""
+        d, rho, D = self.d, self.rho, self.D
+        out = np.empty_like(Z)
+        out[:d] = G[:d] @ Z
+        out[d : d + rho] = self.Jq @ Z[:d]
+        out[d + rho :] = Z[d : D - rho]
+        return out
+
+
+def _sd_product(
+    A_steps: np.ndarray,
+    B_steps: np.ndarray,
+    Jq: np.ndarray,
+    lag_start: np.ndarray,
+    lag_end: np.ndarray,
+    dt: float,
+    forcing: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray | None, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """(Phi, c, exps): the one-period map z' = Phi z + c of :func:`sd_step_product` with the
+    steps' constant inputs ``forcing`` (m, d) added to x' (c None without them), and each
+    step's exponentials (P, F1, F2) for a second pass along the period (only with forcing)."""
+    m, d = A_steps.shape[0], A_steps.shape[1]
+    grid = _Steps(Jq, lag_start, lag_end, d)
+    Phi = np.eye(grid.D)
+    c = None if forcing is None else np.zeros(grid.D)
+    exps = []
     # a cut far stiffer than the structure overflows the product: its inf and nan are the
     # caller's to report (finite_monodromy), not a raw numpy warning on the terminal
     with np.errstate(over="ignore", invalid="ignore"):
         for i in range(m):
             P, F1, F2 = _sdm_steps(A_steps[i], dt)
-            G = np.zeros((d, D))
-            G[:d, :d] = P
-            for j in range(B_steps.shape[1]):
-                Bq = B_steps[i, j]
-                if not np.any(Bq):
-                    continue
-                # r(t_i - tau_j) = (1 - f) r_{i-m_j} + f r_{i-m_j-1}; r(t_{i+1} - tau_j) likewise shifted by one
-                c0 = (F1 - F2 / dt) @ Bq  # weight of u0 (value at the step start)
-                c1 = (F2 / dt) @ Bq  # weight of u1 (value at the step end)
-                for k, wgt in ((mj[i, j], 1 - fj[i, j]), (mj[i, j] + 1, fj[i, j])):
-                    if wgt:
-                        sl, R = r_cols(int(k))
-                        G[:d, sl] += wgt * c0 @ R
-                for k, wgt in ((me[i, j], 1 - fe[i, j]), (me[i, j] + 1, fe[i, j])):
-                    if wgt:
-                        sl, R = r_cols(int(k))
-                        G[:d, sl] += wgt * c1 @ R
-            # shift the history: new r_{i} = Jq x_i, r_{i-k} <- r_{i-k+1}; the step matrix is
-            # dense in its first d rows only, so the product costs O(d D^2), not O(D^3)
-            out = np.empty_like(Phi)
-            out[:d] = G[:d] @ Phi
-            out[d : d + rho] = Jq @ Phi[:d]
-            out[d + rho :] = Phi[d : D - rho]
-            Phi = out
-    return Phi
+            G = grid.rows(i, P, F1, F2, B_steps[i], dt)
+            Phi = grid.shift(G, Phi)
+            if forcing is not None and c is not None:
+                c = grid.shift(G, c)
+                c[:d] += F1 @ forcing[i]  # int_0^dt e^{A(dt-s)} ds w_i: the step's forced part
+                exps.append((P, F1, F2))
+    return Phi, c, exps
+
+
+def sd_fixed_point(
+    A_steps: np.ndarray,
+    B_steps: np.ndarray,
+    Jq: np.ndarray,
+    lag_start: np.ndarray,
+    lag_end: np.ndarray,
+    dt: float,
+    forcing: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The periodic solution of the semi-discretised system forced by the steps' constant
+    inputs: (Phi, x), Phi the monodromy of :func:`sd_step_product` (the same steps) and x
+    (m + 1, d) the state at the grid points t_0 .. t_m of the fixed point of the one-period
+    map, x[m] = x[0] to its round-off.
+
+    On step i the state obeys x' = A_i x + sum_j B_ij r(t - tau_j) + w_i, w_i = ``forcing[i]``
+    (the force's mean over the step, as the coefficients'); solved exactly, the step adds
+    F1_i w_i = int_0^dt e^{A_i (dt - s)} ds w_i to the first d rows, so one period is the
+    affine map z' = Phi z + c, c the sum of the steps' terms carried to the period's end, and
+    the periodic motion is its fixed point (I - Phi) z* = c (Insperger, Gradisek, Kalveram,
+    Stepan, Winert & Weinert 2006).  InputError when I - Phi is singular to working
+    precision (a multiplier at 1: no unique periodic motion).
+    """
+    m, d = A_steps.shape[0], A_steps.shape[1]
+    Phi, c, exps = _sd_product(A_steps, B_steps, Jq, lag_start, lag_end, dt, forcing)
+    assert c is not None
+    Dn = Phi.shape[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        Ic = np.eye(Dn) - Phi
+        if not np.all(np.isfinite(Ic)):
+            return Phi, np.full((m + 1, d), np.nan)
+        lu = sla.lu_factor(Ic, check_finite=False)
+        if np.min(np.abs(np.diag(lu[0]))) <= Dn * np.finfo(float).eps * np.max(np.abs(Ic)):
+            raise InputError(
+                "sdm fixed point: a Floquet multiplier is 1 (I - Phi is singular): no unique periodic motion"
+            )
+        z = sla.lu_solve(lu, c, check_finite=False)
+    grid = _Steps(Jq, lag_start, lag_end, d)
+    x = np.empty((m + 1, d))
+    x[0] = z[:d]
+    for i, (P, F1, F2) in enumerate(exps):
+        G = grid.rows(i, P, F1, F2, B_steps[i], dt)
+        z = grid.shift(G, z)
+        z[:d] += F1 @ forcing[i]
+        x[i + 1] = z[:d]
+    return Phi, x
 
 
 def matched_change(mu: complex, others: np.ndarray) -> float:

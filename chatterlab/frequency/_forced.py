@@ -96,16 +96,17 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from ..errors import InputError, check_nonneg, check_positive
+from ..errors import InputError, check_count, check_nonneg, check_positive
 from ..io._result import Result
 from ..model._items import tooth_period
 from ..process._loop import ClosedLoop
-from ._floquet import Multipliers
-from ._floquet_sdm import finite_monodromy, matched_change
+from ._floquet import Multipliers, chatter_frequency
+from ._floquet_sdm import _ranked, finite_monodromy, matched_change, sdm_forced
 from ._floquet_spectral import CHECK_DEGREE, SpectralMonodromy
 
 __all__ = [
@@ -162,6 +163,62 @@ def static_load(sm: SpectralMonodromy, feed: float) -> np.ndarray:
     return np.ravel(f @ Ub)
 
 
+def static_load_mean(milling: Any, rpm: float, feed: float, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """f of Eq. (2) averaged exactly over each interval [t0_i, t1_i], per unit depth, in the
+    tool's (x, y) (N/m, shape (len(t0), 2)): the forcing of the semi-discretisation, whose
+    coefficients are their means over the same steps (:meth:`Milling.directional_mean`)."""
+    t0 = np.asarray(t0, dtype=float)
+    t1 = np.asarray(t1, dtype=float)
+    feeds = feed * milling.pitches * milling.teeth / TWO_PI  # each tooth's static chip, as static_load's
+    f = -np.einsum("mja,j->ma", milling.directional_mean(t0, t1, rpm)[..., :, 0], feeds)
+    if milling.Kte or milling.Kne:
+        # -(K_te t + K_ne n) over the arc, its primitive in phi: -(K_te sin - K_ne cos, K_te cos + K_ne sin)
+        Om = milling.omega(rpm)
+        lo = Om * t0[:, None] - milling.lags  # (m, N), unwrapped
+        hi = Om * t1[:, None] - milling.lags
+        k0 = np.floor((lo - milling.exit) / TWO_PI) + 1.0  # the first cutting window ending after lo
+        k1 = np.floor((hi - milling.entry) / TWO_PI)  # the last one starting before hi
+        acc = np.zeros(lo.shape + (2,))
+
+        def prim(p: np.ndarray) -> np.ndarray:
+            s, c = np.sin(p), np.cos(p)
+            return -np.stack([milling.Kte * s - milling.Kne * c, milling.Kte * c + milling.Kne * s], axis=-1)
+
+        for i in range(int(np.max(k1 - k0, initial=-1.0)) + 1):
+            k = k0 + i
+            a = np.maximum(lo, milling.entry + TWO_PI * k)
+            b = np.minimum(hi, milling.exit + TWO_PI * k)
+            acc += np.where(((b > a) & (k <= k1))[..., None], prim(b) - prim(a), 0.0)
+        f += acc.sum(axis=1) / (hi - lo)[:, :1]
+    return f
+
+
+class _SdOrbit:
+    """The tool's (x, y) on the semi-discretisation's fixed point (:func:`sdm_forced`): the
+    method's own values at the grid points t_i = i dt, between them the cubic Hermite
+    interpolant of the displacement and the velocity (error O(dt^4) times the fourth
+    derivative, below the method's O(dt^2); O(dt^2) across a step where the force jumps,
+    the method's order)."""
+
+    def __init__(self, loop: ClosedLoop, x: np.ndarray, dt: float) -> None:
+        n = loop.n
+        self.r = x[:, :n] @ loop.J.T  # (m + 1, 2)
+        self.v = x[:, n:] @ loop.J.T
+        self.dt = dt
+        self.m = x.shape[0] - 1
+        self.period = self.m * dt
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        u = np.mod(np.asarray(t, dtype=float), self.period) / self.dt
+        i = np.clip(np.floor(u).astype(int), 0, self.m - 1)
+        s = (u - i)[:, None]
+        h00, h10 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2
+        h01, h11 = s**2 * (3 - 2 * s), s**2 * (s - 1)
+        return (
+            h00 * self.r[i] + h10 * self.dt * self.v[i] + h01 * self.r[i + 1] + h11 * self.dt * self.v[i + 1]
+        )
+
+
 @dataclass(frozen=True, eq=False)
 class ForcedResponse(Result):
     """The periodic forced vibration of a milling cut at one (rpm, a_p) and
@@ -189,8 +246,9 @@ class ForcedResponse(Result):
         ``"stable"``, ``"unstable"`` (chatter: no forced orbit is reached) or
         ``"undetermined"`` (|mu| within its convergence error of 1).
     error : float
-        Convergence check of the SLE: its change when the degree is raised
-        by CHECK_DEGREE, m (NaN without the check).
+        Convergence check of the SLE: its change at the higher resolution
+        (spectral: the degree raised by CHECK_DEGREE; sdm: 2 x steps), m
+        (NaN without the check).
     """
 
     t: np.ndarray
@@ -224,6 +282,8 @@ class ForcedResponse(Result):
                 "peak_to_valley_m": float(self.peak_to_valley),
                 "generation_angle_rad": float(self.angle),
                 "spectral_radius": float(self.multipliers.spectral_radius),
+                "method": self.multipliers.method,
+                "resolution": self.multipliers.resolution,
                 "speed_rpm": float(self.rpm),
                 "depth_m": float(self.depth),
                 "feed_per_tooth_m": float(self.feed),
@@ -248,11 +308,9 @@ def _orbit(
     return (sm.structure.J @ xs[:, : sm.structure.n].T).T
 
 
-def _wall(
-    sm: SpectralMonodromy, a: float, load: np.ndarray, feed: float, angle: float
-) -> tuple[np.ndarray, float]:
-    """(SLE of every tooth, peak-to-valley of the wall's profile) on the fixed point."""
-    milling, rpm = sm.milling, sm.rpm
+def _wall(orbit: Any, milling: Any, rpm: float, feed: float, angle: float) -> tuple[np.ndarray, float]:
+    """(SLE of every tooth, peak-to-valley of the wall's profile) on the fixed point whose
+    tool motion is ``orbit(t)`` ((len(t), 2): x, y), whichever discretisation gave it."""
     Om = milling.omega(rpm)
     N = milling.teeth
     R = 0.5 * milling.diameter
@@ -264,7 +322,7 @@ def _wall(
     u = np.linspace(-span, span, PASS_SAMPLES)
     k = np.arange(-1, 2)
     t = ts[None, :, None] + (TWO_PI * k[:, None, None] + u[None, None, :]) / Om  # (3, N, samples)
-    r_all = _orbit(sm, a, load, np.r_[ts, t.ravel()])
+    r_all = orbit(np.r_[ts, t.ravel()])
     sle_teeth = -(r_all[:N] @ n_s)
     r = r_all[N:].reshape(t.shape + (2,))
     X = v_f * t + r[..., 0] + R * np.sin(angle + u)
@@ -298,20 +356,32 @@ def _check_loop(loop: ClosedLoop, feed: float) -> float:
     return check_nonneg(feed, "feed per tooth f_z", "m")
 
 
+#: the forced response's discretisations: of the one-period map whose multipliers decide the stability
+METHODS = ("spectral", "sdm")
+
+
+def _method(method: str, steps: int) -> int:
+    if method not in METHODS:
+        raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+    return check_count(steps, "steps", 2)
+
+
 def forced_response(
     loop: ClosedLoop,
     rpm: float,
     depth: float,
     feed: float,
     *,
+    method: str = "spectral",
     degree: int | None = None,
+    steps: int = 40,
     tol: float = 1e-10,
     check: bool = True,
     samples: int = 256,
 ) -> ForcedResponse:
     """The periodic forced vibration of a milling cut and its surface location
-    error (module docstring, Eqs. 1-4), from the spectral-element
-    discretisation that gives its Floquet multipliers.
+    error (module docstring, Eqs. 1-4), from the discretisation that gives its
+    Floquet multipliers: the fixed point of its one-period map.
 
     Parameters
     ----------
@@ -323,11 +393,19 @@ def forced_response(
         Axial depth of cut a_p, m.
     feed : float
         Feed per tooth f_z, m (the static chip f_z sin phi).
+    method : {"spectral", "sdm"}
+        Spectral-element collocation (Eq. 3; converges geometrically in the
+        degree) or first-order semi-discretisation (Eq. 6; converges as
+        steps^-2).
     degree : int, optional
-        Collocation degree (None: per element for the accuracy ``tol``).
+        Spectral: collocation degree (None: per element for the accuracy ``tol``).
+    steps : int
+        Semi-discretisation: steps per period (even: the generation instant of
+        tooth 0 is a grid point).
     check : bool
-        Also at the degree raised by CHECK_DEGREE: the multipliers' and the
-        SLE's convergence errors.
+        Also at a higher resolution (spectral: the degree raised by
+        CHECK_DEGREE; sdm: 2 x steps): the multipliers' and the SLE's
+        convergence errors.
     samples : int
         Points of the orbit over one period.
 
@@ -335,54 +413,82 @@ def forced_response(
     -------
     ForcedResponse
         An unstable cut (chatter) or an undetermined one gets no orbit and
-        no SLE (NaN) but its verdict.
+        no SLE (NaN) but its verdict; its ``multipliers`` record the method
+        and the resolution.
     """
     t0 = time.perf_counter()
     f_z = _check_loop(loop, feed)
     a = check_nonneg(depth, "depth of cut a_p", "m")
+    m = _method(method, steps)
     angle = generation_angle(loop.milling)
-    sm = _setup(loop, rpm, a, degree, tol)
-    mu = np.linalg.eigvals(finite_monodromy(sm.monodromy(a), rpm, a))
-    mu = mu[np.argsort(-np.abs(mu))]
-    mu = mu[np.abs(mu) > 1e-300]
-    c = complex(mu[0]) if mu.size else 0j
-    err = float("nan")
-    sm2 = None
-    if check:
-        sm2 = _setup(loop, rpm, a, None, tol, mesh=sm.mesh.raised(CHECK_DEGREE))
-        err = matched_change(c, sm2.at(a))
-    mult = Multipliers.ranked(
-        mu,
-        error=err,
-        frequency_hz=sm.critical(a)[1] if sm.m_f else float("nan"),
-        method="spectral",
-        resolution=f"degree {sm.degree} x {sm.n_sub} elements",
-        period=sm.period,
-        rpm=float(rpm),
-        depth=a,
-    )
+    milling = loop.milling
+    if method == "sdm":
+        orbit, mu, T = _sd_orbit(loop, rpm, a, f_z, m)
+        c = complex(mu[0]) if mu.size else 0j
+        err, orbit2 = float("nan"), None
+        if check:
+            orbit2, mu2, _ = _sd_orbit(loop, rpm, a, f_z, 2 * m)
+            err = matched_change(c, mu2)
+        mult = Multipliers.ranked(
+            mu[np.abs(mu) > 1e-300], error=err, frequency_hz=chatter_frequency(c, T, loop), method="sdm",
+            resolution=f"{m} steps", period=T, rpm=float(rpm), depth=a,
+        )  # fmt: skip
+    else:
+        sm = _setup(loop, rpm, a, degree, tol)
+        mu = np.linalg.eigvals(finite_monodromy(sm.monodromy(a), rpm, a))
+        mu = mu[np.argsort(-np.abs(mu))]
+        mu = mu[np.abs(mu) > 1e-300]
+        c = complex(mu[0]) if mu.size else 0j
+        err = float("nan")
+        sm2 = None
+        if check:
+            sm2 = _setup(loop, rpm, a, None, tol, mesh=sm.mesh.raised(CHECK_DEGREE))
+            err = matched_change(c, sm2.at(a))
+        mult = Multipliers.ranked(
+            mu,
+            error=err,
+            frequency_hz=sm.critical(a)[1] if sm.m_f else float("nan"),
+            method="spectral",
+            resolution=f"degree {sm.degree} x {sm.n_sub} elements",
+            period=sm.period,
+            rpm=float(rpm),
+            depth=a,
+        )
+        T = sm.period
     verdict = mult.verdict  # stable / unstable / undetermined: |mu| against its convergence error
-    T = sm.period
-    t = angle / loop.milling.omega(rpm) + T * np.arange(samples) / samples
+    t = angle / milling.omega(rpm) + T * np.arange(samples) / samples
     nan = np.full(samples, np.nan)
     if verdict != "stable":
-        nteeth = loop.milling.teeth
         return ForcedResponse(
-            t, nan, nan, float("nan"), np.full(nteeth, np.nan), float("nan"), angle, mult, verdict, float("nan"),
-            float(rpm), a, f_z, time.perf_counter() - t0,
+            t, nan, nan, float("nan"), np.full(milling.teeth, np.nan), float("nan"), angle, mult, verdict,
+            float("nan"), float(rpm), a, f_z, time.perf_counter() - t0,
         )  # fmt: skip
-    load = static_load(sm, f_z)
-    r = _orbit(sm, a, load, t)
-    sle_teeth, pv = _wall(sm, a, load, f_z, angle)
+    if method == "spectral":
+        load = static_load(sm, f_z)
+        orbit = partial(_orbit, sm, a, load)
+        orbit2 = None if sm2 is None else partial(_orbit, sm2, a, static_load(sm2, f_z))
+    r = orbit(t)
+    sle_teeth, pv = _wall(orbit, milling, rpm, f_z, angle)
     sle = float(np.min(sle_teeth))
     sle_err = float("nan")
-    if sm2 is not None:
-        s2, _ = _wall(sm2, a, static_load(sm2, f_z), f_z, angle)
+    if orbit2 is not None:
+        s2, _ = _wall(orbit2, milling, rpm, f_z, angle)
         sle_err = abs(float(np.min(s2)) - sle)
     return ForcedResponse(
         t, r[:, 0], r[:, 1], sle, sle_teeth, pv, angle, mult, verdict, sle_err, float(rpm), a, f_z,
         time.perf_counter() - t0,
     )  # fmt: skip
+
+
+def _sd_orbit(
+    loop: ClosedLoop, rpm: float, a: float, feed: float, steps: int
+) -> tuple[Any, np.ndarray, float]:
+    """(orbit, multipliers ranked, period) of the semi-discretisation with ``steps`` steps:
+    the fixed point of its one-period map under the static force (Eq. 6) and its monodromy."""
+    milling = loop.milling
+    Phi, x, dt = sdm_forced(loop, rpm, a, steps, partial(static_load_mean, milling, rpm, feed))
+    mu = _ranked(np.linalg.eigvals(finite_monodromy(Phi, rpm, a)))
+    return _SdOrbit(loop, x, dt), mu, steps * dt
 
 
 @dataclass(frozen=True, eq=False)
@@ -399,7 +505,8 @@ class SurfaceLocation(Result):
         Surface location error, m (Eq. 4; positive: undercut); NaN where the
         cut is not stable.
     sle_error : ndarray
-        Its change with the degree raised by CHECK_DEGREE, m.
+        Its change at the higher resolution (spectral: the degree raised by
+        CHECK_DEGREE; sdm: 2 x steps), m.
     peak_to_valley : ndarray
         Height of the wall's profile, m; NaN where not stable.
     spectral_radius, radius_error : ndarray
@@ -410,6 +517,9 @@ class SurfaceLocation(Result):
         a_p and f_z, m.
     angle : float
         Generation angle, rad.
+    method, resolution : str
+        The discretisation of the one-period map (``"spectral"`` or
+        ``"sdm"``) and its resolution (the degrees, or the steps).
     """
 
     speeds: np.ndarray
@@ -425,6 +535,8 @@ class SurfaceLocation(Result):
     name: str = ""
     elapsed: float = 0.0
     meta: dict[str, Any] = field(default_factory=dict)
+    method: str = "spectral"
+    resolution: str = ""
 
     @property
     def side(self) -> str:
@@ -438,7 +550,7 @@ class SurfaceLocation(Result):
             {"speed": (np.asarray(self.speeds, dtype=float), "rpm", "spindle speed")},
             {
                 "sle": (self.sle, "m", "surface location error (positive: undercut)"),
-                "sle_error": (self.sle_error, "m", "change of the SLE with the degree raised"),
+                "sle_error": (self.sle_error, "m", "change of the SLE at the higher resolution"),
                 "peak_to_valley": (self.peak_to_valley, "m", "peak-to-valley of the wall's profile"),
                 "spectral_radius": (self.spectral_radius, "1", "largest |Floquet multiplier|"),
                 "radius_error": (self.radius_error, "1", "convergence error of the spectral radius"),
@@ -451,6 +563,8 @@ class SurfaceLocation(Result):
                 "feed_per_tooth_m": float(self.feed),
                 "generation_angle_rad": float(self.angle),
                 "wall": self.side,
+                "method": self.method,
+                "resolution": self.resolution,
             },
         )
 
@@ -490,13 +604,16 @@ def surface_location(
     depth: float,
     feed: float,
     *,
+    method: str = "spectral",
     degree: int | None = None,
+    steps: int = 40,
     tol: float = 1e-10,
     check: bool = True,
     progress: Any = None,
 ) -> SurfaceLocation:
     """:func:`forced_response` at every speed (rpm) of ``speeds``: the SLE and
-    peak-to-valley of the stable cuts, the verdict of every one.
+    peak-to-valley of the stable cuts, the verdict of every one, by the
+    ``method`` (``"spectral"`` with ``degree``, ``"sdm"`` with ``steps``).
 
     Returns
     -------
@@ -506,11 +623,15 @@ def surface_location(
     v = np.atleast_1d(np.asarray(speeds, dtype=float))
     if v.ndim != 1 or v.size == 0:
         raise InputError("speeds must be a non-empty 1-D list of spindle speeds (rpm)")
+    _method(method, steps)
     out = []
     for n in v:
         out.append(
-            forced_response(loop, float(n), depth, feed, degree=degree, tol=tol, check=check, samples=8)
-        )
+            forced_response(
+                loop, float(n), depth, feed, method=method, degree=degree, steps=steps, tol=tol, check=check,
+                samples=8,
+            )
+        )  # fmt: skip
         if progress is not None:
             progress()
     return SurfaceLocation(
@@ -526,7 +647,19 @@ def surface_location(
         angle=generation_angle(loop.milling),
         name=loop.name,
         elapsed=time.perf_counter() - t0,
+        method=method,
+        resolution=_resolution(method, degree, steps, out),
     )
+
+
+def _resolution(method: str, degree: int | None, steps: int, out: list[ForcedResponse]) -> str:
+    """The sweep's resolution: the steps (sdm), the degree asked, or the range the speeds chose."""
+    if method == "sdm":
+        return f"{steps} steps"
+    if degree is not None:
+        return f"degree {degree}"
+    res = sorted({r.multipliers.resolution for r in out})
+    return res[0] if len(res) == 1 else f"per speed ({len(res)} meshes), e.g. {res[0]}"
 
 
 # ============================================================================ turning
