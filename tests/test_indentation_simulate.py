@@ -231,3 +231,28 @@ def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, extr
     assert code == 2, err
     assert len(err.strip().splitlines()) == 1 and message in err, err
     assert not out.exists()
+
+
+def test_moving_slide_takes_the_linear_term_while_in_the_cut():
+    """The shaper's moving slide with ``C_pd``: the flank's b C_pd / V along
+    the chip's normal (a grasso cut's axis 2) is, at the work speed V, the
+    cut's own K6 (F_y per rate of chip-thickness change) raised by
+    b_ref C_pd / V -- an independent route through the coupling's D_V, which
+    switches with the cut too: the two runs agree to round-off."""
+    shaper = cl.load_model(ROOT / "studies/traverse_shaper/model.toml")
+    C_pd, V = 3e5, shaper.process.speed
+    damped = shaper.with_parameter("process_damping.C_pd", C_pd)
+    K6 = dict(shaper.couplings[0].params)["K6"]
+    raised = shaper.with_parameter("coupling.cut.K6", K6 + 0.002 * C_pd / V)
+    integ = Integration(periods=1)
+    a = simulate(cl.assemble(damped), width=0.002, integration=integ)
+    b = simulate(cl.assemble(raised), width=0.002, integration=integ)
+    plain = simulate(cl.assemble(shaper), width=0.002, integration=integ)
+    assert a.meta["kinematics"] == "ShapingKinematics" and a.meta["process_damping"].startswith("linear")
+    assert a.step == b.step and not a.in_cut.all() and a.in_cut.any()
+    x, y, z = (s.data["rfe5.y"] for s in (a, b, plain))
+    scale = float(np.max(np.abs(y)))
+    # the same matrices summed in another order: round-off of the run, steps x eps = 7396 x 2.2e-16
+    # = 1.6e-12 of its amplitude; 1e-11 leaves 6x for the loop's amplification (measured: 1.1e-13)
+    assert np.max(np.abs(x - y)) <= 1e-11 * scale
+    assert np.max(np.abs(z - y)) > 1e-4 * scale  # and the term is there: the run without it differs

@@ -896,8 +896,10 @@ def _process_damping(prob: ParametricProblem) -> _ProcessDamping | None:
 
 class _WithProcessDamping(Sealed):
     """A moving slide's problem with the linear process damping while in
-    the cut: B(t) + c(t) J_i(t)^T (b g W) J_i(t) (c the in-cut flag; a
-    shaper's work speed, and so g, is constant along the stroke)."""
+    the cut, on the rate of the relative displacement dw = J_i(t) q as the
+    coupling's own D_V (Eq. 2.28): B(t) + c J_i^T (b g W) J_i and
+    C(t) + c v J_i^T (b g W) dJ_i/ds (c the in-cut flag, v the slide's speed;
+    a shaper's work speed, and so g, is constant along the stroke)."""
 
     def __init__(self, base: Any, prob: ParametricProblem, ce_matrix: np.ndarray) -> None:
         self.base = base
@@ -917,10 +919,15 @@ class _WithProcessDamping(Sealed):
     def matrices(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         A, B, C, G = self.base.matrices(t)
-        Ji = self.prob.ce_map(t)
-        cut = np.asarray(self.prob.kin.state(t)[2], dtype=float)
-        extra = cut[:, None, None] * (np.transpose(Ji, (0, 2, 1)) @ self.ce_matrix @ Ji)
-        return A, B + extra, C, G
+        s, v, cut, moving = self.prob._positions(t)
+        parts = self.prob._parts_direct(s)  # J_i(s) and dJ_i/ds, as the coupling's own D_V takes them
+        Ji = np.asarray(parts["Ji"])
+        JiT_D = np.transpose(Ji, (0, 2, 1)) @ self.ce_matrix
+        c = np.asarray(cut, dtype=float)[:, None, None]
+        B = B + c * (JiT_D @ Ji)
+        if moving and np.any(parts["Jd1"]):  # the rate of dw = J_i q includes dJ_i/dt q = v dJ_i/ds q
+            C = C + (c * np.asarray(v, dtype=float)[:, None, None]) * (JiT_D @ np.asarray(parts["Jd1"]))
+        return A, B, C, G
 
     def force(self, t: np.ndarray) -> np.ndarray:
         out: np.ndarray = self.base.force(t)
