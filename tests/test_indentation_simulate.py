@@ -123,6 +123,23 @@ def test_indentation_run_at_small_amplitude_is_the_linear_root(tmp_path):
     assert small * abs(share) + v.error < 0.1 * abs(share)
 
 
+def test_indentation_rate_converges_at_newmarks_order(tmp_path):
+    """The verdict's Richardson estimate takes the scheme as second order
+    (Simulation._order): the flank's run must be so too -- its area is exact
+    for the surface linear between samples (error O((V h)^2)) and the land's
+    end is Hermite-interpolated (O(h^4)).  Successive differences of the
+    rate at h, h/2, h/4 then shrink by 4 (1 + O((omega h)^2)); omega h =
+    0.025, so 4 within 5 %."""
+    model = cl.load_model(indentation_file(tmp_path, 5e-4, 30e-6))
+    V = math.pi * 5e-4 * RPM / 60
+    h0 = 3e-3 / math.ceil(3e-3 / (30e-6 / (8 * V)))  # the default: 8 steps across the land
+    rates = [
+        run(model, 1e-3, 0.02, step=h0 / f).growth("tool.x", window="all", skip=3e-3).rate for f in (1, 2, 4)
+    ]
+    d = np.diff(rates)
+    assert d[0] / d[1] == pytest.approx(4.0, rel=0.05), rates
+
+
 def test_zero_indentation_coefficient_is_the_run_without_process_damping(tmp_path):
     b, D, w = 1e-3, 5e-4, 30e-6
     model = cl.load_model(indentation_file(tmp_path, D, w))
