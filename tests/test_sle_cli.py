@@ -48,6 +48,24 @@ def test_csv_is_the_api_result(tmp_path, capsys):
     assert "unstable (chatter, no SLE)" in printed
 
 
+def test_sdm_csv_is_the_api_result_and_records_the_method(tmp_path, capsys):
+    out, js = tmp_path / "s.csv", tmp_path / "s.json"
+    args = ["sle", str(WALL), "--speed", "20000", "24000", "--points", "3", "--width", "1", "--method", "sdm"]
+    assert main([*args, "--steps", "60", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "semi-discretisation, 60 steps per period" in printed
+    ref = surface_location(
+        milling_loop_of(cl.assemble(cl.load_model(WALL)).at()), np.linspace(20e3, 24e3, 3), 1e-3, 1e-4,
+        method="sdm", steps=60,
+    )  # fmt: skip
+    with open(out, newline="") as fh:
+        rows = list(csv.reader(fh))
+    np.testing.assert_array_equal([float(r[1]) for r in rows[1:]], ref.sle)  # the same computation
+    assert main([*args, "--steps", "60", "--no-check", "--out", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["attrs"]["method"] == "sdm" and doc["attrs"]["resolution"] == "60 steps", doc["attrs"]
+
+
 def test_benchmark_along_the_feed_has_no_sle_and_json(tmp_path, capsys):
     out = tmp_path / "s.json"
     assert (
@@ -95,6 +113,8 @@ def test_turning_runout(tmp_path, capsys):
         (["--width", "0.2", "--eccentricity", "0.01"], ["--eccentricity", "turning"]),
         (["--width", "0.2", "--feed", "-0.1"], ["--feed"]),
         (["--width", "0.2", "--speed", "9000", "8000"], ["--speed"]),
+        (["--width", "0.2", "--steps", "80"], ["--steps", "--method sdm"]),
+        (["--width", "0.2", "--method", "sdm", "--steps", "1"], ["--steps"]),
     ],
 )
 def test_bad_input_one_line_nothing_written(extra, words, tmp_path, capsys):
@@ -118,6 +138,22 @@ def test_bad_input_one_line_nothing_written(extra, words, tmp_path, capsys):
     code = main(args)
     assert_clean_error(code, capsys.readouterr().err, *words)
     assert not out.exists() and not fig.exists()
+
+
+def test_an_unknown_method_is_argparse_one_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["sle", str(WALL), "--speed", "8000", "9000", "--width", "0.2", "--method", "sd"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "invalid choice: 'sd'" in err and "sdm" in err and len(err.strip().splitlines()) == 1
+
+
+def test_turning_refuses_the_milling_method(tmp_path, capsys):
+    model = tmp_path / "t.toml"
+    model.write_text(turning_text())
+    code = main(["sle", str(model), "--speed", "2000", "4000", "--width", "0.2", "--eccentricity", "0.02",
+                 "--feed", "0.1", "--method", "sdm"])  # fmt: skip
+    assert_clean_error(code, capsys.readouterr().err, "--method", "turning")
 
 
 def test_turning_needs_the_eccentricity(tmp_path, capsys):

@@ -6,7 +6,9 @@
   cutting force (feed per tooth ``--feed``, or the model's ``[process]
   feed_per_tooth``, or its ``[machine] feed``); a speed where the cut
   chatters gets no SLE and is reported as unstable, one whose stability is
-  within its convergence error as undetermined.  ``--plot``: the SLE under
+  within its convergence error as undetermined.  ``--method sdm --steps M``:
+  the fixed point of the semi-discretisation's one-period map instead of the
+  spectral elements' (the same discretisation as ``lobes --method sdm``).  ``--plot``: the SLE under
   the Floquet lobes on the same speed axis (``--no-lobes``: the SLE alone).
 * turning (``kind = "turning"``): the vibration at the spindle frequency
   under a workpiece eccentric by ``--eccentricity`` (mm) with the feed per
@@ -46,7 +48,16 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument("--eccentricity", metavar="MM", help="turning: the workpiece's eccentricity e, mm")
     p.add_argument("--position", metavar="S", help="slide position s, m (default: the model's)")
-    p.add_argument("--no-check", action="store_true", help="no convergence check (degree raised) per speed")
+    p.add_argument(
+        "--method",
+        choices=["spectral", "sdm"],
+        help="milling: the discretisation of the one-period map whose fixed point is the orbit: spectral"
+        " elements (default) or first-order semi-discretisation",
+    )
+    p.add_argument("--steps", type=int, default=40, metavar="M", help="sdm: steps per period (default 40)")
+    p.add_argument(
+        "--no-check", action="store_true", help="no convergence check per speed (degree raised, or 2 x steps)"
+    )
     p.add_argument("--no-lobes", action="store_true", help="--plot the SLE alone, without the lobes above it")
     p.add_argument("--out", metavar="FILE.csv|FILE.nc|FILE.json", help="the SLE (or amplitude) per speed")
     p.add_argument("--plot", metavar="FILE.png", help="the SLE under the lobes (turning: the amplitude)")
@@ -64,6 +75,12 @@ def _mm(text: Any, option: str, *, zero: bool = False) -> float:
     if not (math.isfinite(v) and (v >= 0 if zero else v > 0)):
         raise InputError(f"{option} {text}: must be a finite number {'>= 0' if zero else '> 0'} (mm)")
     return v * 1e-3
+
+
+def _typed(option: str) -> bool:
+    from ._milling import _typed as typed
+
+    return typed(option)
 
 
 def _speeds(args: argparse.Namespace, model: Any) -> Any:
@@ -111,6 +128,11 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
     else:
         if args.no_lobes:
             raise InputError("--no-lobes is for milling's SLE plot; the turning plot has no lobes")
+        if args.method is not None or _typed("--steps"):
+            raise InputError(
+                "--method and --steps are for milling's one-period map; the turning runout response is the"
+                " closed loop's FRF at the spindle frequency: drop them"
+            )
         res, lobes = _turning(args, model, v), None
     write_result(
         res, args, outs, model=model, plot=(lambda: res.plot(lobes=lobes)) if lobes is not None else None
@@ -122,9 +144,12 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
 
 def _milling(args: argparse.Namespace, model: Any, v: Any) -> tuple[Any, Any]:
     from ..frequency._forced import generation_angle, surface_location
-    from ._milling import _helix_cost, _structure
+    from ._milling import _helix_cost, _structure, refuse_unused
     from ._milling import _speeds as check_rpm
 
+    method = args.method or "spectral"
+    refuse_unused(args, method)
+    steps = check_count(args.steps, "--steps", 2)
     check_rpm(v, "--speed")
     a = width_m(args)
     cut = model.process.milling
@@ -152,7 +177,9 @@ def _milling(args: argparse.Namespace, model: Any, v: Any) -> tuple[Any, Any]:
         if bar is not None:
             bar(done[0] / len(v))
 
-    res = surface_location(loop, v, a, feed, check=not args.no_check, progress=tick)
+    res = surface_location(
+        loop, v, a, feed, method=method, steps=steps, check=not args.no_check, progress=tick
+    )
     res = dataclasses.replace(res, name=model.name or str(model.source))
     print(res.summary())
     lobes = None

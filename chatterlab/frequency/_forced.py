@@ -543,6 +543,13 @@ class SurfaceLocation(Result):
         """``"up-milling (tooth entry)"`` or ``"down-milling (tooth exit)"``."""
         return "up-milling (tooth entry)" if self.angle == 0.0 else "down-milling (tooth exit)"
 
+    @property
+    def how(self) -> str:
+        """The discretisation in words: ``"spectral elements"`` or ``"semi-discretisation, M steps per period"``."""
+        if self.method == "sdm":
+            return f"semi-discretisation, {self.resolution.replace(' steps', '')} steps per period"
+        return "spectral elements"
+
     def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
         """Per speed: SLE, its error, peak-to-valley, spectral radius, its error, verdict code."""
         code = np.array([VERDICTS.index(v) for v in self.verdict], dtype=int)
@@ -575,7 +582,7 @@ class SurfaceLocation(Result):
         n_d = sum(v == "undetermined" for v in self.verdict)
         lines = [
             f"surface location error: {self.name}, a_p = {self.depth * 1e3:.4g} mm, f_z = {self.feed * 1e3:.4g} mm,"
-            f" {self.side}",
+            f" {self.side}, {self.how}",
             f"{len(self.speeds)} speeds {self.speeds[0]:g}..{self.speeds[-1]:g} rpm: {int(ok.sum())} stable,"
             f" {n_u} unstable (chatter, no SLE), {n_d} undetermined",
         ]
