@@ -182,6 +182,15 @@ def test_moving_slide_and_exponential_are_refused_in_one_line(tmp_path):
         )  # fmt: skip
     with pytest.raises(InputError, match="wear land must hold several steps"):
         run(model, 1e-3, 0.01, step=1e-4)
+    shaper = cl.load_model(ROOT / "studies/traverse_shaper/model.toml").with_parameters(
+        {
+            "process_damping.K_sp": 1e14,
+            "process_damping.wear_land": 1e-4,
+            "process_damping.clearance_deg": 7.0,
+        }
+    )
+    with pytest.raises(InputError, match=r"runs on a continuous cut: hold the slide .* or give C_pd"):
+        simulate(cl.assemble(shaper), width=0.002, integration=Integration(periods=1))
 
 
 def test_the_material_side_is_asked_for_when_the_coupling_does_not_show_it(tmp_path):
@@ -234,7 +243,7 @@ def test_milling_time_domain_refuses_process_damping(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--step", "1e-4"], "step: the wear land must hold several steps"),
+        (["--step", "1e-4"], "step: the indentation model's wear land must hold several steps"),
         (["--integrator", "exponential"], "integrates with Newmark"),
     ],
 )

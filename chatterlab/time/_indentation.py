@@ -124,7 +124,8 @@ class Flank:
         :data:`MIN_LAND_STEPS` samples at the step h."""
         if self.land_steps(h) < MIN_LAND_STEPS:
             raise InputError(
-                f"{option}: the wear land must hold several steps (w / (V h) = {self.land_steps(h):.3g});"
+                f"{option}: the indentation model's wear land must hold several steps (w / (V h) ="
+                f" {self.land_steps(h):.3g});"
                 f" take {option} <= {self.wear_land / (10 * self.speed):.3g} s"
             )
 

@@ -389,12 +389,27 @@ def simulate(
     Returns
     -------
     Simulation
+        ``meta["process_damping"]`` says which process-damping model ran.
+
+    Notes
+    -----
+    The model's ``[process_damping]`` (with ``feedback`` ``"pd"`` or
+    ``"pdo"``, as :func:`chatterlab.process.closed_loop`): ``C_pd`` adds
+    ``b C_pd / V n n^T`` on the coupling's relative velocity at the cutting
+    speed V of the delay (a moving slide: while in the cut); the indentation
+    model (``K_sp``, ``wear_land``, ``clearance_deg``) integrates the flank's
+    force on the displaced area (:func:`chatterlab.time._indentation.flank_run`)
+    on a continuous cut, with Newmark, a step of at most w / (8 V) by
+    default, and ``roots`` taken as the linearisation's (not certain).  See
+    docs/process-damping.md.
 
     Raises
     ------
     InputError
         Bad arguments (non-positive width, duration or step; a step longer
-        than the delay; an unknown output; a delay history or a record above
+        than the delay; the indentation model on a moving slide, with the
+        exponential integrator, a history table, or a step the wear land
+        holds fewer than two of; an unknown output; a delay history or a record above
         the memory limits of ``integration.scheme``; a stroke outside the
         movable range; a q0, v0 or history of the wrong shape, not finite,
         naming an unknown output, or a table not increasing or not covering
