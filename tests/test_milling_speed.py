@@ -315,3 +315,17 @@ def test_adaptive_steps_leave_no_instability_below_the_limit(immersion):
         else:
             z = -1.0 if c.kind == "flip" else 1.0
             assert c.depth == sm.unit_depths(z, 0.01)[0], rpm
+
+
+@pytest.mark.parametrize("immersion,rpm", [(1.0, 7000.0), (0.05, 15000.0)])
+def test_shifted_solve_by_woodbury_is_the_plain_solve(immersion, rpm):
+    """(X0 - z I)^-1 P for z = +-1 by the d x d Woodbury solve (X0 reads only the carried end
+    state) equals the k x k solve to the latter's backward error: eps times the condition
+    number of X0 - z I, times the size of the solution (a factor 10 for the matrix products)."""
+    sm = SpectralMonodromy(loop(immersion), rpm, None, tol=1e-10)
+    for z in (-1.0, 1.0):
+        A = sm.X0 - z * np.eye(sm.k)
+        plain = np.linalg.solve(A, sm.P)
+        fast = sm._shifted_solve(z, sm.P)
+        bound = 10 * EPS * np.linalg.cond(A) * np.abs(plain).max()
+        assert np.abs(fast - plain).max() <= bound, (np.abs(fast - plain).max(), bound)

@@ -48,6 +48,7 @@ solution converges once p exceeds ~ omega L e / 4, geometrically after,
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -362,6 +363,25 @@ def needs_split(loop: ClosedLoop, rpm: float, depth: float, tol: float) -> float
     return f if k > SPLIT_SIZE else None
 
 
+#: free-flight exponentials kept across discretisations (a search and its check at one speed share
+#: their gaps); keyed by the scaled state matrix's bytes and the gap
+_EXPM: dict[tuple[bytes, float], np.ndarray] = {}
+
+
+def _expm(key: bytes, Ah: np.ndarray, g: float) -> np.ndarray:
+    """e^{Ah g} (read-only), from the cache when the same matrix (``key``: a
+    digest of its bytes and shape) and gap were seen."""
+    k = (key, g)
+    E = _EXPM.get(k)
+    if E is None:
+        if len(_EXPM) > 64:
+            _EXPM.clear()
+        E = sla.expm(Ah * g)
+        E.setflags(write=False)
+        _EXPM[k] = E
+    return E
+
+
 # ============================================================================ the monodromy
 class SpectralMonodromy:
     """The spectral-element discretisation of one period at one speed in
@@ -519,11 +539,12 @@ class SpectralMonodromy:
         # ---- the free structure, element by element: nodal states from the state entering each
         # element (d) and the unit forces at its nodes 1..p (rho each): x^ = Phi x0 + Gam F
         expm_cache: dict[float, np.ndarray] = {}
+        a_key = hashlib.blake2b(Ah.tobytes(), digest_size=16).digest() + bytes(str(Ah.shape), "ascii")
 
         def expA(g: float) -> np.ndarray:
             key = round(g / T, 14)
             if key not in expm_cache:
-                expm_cache[key] = sla.expm(Ah * g) if g > 0 else np.eye(d)
+                expm_cache[key] = _expm(a_key, Ah, float(g)) if g > 0 else np.eye(d)
             return expm_cache[key]
 
         self._expA = expA
@@ -888,6 +909,18 @@ class SpectralMonodromy:
             raise InputError("tangent: with a helix the matrices are not affine in a_p")
         return self.tangents(np.array([float(depth)]))[0]
 
+    def _shifted_solve(self, z: float, B: np.ndarray) -> np.ndarray:
+        """(X0 - z I)^-1 B.  The free map X0 = [C 0] reads only the carried end state
+        (its first d columns; the rest of z enters through the cut), so by Woodbury's
+        identity (X0 - z I)^-1 = -(I + C (z I_d - C_d)^-1 E^T) / z, C_d the first d rows
+        of C and E^T B the first d rows of B: a d x d solve instead of a k x k one."""
+        d = self.d
+        if np.any(self.X0[:, d:]):  # not of that form: the plain solve
+            return np.linalg.solve(self.X0 - z * np.eye(self.k), B)
+        C = self.X0[:, :d]
+        y = np.linalg.solve(z * np.eye(d) - C[:d], B[:d])
+        return -(B + C @ y) / z
+
     def unit_depths(self, z: float, depth_max: float) -> np.ndarray:
         """Every depth a_p in (0, depth_max] at which the discretised
         monodromy has the multiplier z = +1 (fold) or -1 (flip), ascending.
@@ -903,7 +936,7 @@ class SpectralMonodromy:
         touch as a crossing errs on the safe side."""
         if self.m_f == 0:
             return np.zeros(0)
-        Mz = self.K + self.Q @ np.linalg.solve(self.X0 - z * np.eye(self.k), self.P)
+        Mz = self.K + self.Q @ self._shifted_solve(z, self.P)
         nu = np.linalg.eigvals(Mz)
         real = (np.abs(nu.imag) <= 1e-6 * np.abs(nu)) & (nu.real < 0.0)
         a = -1.0 / nu.real[real]
