@@ -76,6 +76,7 @@ def plot_sle(
     ax_s.legend(fontsize=8, loc="best")
     head = title or (
         f"{result.name}: a_p = {result.depth * 1e3:.3g} mm, f_z = {result.feed * 1e3:.3g} mm, {result.side}"
+        f"\n{result.how}"
     )
     if ax_l is None:
         ax_s.set_title(head, fontsize=10)
@@ -111,7 +112,9 @@ def plot_forced_orbit(result: Any, *, ax: Any = None, **style: Any) -> Any:
     ax.set_ylabel("tool displacement [um]")
     sle = "no SLE" if not np.isfinite(result.sle) else f"SLE {result.sle * 1e6:.4g} um"
     ax.set_title(
-        f"{result.verdict} cut: {result.rpm:g} rpm, a_p = {result.depth * 1e3:.3g} mm; {sle}", fontsize=10
+        f"{result.verdict} cut: {result.rpm:g} rpm, a_p = {result.depth * 1e3:.3g} mm; {sle}"
+        f" ({result.multipliers.method}, {result.multipliers.resolution})",
+        fontsize=10,
     )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
