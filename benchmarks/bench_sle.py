@@ -1,6 +1,7 @@
 """The forced vibration of a stable milling cut (issue 22 item 3), measured:
-the fixed point of the spectral discretisation's one-period map against a
-time simulation run to the steady state, at equal accuracy, in one run.
+the fixed point of the one-period map by both Floquet discretisations (the
+spectral elements and the semi-discretisation) against a time simulation run
+to the steady state, at equal accuracy, in one run.
 
 Run from the repository root::
 
@@ -11,12 +12,17 @@ The case: ``studies/sle/benchmark_1dof_y.toml`` (the Insperger-Stepan
 benchmark, flexible normal to the wall), down-milling at a_e/D = 0.05,
 f_z = 0.1 mm, at a few (rpm, a_p) inside the stable region.  The accuracy
 is the largest distance of the orbit (the tool's y over one revolution, on
-the simulation's grid) from the reference (the fixed point at degree 30),
-relative to the orbit's amplitude; the target ``--accuracy`` (default 1e-3).
+the simulation's grid) from the reference (the spectral fixed point at degree
+30), relative to the orbit's amplitude; the target ``--accuracy`` (default 1e-3).
 
-* fixed point: :func:`chatterlab.frequency.forced_response` (``check=False``)
-  at the lowest explicit collocation degree reaching the target -- the
-  set-up of the discretisation, the fixed point, the orbit and the SLE;
+* spectral fixed point: :func:`chatterlab.frequency.forced_response`
+  (``check=False``) at the lowest explicit collocation degree reaching the
+  target -- the set-up of the discretisation, the fixed point, the orbit and
+  the SLE;
+* semi-discretisation fixed point: the same call with ``method="sdm"`` at the
+  fewest steps per period of 40 x 2^(k/2) (even) reaching the target (first
+  order in time, error ~ steps^-2: the multipliers' monodromy with the static
+  force as its affine term);
 * time domain: :func:`chatterlab.time.simulate_milling` (the Newmark core,
   nonlinear model with the feed) from rest, with the smallest steps per tooth
   period of 40 x 2^k reaching the target at steady state and revolutions
@@ -52,7 +58,7 @@ except ImportError:  # run from a checkout without installing
     import chatterlab as cl
 
 from chatterlab.frequency import forced_response
-from chatterlab.frequency._forced import _orbit, _setup, static_load
+from chatterlab.frequency._forced import _orbit, _sd_orbit, _setup, static_load
 from chatterlab.lobes import milling_loop_of
 from chatterlab.time import Integration, simulate_milling
 
@@ -92,8 +98,13 @@ def _error_of(sm: Any, a: float, load: np.ndarray, t: np.ndarray, y: np.ndarray)
     return float(np.max(np.abs(y - ref)) / np.max(np.abs(ref)))
 
 
+#: the semi-discretisation's steps per period tried: 40 x 2^(k/2), even
+SD_STEPS = tuple(2 * round(20 * 2 ** (k / 2)) for k in range(13))
+ROUTES = ("spectral", "sdm", "time_domain")
+
+
 def plan(loop: Any, rpm: float, a: float, accuracy: float) -> dict[str, Any]:
-    """The degree and the time grid that reach ``accuracy``, with what each reached."""
+    """The degree, the steps and the time grid that reach ``accuracy``, with what each reached."""
     ref_sm = _setup(loop, rpm, a, 30, 1e-12)
     load = static_load(ref_sm, FEED)
     mu = ref_sm.radius(a)
@@ -110,6 +121,15 @@ def plan(loop: Any, rpm: float, a: float, accuracy: float) -> dict[str, Any]:
             degree = p
             break
     assert r.verdict == "stable"
+    steps, err_sd = None, math.nan
+    for k in SD_STEPS:
+        orbit, _, _ = _sd_orbit(loop, rpm, a, FEED, k)
+        err_sd = _error_of(ref_sm, a, load, t_rev, orbit(t_rev)[:, 1])
+        if err_sd <= accuracy:
+            steps = k
+            break
+    sd = forced_response(loop, rpm, a, FEED, method="sdm", steps=steps, check=False)
+    assert sd.verdict == "stable"
     m, err_t = None, math.nan
     for k in range(8):
         mm = 40 * 2**k
@@ -119,8 +139,9 @@ def plan(loop: Any, rpm: float, a: float, accuracy: float) -> dict[str, Any]:
         if err_t <= accuracy:
             m = mm
             break
-    return {"degree": degree, "fixed_point_error": err_fp, "steps_per_period": m, "revolutions": revs,
-            "time_error": err_t, "spectral_radius": mu, "sle_m": r.sle}  # fmt: skip
+    return {"degree": degree, "fixed_point_error": err_fp, "sd_steps": steps, "sd_error": err_sd,
+            "sd_sle_m": sd.sle, "steps_per_period": m, "revolutions": revs, "time_error": err_t,
+            "spectral_radius": mu, "sle_m": r.sle}  # fmt: skip
 
 
 def main() -> None:
@@ -139,13 +160,15 @@ def main() -> None:
     with threadpool_limits(1):
         for rpm, a in CASES:
             p = plan(loop, rpm, a, args.accuracy)
-            wall: dict[str, list[float]] = {"fixed_point": [], "time_domain": []}
-            cpu: dict[str, list[float]] = {"fixed_point": [], "time_domain": []}
+            wall: dict[str, list[float]] = {k: [] for k in ROUTES}
+            cpu: dict[str, list[float]] = {k: [] for k in ROUTES}
             for _ in range(args.repeat):  # interleaved
-                for key in ("fixed_point", "time_domain"):
+                for key in ROUTES:
                     w0, c0 = time.perf_counter(), time.process_time()
-                    if key == "fixed_point":
+                    if key == "spectral":
                         forced_response(loop, rpm, a, FEED, degree=p["degree"], check=False)
+                    elif key == "sdm":
+                        forced_response(loop, rpm, a, FEED, method="sdm", steps=p["sd_steps"], check=False)
                     else:
                         _sim(loop, rpm, a, p["steps_per_period"], p["revolutions"])
                     wall[key].append(time.perf_counter() - w0)
@@ -154,14 +177,19 @@ def main() -> None:
             for key in wall:
                 row[key] = {"wall_min_s": min(wall[key]), "wall_median_s": statistics.median(wall[key]),
                             "cpu_median_s": statistics.median(cpu[key])}  # fmt: skip
-            row["speedup_median"] = row["time_domain"]["wall_median_s"] / row["fixed_point"]["wall_median_s"]
+            med = {k: row[k]["wall_median_s"] for k in ROUTES}
+            row["time_over_spectral_median"] = med["time_domain"] / med["spectral"]
+            row["time_over_sdm_median"] = med["time_domain"] / med["sdm"]
+            row["sdm_over_spectral_median"] = med["sdm"] / med["spectral"]
             rows.append(row)
             print(
-                f"{rpm:7.0f} rpm a_p {a * 1e3:.2g} mm |mu| {p['spectral_radius']:.3f}: fixed point degree"
-                f" {p['degree']} (error {p['fixed_point_error']:.1e}) {row['fixed_point']['wall_median_s'] * 1e3:.1f} ms"
-                f" (min {row['fixed_point']['wall_min_s'] * 1e3:.1f}); time domain m = {p['steps_per_period']},"
-                f" {p['revolutions']} rev (error {p['time_error']:.1e}) {row['time_domain']['wall_median_s']:.3f} s"
-                f" (min {row['time_domain']['wall_min_s']:.3f}); x {row['speedup_median']:.0f}"
+                f"{rpm:7.0f} rpm a_p {a * 1e3:.2g} mm |mu| {p['spectral_radius']:.3f}:"
+                f" spectral degree {p['degree']} (error {p['fixed_point_error']:.1e})"
+                f" {med['spectral'] * 1e3:.1f} ms (min {row['spectral']['wall_min_s'] * 1e3:.1f});"
+                f" sdm {p['sd_steps']} steps (error {p['sd_error']:.1e}) {med['sdm'] * 1e3:.1f} ms"
+                f" (min {row['sdm']['wall_min_s'] * 1e3:.1f});"
+                f" time domain m = {p['steps_per_period']}, {p['revolutions']} rev (error {p['time_error']:.1e})"
+                f" {med['time_domain']:.3f} s (min {row['time_domain']['wall_min_s']:.3f})"
             )
     load_after = loadavg()
     print(f"load after: {load_after}")

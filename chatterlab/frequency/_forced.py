@@ -30,6 +30,28 @@ k N Omega of G(i k N Omega) times f's Fourier coefficients (Schmitz & Mann
 2006, their closed form; tests/test_forced_milling.py evaluates it on its
 own).  A variable pitch regenerates (the orbit has the revolution's period).
 
+The semi-discretisation's fixed point
+------------------------------------
+First-order semi-discretisation (:mod:`chatterlab.frequency._floquet_sdm`)
+cuts the period into m steps of length h; on step i the coefficients and the
+force are replaced by their exact means over the step, the delayed
+displacement by its linear interpolant between the grid values, and the step
+is solved exactly.  With the state z_i = (x_i, r_{i-1}, ..., r_{i-L}) and
+w_i = a_p M^-1 J^T mean_i f on the velocity rows, the step adds to the
+multipliers' step z_{i+1} = S_i z_i the forced part
+int_0^h e^{A_i (h - s)} ds w_i, so one period is the affine map
+
+    z' = Phi z + c,    (I - Phi) z* = c,                                         (6)
+
+Phi the SD monodromy (the multipliers' own matrix) and c the steps' forced
+parts carried to the period's end (Insperger, Gradisek, Kalveram, Stepan,
+Winert & Weinert 2006).  The fixed point's error is O(h^2), as the
+multipliers': the means leave O(h^3) per step, the interpolation O(h^3)
+through the step's integral, over T/h steps O(h^2).  Between the grid points
+the orbit is the cubic Hermite interpolant of the displacement and the
+velocity (its O(h^4) below the method's O(h^2)); the generation instant of
+tooth 0 (phi = 0 or pi) is a grid point of an even number of steps.
+
 The surface location error (SLE)
 --------------------------------
 The wall of a peripheral cut is generated where a tooth's chip is zero on the
