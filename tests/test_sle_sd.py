@@ -166,3 +166,49 @@ def test_bad_method_and_steps_one_line() -> None:
         forced_response(loop, 10000.0, A_P, FZ, method="sd")
     with pytest.raises(InputError, match="steps"):
         forced_response(loop, 10000.0, A_P, FZ, method="sdm", steps=1)
+
+
+def test_the_steps_mean_force_is_the_mean_of_the_pointwise_force() -> None:
+    """static_load_mean (the SD's forcing: Eq. 2 averaged over each step, in closed form over
+    the cutting windows) against the midpoint rule of Eq. (2) written here on its own, tooth by
+    tooth: f_j = -g_j [(K_t t_j + K_n n_j) f_z sin phi_j + K_te t_j + K_ne n_j].  Intervals
+    inside the arc, across the entry or the exit, and longer than a revolution.  Midpoint
+    rule with n points: O(n^-2) where f is smooth, and each jump of f (a tooth entering or
+    leaving) costs at most |jump| / n of the mean: tolerance 2 (jumps + 1) max|f| / n."""
+    from chatterlab.frequency._forced import static_load_mean
+
+    loop = _loop("down", 0.3, Kte=2e4, Kne=1e4)
+    mil = loop.milling
+    rpm = 9000.0
+    Om = mil.omega(rpm)
+    T_rev = 2 * math.pi / Om
+
+    def pointwise(t: np.ndarray) -> np.ndarray:
+        phi = mil.tooth_angles(t, rpm)  # (n, N)
+        g = mil.in_cut(phi)
+        s, c = np.sin(phi), np.cos(phi)
+        tx, ty, nx, ny = c, -s, s, c
+        h = FZ * s
+        fx = -np.sum(g * ((mil.Kt * h + mil.Kte) * tx + (mil.Kn * h + mil.Kne) * nx), axis=1)
+        fy = -np.sum(g * ((mil.Kt * h + mil.Kte) * ty + (mil.Kn * h + mil.Kne) * ny), axis=1)
+        return np.stack([fx, fy], axis=1)
+
+    t_entry = mil.entry / Om
+    spans = [
+        (t_entry + 0.1 * T_rev / 8, t_entry + 0.2 * T_rev / 8),  # inside the arc
+        (t_entry - 0.01 * T_rev, t_entry + 0.02 * T_rev),  # across the entry
+        (math.pi / Om - 0.01 * T_rev, math.pi / Om + 0.03 * T_rev),  # across the exit
+        (0.1 * T_rev, 2.35 * T_rev),  # more than two revolutions
+    ]
+    t0 = np.array([a for a, _ in spans])
+    t1 = np.array([b for _, b in spans])
+    got = static_load_mean(mil, rpm, FZ, t0, t1)
+    n = 200_000
+    for k, (a, b) in enumerate(spans):
+        t = a + (np.arange(n) + 0.5) * (b - a) / n
+        f = pointwise(t)
+        ref = f.mean(axis=0)
+        jumps = 2 * mil.teeth * (math.floor((b - a) / T_rev) + 1)
+        tol = 2 * (jumps + 1) * np.max(np.abs(f)) / n
+        assert np.all(np.abs(got[k] - ref) <= tol), (k, got[k], ref, tol)
+    assert np.max(np.abs(got)) > 1e3 * tol  # a force to compare, not zeros
