@@ -150,6 +150,11 @@ class Multipliers(Result):
         ``"spectral"`` with "degree p x elements" or ``"sdm"`` with its steps.
     period : float
         T, s.
+    width_symbol, speed_unit : str
+        What the process calls its width and the unit of its speed (``"a_p"``
+        and ``"rpm"`` for milling; ``"b"`` and ``"rpm"`` / ``"m/s"`` for turning
+        and shaping under spindle-speed variation): the names the table prints,
+        the process's own (:func:`process_names`).
     """
 
     mu: np.ndarray
@@ -166,6 +171,8 @@ class Multipliers(Result):
     depth: float
     elapsed: float = 0.0
     meta: dict[str, float] = field(default_factory=dict)
+    width_symbol: str = "a_p"
+    speed_unit: str = "rpm"
 
     @classmethod
     def ranked(cls, mu: np.ndarray, **fields: Any) -> Multipliers:
@@ -199,14 +206,19 @@ class Multipliers(Result):
     def table(self) -> str:
         """The multipliers and the verdict, as the command line prints them."""
         lines = [
-            f"Floquet multipliers ({self.method}, {self.resolution}) at a_p = {self.depth * 1e3:g} mm,"
-            f" {self.rpm:g} rpm (period {self.period * 1e3:.6g} ms)"
+            f"Floquet multipliers ({self.method}, {self.resolution}) at {self._where()}"
+            f" (period {self.period * 1e3:.6g} ms)"
         ]
         lines.append("    |mu|        arg mu [deg]   type")
         for mu in self.mu:
             lines.append(f"  {abs(mu):10.6f}  {np.degrees(np.angle(mu)):12.4f}   {classify(complex(mu))}")
         lines.append(f"critical: {self.verdict_line()}; chatter frequency {self.frequency_hz:.2f} Hz")
         return "\n".join(lines)
+
+    def _where(self) -> str:
+        """ "a_p = 2 mm, 9000 rpm" in the process's names (no speed when it is unknown)."""
+        head = f"{self.width_symbol} = {self.depth * 1e3:g} mm"
+        return head if not np.isfinite(self.rpm) else f"{head}, {self.rpm:g} {self.speed_unit}".rstrip()
 
     def verdict_line(self) -> str:
         """The verdict in words, with the spectral radius and its error."""
@@ -287,6 +299,8 @@ class Multipliers(Result):
                 "period_s": self.period,
                 "speed_rpm": self.rpm,
                 "depth_m": self.depth,
+                "speed_unit": self.speed_unit,
+                "width_symbol": self.width_symbol,
             },
         )
 
@@ -295,8 +309,17 @@ class Multipliers(Result):
         returns the Axes."""
         from ..plot import plot_multipliers
 
-        head = title or f"{self.verdict}: a_p = {self.depth * 1e3:g} mm, {self.rpm:g} rpm"
+        head = title or f"{self.verdict}: {self._where()}"
         return plot_multipliers(self, ax=ax, title=head, **style)
+
+
+def process_names(process: Any) -> dict[str, str]:
+    """The ``width_symbol`` and ``speed_unit`` of :class:`Multipliers` from a process object
+    (:class:`~chatterlab.model.Process`, :class:`~chatterlab.process.Milling`: their
+    ``width_name`` ends with the symbol); milling's names when there is none."""
+    if process is None:
+        return {}
+    return {"width_symbol": str(process.width_name).split()[-1], "speed_unit": str(process.speed_unit)}
 
 
 def chatter_frequency(mu: complex, T: float, loop: ClosedLoop) -> float:

@@ -82,9 +82,9 @@ import scipy.linalg as sla
 from ..errors import InputError, check_count, check_nonneg
 from ..process import ClosedLoop, SpeedVariation, VaryingDelayLoop, ssv_loop
 from ._floquet_sdm import finite_monodromy, matched_change, sd_step_product
-from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, _bary, _cheb
+from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, QuasiStatic, _bary, _cheb, split_structure
 
-__all__ = ["ssv_multipliers", "ssv_monodromy", "sd_monodromy_ssv", "MAX_HISTORY"]
+__all__ = ["ssv_multipliers", "ssv_monodromy", "sd_monodromy_ssv", "ssv_split", "split_error", "MAX_HISTORY"]
 
 #: the largest history (multipliers) the spectral discretisation sets up
 MAX_HISTORY = 4000
@@ -196,6 +196,15 @@ def ssv_monodromy(
             out[:, c + l_ * rho : c + (l_ + 1) * rho] += wts[l_] * np.eye(rho)
         return out
 
+    def delayed(td: float, L: float, a: float) -> np.ndarray:
+        """The history's output at td (< the element's start a) as a map of z."""
+        if td > a + 1e-9 * L:
+            raise AssertionError("ssv spectral: an element longer than the delay")  # pragma: no cover
+        cur = td >= t0 - 1e-12 * T
+        return r_at(td if cur else td + T, cur)
+
+    # Eq. (1q) with a quasi-static split: constant A~, B~, C_y, E at this width
+    split = sys.split_terms(b) if sys.split_parts is not None else None
     x = np.zeros((d, nz))
     x[:, :d] = np.eye(d)  # the state at t0: the history's end state
     I_d = np.eye(d)
@@ -207,22 +216,30 @@ def ssv_monodromy(
             continue
         nodes, Dm, _ = _cheb(e.p)
         tk = e.a + L * nodes
-        Ac, Bj = sys.coefficients(tk[1:], 0.5 * (e.a + e.b))
-        tau = sys.delays(tk[1:])  # (p, J)
         pp = e.p
         blk = np.kron(Dm[1:, 1:] / L, I_d)
         rhs = -np.kron(Dm[1:, :1] / L, I_d) @ x
+        if split is not None:
+            As, Bs, Cy, Ey = split
+            tau_all = sys.delays(tk)[:, 0]  # (p + 1,): one delay
+            yd = [delayed(float(tk[k] - tau_all[k]), L, e.a) for k in range(pp + 1)]
+            for k in range(pp):
+                blk[k * d : (k + 1) * d, k * d : (k + 1) * d] -= As
+                rhs[k * d : (k + 1) * d] += Bs @ yd[k + 1]
+            Xn = np.linalg.solve(blk, rhs).reshape(pp, d, nz)
+            Xall = np.concatenate([x[None], Xn], axis=0)
+            R[i] = np.einsum("rd,ldz->lrz", Cy, Xall) + np.einsum("rs,lsz->lrz", Ey, np.stack(yd))
+            x = Xn[-1]
+            continue
+        Ac, Bj = sys.coefficients(tk[1:], 0.5 * (e.a + e.b))
+        tau = sys.delays(tk[1:])  # (p, J)
         for k in range(pp):
             blk[k * d : (k + 1) * d, k * d : (k + 1) * d] -= sys.A + b * Ac[k]
             for j in range(Bj.shape[1]):
                 Bk = Bj[k, j]
                 if not np.any(Bk):
                     continue
-                td = tk[k + 1] - tau[k, j]
-                if td > e.a + 1e-9 * L:
-                    raise AssertionError("ssv spectral: an element longer than the delay")  # pragma: no cover
-                cur = td >= t0 - 1e-12 * T
-                rd = r_at(td if cur else td + T, cur)
+                rd = delayed(float(tk[k + 1] - tau[k, j]), L, e.a)
                 rhs[k * d : (k + 1) * d] += b * (Bk @ rd)
         Xn = np.linalg.solve(blk, rhs).reshape(pp, d, nz)
         Xall = np.concatenate([x[None], Xn], axis=0)
@@ -238,6 +255,49 @@ def ssv_monodromy(
         else:
             Mz[c : c + (els[i].p + 1) * rho] = R[i].reshape(-1, nz)
     return Mz
+
+
+# ============================================================================ the quasi-static split
+def ssv_split(loop: ClosedLoop, split: float | QuasiStatic | None) -> QuasiStatic | None:
+    """The quasi-static split asked for: ``split`` Hz (the modes above it quasi-static,
+    :func:`~chatterlab.frequency.split_structure`), a :class:`QuasiStatic` of ``loop``
+    as it is, or None."""
+    if split is None or isinstance(split, QuasiStatic):
+        return split
+    if loop.process is not None:
+        raise InputError(
+            "ssv: a quasi-static split (split=...) is modelled for turning and shaping, not for milling"
+        )
+    f = float(split)
+    if not (math.isfinite(f) and f > 0):
+        raise InputError(f"ssv: split must be a frequency > 0 in Hz (got {split!r})")
+    return split_structure(loop, f)
+
+
+#: frequencies sampled over the band of :func:`split_error`
+SPLIT_SAMPLES = 65
+
+
+def split_error(loop: ClosedLoop, qs: QuasiStatic, f_lo: float, f_hi: float) -> float:
+    """The split's error in the band [f_lo, f_hi] Hz: max over it of
+    ||H - (H_k + G)||_2 / ||H||_2, H the full structure's receptance between the
+    cut's coordinates, H_k the kept modes' (their damping projected) and G the
+    quasi-static rest's static compliance (``SPLIT_SAMPLES`` frequencies).
+
+    To first order it is the relative change of the loop gain b H D(s) at those
+    frequencies, so of b_lim where the chatter frequency lies in the band; the
+    velocity of the quasi-static modes (G f', which Eq. (1q) omits) is of the
+    same order, |G K_v omega| / |G K_c| times the static term's share."""
+    Ub, Jr, _ = loop.cut_basis
+    kl = qs.loop
+    Jk = Ub.T @ kl.J
+    out = 0.0
+    for f in np.linspace(f_lo, f_hi, SPLIT_SAMPLES):
+        w = 2 * np.pi * f
+        H = Jr @ np.linalg.solve(loop.K - w * w * loop.M + 1j * w * loop.C, Jr.T)
+        Hs = Jk @ np.linalg.solve(kl.K - w * w * kl.M + 1j * w * kl.C, Jk.T) + qs.compliance
+        out = max(out, float(np.linalg.norm(H - Hs, 2) / np.linalg.norm(H, 2)))
+    return out
 
 
 # ============================================================================ the entry
@@ -259,6 +319,7 @@ def ssv_multipliers(
     span: float = ELEMENT_SPAN,
     steps: int | None = None,
     check: bool = True,
+    split: float | QuasiStatic | None = None,
 ) -> Any:
     """Floquet multipliers of a cut under spindle-speed variation at one mean speed
     and width (module docstring).
@@ -283,6 +344,14 @@ def ssv_multipliers(
     check : bool
         Also at a higher resolution (degree + CHECK_DEGREE; 2 x steps): the change of
         the critical multiplier is ``error``.
+    split : float or QuasiStatic, optional
+        Turning / shaping, spectral: the structure's modes above ``split`` Hz respond
+        quasi-statically (their exact static compliance at the cut, Eq. (1q) of the
+        module docstring), so only the modes below are integrated and the history
+        resolves only their frequencies (a structure with many modes, a long delay).
+        ``meta["split_error"]`` is :func:`split_error` over the chatter band
+        f_c (1 -+ RVA) (the variation spreads the chatter over it), ``meta["split_hz"]``
+        the frequency, ``meta["kept"]`` the modes integrated.
 
     Returns
     -------
@@ -290,11 +359,16 @@ def ssv_multipliers(
         ``period`` is the computational period (``meta["folds"]`` principal periods);
         ``rpm`` the mean speed, ``depth`` the width.
     """
-    from ._floquet import Multipliers, chatter_frequency
+    from ._floquet import Multipliers, chatter_frequency, process_names
 
     t_start = time.perf_counter()
     b = check_nonneg(width, "width of cut", "m")
-    sys = ssv_loop(loop, variation, speed)
+    qs = ssv_split(loop, split)
+    if qs is not None and method != "spectral":
+        raise InputError(
+            "ssv: a quasi-static split is discretised by spectral elements only: give method='spectral'"
+        )
+    sys = ssv_loop(loop, variation, speed, quasi_static=qs)
     if method == "spectral":
 
         def mono(up: int) -> np.ndarray:
@@ -314,15 +388,30 @@ def ssv_multipliers(
         res = f"{m} steps"
     else:
         raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+    # the family member nearest a pole of the structure integrated (with a split, the kept modes':
+    # a lightly damped high mode of the full structure would otherwise attract it)
+    f_c = chatter_frequency(complex(mu[0]), sys.period, loop if qs is None else qs.loop)
+    meta = {"folds": float(sys.folds), "rva": variation.amplitude, "rvf": variation.frequency}
+    res += f"; {variation.describe()}"
+    if qs is not None:
+        a = variation.amplitude
+        meta["split_hz"], meta["kept"] = qs.f_split, float(qs.kept)
+        meta["split_error"] = split_error(loop, qs, f_c * (1 - a), f_c * (1 + a)) if f_c > 0 else math.nan
+        res += f"; {qs.kept} of {qs.n_full} modes integrated, quasi-static above {qs.f_split:g} Hz"
+    if loop.process is not None:
+        proc: Any = loop.process
+    else:
+        proc = loop.frozen.model.process if loop.frozen is not None else None
     return Multipliers.ranked(
         mu,
         error=err,
-        frequency_hz=chatter_frequency(complex(mu[0]), sys.period, loop),
+        frequency_hz=f_c,
         method=method,
-        resolution=res + f"; {variation.describe()}",
+        resolution=res,
         period=sys.period,
         rpm=float(sys.speed),
         depth=b,
         elapsed=time.perf_counter() - t_start,
-        meta={"folds": float(sys.folds), "rva": variation.amplitude, "rvf": variation.frequency},
+        meta=meta,
+        **process_names(proc),
     )

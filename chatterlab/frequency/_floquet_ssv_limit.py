@@ -39,7 +39,7 @@ from ..io import Result
 from ..process import ClosedLoop, SpeedVariation
 from ..process._loop import closed_loop_unwarned
 from ._floquet import classify
-from ._floquet_ssv import ssv_multipliers
+from ._floquet_ssv import ssv_multipliers, ssv_split
 
 __all__ = ["SsvLimits", "SsvLimitTask", "ssv_limit", "ssv_limits", "SCAN", "KIND_CODES"]
 
@@ -60,6 +60,8 @@ def ssv_limit(
     method: str = "spectral",
     degree: int | None = None,
     steps: int | None = None,
+    span: float | None = None,
+    split: float | None = None,
 ) -> dict[str, Any]:
     """b_lim at one mean speed under ``variation`` (module docstring).
 
@@ -75,14 +77,17 @@ def ssv_limit(
         Largest width searched, m.
     scan, rtol : int, float
         Scan samples; Brent's relative tolerance.
-    method, degree, steps
-        As :func:`chatterlab.frequency.ssv_multipliers`.
+    method, degree, steps, span, split
+        As :func:`chatterlab.frequency.ssv_multipliers` (``split``: Hz, the structure's
+        quasi-static split, set up once for the search).
 
     Returns
     -------
     dict
         ``b_lim`` (m, inf: none up to width_max), ``mu`` (the critical multiplier there),
-        ``chatter_frequency`` (Hz), ``kind``, ``evaluations``, ``basis`` ("scan").
+        ``chatter_frequency`` (Hz), ``kind``, ``evaluations``, ``basis`` ("scan"); with a
+        split also ``split_error`` (:func:`~chatterlab.frequency._floquet_ssv.split_error`
+        at the limit).
     """
     wmax = check_width(width_max, "width_max")
     n = check_count(scan, "scan", 2)
@@ -91,6 +96,11 @@ def ssv_limit(
         opts["degree"] = degree
     if steps is not None:
         opts["steps"] = steps
+    if span is not None:
+        opts["span"] = float(span)
+    qs = ssv_split(loop, split)
+    if qs is not None:
+        opts["split"] = qs
     count = 0
 
     def rho(b: float) -> float:
@@ -114,7 +124,7 @@ def ssv_limit(
                 )
             m = ssv_multipliers(loop, speed, root, variation, **opts)
             count += 1
-            return {
+            out = {
                 "b_lim": root,
                 "mu": complex(m.critical),
                 "chatter_frequency": float(m.frequency_hz),
@@ -122,6 +132,9 @@ def ssv_limit(
                 "evaluations": count,
                 "basis": "scan",
             }
+            if qs is not None:
+                out["split_error"] = float(m.meta["split_error"])
+            return out
         prev_b = b
     return {
         "b_lim": math.inf,
@@ -151,6 +164,8 @@ class SsvLimitTask:
     method: str = "spectral"
     degree: int | None = None
     steps: int | None = None
+    span: float | None = None
+    split: float | None = None
 
     OUTPUTS: ClassVar[dict[str, str]] = {"b_lim": "m", "chatter_frequency": "Hz", "kind": "1"}
 
@@ -185,7 +200,8 @@ class SsvLimitTask:
         v = SpeedVariation(float(rva), float(rvf), self.shape)
         r = ssv_limit(
             self.loop_at(float(speed)), float(speed), v, width_max=self.width_max, scan=self.scan,
-            rtol=self.rtol, method=self.method, degree=self.degree, steps=self.steps,
+            rtol=self.rtol, method=self.method, degree=self.degree, steps=self.steps, span=self.span,
+            split=self.split,
         )  # fmt: skip
         return {
             "b_lim": r["b_lim"],
@@ -302,6 +318,8 @@ def ssv_limits(
     method: str = "spectral",
     degree: int | None = None,
     steps: int | None = None,
+    span: float | None = None,
+    split: float | None = None,
     jobs: int = 1,
     backend: str = "serial",
     progress: bool = False,
@@ -318,7 +336,7 @@ def ssv_limits(
         The mean speeds, relative amplitudes (0: the constant speed), relative frequencies.
     shape : {"sine", "triangle"}
         The wave.
-    width_max, scan, rtol, method, degree, steps
+    width_max, scan, rtol, method, degree, steps, span, split
         As :func:`ssv_limit`.
     jobs, backend, progress
         As :func:`chatterlab.sweep.sweep`.
@@ -344,7 +362,7 @@ def ssv_limits(
             SpeedVariation(float(a), float(f), shape)  # refused here, before any work
     task = SsvLimitTask.of(
         source, shape=shape, width_max=float(width_max), scan=int(scan), rtol=float(rtol), method=method,
-        degree=degree, steps=steps,
+        degree=degree, steps=steps, span=span, split=split,
     )  # fmt: skip
     res = sweep(
         task, Grid({"speed": sp, "rva": ra, "rvf": rf}), outputs=SsvLimitTask.OUTPUTS, jobs=jobs,

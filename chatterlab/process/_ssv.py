@@ -449,6 +449,42 @@ class VaryingDelayLoop:
     B0: np.ndarray | None = None  # turning: constant B per unit width (d, rho)
     W: np.ndarray | None = None  # milling: scaled [0; W] (d, rho), with Ub
     Ub: np.ndarray | None = None
+    Acd: np.ndarray | None = None  # turning: process damping's part of Ac0 at the mean speed (over the rate)
+    quasi_static: Any = None  # turning: the structure's quasi-static split (QuasiStatic), or None
+    split_parts: dict[str, np.ndarray] | None = None  # turning with a split: the pieces of Eq. (1q)
+
+    def split_terms(self, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Turning / shaping with a quasi-static split (Eq. (1q) of
+        :mod:`chatterlab.frequency._floquet_ssv`): (A~, B~, C_y, E) at width b.
+
+        With the kept modes' state x, the cut's coordinates r = C_r x + G f (G the
+        quasi-static modes' exact static compliance, f the cut's force in r's
+        coordinates), the force f = b [K_c r + K_v C_v x + U_d y(t - tau)] (the
+        process's D_P, D_V on r; the kept modes' velocity C_v x) and the delayed
+        output y = V_d^T r (D_O = U_d V_d^T on r):
+        (I - b K_c G) f = b [(K_c C_r + K_v C_v) x + U_d y(t - tau)], so with
+        [L_x, L_u] = (I - b K_c G)^-1 [K_c C_r + K_v C_v, U_d]::
+
+            x' = (A + b B_f L_x) x + b B_f L_u y(t - tau)
+            y  = V_d^T (C_r + b G L_x) x + b V_d^T G L_u y(t - tau)
+
+        (B_f the force's entry into the kept modes).  With G = 0 this is Eq. (1)
+        with A_c, B and C of the unsplit loop restricted to the kept modes."""
+        assert self.split_parts is not None
+        sp = self.split_parts
+        b = float(width)
+        d = self.d
+        G, Kc = sp["G"], sp["Kc"]
+        Nm = np.eye(G.shape[0]) - b * Kc @ G
+        L = np.linalg.solve(Nm, np.concatenate([Kc @ sp["Cr"] + sp["Kv"] @ sp["Cv"], sp["Ud"]], axis=1))
+        Lx, Lu = L[:, :d], L[:, d:]
+        Vt = sp["Vd"].T
+        return (
+            self.A + b * sp["Bf"] @ Lx,
+            b * sp["Bf"] @ Lu,
+            Vt @ (sp["Cr"] + b * G @ Lx),
+            b * Vt @ G @ Lu,
+        )
 
     @property
     def d(self) -> int:
@@ -482,16 +518,30 @@ class VaryingDelayLoop:
         if self.milling is None:
             assert self.Ac0 is not None and self.B0 is not None
             k = t.size
-            return np.broadcast_to(self.Ac0, (k,) + self.Ac0.shape), np.broadcast_to(
-                self.B0, (k, 1) + self.B0.shape
-            )
+            B = np.broadcast_to(self.B0, (k, 1) + self.B0.shape)
+            if self.Acd is None:
+                return np.broadcast_to(self.Ac0, (k,) + self.Ac0.shape), B
+            # process damping: C_pd b / V(t), V(t) = V_0 Omega(t) / Omega_0 (Eq. 1q of the frequency module)
+            inv_rate = 1.0 / self.variation.rate(self.omega0 * t)
+            return self.Ac0[None] + (inv_rate - 1.0)[:, None, None] * self.Acd[None], B
         H = self.milling.directional_on(t, self.speed, t_inside)  # (k, N, 2, 2)
         return self._milling_terms(H)
 
     def mean_coefficients(self, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The exact means of (A_c, B_j) over the steps [t0, t1]: shapes (m, d, d), (m, J, d, rho)."""
         if self.milling is None:
-            return self.coefficients(np.asarray(t0), 0.0)
+            t0 = np.atleast_1d(np.asarray(t0, dtype=float))
+            Ac, B = self.coefficients(t0, 0.0)
+            if self.Acd is None:
+                return Ac, B
+            # the mean of 1 / rate over each step: 16-point Gauss-Legendre (1 / rate is analytic on a
+            # step of the sine; the triangle's corners make it O(h^2) there, the order of SD itself)
+            gx, gw = np.polynomial.legendre.leggauss(16)
+            t1 = np.broadcast_to(np.asarray(t1, dtype=float), t0.shape)
+            tt = 0.5 * (t1 - t0)[:, None] * gx[None] + 0.5 * (t1 + t0)[:, None]
+            mean_inv = 0.5 * (1.0 / self.variation.rate(self.omega0 * tt)) @ gw
+            assert self.Ac0 is not None
+            return self.Ac0[None] + (mean_inv - 1.0)[:, None, None] * self.Acd[None], B
         H = self.milling.directional_mean(t0, t1, self.speed)
         return self._milling_terms(H)
 
@@ -548,6 +598,9 @@ class VaryingDelayLoop:
     def omega_scale(self, width: float) -> float:
         """The fastest solution frequency at width b, rad/s: the structure's highest pole
         and that of the loop with the cut's mean current-state term."""
+        if self.split_parts is not None:
+            ev = np.linalg.eigvals(self.split_terms(width)[0])
+            return max(float(np.abs(ev).max()), float(self.quasi_static.loop.omega_max), 1.0 / self.period)
         tt = np.linspace(0.0, self.period, 129)[:-1]
         Ac, _ = (
             self.coefficients(tt, 0.0)
@@ -558,7 +611,9 @@ class VaryingDelayLoop:
         return max(float(np.abs(ev).max()), float(self.loop.omega_max), 1.0 / self.period)
 
 
-def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = None) -> VaryingDelayLoop:
+def ssv_loop(
+    loop: ClosedLoop, variation: SpeedVariation, speed: float | None = None, quasi_static: Any = None
+) -> VaryingDelayLoop:
     """Eq. (1) of :mod:`chatterlab.frequency._floquet_ssv` for ``loop`` under
     ``variation`` at the mean ``speed``.
 
@@ -573,6 +628,10 @@ def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = 
         The program (RVA, RVF, shape).
     speed : float, optional
         The mean speed.
+    quasi_static : QuasiStatic, optional
+        Turning / shaping: the structure split into its kept modes, integrated, and
+        the quasi-static rest (:func:`chatterlab.frequency.split_structure` of
+        ``loop``); the loop is then Eq. (1q) (:meth:`VaryingDelayLoop.split_terms`).
 
     Returns
     -------
@@ -585,10 +644,10 @@ def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = 
             "spindle-speed variation with active dampers ([[actuator]]) is not modelled: remove the"
             " actuators or analyse them at constant speed"
         )
-    if loop.damping is not None:
+    if loop.damping is not None and (loop.process is not None or quasi_static is not None):
         raise InputError(
-            "spindle-speed variation with process damping ([process_damping]) is not modelled (its gain"
-            " follows the varying cutting speed): analyse one of the two at a time"
+            "spindle-speed variation with process damping ([process_damping]) is modelled for turning and"
+            " shaping without a quasi-static split: analyse milling's at constant speed, or give split=None"
         )
     struct = loop.structure
     n = struct.n
@@ -598,6 +657,10 @@ def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = 
     A = A_raw * sc[None, :] / sc[:, None]
     Minv = np.linalg.inv(struct.M)
     if loop.process is not None:
+        if quasi_static is not None:
+            raise InputError(
+                "ssv: a quasi-static split is modelled for turning and shaping, not for milling: give split=None"
+            )
         base = loop.process
         if not isinstance(base, Milling):
             raise InputError(f"ssv: unknown periodic process {type(base).__name__}")
@@ -631,6 +694,8 @@ def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = 
         )
     b = float(loop.width)
     T0 = float(loop.delay)
+    if quasi_static is not None:
+        return _split_loop(loop, variation, speed, quasi_static)
     Ac = np.zeros((2 * n, 2 * n))
     Ac[n:, :n] = Minv @ loop.DP / b
     Ac[n:, n:] = Minv @ loop.DV / b
@@ -640,6 +705,26 @@ def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = 
     B0[n:] = Minv @ U / b
     C = np.zeros((rho, 2 * n))
     C[:, :n] = V.T
+    Acd = None
+    if loop.damping is not None:
+        # the flank's b C_pd / V W at the mean speed, in D_V (process._damping): under SSV its gain
+        # follows the cutting speed V(t) = V_0 Omega(t) / Omega_0 (coefficients())
+        Dd = -loop.J.T @ loop.damping.matrix(b) @ loop.J
+        Acd = np.zeros((2 * n, 2 * n))
+        Acd[n:, n:] = Minv @ Dd / b
+        Acd = Acd * sc[None, :] / sc[:, None]
+    kind, spd, w0, folds, T = _turning_period(loop, variation, speed)
+    return VaryingDelayLoop(
+        loop, variation, kind, spd, T0, w0, np.array([TWO_PI]), T, folds,
+        A, C * sc[None, :], ws, Ac0=Ac * sc[None, :] / sc[:, None], B0=B0 / sc[:, None], Acd=Acd,
+    )  # fmt: skip
+
+
+def _turning_period(
+    loop: ClosedLoop, variation: SpeedVariation, speed: float | None
+) -> tuple[str, float, float, int, float]:
+    """(kind, mean speed, Omega_0, folds, computational period) of a turning / shaping loop."""
+    T0 = float(loop.delay)  # type: ignore[arg-type]
     kind = "delay"
     if loop.frozen is not None and loop.frozen.model.process is not None:
         kind = str(loop.frozen.model.process.kind)
@@ -647,7 +732,40 @@ def ssv_loop(loop: ClosedLoop, variation: SpeedVariation, speed: float | None = 
     Tv = variation.period_phase(None) / w0
     folds = max(1, math.ceil(T0 / (1.0 - variation.amplitude) / Tv * (1 + 1e-12)))
     spd = float(speed) if speed is not None else float("nan")
+    return kind, spd, w0, folds, folds * Tv
+
+
+def _split_loop(
+    loop: ClosedLoop, variation: SpeedVariation, speed: float | None, qs: Any
+) -> VaryingDelayLoop:
+    """Eq. (1q) (:meth:`VaryingDelayLoop.split_terms`) of a turning / shaping ``loop`` on the
+    kept modes of ``qs`` (a :class:`~chatterlab.frequency.QuasiStatic` of this loop's structure
+    and coupling), in scaled states (velocities in units of the kept modes' highest pole)."""
+    Ub, Jr, _ = loop.cut_basis
+    kl = qs.loop
+    G = np.asarray(qs.compliance, dtype=float)
+    if G.shape != (Jr.shape[0], Jr.shape[0]) or int(qs.n_full) != loop.n:
+        raise InputError("ssv: the quasi-static split is not of this loop's structure and coupling")
+    nk = kl.n
+    Jk = Ub.T @ kl.J  # the kept modes' part of r = Jr q
+    ws = max(float(kl.omega_max), 1e-300)
+    sc = np.r_[np.ones(nk), np.full(nk, ws)]
+    A = kl.structure.state_matrix * sc[None, :] / sc[:, None]
+    b = float(loop.width)
+    Kc, Kv, Kd = (-Ub.T @ D @ Ub / b for D in (loop.Dl_P, loop.Dl_V, loop.Dl_O))
+    U_, s_, Vt_ = np.linalg.svd(Kd)
+    rho = int(np.sum(s_ > 1e-12 * max(float(s_[0]), 1e-300)))
+    Ud, Vd = U_[:, :rho] * s_[:rho], Vt_[:rho].T
+    rc = Jr.shape[0]
+    Cr = np.zeros((rc, 2 * nk))
+    Cr[:, :nk] = Jk
+    Cv = np.zeros((rc, 2 * nk))
+    Cv[:, nk:] = ws * Jk  # r' of the kept modes: ws times the scaled velocity
+    Bf = np.zeros((2 * nk, rc))
+    Bf[nk:] = np.linalg.solve(kl.M, Jk.T) / ws
+    parts = {"G": G, "Kc": Kc, "Kv": Kv, "Ud": Ud, "Vd": Vd, "Cr": Cr, "Cv": Cv, "Bf": Bf}
+    kind, spd, w0, folds, T = _turning_period(loop, variation, speed)
     return VaryingDelayLoop(
-        loop, variation, kind, spd, T0, w0, np.array([TWO_PI]), folds * Tv, folds,
-        A, C * sc[None, :], ws, Ac0=Ac * sc[None, :] / sc[:, None], B0=B0 / sc[:, None],
+        loop, variation, kind, spd, float(loop.delay), w0, np.array([TWO_PI]), T, folds,  # type: ignore[arg-type]
+        A, Vd.T @ Cr, ws, quasi_static=qs, split_parts=parts,
     )  # fmt: skip

@@ -97,6 +97,11 @@ def simulate_ssv(
     """
     b = check_nonneg(width, "width of cut", "m")
     k = check_count(periods, "periods", 1)
+    if sys.split_parts is not None or sys.Acd is not None:
+        raise InputError(
+            "simulate_ssv: a quasi-static split or process damping (a gain that follows the speed) is not"
+            " integrated in time: simulate the loop without them"
+        )
     loop = sys.loop
     st = loop.structure
     n = st.n
