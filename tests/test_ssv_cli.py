@@ -56,6 +56,10 @@ def test_milling_takes_the_file_program_and_plots(tmp_path, capsys):
         (["--rva", "0.1", "--rvf", "0.5", "--width-max", "-1"], ["--width-max"]),
         (["--rva", "0.1", "--rvf", "0.5", "--scan", "1"], ["--scan"]),
         (["--rva", "0.1", "--rvf", "0.5", "--points", "1"], ["--points"]),
+        (["--rva", "0.1", "--rvf", "0.5", "--split", "-5"], ["--split", "Hz"]),
+        (["--rva", "0.1", "--rvf", "0.5", "--split", "900", "--method", "sdm"], ["--split", "spectral"]),
+        (["--rva", "0.1", "--rvf", "0.5", "--span", "0"], ["--span"]),
+        (["--rva", "0.1", "--rvf", "0.5", "--degree", "1"], ["--degree"]),
     ],
 )
 def test_bad_input_is_one_line_and_writes_nothing(extra, words, tmp_path, capsys):
@@ -72,3 +76,40 @@ def test_a_milling_rvf_that_never_repeats_is_refused(capsys, tmp_path):
     )
     assert_clean_error(code, capsys.readouterr().err, "RVF", "ratio")
     assert not out.exists()
+
+
+def test_split_on_milling_is_refused(capsys, tmp_path):
+    out = tmp_path / "o.csv"
+    code = main(
+        [
+            "ssv",
+            str(ONE),
+            "--speed",
+            "10000",
+            "--rva",
+            "0.1",
+            "--rvf",
+            "0.25",
+            "--split",
+            "900",
+            "--out",
+            str(out),
+        ]
+    )
+    assert_clean_error(code, capsys.readouterr().err, "--split", "milling")
+    assert not out.exists()
+
+
+def test_split_above_every_mode_is_the_unsplit_limit(tmp_path, capsys):
+    """The 1-DOF turning benchmark (503 Hz) split at 1 kHz keeps its one mode and leaves no
+    quasi-static rest (G = K^-1 - Phi Lambda^-1 Phi^T = 0 to round-off): Eq. (1q) is then
+    Eq. (1), and the limits agree to the search's tolerance (rtol 1e-6)."""
+    base = ["ssv", str(TURNING), "--speed", "6000", "--rva", "0.1", "--rvf", "0.5", "--scan", "4"]
+    outs = []
+    for extra in ([], ["--split", "1000"]):
+        out = tmp_path / f"s{len(extra)}.csv"
+        assert main([*base, *extra, "--out", str(out)]) == 0
+        outs.append(float(next(csv.DictReader(out.open()))["b_lim [m]"]))
+    text = capsys.readouterr().out
+    assert "modes above 1000 Hz quasi-static" in text
+    assert abs(outs[1] - outs[0]) <= 2e-6 * outs[0]

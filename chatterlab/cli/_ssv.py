@@ -61,6 +61,22 @@ def add_parser(sub: Any) -> None:
         default="spectral",
         help="Floquet discretisation: spectral elements (default) or semi-discretisation",
     )
+    p.add_argument(
+        "--split",
+        type=float,
+        metavar="HZ",
+        help="turning/shaping: the structure's modes above HZ respond quasi-statically (their exact static"
+        " compliance at the cut), so only those below are integrated: a structure with many modes, a long delay",
+    )
+    p.add_argument(
+        "--degree", type=int, metavar="P", help="spectral elements' polynomial degree (default 16)"
+    )
+    p.add_argument(
+        "--span",
+        type=float,
+        metavar="RAD",
+        help="radians the fastest solution turns per spectral element (default 5; with a higher --degree, more)",
+    )
     p.add_argument("--position", type=float, metavar="S", help="slide position s, m (default: the model's)")
     p.add_argument("--jobs", type=int, default=1, help="worker processes for the grid (default 1)")
     p.add_argument("--out", metavar="FILE.csv|FILE.nc|FILE.json", help="the limits")
@@ -117,6 +133,17 @@ def run(args: argparse.Namespace) -> int:
         check_count(args.scan, "--scan", 2)
         if args.jobs < 1:
             raise InputError(f"--jobs must be >= 1 (got {args.jobs})")
+        if args.split is not None:
+            if model.process.kind == "milling":
+                raise InputError("--split is modelled for turning and shaping, not for milling: leave it out")
+            if args.method != "spectral":
+                raise InputError("--split needs --method spectral (the quasi-static rest is collocated)")
+            if not args.split > 0:
+                raise InputError(f"--split must be a frequency > 0 in Hz (got {args.split:g})")
+        if args.degree is not None:
+            check_count(args.degree, "--degree", 2)
+        if args.span is not None and not args.span > 0:
+            raise InputError(f"--span must be > 0 radians (got {args.span:g})")
         source: Any = fz
         if model.process.kind == "milling":
             from ..lobes import milling_loop_of
@@ -125,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
         res = ssv_limits(
             source, speeds, rva, rvf, shape=shape, width_max=width_max_m(args), scan=args.scan,
             method=args.method, jobs=args.jobs, backend="loky" if args.jobs > 1 else "serial",
+            split=args.split, degree=args.degree, span=args.span,
         )  # fmt: skip
         print(res.table())
         if args.out:

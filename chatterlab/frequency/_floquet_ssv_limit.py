@@ -203,11 +203,14 @@ class SsvLimitTask:
             rtol=self.rtol, method=self.method, degree=self.degree, steps=self.steps, span=self.span,
             split=self.split,
         )  # fmt: skip
-        return {
+        out = {
             "b_lim": r["b_lim"],
             "chatter_frequency": r["chatter_frequency"],
             "kind": KIND_CODES[r["kind"]],
         }
+        if self.split is not None:
+            out["split_error"] = float(r.get("split_error", math.nan))  # nan: no limit found
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -264,6 +267,13 @@ class SsvLimits(Result):
             f"{self.limit_name} under {self.shape} spindle-speed variation ({self.method}, basis {self.basis}:"
             f" {self.scan} scan widths to {self.width_max * 1e3:g} mm)"
         ]
+        if "split_hz" in self.meta:
+            err = np.asarray(self.meta["split_error"], dtype=float)
+            worst = float(np.nanmax(err)) if np.any(np.isfinite(err)) else math.nan
+            lines.append(
+                f"modes above {self.meta['split_hz']:g} Hz quasi-static: receptance error <= {worst:.2g} in the"
+                " chatter band at the limits found"
+            )
         head = f"{'speed [' + self.speed_unit + ']':>14}  {'RVA':>6}  {'RVF':>8}  {self.limit_name + ' [mm]':>12}"
         lines.append(head)
         for i, s in enumerate(self.speeds):
@@ -275,8 +285,9 @@ class SsvLimits(Result):
         return "\n".join(lines)
 
     def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
-        """Coordinates speed, rva, rvf; the limit and its chatter frequency and type."""
-        return (
+        """Coordinates speed, rva, rvf; the limit and its chatter frequency and type (with a
+        quasi-static split, its error estimate at each limit and the split frequency)."""
+        coords, data, attrs = (
             {
                 "speed": (np.asarray(self.speeds, float), self.speed_unit, "mean speed"),
                 "rva": (np.asarray(self.rva, float), "1", "relative variation amplitude RVA"),
@@ -296,6 +307,14 @@ class SsvLimits(Result):
                 "scan": int(self.scan),
             },
         )
+        if "split_hz" in self.meta:
+            data["split_error"] = (
+                np.asarray(self.meta["split_error"], dtype=float),
+                "1",
+                "quasi-static split: receptance error in the chatter band at the limit",
+            )
+            attrs["split_hz"] = float(self.meta["split_hz"])
+        return coords, data, attrs
 
     def plot(self, ax: Any = None, **style: Any) -> Any:
         """The limit against the mean speed, one curve per (RVA, RVF)
@@ -364,8 +383,11 @@ def ssv_limits(
         source, shape=shape, width_max=float(width_max), scan=int(scan), rtol=float(rtol), method=method,
         degree=degree, steps=steps, span=span, split=split,
     )  # fmt: skip
+    outputs = dict(SsvLimitTask.OUTPUTS)
+    if split is not None:
+        outputs["split_error"] = "1"
     res = sweep(
-        task, Grid({"speed": sp, "rva": ra, "rvf": rf}), outputs=SsvLimitTask.OUTPUTS, jobs=jobs,
+        task, Grid({"speed": sp, "rva": ra, "rvf": rf}), outputs=outputs, jobs=jobs,
         backend=backend, progress=progress, on_error="raise",  # type: ignore[arg-type]
     )  # fmt: skip
     ds = res.to_xarray()
@@ -377,7 +399,10 @@ def ssv_limits(
         speed_unit = speed_unit or str(getattr(proc, "speed_unit", "rpm"))
         limit_name = limit_name or str(getattr(proc, "limit_name", "b_lim"))
     get = lambda k: np.asarray(ds[k].transpose("speed", "rva", "rvf").values, dtype=float)  # noqa: E731
+    meta: dict[str, Any] = {}
+    if split is not None:
+        meta = {"split_hz": float(split), "split_error": get("split_error")}
     return SsvLimits(
         sp, ra, rf, get("b_lim"), get("chatter_frequency"), get("kind"), shape, method, float(width_max),
-        int(scan), speed_unit, limit_name,
+        int(scan), speed_unit, limit_name, meta=meta,
     )  # fmt: skip
