@@ -499,9 +499,11 @@ def _floquet_lines(d: LobeDiagram) -> list[str]:
     complete = bool(np.all((basis == "complete") | und))
     lim = d.limit_name
     if complete:
+        from ._milling_search import STEP_CAP
+
         searched = (
             f"(scan step {d.scan_step * 1e3:.3g} mm; complete: every flip/fold depth exact,"
-            " complex pairs tracked between the scan depths to first order)"
+            f" complex pairs tracked to first order in steps of at most {STEP_CAP:g} scan steps)"
         )
     else:
         searched = (
