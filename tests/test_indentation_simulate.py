@@ -210,13 +210,6 @@ def test_the_material_side_is_asked_for_when_the_coupling_does_not_show_it(tmp_p
     assert ok.status == "ok" and ok.meta["process_damping"].startswith("indentation")
 
 
-def milling_file(tmp_path: Path) -> Path:
-    text = (ROOT / "studies/milling/benchmark_2dof.toml").read_text() + "\n[process_damping]\nC_pd = 2e4\n"
-    path = tmp_path / "mill.toml"
-    path.write_text(text)
-    return path
-
-
 def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
     """``chatterlab ARGS`` in this process: (exit status, stderr)."""
     from chatterlab.cli._main import main
@@ -226,18 +219,105 @@ def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-def test_milling_time_domain_refuses_process_damping(tmp_path, capsys):
-    """Not silently dropped: the milling time domain does not take the flank yet."""
+def milling_file(tmp_path: Path, table: str) -> Path:
+    text = (ROOT / "studies/milling/benchmark_2dof.toml").read_text() + "\n[process_damping]\n" + table
+    path = tmp_path / "mill.toml"
+    path.write_text(text)
+    return path
+
+
+def test_milling_time_domain_refuses_the_indentation_model(tmp_path, capsys):
+    """Not silently dropped: the milling time domain takes the linear C_pd, not the indented area per tooth."""
     from chatterlab.process import Milling
 
-    model = cl.load_model(milling_file(tmp_path))
+    path = milling_file(tmp_path, "K_sp = 8e14\nwear_land = 1e-5\nclearance_deg = 7\n")
+    model = cl.load_model(path)
     mill = Milling.from_cut(model.process.milling, model.process.speed)
-    with pytest.raises(InputError, match=r"^\[process_damping\]: the milling time domain does not take"):
+    with pytest.raises(
+        InputError, match=r"^\[process_damping\]: the milling time domain takes the linear C_pd"
+    ):
         simulate_milling(cl.assemble(model).at(), mill, 10000.0, 1e-4, tool_point=("tool.x", "tool.y"))
     out = tmp_path / "mill.csv"
-    code, err = _cli(capsys, "simulate", str(milling_file(tmp_path)), "--out", str(out), "--quiet")
-    assert code == 2 and len(err.strip().splitlines()) == 1, err
-    assert "milling time domain" in err and not out.exists()
+    for table, says in (("", "takes the linear C_pd"), ("C_pd = 2e4\n", "does not pass C_pd")):
+        if table:
+            path = milling_file(tmp_path, table)
+        code, err = _cli(
+            capsys, "simulate", str(path), "--speed", "10000", "--width", "0.1", "--out", str(out)
+        )
+        assert code == 2 and len(err.strip().splitlines()) == 1 and says in err, err
+        assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- milling: rubbing teeth
+MILL_MASS, MILL_WN, MILL_ZETA = 0.03993, 2 * math.pi * 922.0, 0.011  # the Insperger-Stepan benchmark
+KT, KN, CUTTER_D, MILL_CPD = 6e8, 2e8, 0.02, 2e4
+
+
+def test_slotting_rubbing_is_a_constant_viscous_damping():
+    """Four teeth slotting: two teeth in the arc at right angles, so the
+    rubbing sum_j n_j n_j^T = I and the flanks are a viscous damping
+    a_p C_pd / V on the tool point: the linear run with C_pd is the run of
+    the structure with that damping added to C, to round-off (the same
+    implicit Newmark force, once in the coupling's solve, once in C)."""
+    from chatterlab.model._items import cutting_speed
+    from chatterlab.process import Milling
+
+    M = np.eye(2) * MILL_MASS
+    C = np.eye(2) * 2 * MILL_ZETA * MILL_MASS * MILL_WN
+    K = np.eye(2) * MILL_MASS * MILL_WN**2
+    mill = Milling.from_immersion(4, CUTTER_D, KT, KN, 1.0, "down")
+    rpm, ap = 3000.0, 5e-5
+    g = ap * MILL_CPD / cutting_speed(rpm, CUTTER_D)
+    kw = {
+        "nonlinear": False,
+        "tool_point": np.eye(2),
+        "integration": Integration(steps_per_period=100, periods=20),
+    }
+    a = simulate_milling((M, C, K), mill, rpm, ap, C_pd=MILL_CPD, **kw)
+    b = simulate_milling((M, C + g * np.eye(2), K), mill, rpm, ap, **kw)
+    c = simulate_milling((M, C, K), mill, rpm, ap, **kw)
+    x, y, z = (r.history("x") for r in (a, b, c))
+    scale = float(np.max(np.abs(y)))
+    # round-off: 8000 steps x 2.2e-16 = 1.8e-12 of the amplitude; 1e-11 leaves 5x for the growth
+    # (measured 2e-13)
+    assert np.max(np.abs(x - y)) <= 1e-11 * scale
+    assert np.max(np.abs(z - y)) > 1e-3 * scale  # the term is there
+
+
+@pytest.mark.parametrize(("immersion", "teeth"), [(1.0, 2), (0.5, 4)])
+def test_milling_run_with_rubbing_teeth_has_the_damped_floquet_multiplier(immersion, teeth):
+    """The periodic term W(t) = sum_j g_j n_j n_j^T itself (not only its
+    slotting sum): the linear run's growth per period, Richardson-bounded over
+    100, 200, 400 steps per period, is ln |mu| of the damped spectral Floquet
+    multiplier (chatterlab.frequency, an independent route converged to 1e-14);
+    and the term moves the multiplier by more than three times that bound."""
+    from test_milling_time import richardson
+
+    from chatterlab.frequency import SpectralMonodromy
+    from chatterlab.process import Milling, milling_loop
+    from chatterlab.structure import Structure
+
+    one = ([[MILL_MASS]], [[2 * MILL_ZETA * MILL_MASS * MILL_WN]], [[MILL_MASS * MILL_WN**2]])
+    mill = Milling.from_immersion(teeth, CUTTER_D, KT, KN, immersion, "down")
+    rpm, ap = 5000.0, 5e-4
+    st = Structure.single_dof(MILL_MASS, MILL_WN, MILL_ZETA)
+
+    def ln_mu(C_pd: float) -> float:
+        mu = SpectralMonodromy(milling_loop(st, mill, C_pd=C_pd), rpm, 24).at(ap)
+        return math.log(float(np.max(np.abs(mu))))
+
+    td = [
+        simulate_milling(
+            one, mill, rpm, ap, nonlinear=False, C_pd=MILL_CPD,
+            integration=Integration(steps_per_period=m, periods=40),
+        )
+        for m in (100, 200, 400)
+    ]  # fmt: skip
+    g_td, err_td = richardson([r.growth_per_period for r in td])
+    bound = err_td + td[-1].growth_error
+    ref = ln_mu(MILL_CPD)
+    assert abs(g_td - ref) <= bound, (g_td, ref, bound)
+    assert abs(ln_mu(0.0) - ref) > 3 * bound
 
 
 @pytest.mark.parametrize(

@@ -127,6 +127,14 @@ def run(args: argparse.Namespace) -> int:
                 "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"
             )
         refuse_milling_damping(model)
+        pd = model.process_damping
+        if pd is not None and pd.C_pd > 0.0:
+            # cli/_milling.milling_simulation hands simulate_milling the matrices, not the model
+            raise InputError(
+                "[process_damping]: chatterlab simulate of a milling model does not pass C_pd to the time"
+                " domain yet (the API does: chatterlab.time.simulate_milling(..., C_pd=...)); drop the table"
+                " or --set process_damping.C_pd=0 to simulate the cut without it"
+            )
         if args.q0 or args.v0 or args.history != "zero":
             raise InputError(
                 "--q0, --v0 and --history apply to cutting-process models; a milling run starts from the "

@@ -27,6 +27,11 @@ Per point of the core's step loop (:meth:`_Contacts.point`):
   ``e_j``, which unlocated would cost one order of the scheme;
 * **restarts** where the pattern's candidates change (the acceleration
   from the equation of motion with the new candidates' force);
+* **a rubbing damping** (process damping, Eq. 4a of docs/process-damping.md):
+  the active contacts also push ``-g_d sum_j n_j n_j^T r'`` with the rate
+  ``r' = r'* + Y F`` of the step map (``Y`` its velocity rows' compliance),
+  so the 2 x 2 solve becomes ``(I + W Z + D Y) F = -(W r* + b + D r'*)``,
+  ``D = g_d sum_j n_j n_j^T`` (zero: the equations without it);
 * **the record** at every step of ``r`` (the solved one), ``r' = P v``,
   ``F`` and the gaps of the candidates (NaN elsewhere): the coupling's
   history (read by the gaps of later steps) and its outputs.
@@ -139,10 +144,17 @@ class _Contacts:
     locate = True
 
     def __init__(
-        self, cut: Any, structure: tuple[FloatArray, ...], h: float, opts: Any, n_total: int
+        self,
+        cut: Any,
+        structure: tuple[FloatArray, ...],
+        h: float,
+        opts: Any,
+        n_total: int,
+        rubbing: float = 0.0,
     ) -> None:
         M, C, K, P = structure
         self.cut, self.M, self.C, self.K, self.P, self.h, self.opts = cut, M, C, K, P, h, opts
+        self.gd = float(rubbing)  # N s/m: the rubbing damping per active contact along n_j (0: none)
         n = self.n = M.shape[0]
         N = self.N = cut.teeth
         Minv = np.linalg.inv(M)
@@ -150,6 +162,7 @@ class _Contacts:
         self.Pv = np.ascontiguousarray(np.hstack([np.zeros((2, n)), P, np.zeros((2, n))]))
         pat = cut.pattern
         self.maps = [step_map(M, C, K, P, hs * h, opts.gamma, opts.beta) for hs in pat.hs]
+        self.vmaps = [self.rate_map(fm) for fm in self.maps]
         self.hs_len = [x * h for x in pat.hs]
         self.fam, self.restart_at, self.grid = pat.fam, pat.restart, pat.grid
         self.right, self.theta = pat.right, pat.theta.tolist()
@@ -170,6 +183,14 @@ class _Contacts:
         self.last = np.zeros(3 * n)  # the state after advance() without ``out``
         self.point: Callable[[int, int, FloatArray, FloatArray], None] = self._unstarted
 
+    def rate_map(self, fm: StepMap) -> tuple[FloatArray, tuple[float, float, float, float]]:
+        """The coupling's rate at the end of a substep as the step map gives
+        it: ``r' = PV z + Y F`` (PV: (2, 3n); Y: 2 x 2, row by row)."""
+        n, P = self.n, self.P
+        PV = np.ascontiguousarray(P @ fm.PhiPsi[n : 2 * n, : 3 * n])
+        Y = P @ fm.PhiPsi[n : 2 * n, 3 * n :]
+        return PV, (float(Y[0, 0]), float(Y[0, 1]), float(Y[1, 0]), float(Y[1, 1]))
+
     def _unstarted(self, k: int, e: int, z_a: FloatArray, z_out: FloatArray) -> None:
         raise RuntimeError("_Contacts.start() must run before the step loop")
 
@@ -187,12 +208,16 @@ class _Contacts:
         e0 = int(idx0[-1])
         sj0 = s0[-1].tolist()
         d0 = self.pdata[e0]
-        F1, F2, act = self.explicit_force(d0, pat.right[e0], sj0, float(r0[0]), float(r0[1]))
+        F1, F2, act = self.explicit_force(
+            d0, pat.right[e0], sj0, float(r0[0]), float(r0[1]), rate=(float(rv0[0]), float(rv0[1]))
+        )
         self.F[0] = (F1, F2)
         for j in pat.right[e0]:
             self.hraw[0, j] = d0[5][j] * r0[0] + d0[6][j] * r0[1] + sj0[j]
         h0 = [d0[5][j] * r0[0] + d0[6][j] * r0[1] + sj0[j] for j in range(N)]
-        self.point = self._point((F1, F2), act, h0, (d0, sj0, (float(r0[0]), float(r0[1]))))
+        self.point = self._point(
+            (F1, F2), act, h0, (d0, sj0, (float(r0[0]), float(r0[1])), (float(rv0[0]), float(rv0[1])))
+        )
         a0: FloatArray = self.Ra @ np.concatenate([q0, v0, [F1, F2]])
         return a0
 
@@ -215,6 +240,7 @@ class _Contacts:
         the candidates change.  The active set, the force guess and the
         gaps at the last point live in the function (locals for speed)."""
         maps, fam, pdata, grid, restart_at = self.maps, self.fam, self.pdata, self.grid, self.restart_at
+        vmaps, rubbing = self.vmaps, self.gd != 0.0
         right, theta, hs_len, h, N, n3 = self.right, self.theta, self.hs_len, self.h, self.N, 3 * self.n
         force, explicit_force, restart = self.force, self.explicit_force, self.restart
         rbuf, vbuf, Fout, hraw, Pv, off0 = self.rbuf, self.vbuf, self.F, self.hraw, self.Pv, self.cut.off0
@@ -231,7 +257,11 @@ class _Contacts:
             sj = sl[k]
             # the substep by its step map (as :meth:`advance`, inline: the hot path)
             r1s, r2s = dot(fm.PL, z_a).tolist()
-            F1, F2, r1, r2, act = force(d, sj, r1s, r2s, fm.Z, guess)
+            if rubbing:
+                PV, Y = vmaps[fam[e]]
+                F1, F2, r1, r2, act = force(d, sj, r1s, r2s, fm.Z, guess, rate=(dot(PV, z_a).tolist(), Y))
+            else:
+                F1, F2, r1, r2, act = force(d, sj, r1s, r2s, fm.Z, guess)
             wz[:] = z_a
             w[n3] = F1
             w[n3 + 1] = F2
@@ -258,14 +288,15 @@ class _Contacts:
                 Fout[i, 1] = F2
                 for j in d[0]:
                     hraw[i, j] = n1[j] * r1 + n2[j] * r2 + sj[j]
+            rv = tuple(dot(Pv, z_out).tolist()) if rubbing else (0.0, 0.0)
             if restart_at[e]:
-                G1, G2, act_prev = explicit_force(d, right[e], sj, r1, r2)
+                G1, G2, act_prev = explicit_force(d, right[e], sj, r1, r2, rate=rv)
                 restart(z_out, G1, G2)
                 guess = (G1, G2)
             if locating:
                 h_prev = [n1[j] * r1 + n2[j] * r2 + sj[j] for j in range(N)]
                 t_prev = (gl[k] - 1 + theta[e]) * h
-                prev = (d, sj, (r1, r2))
+                prev = (d, sj, (r1, r2), rv)
 
         return point
 
@@ -279,11 +310,19 @@ class _Contacts:
         Z: tuple[float, float, float, float],
         guess: tuple[float, float],
         fixed: list[int] | None = None,
+        rate: tuple[list[float], tuple[float, float, float, float]] | None = None,
     ) -> tuple[float, float, float, float, list[int]]:
         """Implicit force: F with r = r* + Z F, the active contacts consistent
-        with h > 0 (or the contacts ``fixed``); returns F, r and the active ones."""
+        with h > 0 (or the contacts ``fixed``); returns F, r and the active
+        ones.  ``rate``: (r'*, Y) of the substep when the contacts rub
+        (r' = r'* + Y F, the damping -g_d sum_j n_j n_j^T r')."""
         screen, c1, c2, e1, e2, n1, n2 = d
         z11, z12, z21, z22 = Z
+        gd = self.gd if rate is not None else 0.0
+        if rate is not None:
+            (v1s, v2s), (y11, y12, y21, y22) = rate
+        else:
+            v1s = v2s = y11 = y12 = y21 = y22 = 0.0
         iterate = self.nonlinear and fixed is None
         if fixed is not None:
             act = fixed
@@ -309,6 +348,19 @@ class _Contacts:
             A22 = 1.0 + W21 * z12 + W22 * z22
             g1 = -(W11 * r1s + W12 * r2s + b1)
             g2 = -(W21 * r1s + W22 * r2s + b2)
+            if gd:  # the rubbing flanks: + D Y in the matrix, - D r'* on the right
+                D11 = D12 = D22 = 0.0
+                for j in act:
+                    D11 += n1[j] * n1[j]
+                    D12 += n1[j] * n2[j]
+                    D22 += n2[j] * n2[j]
+                D11, D12, D22 = gd * D11, gd * D12, gd * D22
+                A11 += D11 * y11 + D12 * y21
+                A12 += D11 * y12 + D12 * y22
+                A21 += D12 * y11 + D22 * y21
+                A22 += D12 * y12 + D22 * y22
+                g1 -= D11 * v1s + D12 * v2s
+                g2 -= D12 * v1s + D22 * v2s
             det = A11 * A22 - A12 * A21
             F1 = (A22 * g1 - A12 * g2) / det
             F2 = (A11 * g2 - A21 * g1) / det
@@ -325,13 +377,16 @@ class _Contacts:
         return F1, F2, ra1, ra2, act
 
     def explicit_force(
-        self, d: Cut, teeth: list[int], sj: list[float], r1: float, r2: float, test: bool = True
-    ) -> tuple[float, float, list[int]]:
-        """Force of the contacts ``teeth`` at the known position r (restart, start),
-        those with h <= 0 left out in the nonlinear model when ``test``."""
+        self, d: Cut, teeth: list[int], sj: list[float], r1: float, r2: float, test: bool = True,
+        rate: tuple[float, float] = (0.0, 0.0),
+    ) -> tuple[float, float, list[int]]:  # fmt: skip
+        """Force of the contacts ``teeth`` at the known position r and rate
+        r' (restart, start), those with h <= 0 left out in the nonlinear
+        model when ``test``."""
         _, c1, c2, e1, e2, n1, n2 = d
         F1 = F2 = 0.0
         act = []
+        gd, (v1, v2) = self.gd, rate
         for j in teeth:
             hj = n1[j] * r1 + n2[j] * r2 + sj[j]
             if test and self.nonlinear and hj <= 0.0:
@@ -339,6 +394,10 @@ class _Contacts:
             act.append(j)
             F1 -= c1[j] * hj + e1[j]
             F2 -= c2[j] * hj + e2[j]
+            if gd:
+                vn = gd * (n1[j] * v1 + n2[j] * v2)
+                F1 -= n1[j] * vn
+                F2 -= n2[j] * vn
         return F1, F2, act
 
     def advance(
@@ -350,12 +409,18 @@ class _Contacts:
         guess: tuple[float, float],
         fixed: list[int] | None = None,
         out: FloatArray | None = None,
+        vm: tuple[FloatArray, tuple[float, float, float, float]] | None = None,
     ) -> tuple[float, float, float, float, list[int]]:
-        """One Newmark (sub)step from ``z`` by the step map ``fm``: the new
-        state into ``out`` (or a new array, :attr:`last`), F, r and the active contacts."""
+        """One Newmark (sub)step from ``z`` by the step map ``fm`` (``vm``
+        its :meth:`rate_map`, made when None and needed): the new state into
+        ``out`` (or a new array, :attr:`last`), F, r and the active contacts."""
         n = self.n
         r1s, r2s = np.dot(fm.PL, z).tolist()
-        F1, F2, r1, r2, act = self.force(d, sj, r1s, r2s, fm.Z, guess, fixed)
+        rate = None
+        if self.gd:
+            PV, Y = self.rate_map(fm) if vm is None else vm
+            rate = (np.dot(PV, z).tolist(), Y)
+        F1, F2, r1, r2, act = self.force(d, sj, r1s, r2s, fm.Z, guess, fixed, rate)
         w = self.w
         w[: 3 * n] = z
         w[3 * n] = F1
@@ -393,7 +458,8 @@ class _Contacts:
         F1, F2, r1, r2, _ = self.advance(z, fm1, d_s, sj_s, guess, fixed=act_a)
         z1 = self.last
         new = [j for j in d[0] if (j in act_b) if j in changed] + [j for j in act_a if j not in changed]
-        G1, G2, _ = self.explicit_force(d_s, sorted(new), sj_s, r1, r2, test=False)
+        rv = tuple(np.dot(self.Pv, z1).tolist()) if self.gd else (0.0, 0.0)
+        G1, G2, _ = self.explicit_force(d_s, sorted(new), sj_s, r1, r2, test=False, rate=rv)
         self.restart(z1, G1, G2)
         self.located += 1
         out = self.advance(z1, fm2, d, sj, (G1, G2))
@@ -421,10 +487,12 @@ class _Contacts:
             # the change happened at t_a itself (a tooth entering the arc with
             # h = 0 to round-off, e.g. at phi = 0 in a periodic motion): restart
             # there with the new set and redo the step
-            d_prev, sj_prev, ra_prev = prev
+            d_prev, sj_prev, ra_prev, rv_prev = prev
             keep = [j for j in act_prev if j not in changed]
             new = sorted(keep + [j for j in changed if j in act])
-            G1, G2, _ = self.explicit_force(d_prev, new, sj_prev, ra_prev[0], ra_prev[1], test=False)
+            G1, G2, _ = self.explicit_force(
+                d_prev, new, sj_prev, ra_prev[0], ra_prev[1], test=False, rate=rv_prev
+            )
             z_a = z_a.copy()
             self.restart(z_a, G1, G2)
             out = self.advance(z_a, fm, d, sj, (G1, G2))

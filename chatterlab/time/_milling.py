@@ -167,6 +167,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InputError, check_count, check_nonneg, check_speed
+from ..model._items import cutting_speed
 from ..process._milling import Milling
 from ._contact import _Contacts
 from ._core import FloatArray, _Stepper, check_options
@@ -216,6 +217,7 @@ def simulate_milling(
     workpiece_point: Any = None,
     integration: Integration | None = None,
     initial: Initial | None = None,
+    C_pd: float | None = None,
     **deprecated: Any,
 ) -> MillingSimulation:
     """Simulate milling on a structure: vibration, chips, forces, Poincare verdict.
@@ -257,6 +259,13 @@ def simulate_milling(
         ``q0``, ``v0`` (n,); history zero before t = 0.  Default zero, except
         in a linear run: a 1 µm tool-point displacement in x and y
         (q0 = P^+ (1, 1) µm).
+    C_pd : float, optional
+        Process damping, N/m (the linear model, docs/process-damping.md Eq.
+        4a): each tooth in the cut rubs along its radial direction n_j, the
+        tool feeling ``-a_p (C_pd / V) sum_j n_j n_j^T r'``, V the cutting
+        speed at the cutter's diameter (``chatterlab.model._items.cutting_speed``).
+        None: the ``[process_damping]`` of a FrozenSystem's model (its
+        indentation model is refused), else 0.
     **deprecated
         The 0.2 keywords ``revolutions``, ``steps_per_period``, ``q0``,
         ``v0``, ``options`` (a DeprecationWarning names their place in the
@@ -283,7 +292,7 @@ def simulate_milling(
     opt = with_legacy("simulate_milling", deprecated, legacy, integration=integration, initial=initial)
     integ, init = opt["integration"], opt["initial"]
     rpm, depth, feed, opts = _checked_cut(milling, rpm, depth, feed, integ)
-    refuse_milling_damping(getattr(structure, "model", None))
+    rubbing = _rubbing(C_pd, getattr(structure, "model", None), milling, rpm, depth)
     M, C, K, P = _matrices(structure, tool_point, workpiece_point)
     n = M.shape[0]
     if init.history is not None:
@@ -303,7 +312,7 @@ def simulate_milling(
     q_init, v_init = _initial_state(P, n, init.q0, init.v0, nonlinear)
     cut = _MillingCut(milling, rpm, depth, feed, rho, K_pass, nonlinear, m)
     revolutions, n_total = _length(cut, integ, opts)
-    contacts = _Contacts(cut, (M, C, K, P), cut.h, opts, n_total)
+    contacts = _Contacts(cut, (M, C, K, P), cut.h, opts, n_total, rubbing)
     a0 = contacts.start(q_init, v_init)
     stepper = _Stepper(
         coupled_plan((M, C, K), contacts, opts, (cut.h, n_total, cut.chunk), (q_init, v_init, a0))
@@ -404,18 +413,33 @@ def _initial_state(
 
 
 def refuse_milling_damping(model: Any) -> None:
-    """One line when a milling model has ``[process_damping]``: the milling
-    time domain does not integrate the flank's force (neither the linear
-    term nor the indentation model, per tooth) yet, and a run without it
-    would answer for another cut."""
+    """One line when a milling model has the indentation model of
+    ``[process_damping]``: the milling time domain does not integrate the
+    flank's indented area per tooth, and a run without it (or with its
+    linear equivalent) would answer for another cut."""
     pd = getattr(model, "process_damping", None)
-    if pd is None or pd.C_pd == 0.0:
+    if pd is None or not pd.indentation:
         return
     raise InputError(
-        "[process_damping]: the milling time domain does not take the flank's damping yet (the Floquet"
-        " routes do: chatterlab lobes, chatterlab stability); drop the table to simulate the cut without it"
-        + (" (or --set process_damping.C_pd=0)" if not pd.indentation else "")
+        "[process_damping]: the milling time domain takes the linear C_pd, not the indentation model (K_sp,"
+        " wear_land, clearance_deg) per tooth: give C_pd = K_sp wear_land^2 / 4 ="
+        f" {pd.C_pd:.6g} N/m instead (its small-vibration equivalent)"
     )
+
+
+def _rubbing(C_pd: float | None, model: Any, milling: Milling, rpm: float, depth: float) -> float:
+    """The rubbing teeth's damping a_p C_pd / V along each tooth's radial
+    direction, N s/m (0: none): ``C_pd`` given, or the model's."""
+    if C_pd is None:
+        refuse_milling_damping(model)
+        pd = getattr(model, "process_damping", None)
+        C_pd = 0.0 if pd is None else float(pd.C_pd)
+    C_pd = check_nonneg(C_pd, "C_pd", "N/m")
+    if C_pd == 0.0:
+        return 0.0
+    if not (math.isfinite(milling.diameter) and milling.diameter > 0):
+        raise InputError("C_pd: the cutting speed needs the cutter's diameter (Milling.diameter, m)")
+    return float(depth) * C_pd / float(cutting_speed(float(rpm), float(milling.diameter)))
 
 
 # =========================================================================== structure
