@@ -191,8 +191,50 @@ class Simulation(TimeHistory):
                 name, main, check, self.step, h2, frequency=self._main_frequency(name, main), tol=tol,
                 roots=self.roots, roots_certain=self.roots_certain, delay=delay, order=self._order(),
             )  # fmt: skip
+        v = self._finite_amplitude(v)
         self._cache[key] = v
         return v
+
+    def _finite_amplitude(self, v: TimeVerdict) -> TimeVerdict:
+        """A decay of the indentation model's nonlinear run is claimed only
+        where the linearisation is the law and says so: the run must end in
+        the near-linear regime (the flank's contact in its last quarter within
+        the wear land and a tenth of it, beyond the sampling: the clearance
+        face touching further is the finite amplitude where the damping grows
+        with the amplitude, Eq. 5) and the linearisation's rightmost root must
+        decay (given as ``roots``; a decay towards a limit cycle, the
+        finite-amplitude stability of a linearly unstable cut, is not
+        stability)."""
+        a = self.response.attrs
+        if a.get("method") != "indentation" or v.classification != "decaying":
+            return v
+        w = float(a["wear_land"])
+        contact = np.asarray(a["flank_contact"])
+        tail = contact[int(0.75 * contact.size) :]
+        if tail.size and float(tail.max()) > 1.1 * w + float(a["speed"]) * self.step:
+            why = (
+                f"the flank's contact ({float(tail.max()) * 1e6:.3g} um) still reaches beyond the wear land"
+                f" ({w * 1e6:.3g} um) in the last quarter of the run: a finite-amplitude decay; run longer"
+            )
+        elif self.roots is None or not self.roots.size:
+            why = (
+                "a decay of the nonlinear run is claimed against the linearisation's roots: give roots="
+                " (chatterlab simulate computes them)"
+            )
+        elif float(self.roots.real.max()) >= 0.0:
+            why = (
+                f"the linearisation's rightmost root grows ({float(self.roots.real.max()):+.4g} 1/s): the decay"
+                " may end on a limit cycle (finite-amplitude stability); run longer or from a smaller disturbance"
+            )
+        else:
+            return v
+        head = f"{v.name}: decaying; "
+        text = v.message[len(head) :] if v.message.startswith(head) else v.message
+        return replace(
+            v,
+            classification="undetermined",
+            message=f"{v.name}: undetermined ({why}); the fit decays: {text}",
+        )
 
     def _check_run(self, h2: float) -> Simulation:
         run = self._cache.get(("check", h2))
@@ -996,6 +1038,8 @@ def _flank_response(
             "method": "indentation",
             "order": 2,
             "max_step": flank.wear_land / (MIN_LAND_STEPS * flank.speed),
+            "wear_land": flank.wear_land,
+            "speed": flank.speed,
             "flank_force": run.flank[rec].copy(),
             "flank_contact": run.contact[rec].copy(),
         },
