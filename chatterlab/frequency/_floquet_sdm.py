@@ -147,6 +147,8 @@ def sd_step_product(
     step's start and end, in steps; both >= 1).  The state is
     (x_i, r_{i-1}, ..., r_{i-L}).  Shapes: A_steps (m, d, d), B_steps
     (m, J, d, rho) (an all-zero B_ij is skipped), Jq (rho, d), lags (m, J).
+    The same steps with a constant input on each (the forced response's
+    affine term) and the fixed point of the period's map: :func:`sd_fixed_point`.
 
     References
     ----------
