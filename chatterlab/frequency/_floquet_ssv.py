@@ -84,7 +84,15 @@ from ..process import ClosedLoop, SpeedVariation, VaryingDelayLoop, ssv_loop
 from ._floquet_sdm import finite_monodromy, matched_change, sd_step_product
 from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, QuasiStatic, _bary, _cheb, split_structure
 
-__all__ = ["ssv_multipliers", "ssv_monodromy", "sd_monodromy_ssv", "ssv_split", "split_error", "MAX_HISTORY"]
+__all__ = [
+    "ssv_multipliers",
+    "ssv_monodromy",
+    "sd_monodromy_ssv",
+    "ssv_split",
+    "split_error",
+    "delayed_transfer",
+    "MAX_HISTORY",
+]
 
 #: the largest history (multipliers) the spectral discretisation sets up
 MAX_HISTORY = 4000
@@ -278,25 +286,47 @@ def ssv_split(loop: ClosedLoop, split: float | QuasiStatic | None) -> QuasiStati
 SPLIT_SAMPLES = 65
 
 
-def split_error(loop: ClosedLoop, qs: QuasiStatic, f_lo: float, f_hi: float) -> float:
-    """The split's error in the band [f_lo, f_hi] Hz: max over it of
-    ||H - (H_k + G)||_2 / ||H||_2, H the full structure's receptance between the
-    cut's coordinates, H_k the kept modes' (their damping projected) and G the
-    quasi-static rest's static compliance (``SPLIT_SAMPLES`` frequencies).
+def delayed_transfer(sys: VaryingDelayLoop, width: float, f: float, split: bool) -> np.ndarray:
+    """G(omega) of :func:`split_error` at ``f`` Hz and width b: the full structure's
+    (``split`` False) or Eq. (1q)'s (True), rho x rho (the delayed term's rank)."""
+    assert sys.split_parts is not None and sys.quasi_static is not None
+    sp, loop = sys.split_parts, sys.loop
+    b, w = float(width), 2 * np.pi * float(f)
+    Kc, Kv, Ud, Vd, G = sp["Kc"], sp["Kv"], sp["Ud"], sp["Vd"], sp["G"]
+    if split:
+        kl = sys.quasi_static.loop
+        Jk = loop.cut_basis[0].T @ kl.J
+        Hk = Jk @ np.linalg.solve(kl.K - w * w * kl.M + 1j * w * kl.C, Jk.T)
+        H, Hv = Hk + G, Hk
+    else:
+        Jr = loop.cut_basis[1]
+        H = Hv = Jr @ np.linalg.solve(loop.K - w * w * loop.M + 1j * w * loop.C, Jr.T)
+    eye = np.eye(G.shape[0])
+    return np.asarray(b * Vd.T @ H @ np.linalg.solve(eye - b * Kc @ H - 1j * w * b * Kv @ Hv, Ud))
 
-    To first order it is the relative change of the loop gain b H D(s) at those
-    frequencies, so of b_lim where the chatter frequency lies in the band; the
-    velocity of the quasi-static modes (G f', which Eq. (1q) omits) is of the
-    same order, |G K_v omega| / |G K_c| times the static term's share."""
-    Ub, Jr, _ = loop.cut_basis
-    kl = qs.loop
-    Jk = Ub.T @ kl.J
+
+def split_error(sys: VaryingDelayLoop, width: float, f_lo: float, f_hi: float) -> float:
+    """The split's error at width b in the band [f_lo, f_hi] Hz: the largest relative
+    change eps of the delayed loop's transfer G(omega), y -> y one delay later at
+    constant speed (:func:`delayed_transfer`, ``SPLIT_SAMPLES`` frequencies), from the
+    full structure to Eq. (1q).
+
+    With the force f = b [K_c r + K_v r' + U_d y(t - tau)] on the cut's coordinates r
+    and y = V_d^T r, the full structure (r = H f, H its receptance) gives
+    G = b V_d^T H (I - b K_c H - i omega b K_v H)^-1 U_d and Eq. (1q) (r = (H_k + G_s) f,
+    only the kept modes' velocity i omega H_k f damped) the same with H_k + G_s in place
+    of H and H_k in the velocity term.  The constant-speed boundary is
+    G(omega) e^{-i omega tau} = 1: |G| = 1 and arg G = omega tau (mod 2 pi).  A change
+    d ln G (|d ln G| <= eps / (1 - eps)) moves the boundary's frequency by
+    d arg G / (tau - d arg G / d omega) and so ln b_lim by at most (1 + r) eps / (1 - eps)
+    to first order, r = |d ln|G| / d omega| / |tau - d arg G / d omega| (about 1 at a
+    lobe's minimum beside a light resonance).  Under SSV the chatter spreads over the
+    band f_c (1 -+ RVA) (the delay's variation), where eps is taken."""
     out = 0.0
     for f in np.linspace(f_lo, f_hi, SPLIT_SAMPLES):
-        w = 2 * np.pi * f
-        H = Jr @ np.linalg.solve(loop.K - w * w * loop.M + 1j * w * loop.C, Jr.T)
-        Hs = Jk @ np.linalg.solve(kl.K - w * w * kl.M + 1j * w * kl.C, Jk.T) + qs.compliance
-        out = max(out, float(np.linalg.norm(H - Hs, 2) / np.linalg.norm(H, 2)))
+        full = delayed_transfer(sys, width, f, split=False)
+        split = delayed_transfer(sys, width, f, split=True)
+        out = max(out, float(np.linalg.norm(split - full, 2) / np.linalg.norm(full, 2)))
     return out
 
 
@@ -396,7 +426,7 @@ def ssv_multipliers(
     if qs is not None:
         a = variation.amplitude
         meta["split_hz"], meta["kept"] = qs.f_split, float(qs.kept)
-        meta["split_error"] = split_error(loop, qs, f_c * (1 - a), f_c * (1 + a)) if f_c > 0 else math.nan
+        meta["split_error"] = split_error(sys, b, f_c * (1 - a), f_c * (1 + a)) if f_c > 0 else math.nan
         res += f"; {qs.kept} of {qs.n_full} modes integrated, quasi-static above {qs.f_split:g} Hz"
     if loop.process is not None:
         proc: Any = loop.process
