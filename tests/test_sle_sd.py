@@ -212,3 +212,27 @@ def test_the_steps_mean_force_is_the_mean_of_the_pointwise_force() -> None:
         tol = 2 * (jumps + 1) * np.max(np.abs(f)) / n
         assert np.all(np.abs(got[k] - ref) <= tol), (k, got[k], ref, tol)
     assert np.max(np.abs(got)) > 1e3 * tol  # a force to compare, not zeros
+
+
+def test_two_dof_benchmark_sd_orbit_converges_to_the_spectral_one() -> None:
+    """studies/milling/benchmark_2dof.toml: the tool flexible along x and y (a cut basis of rank
+    2, the static force's x and y parts both through M^-1 J^T), down-milling at a_e/D = 0.05
+    (the entry between grid points): both coordinates of the orbit approach the spectral fixed
+    point with the fitted slope in the band 2 +- 0.5 of the jump case above (measured 2.27)."""
+    from pathlib import Path
+
+    import chatterlab as cl
+    from chatterlab.lobes import milling_loop_of
+
+    model = cl.load_model(Path(__file__).resolve().parents[1] / "studies" / "milling" / "benchmark_2dof.toml")
+    loop = milling_loop_of(cl.assemble(model).at())
+    assert loop.cut_basis[0].shape == (2, 2)
+    ref = forced_response(loop, 12000.0, 0.5e-3, FZ, degree=30, check=False)
+    scale = max(np.max(np.abs(ref.x)), np.max(np.abs(ref.y)))
+    steps = (40, 80, 160, 320)
+    err = []
+    for m in steps:
+        r = forced_response(loop, 12000.0, 0.5e-3, FZ, method="sdm", steps=m, check=False)
+        err.append(max(np.max(np.abs(r.x - ref.x)), np.max(np.abs(r.y - ref.y))) / scale)
+    assert abs(_order(steps, err) - 2.0) <= 0.5, err
+    assert err[-1] < 1e-3, err  # 1.2e-4 measured
