@@ -316,12 +316,13 @@ def split_error(sys: VaryingDelayLoop, width: float, f_lo: float, f_hi: float) -
     G = b V_d^T H (I - b K_c H - i omega b K_v H)^-1 U_d and Eq. (1q) (r = (H_k + G_s) f,
     only the kept modes' velocity i omega H_k f damped) the same with H_k + G_s in place
     of H and H_k in the velocity term.  The constant-speed boundary is
-    G(omega) e^{-i omega tau} = 1: |G| = 1 and arg G = omega tau (mod 2 pi).  A change
-    d ln G (|d ln G| <= eps / (1 - eps)) moves the boundary's frequency by
-    d arg G / (tau - d arg G / d omega) and so ln b_lim by at most (1 + r) eps / (1 - eps)
-    to first order, r = |d ln|G| / d omega| / |tau - d arg G / d omega| (about 1 at a
-    lobe's minimum beside a light resonance).  Under SSV the chatter spreads over the
-    band f_c (1 -+ RVA) (the delay's variation), where eps is taken."""
+    G(omega, b) e^{-i omega tau} = 1, i.e. ln G - i omega tau = 2 pi i k.  A change
+    d ln G (|d ln G| <= eps / (1 - eps)) moves (omega, ln b) by the inverse of that
+    equation's real 2 x 2 Jacobian [d_omega ln G - i tau, d_ln b ln G], so ln b_lim by
+    at most kappa eps / (1 - eps) to first order, kappa the 2-norm of the inverse's
+    second row (about 1 to 2 at the shaper's lobes; tests/test_ssv_split.py computes
+    it).  Under SSV the chatter spreads over the band f_c (1 -+ RVA) (the delay's
+    variation), where eps is taken."""
     out = 0.0
     for f in np.linspace(f_lo, f_hi, SPLIT_SAMPLES):
         full = delayed_transfer(sys, width, f, split=False)
