@@ -61,9 +61,11 @@ def test_sdm_csv_is_the_api_result_and_records_the_method(tmp_path, capsys):
     with open(out, newline="") as fh:
         rows = list(csv.reader(fh))
     np.testing.assert_array_equal([float(r[1]) for r in rows[1:]], ref.sle)  # the same computation
-    assert main([*args, "--steps", "60", "--no-check", "--out", str(js)]) == 0
+    fig = tmp_path / "s.png"
+    assert main([*args, "--steps", "60", "--no-check", "--out", str(js), "--plot", str(fig)]) == 0
     doc = json.loads(js.read_text())
     assert doc["attrs"]["method"] == "sdm" and doc["attrs"]["resolution"] == "60 steps", doc["attrs"]
+    assert fig.stat().st_size > 0  # the SLE under the lobes of the same discretisation
 
 
 def test_benchmark_along_the_feed_has_no_sle_and_json(tmp_path, capsys):

@@ -8,7 +8,8 @@
   chatters gets no SLE and is reported as unstable, one whose stability is
   within its convergence error as undetermined.  ``--method sdm --steps M``:
   the fixed point of the semi-discretisation's one-period map instead of the
-  spectral elements' (the same discretisation as ``lobes --method sdm``).  ``--plot``: the SLE under
+  spectral elements' (the same discretisation as ``lobes --method sdm``, which
+  draws the ``--plot``'s lobes then).  ``--plot``: the SLE under
   the Floquet lobes on the same speed axis (``--no-lobes``: the SLE alone).
 * turning (``kind = "turning"``): the vibration at the spindle frequency
   under a workpiece eccentric by ``--eccentricity`` (mm) with the feed per
@@ -187,7 +188,7 @@ def _milling(args: argparse.Namespace, model: Any, v: Any) -> tuple[Any, Any]:
         from ..lobes._milling import milling_ceiling, milling_lobes
 
         wmax, _ = milling_ceiling(loop, v)
-        lobes = milling_lobes(loop, v, depth_max=max(wmax, 1.5 * a))
+        lobes = milling_lobes(loop, v, method=method, steps=steps, depth_max=max(wmax, 1.5 * a))
     return res, lobes
 
 
