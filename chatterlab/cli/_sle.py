@@ -24,7 +24,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Literal
 
 from ..errors import InputError, check_count
 from ..io._files import DATA_SUFFIXES, JSON_SUFFIXES, PLOT_SUFFIXES
@@ -148,7 +148,7 @@ def _milling(args: argparse.Namespace, model: Any, v: Any) -> tuple[Any, Any]:
     from ._milling import _helix_cost, _structure, refuse_unused
     from ._milling import _speeds as check_rpm
 
-    method = args.method or "spectral"
+    method: Literal["spectral", "sdm"] = "sdm" if args.method == "sdm" else "spectral"
     refuse_unused(args, method)
     steps = check_count(args.steps, "--steps", 2)
     check_rpm(v, "--speed")
