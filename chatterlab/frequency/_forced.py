@@ -119,7 +119,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -394,7 +394,7 @@ def forced_response(
     depth: float,
     feed: float,
     *,
-    method: str = "spectral",
+    method: Literal["spectral", "sdm"] = "spectral",
     degree: int | None = None,
     steps: int = 40,
     tol: float = 1e-10,
@@ -633,7 +633,7 @@ def surface_location(
     depth: float,
     feed: float,
     *,
-    method: str = "spectral",
+    method: Literal["spectral", "sdm"] = "spectral",
     degree: int | None = None,
     steps: int = 40,
     tol: float = 1e-10,
