@@ -198,19 +198,12 @@ def static_load_mean(milling: Any, rpm: float, feed: float, t0: np.ndarray, t1: 
         Om = milling.omega(rpm)
         lo = Om * t0[:, None] - milling.lags  # (m, N), unwrapped
         hi = Om * t1[:, None] - milling.lags
-        k0 = np.floor((lo - milling.exit) / TWO_PI) + 1.0  # the first cutting window ending after lo
-        k1 = np.floor((hi - milling.entry) / TWO_PI)  # the last one starting before hi
-        acc = np.zeros(lo.shape + (2,))
 
         def prim(p: np.ndarray) -> np.ndarray:
             s, c = np.sin(p), np.cos(p)
             return -np.stack([milling.Kte * s - milling.Kne * c, milling.Kte * c + milling.Kne * s], axis=-1)
 
-        for i in range(int(np.max(k1 - k0, initial=-1.0)) + 1):
-            k = k0 + i
-            a = np.maximum(lo, milling.entry + TWO_PI * k)
-            b = np.minimum(hi, milling.exit + TWO_PI * k)
-            acc += np.where(((b > a) & (k <= k1))[..., None], prim(b) - prim(a), 0.0)
+        acc = milling.windowed_integral(lo, hi, prim)
         f += acc.sum(axis=1) / (hi - lo)[:, :1]
     return f
 

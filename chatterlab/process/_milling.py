@@ -367,7 +367,7 @@ class Milling:
         psi = self.lag_angle(depth)
         if psi == 0.0:
             return _h(phi, self.Kt, self.Kn) * self.in_cut(phi)[..., None, None]
-        return (self._windowed_integral(phi - psi, phi)) / psi
+        return (self.windowed_integral(phi - psi, phi)) / psi
 
     def directional_on(
         self, t: np.ndarray, rpm: float, t_inside: float, depth: float | None = None
@@ -401,25 +401,34 @@ class Milling:
             )
         return psi
 
-    def _windowed_integral(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """int_lo^hi g(phi) H(phi) dphi for lo <= hi (unwrapped angles), (..., 2, 2)."""
+    def windowed_integral(self, lo: np.ndarray, hi: np.ndarray, primitive: Any = None) -> np.ndarray:
+        """int_lo^hi g(phi) f(phi) dphi for lo <= hi (unwrapped angles), g the
+        cutting windows [entry + 2 pi k, exit + 2 pi k]: f = H, the directional
+        matrix, by default (shape (..., 2, 2)); else ``primitive(phi)``, an
+        antiderivative of a 2 pi periodic f (shape (..., *S)), evaluated at the
+        angles reduced into each window."""
         lo = np.asarray(lo, dtype=float)
         hi = np.asarray(hi, dtype=float)
+        if primitive is None:
+
+            def primitive(p: np.ndarray) -> np.ndarray:
+                return _primitive(p, self.Kt, self.Kn)
+
         # first window [entry + 2 pi k, exit + 2 pi k] ending after lo
         k0 = np.floor((lo - self.exit) / TWO_PI) + 1.0
         k1 = np.floor((hi - self.entry) / TWO_PI)  # last window starting before hi
         kmax = int(np.max(k1 - k0)) + 1 if k1.size else 0
-        out = np.zeros(np.broadcast(lo, hi).shape + (2, 2))
+        shape = np.broadcast(lo, hi).shape
+        out = np.zeros(shape + np.shape(primitive(np.zeros(shape)))[len(shape) :])
         for i in range(max(kmax, 0)):
             k = k0 + i
             a = np.maximum(lo, self.entry + TWO_PI * k)
             b = np.minimum(hi, self.exit + TWO_PI * k)
             ok = (b > a) & (k <= k1)
-            # primitive at angles reduced into the window: H is 2 pi periodic, its primitive is
-            # not (the phi/2 terms), so evaluate relative to the window's start
-            pa = _primitive(a - TWO_PI * k, self.Kt, self.Kn)
-            pb = _primitive(b - TWO_PI * k, self.Kt, self.Kn)
-            out += np.where(ok[..., None, None], pb - pa, 0.0)
+            # the primitive at angles reduced into the window: f is 2 pi periodic, its primitive
+            # need not be (H's phi/2 terms), so evaluate relative to the window's start
+            d = primitive(b - TWO_PI * k) - primitive(a - TWO_PI * k)
+            out += np.where(ok.reshape(ok.shape + (1,) * (d.ndim - ok.ndim)), d, 0.0)
         return out
 
     def directional_mean(self, t0: float | np.ndarray, t1: float | np.ndarray, rpm: float) -> np.ndarray:
@@ -435,7 +444,7 @@ class Milling:
         lo = w * t0[..., None] - self.lags
         hi = w * t1[..., None] - self.lags
         dphi = (hi - lo)[..., None, None]
-        return self._windowed_integral(lo, hi) / dphi
+        return self.windowed_integral(lo, hi) / dphi
 
     def zoa(self) -> np.ndarray:
         """Averaged directional matrix H0 = (N / 2 pi) int_entry^exit H dphi, N/m^2, (2, 2).
