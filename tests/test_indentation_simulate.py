@@ -96,6 +96,14 @@ def test_linear_process_damping_decays_at_the_loops_root():
     assert abs(v.rate - lam.real) <= v.error, (v.rate, v.error, lam)
     # and the run is not the run without the table (what simulate gave before)
     assert abs(v.rate - lam0.real) > 10 * v.error
+    # the exponential step map integrates the same matrices (the term in B): the same root
+    ex = simulate(
+        cl.assemble(linear_model(D, C_PD)), width=b, speed=RPM, roots=roots(linear_model(D, C_PD), b),
+        integration=Integration(duration=0.05, integrator="exponential"), initial=Initial(v0=V0),
+    )  # fmt: skip
+    ve = ex.verdict("tool.x")
+    assert ve.classification == "decaying" and not ve.contradiction
+    assert abs(ve.rate - lam.real) <= ve.error, (ve.rate, ve.error, lam)
 
 
 def test_indentation_run_at_small_amplitude_is_the_linear_root(tmp_path):
