@@ -143,10 +143,18 @@ def ssv_mesh(sys: VaryingDelayLoop, width: float, degree: int, span: float) -> l
 
 
 def ssv_monodromy(
-    sys: VaryingDelayLoop, width: float, degree: int = DEGREE, span: float = ELEMENT_SPAN
+    sys: VaryingDelayLoop,
+    width: float,
+    degree: int = DEGREE,
+    span: float = ELEMENT_SPAN,
+    history_times: list[np.ndarray] | None = None,
 ) -> np.ndarray:
     """The spectral-element monodromy of (1) at width ``width`` (module docstring):
-    the map of the history z = (x at the period's end, C x at the history's nodes)."""
+    the map of the history z = (x at the period's end, C x at the history's nodes);
+    ``history_times``, a list, receives the time of each entry of z (s; nan for the
+    end state)."""
+    if history_times is None:
+        history_times = []
     b = check_nonneg(width, "width of cut", "m")
     p = check_count(degree, "degree", 2)
     els = ssv_mesh(sys, b, p, span)
@@ -253,6 +261,13 @@ def ssv_monodromy(
         Xall = np.concatenate([x[None], Xn], axis=0)
         R[i] = np.einsum("rd,ldz->lrz", sys.C, Xall)
         x = Xn[-1]
+    # the time of each history value (nan for the end state), for the chatter frequency
+    times = np.full(nz, np.nan)
+    for i in hist:
+        if els[i].p > 0:
+            tn = els[i].a + (els[i].b - els[i].a) * _cheb(els[i].p)[0]
+            times[cols[i] : cols[i] + (els[i].p + 1) * rho] = np.repeat(tn, rho)
+    history_times[:] = [times]
     # z one period later
     Mz = np.zeros((nz, nz))
     Mz[:d] = x
@@ -263,6 +278,34 @@ def ssv_monodromy(
         else:
             Mz[c : c + (els[i].p + 1) * rho] = R[i].reshape(-1, nz)
     return Mz
+
+
+def dominant_frequency(
+    mu: complex, vec: np.ndarray, times: np.ndarray, period: float, top_hz: float
+) -> float:
+    """The chatter frequency, Hz, of the Floquet solution x(t) = e^{lambda t} p(t)
+    (lambda = ln(mu) / T, p T-periodic) whose history is ``vec`` at ``times``: the
+    largest of the Fourier coefficients c_k of p over the history's nodes (trapezoid
+    weights), k up to ``top_hz`` T; the frequency |Im lambda + 2 pi k / T| / 2 pi.
+    Unlike the family member nearest a pole, it does not depend on which pole a
+    member of a dense family (a long period) happens to fall near."""
+    ok = np.isfinite(times)
+    t, y = times[ok], np.asarray(vec)[ok]
+    order = np.argsort(t, kind="stable")
+    t, y = t[order], y[order]
+    if t.size < 2:
+        return float(abs(np.angle(mu)) / period / (2 * np.pi))
+    lam = np.log(complex(mu)) / period
+    p = y * np.exp(-lam * (t - t[0]))
+    w = np.zeros(t.size)
+    dt = np.diff(t)
+    w[:-1] += 0.5 * dt
+    w[1:] += 0.5 * dt
+    K = max(1, math.ceil(top_hz * period) + 2)
+    k = np.arange(-K, K + 1)
+    c = np.exp(-2j * np.pi * np.outer(k, t - t[0]) / period) @ (w * p)
+    best = int(k[int(np.argmax(np.abs(c)))])
+    return float(abs(lam.imag + 2 * np.pi * best / period) / (2 * np.pi))
 
 
 # ============================================================================ the quasi-static split
@@ -400,12 +443,22 @@ def ssv_multipliers(
             "ssv: a quasi-static split is discretised by spectral elements only: give method='spectral'"
         )
     sys = ssv_loop(loop, variation, speed, quasi_static=qs)
+    f_c = math.nan
     if method == "spectral":
 
-        def mono(up: int) -> np.ndarray:
-            return finite_monodromy(ssv_monodromy(sys, b, degree + up, span), sys.speed, b)
+        def mono(up: int, times: list[np.ndarray] | None = None) -> np.ndarray:
+            return finite_monodromy(ssv_monodromy(sys, b, degree + up, span, times), sys.speed, b)
 
-        mu = _ranked(np.linalg.eigvals(mono(0)))
+        if qs is None:
+            mu = _ranked(np.linalg.eigvals(mono(0)))
+        else:
+            # with a split the period is long: the chatter frequency from the critical solution's history
+            times: list[np.ndarray] = []
+            lam, vecs = np.linalg.eig(mono(0, times))
+            mu = _ranked(lam)
+            j = int(np.argmin(np.abs(lam - mu[0])))
+            top = float(qs.loop.omega_max) / (2 * np.pi)  # the fastest mode integrated, Hz
+            f_c = dominant_frequency(complex(mu[0]), vecs[:, j], times[0], sys.period, top)
         err = matched_change(complex(mu[0]), np.linalg.eigvals(mono(CHECK_DEGREE))) if check else float("nan")
         res = f"degree {degree}, span {span:g} rad"
     elif method == "sdm":
@@ -419,9 +472,8 @@ def ssv_multipliers(
         res = f"{m} steps"
     else:
         raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
-    # the family member nearest a pole of the structure integrated (with a split, the kept modes':
-    # a lightly damped high mode of the full structure would otherwise attract it)
-    f_c = chatter_frequency(complex(mu[0]), sys.period, loop if qs is None else qs.loop)
+    if not math.isfinite(f_c):  # the family member nearest a pole of the structure
+        f_c = chatter_frequency(complex(mu[0]), sys.period, loop)
     meta = {"folds": float(sys.folds), "rva": variation.amplitude, "rvf": variation.frequency}
     res += f"; {variation.describe()}"
     if qs is not None:
