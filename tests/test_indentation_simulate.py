@@ -356,6 +356,9 @@ def test_milling_run_with_rubbing_teeth_has_the_damped_floquet_multiplier(immers
     [
         (["--step", "1e-4"], "step: the indentation model's wear land must hold several steps"),
         (["--integrator", "exponential"], "integrates with Newmark"),
+        (["--set", "process_damping.clearance_deg=95"], "clearance_deg: must lie in (0, 90) deg (got 95)"),
+        (["--set", "process_damping.wear_land=-1e-5"], "wear_land"),
+        (["--set", "process_damping.K_sp=8e3"], "K_sp: 8000 N/m^3 is outside the plausible range"),
     ],
 )
 def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, extra, message):
