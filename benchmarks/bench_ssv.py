@@ -25,6 +25,14 @@ where no SD setting run meets a target, no ratio is claimed: the record is
 SD's finest run (its error and time, measured) and the ratio of that time to
 the spectral route's at the target, a lower bound (SD would need more steps).
 The SD's error is fitted as C m^-p to report its order.
+
+``--split`` measures the quasi-static split instead (merged into the same
+JSON under ``"split"``, the rest kept): the bundled traverse shaper (36 DOF)
+driven at a delay of 2 ms (``kind = "delay"``: its structure and cut; the
+unsplit engine is affordable there), RVA 0.1, RVF 0.5, b = 0.3 mm: the
+critical multiplier unsplit and split at 300, 400 and 600 Hz (degree 12,
+span 6), the change of ln|mu|, the split's error estimate, and the CPU time
+(process time, min and median of ``--repeat``) of one evaluation each.
 """
 
 from __future__ import annotations
@@ -72,10 +80,69 @@ def search(loop: object, speed: float, **kw: object) -> float:
     return float(ssv_limit(loop, speed, VARIATION, width_max=WIDTH_MAX, scan=SCAN, rtol=RTOL, **kw)["b_lim"])  # type: ignore[arg-type]
 
 
+def split_rows(repeat: int) -> dict[str, object]:
+    """The ``--split`` measurement (module docstring)."""
+    import math
+
+    text = (ROOT / "studies" / "traverse_shaper" / "model.toml").read_text()
+    i = text.index("[process]")
+    j = text.find("\n[", i + 1)
+    model = cl.loads_model(
+        text[:i] + '[process]\nkind = "delay"\ndelay = 0.002\n' + (text[j:] if j > 0 else "")
+    )
+    loop = closed_loop(cl.assemble(model).at(), width=1e-3, delay=0.002)
+    b, opts = 0.3e-3, {"degree": 12, "span": 6.0, "check": False}
+    load0 = load()
+    rows: dict[str, dict[str, object]] = {}
+    for _ in range(repeat):
+        for split in (None, 300.0, 400.0, 600.0):
+            t0 = time.process_time()
+            m = ssv_multipliers(loop, None, b, VARIATION, split=split, **opts)  # type: ignore[arg-type]
+            dt = time.process_time() - t0
+            key = "unsplit" if split is None else f"split {split:g} Hz"
+            row = rows.setdefault(key, {"cpu_s": []})
+            row["cpu_s"].append(dt)  # type: ignore[union-attr]
+            row["spectral_radius"] = m.spectral_radius
+            row["chatter_hz"] = m.frequency_hz
+            if split is not None:
+                row["split_error"] = m.meta["split_error"]
+                row["kept_modes"] = int(m.meta["kept"])
+    load1 = load()
+    full = float(rows["unsplit"]["spectral_radius"])  # type: ignore[arg-type]
+    for row in rows.values():
+        cpu = row.pop("cpu_s")
+        row["cpu_min_s"], row["cpu_median_s"] = min(cpu), statistics.median(cpu)  # type: ignore[arg-type]
+        row["abs_dln_mu_vs_unsplit"] = abs(math.log(float(row["spectral_radius"])) - math.log(full))  # type: ignore[arg-type]
+    return {
+        "problem": "traverse shaper (36 DOF) at tau = 2 ms (kind delay), sine SSV RVA 0.1 RVF 0.5, b = 0.3 mm,"
+        " degree 12, span 6",
+        "rows": rows,
+        "repeats": repeat,
+        "load_1min": [load0, load1],
+        "loaded": bool(max(load0, load1) > 1.0),
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--split", action="store_true", help="measure the quasi-static split only (merged)")
     args = ap.parse_args()
+    path = ROOT / "benchmarks" / "results" / "ssv.json"
+    if args.split:
+        res = split_rows(args.repeat)
+        print(json.dumps(res, indent=2))
+        if res["loaded"]:
+            print(
+                "LOADED: 1-min load {:.2f} -> {:.2f} (CPU times; wall would include waiting)".format(
+                    *res["load_1min"]
+                )
+            )  # type: ignore[str-format]
+        old = json.loads(path.read_text()) if path.exists() else {}
+        old["split"] = res
+        path.write_text(json.dumps(old, indent=2) + "\n")
+        print(f"wrote {path}")
+        return
     lp = loops()
     load0 = load()
     ref = {s: search(lp[s], s, degree=24) for s in SPEEDS}
@@ -158,7 +225,8 @@ def main() -> None:
     print(json.dumps(out, indent=2))
     if max(load0, load1) > 1.0:
         print(f"LOADED: 1-min load {load0:.2f} -> {load1:.2f} (times include waiting for the CPU)")
-    path = ROOT / "benchmarks" / "results" / "ssv.json"
+    if path.exists() and "split" in json.loads(path.read_text()):
+        out["split"] = json.loads(path.read_text())["split"]  # the --split run's, kept
     path.write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {path}")
 

@@ -204,3 +204,12 @@ def test_process_damping_follows_the_speed(tmp_path: Path) -> None:
     # by more than SD's error
     const = ssv_multipliers(loop, rpm, 1.2e-3, SpeedVariation(0.0, 0.5), check=False).spectral_radius
     assert abs(const - ref) > e1
+
+
+def test_the_shaper_at_its_own_speed_says_what_to_do() -> None:
+    """The 36-DOF shaper at its nominal 0.5 m/s (tau 1.5 s) without a split would carry a
+    history of ~2e5 values: refused before any work, in one line naming the split."""
+    fz = cl.assemble(cl.load_model(SHAPER)).at()
+    loop = closed_loop(fz, width=1e-3, speed=0.5)
+    with pytest.raises(InputError, match="split=F"):
+        ssv_multipliers(loop, 0.5, 2e-4, SpeedVariation(0.1, 0.5))

@@ -172,7 +172,8 @@ def ssv_monodromy(
     if nz > MAX_HISTORY:
         raise InputError(
             f"ssv spectral: a history of {nz} values (the delay holds {len(hist)} elements of degree {p}); at"
-            f" most {MAX_HISTORY}: use method='sdm', a lower degree, or a higher speed"
+            f" most {MAX_HISTORY}: give split=F (--split F: the modes above F Hz quasi-static, turning and"
+            " shaping), a higher degree with a longer span, or a higher speed"
         )
     ends = np.array([e.b for e in els])
     expm_cache: dict[float, np.ndarray] = {}
