@@ -52,9 +52,39 @@ def test_the_rate_is_the_rightmost_roots_within_the_printed_error(tool, width_mm
     assert code == 0
 
 
-def test_rtol_without_the_exponential_integrator_is_refused(tool, capsys):
-    code = main(["simulate", str(tool), "--rtol", "1e-3", "--quiet"])
-    assert_clean_error(code, capsys.readouterr().err, "--rtol", "--integrator exponential")
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--integrator", "newmark"], ("--rtol", "--integrator newmark")),
+        (["--step", "1e-4"], ("--rtol", "--step")),
+    ],
+)
+def test_rtol_with_a_newmark_run_is_refused(tool, extra, words, capsys):
+    code = main(["simulate", str(tool), "--rtol", "1e-3", "--quiet", *extra])
+    assert_clean_error(code, capsys.readouterr().err, *words)
+
+
+def test_rtol_on_the_moving_slide_is_refused(capsys):
+    """The moving slide integrates with Newmark (its coefficients change with
+    the slide's position): an error target there would be ignored, so it is refused."""
+    from pathlib import Path
+
+    shaper = Path(__file__).resolve().parents[1] / "studies" / "traverse_shaper" / "model.toml"
+    code = main(["simulate", str(shaper), "--rtol", "1e-3", "--passes", "1", "--quiet"])
+    assert_clean_error(code, capsys.readouterr().err, "rtol", "moving slide")
+
+
+def test_the_default_scheme_of_a_continuous_cut_is_the_exponential_step_map(tool, capsys):
+    """``--integrator auto`` (the default): a turning cut has constant
+    coefficients, so it runs the exponential step map for the default rtol;
+    with --step it is the paper's Newmark at that step."""
+    assert main(["simulate", str(tool), "--width", "0.15", "--passes", "10", "--quiet"]) == 0
+    assert "exponential step map of order 6" in capsys.readouterr().out
+    assert (
+        main(["simulate", str(tool), "--width", "0.15", "--passes", "10", "--step", "1e-4", "--quiet"]) == 0
+    )
+    out = capsys.readouterr().out
+    assert "exponential step map" not in out and "2000 steps of h = 0.0001 s" in out
 
 
 def test_a_milling_run_refuses_the_exponential_integrator(capsys):

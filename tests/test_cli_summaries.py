@@ -113,14 +113,14 @@ def test_atlas_inf_is_proven_in_the_automatic_band_and_undetermined_in_a_given_o
 # ----------------------------------------------------------------------------- simulate
 
 
-def _sim(capsys, model, duration):
+def _sim(capsys, model, duration, *extra):
     return run(capsys, "simulate", model, "--speed", "3000", "--position", "0", "--width", "0.5",
-               "--duration", str(duration), "--quiet")  # fmt: skip
+               "--duration", str(duration), "--quiet", *extra)  # fmt: skip
 
 
 def test_a_short_simulation_says_what_it_cannot_estimate_and_exits_0(capsys, forced):
-    # 5 steps: the growth window after the first delay holds fewer than the estimator's 8 samples
-    code, out, err = _sim(capsys, forced, 0.0005)
+    # Newmark's 5 steps: the growth window after the first delay holds fewer than the estimator's 8 samples
+    code, out, err = _sim(capsys, forced, 0.0005, "--integrator", "newmark")
     assert code == 0, err
     assert "main spectral peak     n/a" in out and "envelope: not estimated" in out
     assert "too short to estimate the spectrum" in out and "fewer than 4 periods" in out
@@ -129,6 +129,12 @@ def test_a_short_simulation_says_what_it_cannot_estimate_and_exits_0(capsys, for
     assert "ask for a longer run with --duration S" in out and "--passes N" in out
     # an output that never moved (y is held by the guide) says so instead of a spectral peak
     assert "tool.y     identically 0" in out
+    # the default exponential step map takes 16 steps in a run shorter than the delay: enough samples,
+    # but no oscillation in them, and it says so instead of a rate
+    code, out, err = _sim(capsys, forced, 0.0005)
+    assert code == 0, err
+    assert "16 steps" in out and "envelope: undetermined" in out and "fewer than two extrema" in out
+    assert "too short to estimate the spectrum" in out and "tool.y     identically 0" in out
 
 
 def test_the_spectrum_needs_four_periods_of_its_peak(capsys, forced, turning):

@@ -1,6 +1,7 @@
 """The lobes cross-checked in the time domain (issue 18): at envelope points
-of the shaper and of random structures, Newmark runs at 0.98 and 1.02 b_lim
-(the default step from the chatter band, the verdict with its error bar)
+of the shaper and of random structures, runs at 0.98 and 1.02 b_lim by both
+schemes (Newmark at the default step from the chatter band; the default
+exponential step map at its step for rtol; the verdict with its error bar)
 never contradict the rightmost characteristic root: the bar covers it, a
 claimed class has its sign, and where the rate is large enough to decide in
 the run (the random structures, |sigma| ~ 1 1/s) the class is the root's.
@@ -34,7 +35,7 @@ def _envelope_points(system, speeds, position=None):
     return [(float(T), float(b)) for T, b in zip(d.delay, d.b_lim, strict=True) if np.isfinite(b)]
 
 
-def _check(system, T, b, factor, output, duration, position=None, decided=True):
+def _check(system, T, b, factor, output, duration, position=None, decided=True, integrator="newmark"):
     roots = frozen_roots(system, factor * b, T, position)
     assert (roots.roots[0].real > 0) == (factor > 1)
     sim = simulate(
@@ -44,11 +45,14 @@ def _check(system, T, b, factor, output, duration, position=None, decided=True):
         position=position,
         outputs=output,
         roots=roots,
-        integration=Integration(duration=duration),
+        integration=Integration(duration=duration, integrator=integrator),
         initial=Initial(q0={output: 1e-06}, history="constant"),
         excitation=Excitation(cutting_forces=False),
     )
-    assert_step_resolves_the_rightmost_root(system, sim, roots, position)
+    if integrator == "newmark":  # Newmark's step rule (the exponential map's is its own error estimate)
+        assert_step_resolves_the_rightmost_root(system, sim, roots, position)
+    else:
+        assert sim.response.attrs["method"] == "exponential"
     v = sim.verdict(output)
     assert_honest(v, roots, rightmost=decided)
     if decided:
@@ -61,22 +65,24 @@ def shaper(shaper_path):
     return cl.assemble(cl.load_model(shaper_path))
 
 
+@pytest.mark.parametrize("integrator", ["newmark", "auto"])
 @pytest.mark.parametrize("factor", [0.98, 1.02])
-def test_shaper_envelope_point_in_the_time_domain(shaper, factor):
+def test_shaper_envelope_point_in_the_time_domain(shaper, factor, integrator):
     """v = 10 m/s (T = 0.36 s, b_lim 0.667 mm, chatter at 76.2 Hz)."""
     ((T, b),) = _envelope_points(shaper, [10.0], 0.85)
-    v = _check(shaper, T, b, factor, "rfe5.y", 2.0, 0.85, decided=False)
+    v = _check(shaper, T, b, factor, "rfe5.y", 2.0, 0.85, decided=False, integrator=integrator)
     assert v.classification in ("undetermined", "steady", "growing" if factor > 1 else "decaying")
 
 
+@pytest.mark.parametrize("integrator", ["newmark", "auto"])
 @pytest.mark.parametrize("seed", [3, 7])
 @pytest.mark.parametrize("factor", [0.98, 1.02])
-def test_random_structure_envelope_points_in_the_time_domain(seed, factor):
+def test_random_structure_envelope_points_in_the_time_domain(seed, factor, integrator):
     sy = cl.assemble(cl.loads_model(random_3dof(seed)))
     f1 = np.sqrt(np.min(np.linalg.eigvals(np.linalg.solve(sy.at().A, sy.at().C)).real)) / (2 * np.pi)
     pts = _envelope_points(sy, [2.0 / f1, 7.0 / f1])
     for T, b in pts:
-        _check(sy, T, b, factor, "tip.x", 1.5)
+        _check(sy, T, b, factor, "tip.x", 1.5, integrator=integrator)
 
 
 def test_confirmation_of_a_turning_diagram(tmp_path):

@@ -331,7 +331,7 @@ def test_random_structure_with_chatter_above_300_hz(random3, random3_blim, facto
         delay=0.01,
         outputs="tip.x",
         roots=roots,
-        integration=Integration(duration=2.0),
+        integration=Integration(duration=2.0, integrator="newmark"),
         initial=Initial(q0={"tip.x": 1e-06}, history="constant"),
     )
     assert 1.0 / (sim.step * f_chatter) >= MIN_STEPS_PER_PERIOD
@@ -402,7 +402,7 @@ def test_shaper_at_the_issue_point_is_not_called_growing(shaper):
         position=0.85,
         outputs="rfe5.y",
         roots=roots,
-        integration=Integration(duration=10.0),
+        integration=Integration(duration=10.0, integrator="newmark"),
         initial=Initial(q0={"rfe5.y": 1e-06}, history="constant"),
         excitation=Excitation(cutting_forces=False),
     )

@@ -46,11 +46,11 @@ def add_parser(sub: Any) -> None:
     )
     si.add_argument(
         "--integrator",
-        choices=["newmark", "exponential"],
-        default="newmark",
-        help="newmark (default: the paper's scheme, every cut) or exponential (the exact step map of the "
-        "delayed loop, order 6, its step chosen for --rtol; a continuous cut only: --delay, --position or "
-        "turning)",
+        choices=["auto", "newmark", "exponential"],
+        default="auto",
+        help="auto (default): the exponential step map (the exact step map of the delayed loop, order 6, its "
+        "step chosen for --rtol) for a continuous cut (--delay, --position or turning) without --step, "
+        "newmark (the paper's scheme, every cut) otherwise; or either one by name",
     )
     si.add_argument(
         "--rtol",
@@ -115,13 +115,14 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.rtol is not None and args.integrator != "exponential":
+    if args.rtol is not None and (args.integrator == "newmark" or args.step is not None):
         raise InputError(
-            "--rtol is the exponential integrator's target: add --integrator exponential, or give --step"
+            "--rtol is the exponential step map's error target: give --rtol or --step, not both, and not"
+            " with --integrator newmark"
         )
     model = load(args)
     if model.process is not None and model.process.kind == "milling":
-        if args.integrator != "newmark":
+        if args.integrator == "exponential":
             raise InputError(
                 "--integrator exponential needs a linear cut with constant coefficients; a milling run "
                 "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"

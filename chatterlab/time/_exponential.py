@@ -373,7 +373,7 @@ def _recur_part(
     with np.errstate(all="ignore"):
         bad = ~np.isfinite(X[a + 1 : b + 1]).all(axis=1) | (np.abs(blk).max(axis=1) > limit)
     first = a + int(np.argmax(bad))
-    return first, f"diverged at step {first + 1}: non-finite state or |q| > divergence_limit = {limit:.3g}"
+    return first, f"non-finite state or |q| > divergence_limit = {limit:.3g}"
 
 
 def _powers(E: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -551,7 +551,7 @@ def exponential(
     acc = _accelerations(lp, Xr, t, np.arange(0, done + 1, rec), m, hh, X, hist, t0)
     wall = time.perf_counter() - wall0
     msg = (
-        reason
+        f"diverged at t = {t0 + (done + 1) * hh:.9g} s (step {done + 1}): {reason}"
         if reason
         else f"{done} steps of h = {hh:.6g} s (exponential step map, order {p + 1}) from t = {t0:.6g} to "
         f"{t0 + done * hh:.6g} s in {wall:.3g} s"
@@ -590,7 +590,8 @@ def _first_step(lp: _Loop, rtol: float, p: int, span: float) -> int:
     multiple of 4 (the error control halves it twice): the dominant mode of
     the delayed loop's input-output weights (the mode's coupling from ``G``'s
     output directions to its input directions over its damping rate) resolved
-    with ``(w h)^(p+1) = 10 rtol``; at least ``4 (p + 1)`` steps per delay."""
+    with ``(w h)^(p+1) = 10 rtol``; at least ``4 (p + 1)`` steps per delay,
+    and at least 16 steps in a run shorter than the delay."""
     mu, V = np.linalg.eig(lp.L)
     n = lp.n
     if lp.G is not None:
@@ -607,7 +608,9 @@ def _first_step(lp: _Loop, rtol: float, p: int, span: float) -> int:
     x = (10.0 * rtol) ** (1.0 / (p + 1))
     h = x / om if om > 0 else span / 100
     c = math.ceil((lp.T if lp.T is not None else span) / h)
-    return 4 * math.ceil(max(c, 4 * (p + 1)) / 4)
+    # a run shorter than a few delays: its coarsest level (4h) still holds 4 steps
+    short = math.ceil(16.0 * lp.T / span) if lp.T is not None else 0
+    return 4 * math.ceil(max(c, 4 * (p + 1), short) / 4)
 
 
 def _richardson(X: FloatArray, X2: FloatArray, X4: FloatArray, sel: FloatArray, n: int, p: int) -> float:

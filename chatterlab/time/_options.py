@@ -276,7 +276,7 @@ _FIELDS = {"q": "displacement", "v": "velocity", "a": "acceleration"}
 
 
 #: the schemes of a simulation (:attr:`Integration.integrator`)
-INTEGRATORS = ("newmark", "exponential")
+INTEGRATORS = ("auto", "newmark", "exponential")
 
 
 @dataclass(frozen=True)
@@ -307,15 +307,19 @@ class Integration:
         gamma, beta, worker threads, divergence and memory limits (Newmark).
     progress : callable, optional
         ``progress(fraction)`` after each chunk of steps (Newmark).
-    integrator : {"newmark", "exponential"}, default "newmark"
-        The scheme of :func:`~chatterlab.time.simulate`: the seed paper's
-        Newmark (every run), or the exponential step map of a continuous
-        cut (constant coefficients: ``delay=`` or ``position=``, or
-        turning; :func:`~chatterlab.time.exponential`), whose step is
-        chosen for ``rtol`` unless ``step`` is given.
-    rtol : float, default 1e-3
+    integrator : {"auto", "newmark", "exponential"}, default "auto"
+        The scheme of :func:`~chatterlab.time.simulate`: the exponential
+        step map (:func:`~chatterlab.time.exponential`, order 6, its step
+        chosen for ``rtol``) or the seed paper's Newmark.  ``"auto"`` takes
+        the exponential step map for a continuous cut (constant
+        coefficients: ``delay=`` or ``position=``, or turning) whose
+        ``step`` is not given, and Newmark otherwise (the moving slide, a
+        given step); ``"exponential"`` with a ``step`` runs the step map at
+        that step.
+    rtol : float, optional
         The relative error of the recorded histories (each relative to its
-        largest value) the exponential integrator's step is chosen for.
+        largest value) the exponential step map's step is chosen for
+        (default 1e-3); refused for a run that integrates with Newmark.
     """
 
     duration: float | None = None
@@ -326,8 +330,8 @@ class Integration:
     method: Literal["auto", "polynomial", "direct", "generic"] = "auto"
     scheme: NewmarkOptions = field(default_factory=NewmarkOptions)
     progress: Callable[[float], Any] | None = field(default=None, compare=False)
-    integrator: Literal["newmark", "exponential"] = "newmark"
-    rtol: float = 1e-3
+    integrator: Literal["auto", "newmark", "exponential"] = "auto"
+    rtol: float | None = None
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:
@@ -335,7 +339,9 @@ class Integration:
                 f"integrator must be one of {', '.join(repr(i) for i in INTEGRATORS)} (got {self.integrator!r})"
             )
         r_tol = self.rtol
-        if isinstance(r_tol, bool) or not isinstance(r_tol, (int, float)) or not 0.0 < float(r_tol) < 1.0:
+        if r_tol is not None and (
+            isinstance(r_tol, bool) or not isinstance(r_tol, (int, float)) or not 0.0 < float(r_tol) < 1.0
+        ):
             raise InputError(f"rtol must be a number in (0, 1), e.g. 1e-3 (got {r_tol!r})")
         if self.duration is not None:
             object.__setattr__(self, "duration", check_positive(self.duration, "duration", "s"))

@@ -17,7 +17,10 @@ relative displacement dw in CE axes and J̇ = J_d Ẇ,
 terms are Eq. 2.27 written through the CE, with E = -Jᵀ Dl J q; all CE terms
 are switched off outside the cut).  The delayed term uses W(t), as in the
 paper: for shaping the slide is at the same position one stroke cycle earlier,
-so this is exact.  The integrator is :func:`chatterlab.time._newmark.newmark`.
+so this is exact.  The integrator is :func:`chatterlab.time._newmark.newmark`
+for the moving slide; a continuous cut (constant coefficients) runs by
+default with the exponential step map :func:`chatterlab.time.exponential`,
+its step chosen for an error target (``Integration.integrator``).
 
 References
 ----------
@@ -348,7 +351,9 @@ def simulate(
     excitation: Excitation | None = None,
     **deprecated: Any,
 ) -> Simulation:
-    """Newmark simulation of the moving, delayed closed loop (Eq. 2.28).
+    """Simulation of the moving, delayed closed loop (Eq. 2.28): Newmark for
+    the moving slide, the exponential step map for a continuous cut (the
+    default ``Integration(integrator="auto")``).
 
     Parameters
     ----------
@@ -521,6 +526,7 @@ def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Exc
                 " nonlinear and integrates with Newmark: drop integrator='exponential' (--integrator)"
             )
     run_prob = _run_problem(prob, exc.loads, exc.ground_motion, pd if flank is None else None)
+    integ = _scheme_for(integ, kin, run_prob, linear=flank is None)
     q0v, v0v, hist, initial = initial_state(prob, kin, init.q0, init.v0, init.history)
     if integ.integrator == "exponential":
         res, step, rule = _exponential_run(
@@ -582,6 +588,41 @@ def _simulate(cut: _Cut, roots: Any, integ: Integration, init: Initial, exc: Exc
     )
 
 
+def _scheme_for(
+    integ: Integration, kin: ShapingKinematics | SteadyKinematics, problem: Any, *, linear: bool = True
+) -> Integration:
+    """``integ`` with its scheme decided: ``"auto"`` is the exponential step
+    map for a linear continuous cut whose step is not given, when the problem
+    has constant coefficients and a force without breakpoints (the step map
+    interpolates the force across a step), and Newmark otherwise (the moving
+    slide's coefficients change with the slide's position; the indentation
+    model's flank force is nonlinear).  An error target ``rtol`` given to a
+    Newmark run is refused (Newmark takes a step, not a tolerance)."""
+    name = integ.integrator
+    if name == "auto":
+        bp = getattr(problem, "breakpoints", None)
+        smooth = not (callable(bp) and len(tuple(bp())))
+        constant = isinstance(kin, SteadyKinematics) and bool(getattr(problem, "time_invariant", False))
+        name = "exponential" if linear and constant and smooth and integ.step is None else "newmark"
+    if name == "newmark" and integ.rtol is not None:
+        why = (
+            "integrator='newmark'"
+            if integ.integrator == "newmark"
+            else "a moving slide"
+            if not isinstance(kin, SteadyKinematics)
+            else "a given step"
+            if integ.step is not None
+            else "the indentation model's nonlinear flank force"
+            if not linear
+            else "a force with breakpoints"
+        )
+        raise InputError(
+            f"rtol is the exponential step map's error target; this run integrates with Newmark ({why}):"
+            " drop rtol"
+        )
+    return replace(integ, integrator=name)
+
+
 def _exponential_run(
     prob: ParametricProblem,
     kin: ShapingKinematics | SteadyKinematics,
@@ -597,7 +638,7 @@ def _exponential_run(
     """A continuous cut by :func:`exponential`: its step chosen for
     ``integ.rtol`` on the histories the run records (the CE relative
     displacements and the outputs), or ``integ.step``; ``(response, step, rule)``."""
-    from ._exponential import exponential
+    from ._exponential import DEFAULT_RTOL, exponential
 
     if not isinstance(kin, SteadyKinematics):
         raise InputError(
@@ -612,7 +653,7 @@ def _exponential_run(
             (0.0, float(duration)),
             q0v,
             v0v,
-            rtol=float(integ.rtol),
+            rtol=float(integ.rtol if integ.rtol is not None else DEFAULT_RTOL),
             h=integ.step,
             record_every=integ.record_every,
             history=hist,
@@ -623,9 +664,15 @@ def _exponential_run(
     if integ.step is not None:
         rule = f"given, {a['steps_per_delay']} steps per delay (exponential step map, order {a['order']})"
     else:
+        est = a["error_estimate"]
+        said = (
+            f"estimated error {est:.2g}"
+            if est is not None and math.isfinite(est)
+            else "no error estimate: the run diverged"
+        )
         rule = (
             f"exponential step map of order {a['order']}: {a['steps_per_delay']} steps per delay for rtol = "
-            f"{float(integ.rtol):g} (estimated error {a['error_estimate']:.2g}, {a['tries']} {'try' if a['tries'] == 1 else 'tries'})"
+            f"{float(integ.rtol if integ.rtol is not None else DEFAULT_RTOL):g} ({said}, {a['tries']} {'try' if a['tries'] == 1 else 'tries'})"
         )
     if feedback != "pdo" and integ.step is None:
         rule = f"exponential step map, exact without a delayed term: {res.n_steps} steps record the run"
