@@ -213,3 +213,17 @@ def test_the_shaper_at_its_own_speed_says_what_to_do() -> None:
     loop = closed_loop(fz, width=1e-3, speed=0.5)
     with pytest.raises(InputError, match="split=F"):
         ssv_multipliers(loop, 0.5, 2e-4, SpeedVariation(0.1, 0.5))
+
+
+def test_the_time_domain_refuses_what_it_does_not_integrate(tmp_path: Path, shaper_delay: cl.Model) -> None:
+    """simulate_ssv integrates Eq. (1) with constant matrices: a split or a speed-following
+    process damping is refused in one line, not integrated wrongly."""
+    from chatterlab.time._ssv import simulate_ssv
+
+    v = SpeedVariation(0.1, 0.5)
+    loop = closed_loop(cl.assemble(shaper_delay).at(), width=1e-3, delay=0.005)
+    with pytest.raises(InputError, match="not integrated in time"):
+        simulate_ssv(ssv_loop(loop, v, None, quasi_static=ssv_split(loop, 300.0)), 2e-4, 2)
+    damped = closed_loop(cl.assemble(_turning(tmp_path, C_PD)).at(), width=1e-3, speed=3000.0)
+    with pytest.raises(InputError, match="not integrated in time"):
+        simulate_ssv(ssv_loop(damped, v, 3000.0), 1e-3, 2)
