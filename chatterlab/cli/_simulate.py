@@ -20,7 +20,6 @@ from typing import Any, Literal
 
 from ..errors import InputError
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES, Outputs
-from ..time._milling import refuse_milling_damping
 from ._common import load, model_args, outputs, progress_bar, width_m
 
 
@@ -127,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
                 "--integrator exponential needs a linear cut with constant coefficients; a milling run "
                 "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"
             )
+        from ..time._milling import refuse_milling_damping
+
         refuse_milling_damping(model)
         pd = model.process_damping
         if pd is not None and pd.C_pd > 0.0:
