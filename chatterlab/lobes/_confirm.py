@@ -133,7 +133,13 @@ def confirm(
     max_steps : int
         Cap on the steps of one run (the duration is shortened to fit).
     """
+    from ..process._damping import damping_term
     from ..time import Excitation, Initial, Integration, simulate
+    from ..time._simulate import LAND_STEPS
+
+    # the indentation model's flank force needs LAND_STEPS samples across the wear land
+    term = damping_term(system.model) if getattr(system.model, "process_damping", None) else None
+    flank = term if term is not None and term.indentation else None
 
     if count < 1:
         raise InputError(f"count must be >= 1 (got {count})")
@@ -149,7 +155,8 @@ def confirm(
     for j in picks:
         T = float(diagram.delay[j])
         fch = float(diagram.chatter_hz[j])
-        h, dur = _step_and_duration(T, fch, periods, min_duration, phase_error, max_steps)
+        land = float(flank.wear_land / (LAND_STEPS * flank.speed(T))) if flank is not None else math.inf
+        h, dur = _step_and_duration(T, fch, periods, min_duration, phase_error, max_steps, land)
         for fac in factors:
             b = float(diagram.b_lim[j] * fac)
             sim = simulate(
@@ -218,12 +225,19 @@ def _disturbance(system: System, position: float | None) -> tuple[str, int, np.n
 
 
 def _step_and_duration(
-    T: float, fch: float, periods: int, min_duration: float, phase_error: float, max_steps: int
+    T: float,
+    fch: float,
+    periods: int,
+    min_duration: float,
+    phase_error: float,
+    max_steps: int,
+    land: float = math.inf,
 ) -> tuple[float, float]:
     """Newmark step (a whole fraction of the delay T, fine enough for the
-    chatter frequency's phase over one delay) and the simulated duration."""
+    chatter frequency's phase over one delay, and at most ``land``: the
+    indentation model's wear-land step) and the simulated duration."""
     w = 2 * np.pi * fch
-    h = min(1.0 / (25.0 * fch), T / 10.0, math.sqrt(12.0 * phase_error / (w**3 * T)))
+    h = min(1.0 / (25.0 * fch), T / 10.0, math.sqrt(12.0 * phase_error / (w**3 * T)), land)
     h = T / math.ceil(T / h)
     dur = max(periods * T, min_duration, 12.0 / fch)
     dur = min(dur, max_steps * h)
