@@ -426,7 +426,9 @@ def ssv_multipliers(
         resolves only their frequencies (a structure with many modes, a long delay).
         ``meta["split_error"]`` is :func:`split_error` over the chatter band
         f_c (1 -+ RVA) (the variation spreads the chatter over it), ``meta["split_hz"]``
-        the frequency, ``meta["kept"]`` the modes integrated.
+        the frequency, ``meta["kept"]`` the modes integrated.  ``error`` (and so the
+        verdict) is the discretisation's alone: the split's is on the loop's transfer,
+        not on mu (it moves b_lim by at most kappa eps / (1 - eps), :func:`split_error`).
 
     Returns
     -------

@@ -270,9 +270,14 @@ class SsvLimits(Result):
         if "split_hz" in self.meta:
             err = np.asarray(self.meta["split_error"], dtype=float)
             worst = float(np.nanmax(err)) if np.any(np.isfinite(err)) else math.nan
+            where = (
+                f"<= {worst:.2g} in the chatter band at the limits found"
+                if math.isfinite(worst)
+                else "not estimated (no limit found)"
+            )
             lines.append(
-                f"modes above {self.meta['split_hz']:g} Hz quasi-static: receptance error <= {worst:.2g} in the"
-                " chatter band at the limits found"
+                f"modes above {self.meta['split_hz']:g} Hz quasi-static: their error on the delayed loop's"
+                f" transfer {where}"
             )
         head = f"{'speed [' + self.speed_unit + ']':>14}  {'RVA':>6}  {'RVF':>8}  {self.limit_name + ' [mm]':>12}"
         lines.append(head)
@@ -311,7 +316,7 @@ class SsvLimits(Result):
             data["split_error"] = (
                 np.asarray(self.meta["split_error"], dtype=float),
                 "1",
-                "quasi-static split: receptance error in the chatter band at the limit",
+                "quasi-static split: relative error of the delayed loop's transfer in the chatter band at the limit",
             )
             attrs["split_hz"] = float(self.meta["split_hz"])
         return coords, data, attrs
