@@ -269,14 +269,43 @@ def test_milling_time_domain_refuses_the_indentation_model(tmp_path, capsys):
     ):
         simulate_milling(cl.assemble(model).at(), mill, 10000.0, 1e-4, tool_point=("tool.x", "tool.y"))
     out = tmp_path / "mill.csv"
-    for table, says in (("", "takes the linear C_pd"), ("C_pd = 2e4\n", "does not pass C_pd")):
-        if table:
-            path = milling_file(tmp_path, table)
-        code, err = _cli(
-            capsys, "simulate", str(path), "--speed", "10000", "--width", "0.1", "--out", str(out)
-        )
-        assert code == 2 and len(err.strip().splitlines()) == 1 and says in err, err
-        assert not out.exists()
+    code, err = _cli(capsys, "simulate", str(path), "--speed", "10000", "--width", "0.1", "--out", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "takes the linear C_pd" in err, err
+    assert not out.exists()
+
+
+def test_chatterlab_simulate_of_a_milling_model_takes_its_linear_c_pd(tmp_path, capsys):
+    """The command hands the model's C_pd to the milling time domain: its
+    run is the API's run of the model (which reads the table itself), and
+    not the run without the table."""
+    from chatterlab.cli._main import main
+    from chatterlab.lobes._milling_model import milling_of
+
+    path = milling_file(tmp_path, "C_pd = 2e5\n")
+    out = tmp_path / "mill.csv"
+    capsys.readouterr()
+    code = main(["simulate", str(path), "--speed", "10000", "--width", "0.1", "--revolutions", "20",
+                 "--linear", "--out", str(out)])  # fmt: skip
+    text = capsys.readouterr().out
+    assert code in (0, 1) and "process damping: C_pd = 200000 N/m" in text, text
+    model = cl.load_model(path)
+    fz = cl.assemble(model).at()
+    from chatterlab.cli._milling import PERTURBATION
+
+    (cm,) = [c for c in fz.couplings() if c.coupling.kind == "milling"]
+    P = np.asarray(cm.J, dtype=float)[:2]
+    from chatterlab.time import Initial, Integration
+
+    kw = dict(
+        nonlinear=False,
+        integration=Integration(periods=20),
+        initial=Initial(q0=np.linalg.pinv(P) @ np.full(2, PERTURBATION)),
+    )
+    api = simulate_milling(fz, milling_of(model), 10000.0, 1e-4, tool_point=("tip.x", "tip.y"), **kw)
+    bare = simulate_milling((fz.A, fz.B, fz.C), milling_of(model), 10000.0, 1e-4, tool_point=P, **kw)
+    cli = np.loadtxt(out, delimiter=",", skiprows=1, usecols=(1,), comments="#")  # x [m]
+    assert np.abs(api.x[: cli.size] - cli).max() <= 1e-9 * np.abs(api.x).max()
+    assert np.abs(bare.x[: cli.size] - cli).max() > 1e-3 * np.abs(api.x).max()
 
 
 # ----------------------------------------------------------------------------- milling: rubbing teeth

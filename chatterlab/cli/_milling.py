@@ -217,6 +217,7 @@ def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
 
     from ..lobes._milling_model import milling_of
     from ..structure._assembly import assemble
+    from ..time import Initial, Integration
     from ..time._milling import simulate_milling
     from ._common import width_m
 
@@ -246,9 +247,10 @@ def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
         float(args.speed if args.speed is not None else model.process.speed),
         width_m(args),
         feed=cut.feed_per_tooth,
-        revolutions=args.revolutions,
         nonlinear=not args.linear,
         tool_point=P,
         runout=cut.runout or None,
-        q0=q0,
+        integration=Integration(periods=args.revolutions),
+        initial=Initial(q0=q0),
+        C_pd=model.process_damping.C_pd if model.process_damping is not None else None,
     )

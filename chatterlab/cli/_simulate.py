@@ -129,14 +129,6 @@ def run(args: argparse.Namespace) -> int:
         from ..time._milling import refuse_milling_damping
 
         refuse_milling_damping(model)
-        pd = model.process_damping
-        if pd is not None and pd.C_pd > 0.0:
-            # cli/_milling.milling_simulation hands simulate_milling the matrices, not the model
-            raise InputError(
-                "[process_damping]: chatterlab simulate of a milling model does not pass C_pd to the time"
-                " domain yet (the API does: chatterlab.time.simulate_milling(..., C_pd=...)); drop the table"
-                " or --set process_damping.C_pd=0 to simulate the cut without it"
-            )
         if args.q0 or args.v0 or args.history != "zero":
             raise InputError(
                 "--q0, --v0 and --history apply to cutting-process models; a milling run starts from the "
@@ -178,6 +170,14 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
             f" {run.steps_per_period} steps per period): {run.verdict}"
         )
         print(f"  {run.reason}")
+        pd = model.process_damping
+        if pd is not None and pd.C_pd > 0.0:
+            from ..model._items import cutting_speed
+
+            print(
+                f"  process damping: C_pd = {pd.C_pd:.6g} N/m, each cutting tooth's a_p C_pd / V along its"
+                f" radial direction (V = {cutting_speed(run.rpm, model.process.milling.diameter):.4g} m/s)"
+            )
         print(
             f"  growth per period {run.growth_per_period:+.5f} (|mu| = {abs(run.multiplier):.5f}),"
             f" chatter {run.chatter_frequency:.2f} Hz, tooth out of the material {run.fraction_out_of_cut:.1%}"
