@@ -17,6 +17,21 @@ with A the free structure's state matrix and, per unit width,
   H_j the tooth's directional matrix at its angle theta(t) - lag_j and C
   the tool point (:class:`~chatterlab.process.VaryingSpeedMilling`).
 
+Process damping (turning, shaping): the flank's b C_pd / V n n^T in D_V
+follows the cutting speed V(t) = V_0 Omega(t) / Omega_0, so A_c(t) =
+A_c^0 + (Omega_0 / Omega(t) - 1) A_d with A_d its state form at the mean speed.
+
+A quasi-static split (turning, shaping; ``split``): the structure's modes
+above a frequency enter by their exact static compliance G at the cut
+(:func:`~chatterlab.frequency.split_structure`), the kept modes' state x is
+integrated, and the delayed output y = V_d^T r carries the quasi-static
+response too:
+
+    x' = A~ x + B~ y(t - tau),   y = C_y x + E y(t - tau)                    (1q)
+
+(:meth:`~chatterlab.process.VaryingDelayLoop.split_terms`; its error on the
+loop: :func:`split_error`).
+
 (1) is periodic with the period of the program and the cut together
 (:meth:`SpeedVariation.period_phase`), taken here a whole number of times
 when one period is shorter than the longest delay (a history of one period
