@@ -23,7 +23,7 @@ A_c^0 + (Omega_0 / Omega(t) - 1) A_d with A_d its state form at the mean speed.
 
 A quasi-static split (turning, shaping; ``split``): the structure's modes
 above a frequency enter by their exact static compliance G at the cut
-(:func:`~chatterlab.frequency.split_structure`), the kept modes' state x is
+(:func:`~chatterlab.frequency._floquet_spectral.split_structure`), the kept modes' state x is
 integrated, and the delayed output y = V_d^T r carries the quasi-static
 response too:
 
@@ -327,7 +327,7 @@ def dominant_frequency(
 # ============================================================================ the quasi-static split
 def ssv_split(loop: ClosedLoop, split: float | QuasiStatic | None) -> QuasiStatic | None:
     """The quasi-static split asked for: ``split`` Hz (the modes above it quasi-static,
-    :func:`~chatterlab.frequency.split_structure`), a :class:`QuasiStatic` of ``loop``
+    :func:`~chatterlab.frequency._floquet_spectral.split_structure`), a :class:`QuasiStatic` of ``loop``
     as it is, or None."""
     if split is None or isinstance(split, QuasiStatic):
         return split

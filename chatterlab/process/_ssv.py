@@ -630,7 +630,7 @@ def ssv_loop(
         The mean speed.
     quasi_static : QuasiStatic, optional
         Turning / shaping: the structure split into its kept modes, integrated, and
-        the quasi-static rest (:func:`chatterlab.frequency.split_structure` of
+        the quasi-static rest (:func:`chatterlab.frequency._floquet_spectral.split_structure` of
         ``loop``); the loop is then Eq. (1q) (:meth:`VaryingDelayLoop.split_terms`).
 
     Returns
@@ -739,7 +739,7 @@ def _split_loop(
     loop: ClosedLoop, variation: SpeedVariation, speed: float | None, qs: Any
 ) -> VaryingDelayLoop:
     """Eq. (1q) (:meth:`VaryingDelayLoop.split_terms`) of a turning / shaping ``loop`` on the
-    kept modes of ``qs`` (a :class:`~chatterlab.frequency.QuasiStatic` of this loop's structure
+    kept modes of ``qs`` (a :class:`~chatterlab.frequency._floquet_spectral.QuasiStatic` of this loop's structure
     and coupling), in scaled states (velocities in units of the kept modes' highest pole)."""
     Ub, Jr, _ = loop.cut_basis
     kl = qs.loop
