@@ -20,6 +20,7 @@ if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, 
         multipliers,
         sdm_monodromy,
     )
+    from ._floquet_spectral import QuasiStatic, split_structure
     from ._floquet_ssv import ssv_monodromy, ssv_multipliers
     from ._floquet_ssv_limit import SsvLimits, SsvLimitTask, ssv_limit, ssv_limits
     from ._forced import (
@@ -81,6 +82,13 @@ _HOME = {
             "sdm_monodromy",
         ),
         "_floquet",
+    ),
+    **dict.fromkeys(
+        (
+            "QuasiStatic",
+            "split_structure",
+        ),
+        "_floquet_spectral",
     ),
     **dict.fromkeys(
         (
@@ -172,6 +180,8 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
+    "QuasiStatic",
+    "split_structure",
     "Band",
     "PoleResidue",
     "certified_band",
