@@ -218,7 +218,7 @@ def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
     from ..lobes._milling_model import milling_of
     from ..structure._assembly import assemble
     from ..time import Initial, Integration
-    from ..time._milling import simulate_milling
+    from ..time._milling import model_indentation, simulate_milling
     from ._common import width_m
 
     if args.width is None:
@@ -241,6 +241,7 @@ def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
     # a run at rest with no feed would never be excited, and its "stable" would prove nothing: start
     # from the tool point displaced by PERTURBATION in x and y (printed with the verdict)
     q0 = np.linalg.pinv(P) @ np.full(2, PERTURBATION)
+    pd = model.process_damping
     return simulate_milling(
         (fz.A, fz.B, fz.C),
         milling_of(model),
@@ -252,5 +253,7 @@ def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
         runout=cut.runout or None,
         integration=Integration(periods=args.revolutions),
         initial=Initial(q0=q0),
-        C_pd=model.process_damping.C_pd if model.process_damping is not None else None,
+        # the model's table: its indentation model (K_sp, wear land, clearance) per tooth, or its linear C_pd
+        C_pd=None if pd is None or pd.indentation else pd.C_pd,
+        indentation=model_indentation(model),
     )

@@ -126,9 +126,6 @@ def run(args: argparse.Namespace) -> int:
                 "--integrator exponential needs a linear cut with constant coefficients; a milling run "
                 "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"
             )
-        from ..time._milling import refuse_milling_damping
-
-        refuse_milling_damping(model)
         if args.q0 or args.v0 or args.history != "zero":
             raise InputError(
                 "--q0, --v0 and --history apply to cutting-process models; a milling run starts from the "
@@ -171,7 +168,9 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
         )
         print(f"  {run.reason}")
         pd = model.process_damping
-        if pd is not None and pd.C_pd > 0.0:
+        if pd is not None and pd.indentation:  # the flank's area per tooth: the run names its model
+            print(f"  process damping: {run.attrs['process_damping']}")
+        elif pd is not None and pd.C_pd > 0.0:
             from ..model._items import cutting_speed
 
             print(

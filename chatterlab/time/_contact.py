@@ -32,6 +32,15 @@ Per point of the core's step loop (:meth:`_Contacts.point`):
   ``r' = r'* + Y F`` of the step map (``Y`` its velocity rows' compliance),
   so the 2 x 2 solve becomes ``(I + W Z + D Y) F = -(W r* + b + D r'*)``,
   ``D = g_d sum_j n_j n_j^T`` (zero: the equations without it);
+* **the flanks of the indentation model** (Eq. 6a of docs/process-damping.md,
+  :class:`._indentation.ToothFlanks`): each active contact's flank pushes
+  ``-K_sp a_p A_j n_j``, ``A_j`` the area under it with the penetration
+  ``u_j = n_j . r`` and the surface behind the edge ``n_j . r(t - xi / V)``
+  (the recorded ``r`` at the steps, and at the land's end ``xi = w`` by the
+  cubic Hermite interpolation of the delays).  The force is implicit: a
+  fixed point around the 2 x 2 solve, ``r = r* + Z (F_c + F_f)`` with the
+  flank's ``F_f`` of the last iterate, a contraction since ``Z dF_f/du ~
+  beta h^2 K_sp a_p L / m`` (L the contact length) is tiny;
 * **the record** at every step of ``r`` (the solved one), ``r' = P v``,
   ``F`` and the gaps of the candidates (NaN elsewhere): the coupling's
   history (read by the gaps of later steps) and its outputs.
@@ -46,12 +55,14 @@ from typing import Any
 
 import numpy as np
 
-from ._core import FloatArray, StepMap, step_map
+from ._core import FloatArray, StepMap, hermite_weights, step_map
 
 __all__: list[str] = []
 
 #: the coupling at a point: (candidate contacts, c_x, c_y, e_x, e_y, n_x, n_y), lists over the contacts
 Cut = tuple[list[int], list[float], list[float], list[float], list[float], list[float], list[float]]
+#: iterations of the flanks' fixed point stop at this change of their force, relative to the whole force
+FLANK_TOL = 1e-13
 #: one substep's result: the state at its end, F, r and the active contacts
 Step = tuple[FloatArray, float, float, float, float, list[int]]
 
@@ -151,10 +162,15 @@ class _Contacts:
         opts: Any,
         n_total: int,
         rubbing: float = 0.0,
+        flanks: Any = None,
     ) -> None:
         M, C, K, P = structure
         self.cut, self.M, self.C, self.K, self.P, self.h, self.opts = cut, M, C, K, P, h, opts
         self.gd = float(rubbing)  # N s/m: the rubbing damping per active contact along n_j (0: none)
+        self.flanks = flanks  # the indentation model's flanks (ToothFlanks) or None
+        self.flank_fail = 0  # points where the flanks' fixed point did not settle
+        self.flank_prev = (0.0, 0.0)  # the flanks' force at the last point (the fixed point's guess)
+        self.rmax = 0.0  # max |r| recorded: bounds how far back the flank can touch
         n = self.n = M.shape[0]
         N = self.N = cut.teeth
         Minv = np.linalg.inv(M)
@@ -208,8 +224,9 @@ class _Contacts:
         e0 = int(idx0[-1])
         sj0 = s0[-1].tolist()
         d0 = self.pdata[e0]
+        self.rmax = float(np.hypot(r0[0], r0[1]))
         F1, F2, act = self.explicit_force(
-            d0, pat.right[e0], sj0, float(r0[0]), float(r0[1]), rate=(float(rv0[0]), float(rv0[1]))
+            d0, pat.right[e0], sj0, float(r0[0]), float(r0[1]), rate=(float(rv0[0]), float(rv0[1])), t=0.0
         )
         self.F[0] = (F1, F2)
         for j in pat.right[e0]:
@@ -243,6 +260,8 @@ class _Contacts:
         vmaps, rubbing = self.vmaps, self.gd != 0.0
         right, theta, hs_len, h, N, n3 = self.right, self.theta, self.hs_len, self.h, self.N, 3 * self.n
         force, explicit_force, restart = self.force, self.explicit_force, self.restart
+        flanks = self.flanks is not None
+        flank_force = self.flank_force
         rbuf, vbuf, Fout, hraw, Pv, off0 = self.rbuf, self.vbuf, self.F, self.hraw, self.Pv, self.cut.off0
         w, data, dot = self.w, self.chunk_data, np.dot
         wz = w[:n3]
@@ -257,9 +276,12 @@ class _Contacts:
             sj = sl[k]
             # the substep by its step map (as :meth:`advance`, inline: the hot path)
             r1s, r2s = dot(fm.PL, z_a).tolist()
+            t_pt = (gl[k] - 1 + theta[e]) * h
             if rubbing:
                 PV, Y = vmaps[fam[e]]
                 F1, F2, r1, r2, act = force(d, sj, r1s, r2s, fm.Z, guess, rate=(dot(PV, z_a).tolist(), Y))
+            elif flanks:
+                F1, F2, r1, r2, act = flank_force(d, sj, r1s, r2s, fm.Z, guess, t=t_pt)
             else:
                 F1, F2, r1, r2, act = force(d, sj, r1s, r2s, fm.Z, guess)
             wz[:] = z_a
@@ -288,14 +310,16 @@ class _Contacts:
                 Fout[i, 1] = F2
                 for j in d[0]:
                     hraw[i, j] = n1[j] * r1 + n2[j] * r2 + sj[j]
+                if flanks:
+                    self.rmax = max(self.rmax, math.hypot(r1, r2))
             rv = tuple(dot(Pv, z_out).tolist()) if rubbing else (0.0, 0.0)
             if restart_at[e]:
-                G1, G2, act_prev = explicit_force(d, right[e], sj, r1, r2, rate=rv)
+                G1, G2, act_prev = explicit_force(d, right[e], sj, r1, r2, rate=rv, t=t_pt)
                 restart(z_out, G1, G2)
                 guess = (G1, G2)
             if locating:
                 h_prev = [n1[j] * r1 + n2[j] * r2 + sj[j] for j in range(N)]
-                t_prev = (gl[k] - 1 + theta[e]) * h
+                t_prev = t_pt
                 prev = (d, sj, (r1, r2), rv)
 
         return point
@@ -376,13 +400,101 @@ class _Contacts:
             self.active_fail += 1
         return F1, F2, ra1, ra2, act
 
+    def flank_force(
+        self, d: Cut, sj: list[float], r1s: float, r2s: float, Z: tuple[float, float, float, float],
+        guess: tuple[float, float], fixed: list[int] | None = None, t: float = 0.0,
+    ) -> tuple[float, float, float, float, list[int]]:  # fmt: skip
+        """The implicit force with the flanks of the indentation model at
+        the time t (the end of the substep): the fixed point of the flanks'
+        force F_f around the 2 x 2 solve of the cut (:meth:`force` at
+        ``r* + Z F_f``); returns the whole force, r and the active contacts."""
+        z11, z12, z21, z22 = Z
+        surface = self.flank_surface(t, r1s, r2s)
+        f1, f2 = self.flank_prev
+        F1 = F2 = ra1 = ra2 = 0.0
+        act: list[int] = []
+        for _ in range(50):
+            a1 = r1s + z11 * f1 + z12 * f2
+            a2 = r2s + z21 * f1 + z22 * f2
+            F1, F2, ra1, ra2, act = self.force(d, sj, a1, a2, Z, (guess[0] - f1, guess[1] - f2), fixed)
+            g1, g2 = self.flank_push(surface, d, act, ra1, ra2)
+            change = abs(g1 - f1) + abs(g2 - f2)
+            if change <= FLANK_TOL * (abs(F1) + abs(F2) + abs(g1) + abs(g2)) or change == 0.0:
+                break
+            f1, f2 = g1, g2
+        else:  # Z dF_f/du >= 1: a flank this stiff needs a shorter step
+            self.flank_fail += 1
+        self.flank_prev = (f1, f2)
+        return F1 + f1, F2 + f2, ra1, ra2, act
+
+    def flank_surface(
+        self, t: float, r1: float, r2: float
+    ) -> tuple[FloatArray, FloatArray, dict[int, FloatArray]]:
+        """The surface behind the edges at the time t: the distances xi from
+        the edge (0, then V (t - t_i) of the recorded steps t_i < t, newest
+        first, and the land's end w) and r there (k, 2: the steps' records,
+        Hermite at t - w / V; the edge's row a placeholder), far enough back
+        that no flank touches beyond (u_j - n_j . r(t - xi / V) <= |r| + max
+        |r| recorded; twice that for the iterates of the fixed point); and
+        an empty cache of the teeth's surfaces."""
+        fl, h, off0 = self.flanks, self.h, self.cut.off0
+        V, w = fl.speed, fl.wear_land
+        i_last = int(math.ceil(t / h - 1e-9)) - 1
+        reach = w + 2.0 * (math.hypot(r1, r2) + self.rmax) / math.tan(fl.clearance)
+        want = int(math.ceil(reach / (V * h))) + 2
+        k = min(want, i_last + off0 + 1)
+        idx = i_last - np.arange(k)
+        xi = V * (t - idx * h)
+        rows = self.rbuf[idx + off0]
+        if k < want:  # the reach goes back before the buffer: the zero history held there
+            xi = np.append(xi, max(reach, float(xi[-1])) + V * h)
+            rows = np.vstack((rows, np.zeros((1, 2))))
+        pos = int(np.searchsorted(xi, w))
+        if pos < xi.size and abs(xi[pos] - w) <= 1e-12 * w:  # the land's end on a step
+            return np.concatenate(((0.0,), xi)), np.vstack((rows[:1], rows)), {}
+        x = (t - w / V) / h
+        base = math.floor(x)
+        b = base + off0
+        land = np.zeros(2)
+        if b >= 0:
+            w0, w1, w2, w3 = hermite_weights(x - base, h)
+            land = w0 * self.rbuf[b] + w1 * self.vbuf[b] + w2 * self.rbuf[b + 1] + w3 * self.vbuf[b + 1]
+        xs = np.concatenate(((0.0,), xi[:pos], (w,), xi[pos:]))
+        return xs, np.vstack((rows[:1], rows[:pos], land, rows[pos:])), {}
+
+    def flank_push(
+        self, surface: tuple[FloatArray, FloatArray, dict[int, FloatArray]], d: Cut, act: list[int], r1: float,
+        r2: float,
+    ) -> tuple[float, float]:  # fmt: skip
+        """The flanks' force on the tool, -K_sp a_p sum_j A_j n_j over the
+        contacts ``act`` with the tool at r (:meth:`flank_surface`'s surface;
+        each tooth's n_j . r there kept in its cache for the fixed point's
+        iterates)."""
+        fl = self.flanks
+        if not act or fl.K_sp == 0.0:
+            return 0.0, 0.0
+        xs, rows, cache = surface
+        n1, n2 = d[5], d[6]
+        F1 = F2 = 0.0
+        gain = fl.K_sp * fl.depth
+        for j in act:
+            surf = cache.get(j)
+            if surf is None:
+                surf = cache[j] = rows[:, 0] * n1[j] + rows[:, 1] * n2[j]
+            u = n1[j] * r1 + n2[j] * r2
+            surf[0] = u
+            A = fl.area(u, xs, surf)
+            F1 -= gain * A * n1[j]
+            F2 -= gain * A * n2[j]
+        return F1, F2
+
     def explicit_force(
         self, d: Cut, teeth: list[int], sj: list[float], r1: float, r2: float, test: bool = True,
-        rate: tuple[float, float] = (0.0, 0.0),
+        rate: tuple[float, float] = (0.0, 0.0), t: float = 0.0,
     ) -> tuple[float, float, list[int]]:  # fmt: skip
         """Force of the contacts ``teeth`` at the known position r and rate
-        r' (restart, start), those with h <= 0 left out in the nonlinear
-        model when ``test``."""
+        r' (restart, start) at the time t (the flanks' surface), those with
+        h <= 0 left out in the nonlinear model when ``test``."""
         _, c1, c2, e1, e2, n1, n2 = d
         F1 = F2 = 0.0
         act = []
@@ -398,6 +510,10 @@ class _Contacts:
                 vn = gd * (n1[j] * v1 + n2[j] * v2)
                 F1 -= n1[j] * vn
                 F2 -= n2[j] * vn
+        if self.flanks is not None:
+            f1, f2 = self.flank_push(self.flank_surface(t, r1, r2), d, act, r1, r2)
+            F1 += f1
+            F2 += f2
         return F1, F2, act
 
     def advance(
@@ -410,17 +526,22 @@ class _Contacts:
         fixed: list[int] | None = None,
         out: FloatArray | None = None,
         vm: tuple[FloatArray, tuple[float, float, float, float]] | None = None,
+        t: float = 0.0,
     ) -> tuple[float, float, float, float, list[int]]:
         """One Newmark (sub)step from ``z`` by the step map ``fm`` (``vm``
-        its :meth:`rate_map`, made when None and needed): the new state into
-        ``out`` (or a new array, :attr:`last`), F, r and the active contacts."""
+        its :meth:`rate_map`, made when None and needed; ``t`` the time at
+        its end, for the flanks): the new state into ``out`` (or a new
+        array, :attr:`last`), F, r and the active contacts."""
         n = self.n
         r1s, r2s = np.dot(fm.PL, z).tolist()
         rate = None
         if self.gd:
             PV, Y = self.rate_map(fm) if vm is None else vm
             rate = (np.dot(PV, z).tolist(), Y)
-        F1, F2, r1, r2, act = self.force(d, sj, r1s, r2s, fm.Z, guess, fixed, rate)
+        if self.flanks is not None:
+            F1, F2, r1, r2, act = self.flank_force(d, sj, r1s, r2s, fm.Z, guess, fixed, t)
+        else:
+            F1, F2, r1, r2, act = self.force(d, sj, r1s, r2s, fm.Z, guess, fixed, rate)
         w = self.w
         w[: 3 * n] = z
         w[3 * n] = F1
@@ -455,14 +576,14 @@ class _Contacts:
         fm1 = step_map(self.M, self.C, self.K, self.P, th * hs, o.gamma, o.beta)
         fm2 = step_map(self.M, self.C, self.K, self.P, (1.0 - th) * hs, o.gamma, o.beta)
         d_s, sj_s = self.cut.at(self, t_s, d[0])
-        F1, F2, r1, r2, _ = self.advance(z, fm1, d_s, sj_s, guess, fixed=act_a)
+        F1, F2, r1, r2, _ = self.advance(z, fm1, d_s, sj_s, guess, fixed=act_a, t=t_s)
         z1 = self.last
         new = [j for j in d[0] if (j in act_b) if j in changed] + [j for j in act_a if j not in changed]
         rv = tuple(np.dot(self.Pv, z1).tolist()) if self.gd else (0.0, 0.0)
-        G1, G2, _ = self.explicit_force(d_s, sorted(new), sj_s, r1, r2, test=False, rate=rv)
+        G1, G2, _ = self.explicit_force(d_s, sorted(new), sj_s, r1, r2, test=False, rate=rv, t=t_s)
         self.restart(z1, G1, G2)
         self.located += 1
-        out = self.advance(z1, fm2, d, sj, (G1, G2))
+        out = self.advance(z1, fm2, d, sj, (G1, G2), t=t_a + hs)
         return (self.last,) + out
 
     def relocate(
@@ -475,7 +596,7 @@ class _Contacts:
         (``ctx`` as in :meth:`split`)."""
         _, F1, F2, r1, r2, act = step
         n1, n2 = d[5], d[6]
-        act_prev, _, h_prev, _, prev = ctx
+        act_prev, _, h_prev, t_a, prev = ctx
         th = 1.0
         for j in changed:
             hb = n1[j] * r1 + n2[j] * r2 + sj[j]
@@ -491,11 +612,11 @@ class _Contacts:
             keep = [j for j in act_prev if j not in changed]
             new = sorted(keep + [j for j in changed if j in act])
             G1, G2, _ = self.explicit_force(
-                d_prev, new, sj_prev, ra_prev[0], ra_prev[1], test=False, rate=rv_prev
+                d_prev, new, sj_prev, ra_prev[0], ra_prev[1], test=False, rate=rv_prev, t=t_a
             )
             z_a = z_a.copy()
             self.restart(z_a, G1, G2)
-            out = self.advance(z_a, fm, d, sj, (G1, G2))
+            out = self.advance(z_a, fm, d, sj, (G1, G2), t=t_a + hs)
             self.located += 1
             return (self.last,) + out
         return step

@@ -56,7 +56,7 @@ from ..errors import InputError, check_nonneg, check_positive
 from ..process._damping import flank_interference, indented_area
 from ._core import delay_on_grid, hermite_weights, step_map
 
-__all__ = ["IndentationResponse", "simulate_indentation", "Flank", "FlankRun", "flank_run"]
+__all__ = ["IndentationResponse", "simulate_indentation", "Flank", "FlankRun", "flank_run", "ToothFlanks"]
 
 #: fixed-point iterations of the implicit flank force stop at this relative change of u
 FIXED_POINT_TOL = 1e-13
@@ -410,3 +410,64 @@ def simulate_indentation(
     return IndentationResponse(
         run.t, run.q @ row, run.v @ row, run.flank, run.contact, "ok" if run.status == "ok" else "diverged"
     )
+
+
+@dataclass(frozen=True, eq=False)
+class ToothFlanks:
+    """The indentation model on the teeth of a milling cutter
+    (:func:`chatterlab.time.simulate_milling`; docs/process-damping.md,
+    "Milling in the time domain"): each tooth j in the cut pushes
+    ``-K_sp a_p A_j n_j`` on the tool, A_j the area under its flank (Eq. 6a)
+    with the penetration u_j = n_j . r (into the material: the sign of the
+    chip) and the surface behind the edge the tool's own path,
+    n_j . r(t - xi / V), sampled by the milling run (:mod:`._contact`).
+
+    Attributes
+    ----------
+    depth : float
+        Axial depth of cut a_p, m.
+    speed : float
+        Cutting speed V at the cutter's diameter, m/s.
+    K_sp, wear_land, clearance : float
+        N/m^3, m, rad.
+    """
+
+    depth: float
+    speed: float
+    K_sp: float
+    wear_land: float
+    clearance: float
+
+    def land_steps(self, h: float) -> float:
+        """Samples of the surface along the wear land at the step h: w / (V h)."""
+        return self.wear_land / (self.speed * h)
+
+    def steps_per_period(self, period: float, samples: float) -> int:
+        """The steps per ``period`` (s) that put ``samples`` steps across the wear land."""
+        return int(math.ceil(samples * self.speed * period / self.wear_land - 1e-9))
+
+    def check_steps(self, period: float, m: int, option: str) -> None:
+        """One line naming ``option`` when ``m`` steps per ``period`` leave
+        fewer than :data:`MIN_LAND_STEPS` samples across the wear land."""
+        if self.land_steps(period / m) < MIN_LAND_STEPS:
+            raise InputError(
+                f"{option}: the indentation model's wear land must hold several steps (w / (V h) ="
+                f" {self.land_steps(period / m):.3g} at {m}); give at least"
+                f" {self.steps_per_period(period, MIN_LAND_STEPS)}"
+            )
+
+    def area(self, u_now: float, xi: np.ndarray, surface: np.ndarray) -> float:
+        """The area under the flank, m^2, with the edge at ``u_now`` and the
+        surface ``surface`` at the distances ``xi`` behind it (``xi[0] = 0``,
+        the edge itself)."""
+        d = flank_interference(u_now, xi, surface, self.wear_land, self.clearance)
+        d[0] = 0.0  # at the edge the surface is where the edge is
+        return indented_area(d, xi)
+
+    def describe(self) -> str:
+        """The model's line in a result: its fields and the linear equivalent."""
+        return (
+            f"indentation, K_sp = {self.K_sp:.4g} N/m^3, wear land {self.wear_land * 1e6:.4g} um, clearance"
+            f" {math.degrees(self.clearance):.4g} deg at V = {self.speed:.4g} m/s (small-vibration equivalent"
+            f" C_pd = K_sp w^2/4 = {self.K_sp * self.wear_land**2 / 4:.6g} N/m)"
+        )

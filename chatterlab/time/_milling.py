@@ -166,16 +166,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import InputError, check_count, check_nonneg, check_speed
+from ..errors import InputError, check_count, check_nonneg, check_positive, check_speed
 from ..model._items import cutting_speed
 from ..process._milling import Milling
 from ._contact import _Contacts
 from ._core import FloatArray, _Stepper, check_options
+from ._indentation import ToothFlanks
 from ._milling_cut import _MillingCut
 from ._milling_result import MillingSimulation, _result
 from ._milling_verdict import natural_frequencies
 from ._options import Initial, Integration, with_legacy
 from ._plan import coupled_plan
+from ._simulate import LAND_STEPS
 
 __all__ = ["MillingSimulation", "simulate_milling", "default_steps_per_period"]
 
@@ -218,6 +220,7 @@ def simulate_milling(
     integration: Integration | None = None,
     initial: Initial | None = None,
     C_pd: float | None = None,
+    indentation: tuple[float, float, float] | None = None,
     **deprecated: Any,
 ) -> MillingSimulation:
     """Simulate milling on a structure: vibration, chips, forces, Poincare verdict.
@@ -265,7 +268,16 @@ def simulate_milling(
         tool feeling ``-a_p (C_pd / V) sum_j n_j n_j^T r'``, V the cutting
         speed at the cutter's diameter (``chatterlab.model._items.cutting_speed``).
         None: the ``[process_damping]`` of a FrozenSystem's model (its
-        indentation model is refused), else 0.
+        linear C_pd, or its indentation model), else 0.
+    indentation : (K_sp, wear_land, clearance), optional
+        The indentation model of process damping instead (N/m^3, m, rad;
+        docs/process-damping.md Eq. 6a): each tooth in the cut pushes
+        ``-K_sp a_p A_j n_j``, A_j the area of material under its flank, the
+        penetration ``n_j . r`` and the surface behind the edge the tool's
+        path ``n_j . r(t - xi / V)`` (:class:`._indentation.ToothFlanks`).
+        The default step puts ``LAND_STEPS`` = 8 steps across the wear land
+        (h <= w / (8 V)); a given ``steps_per_period`` must leave 2.  Not
+        with ``C_pd``.
     **deprecated
         The 0.2 keywords ``revolutions``, ``steps_per_period``, ``q0``,
         ``v0``, ``options`` (a DeprecationWarning names their place in the
@@ -292,7 +304,9 @@ def simulate_milling(
     opt = with_legacy("simulate_milling", deprecated, legacy, integration=integration, initial=initial)
     integ, init = opt["integration"], opt["initial"]
     rpm, depth, feed, opts = _checked_cut(milling, rpm, depth, feed, integ)
-    rubbing = _rubbing(C_pd, getattr(structure, "model", None), milling, rpm, depth)
+    rubbing, flanks = _process_damping(
+        C_pd, indentation, getattr(structure, "model", None), milling, rpm, depth
+    )
     M, C, K, P = _matrices(structure, tool_point, workpiece_point)
     n = M.shape[0]
     if init.history is not None:
@@ -308,20 +322,33 @@ def simulate_milling(
         if integ.steps_per_period is not None
         else _default_m(M, K, P, milling, rpm, depth)
     )
+    if flanks is not None:
+        tau = milling.tooth_period(rpm)
+        if integ.steps_per_period is None:
+            m = max(m, flanks.steps_per_period(tau, LAND_STEPS))
+        else:
+            flanks.check_steps(tau, m, "integration.steps_per_period")
     rho, K_pass = _teeth(milling.teeth, runout, passes, nonlinear)
     q_init, v_init = _initial_state(P, n, init.q0, init.v0, nonlinear)
     cut = _MillingCut(milling, rpm, depth, feed, rho, K_pass, nonlinear, m)
     revolutions, n_total = _length(cut, integ, opts)
-    contacts = _Contacts(cut, (M, C, K, P), cut.h, opts, n_total, rubbing)
+    contacts = _Contacts(cut, (M, C, K, P), cut.h, opts, n_total, rubbing, flanks)
     a0 = contacts.start(q_init, v_init)
     stepper = _Stepper(
         coupled_plan((M, C, K), contacts, opts, (cut.h, n_total, cut.chunk), (q_init, v_init, a0))
     )
     status, reason, done = stepper.run(integ.progress, None)
     periodic_tooth = milling.uniform and (not np.any(rho) or not nonlinear)
+    if flanks is not None:
+        damping = flanks.describe()
+    elif rubbing:
+        damping = f"linear, C_pd = {rubbing * cutting_speed(rpm, milling.diameter) / depth:.6g} N/m"
+    else:
+        damping = "none"
     run = _MillingRun(
-        milling, rpm, depth, feed, nonlinear, m, revolutions, n_total, cut.n_rev if not periodic_tooth else m
-    )
+        milling, rpm, depth, feed, nonlinear, m, revolutions, n_total, cut.n_rev if not periodic_tooth else m,
+        damping,
+    )  # fmt: skip
     return _result(run, contacts, status, reason, done, time.perf_counter() - wall0)
 
 
@@ -339,6 +366,7 @@ class _MillingRun:
     revolutions: float
     n_total: int
     per_sample: int
+    process_damping: str = "none"
 
 
 def _length(cut: _MillingCut, integ: Integration, opts: Any) -> tuple[float, int]:
@@ -412,34 +440,58 @@ def _initial_state(
     return q_init, v_init
 
 
-def refuse_milling_damping(model: Any) -> None:
-    """One line when a milling model has the indentation model of
-    ``[process_damping]``: the milling time domain does not integrate the
-    flank's indented area per tooth, and a run without it (or with its
-    linear equivalent) would answer for another cut."""
+def model_indentation(model: Any) -> tuple[float, float, float] | None:
+    """The ``indentation`` argument of :func:`simulate_milling` from a
+    model's ``[process_damping]`` (K_sp, wear_land, clearance), or None
+    when the table is absent or gives the linear C_pd."""
     pd = getattr(model, "process_damping", None)
     if pd is None or not pd.indentation:
-        return
-    raise InputError(
-        "[process_damping]: the milling time domain takes the linear C_pd, not the indentation model (K_sp,"
-        " wear_land, clearance_deg) per tooth: give C_pd = K_sp wear_land^2 / 4 ="
-        f" {pd.C_pd:.6g} N/m instead (its small-vibration equivalent)"
-    )
+        return None
+    return float(pd.K_sp), float(pd.wear_land), float(pd.clearance)
 
 
-def _rubbing(C_pd: float | None, model: Any, milling: Milling, rpm: float, depth: float) -> float:
-    """The rubbing teeth's damping a_p C_pd / V along each tooth's radial
-    direction, N s/m (0: none): ``C_pd`` given, or the model's."""
-    if C_pd is None:
-        refuse_milling_damping(model)
-        pd = getattr(model, "process_damping", None)
-        C_pd = 0.0 if pd is None else float(pd.C_pd)
+def _process_damping(
+    C_pd: float | None,
+    indentation: tuple[float, float, float] | None,
+    model: Any,
+    milling: Milling,
+    rpm: float,
+    depth: float,
+) -> tuple[float, ToothFlanks | None]:
+    """(the rubbing teeth's damping a_p C_pd / V along each tooth's radial
+    direction, N s/m, 0: none; the indentation model's flanks or None):
+    ``C_pd`` or ``indentation`` given, or the model's table."""
+    if C_pd is not None and indentation is not None:
+        raise InputError(
+            "C_pd and indentation: give one process-damping model, the linear or the indentation"
+        )
+    if C_pd is None and indentation is None:
+        indentation = model_indentation(model)
+        if indentation is None:
+            pd = getattr(model, "process_damping", None)
+            C_pd = 0.0 if pd is None else float(pd.C_pd)
+    if indentation is not None:
+        try:
+            K_sp, w, clearance = (float(x) for x in indentation)
+        except (TypeError, ValueError):
+            raise InputError("indentation: give (K_sp N/m^3, wear_land m, clearance rad)") from None
+        K_sp = check_nonneg(K_sp, "indentation K_sp", "N/m^3")
+        w = check_positive(w, "indentation wear_land", "m")
+        if not 0.0 < clearance < math.pi / 2:
+            raise InputError(f"indentation clearance: must lie in (0, pi/2) rad (got {clearance!r})")
+        V = _speed(milling, rpm, "indentation")
+        return 0.0, ToothFlanks(float(depth), V, K_sp, w, clearance)
     C_pd = check_nonneg(C_pd, "C_pd", "N/m")
     if C_pd == 0.0:
-        return 0.0
+        return 0.0, None
+    return float(depth) * C_pd / _speed(milling, rpm, "C_pd"), None
+
+
+def _speed(milling: Milling, rpm: float, name: str) -> float:
+    """The cutting speed at the cutter's diameter, m/s."""
     if not (math.isfinite(milling.diameter) and milling.diameter > 0):
-        raise InputError("C_pd: the cutting speed needs the cutter's diameter (Milling.diameter, m)")
-    return float(depth) * C_pd / float(cutting_speed(float(rpm), float(milling.diameter)))
+        raise InputError(f"{name}: the cutting speed needs the cutter's diameter (Milling.diameter, m)")
+    return float(cutting_speed(float(rpm), float(milling.diameter)))
 
 
 # =========================================================================== structure

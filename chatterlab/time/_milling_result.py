@@ -64,6 +64,11 @@ class MillingSimulation(TimeHistory):
     fraction_out_of_cut : float
         Fraction of the time a tooth is in the arc but has left the material
         (h <= 0), over the analysed window.
+    attrs : dict
+        The run's constants: ``teeth``, ``passes``, ``revolutions``,
+        ``n_steps``, ``tooth_period`` (s) and ``process_damping``, the model
+        of process damping that ran (``"none"``, ``"linear, C_pd = ..."`` or
+        ``"indentation, K_sp = ..."``).
     """
 
     #: the histories shared with every time result (spectrum, growth, CSV, netCDF: TimeHistory)
@@ -125,6 +130,7 @@ class MillingSimulation(TimeHistory):
             "nonlinear": str(self.nonlinear),
             "verdict": self.verdict,
             "growth_per_period": float(self.growth_per_period),
+            "process_damping": str(self.attrs.get("process_damping", "none")),
         }
 
     def plot(self, names: Sequence[str] | str | None = None, *, ax: Any = None, **style: Any) -> Any:
@@ -202,6 +208,7 @@ def _result(run: Any, cut: _Contacts, status: str, reason: str, done: int, wall:
             "revolutions": run.revolutions,
             "n_steps": run.n_total,
             "tooth_period": mill.tooth_period(run.rpm),
+            "process_damping": run.process_damping,
         },
     )
 
@@ -221,6 +228,10 @@ def _message(
         notes.append(f"{cut.located} instants where a tooth left or re-entered the material located")
     if cut.active_fail:
         notes.append(f"active-set iteration not converged at {cut.active_fail} points")
+    if cut.flanks is not None:
+        notes.append(f"{cut.flanks.land_steps(cut.h):.3g} steps across the wear land")
+    if cut.flank_fail:
+        notes.append(f"the flanks' fixed point not converged at {cut.flank_fail} points: take more steps")
     deepest, K_pass = cut.cut.deepest, cut.cut.K_pass
     if run.nonlinear and K_pass > 1 and deepest:
         notes.append(f"the deepest of {K_pass} passes set the chip at {deepest} points: raise passes")
