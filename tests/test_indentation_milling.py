@@ -113,7 +113,8 @@ def test_small_amplitude_growth_is_the_linear_equivalents():
         ).steps_per_period
     )  # the default step: eight samples across the wear land
     g_ind, e_ind = richardson([r.growth_per_period for r in ind_runs])
-    g_lin, e_lin = richardson([r.growth_per_period for r in runs(C_pd=C_PD)])
+    lin_runs = runs(C_pd=C_PD)
+    g_lin, e_lin = richardson([r.growth_per_period for r in lin_runs])
     g_0 = ln_mu(mill, ap, 0.0)
     share = g_lin - g_0
     tau = mill.tooth_period(RPM)
@@ -127,13 +128,14 @@ def test_small_amplitude_growth_is_the_linear_equivalents():
         + ap * C_PD / V / (2 * MASS * om)
         + X * om / (V * math.tan(GAMMA))
     )
-    fit = ind_runs[-1].growth_error + e_ind + e_lin
+    # Richardson's step errors and the fits' of both runs
+    fit = e_ind + ind_runs[-1].growth_error + e_lin + lin_runs[-1].growth_error
     bound = small * abs(share) + fit
     print(f"indentation {g_ind:.6f} linear {g_lin:.6f} share {share:.5f} small {small:.4f} fit {fit:.2e}")
     assert abs(g_ind - g_lin) <= bound, (g_ind, g_lin, share, small, fit)
     # resolved: the bound is a small part of what the flank adds, and the linear run is the Floquet one
     assert bound < 0.3 * abs(share), (bound, share)
-    assert abs(g_lin - ln_mu(mill, ap, C_PD)) <= e_lin + ind_runs[-1].growth_error + 1e-6
+    assert abs(g_lin - ln_mu(mill, ap, C_PD)) <= e_lin + lin_runs[-1].growth_error
 
 
 def test_slow_cut_above_the_lobe_settles_where_the_fast_one_chatters():
@@ -152,7 +154,6 @@ def test_slow_cut_above_the_lobe_settles_where_the_fast_one_chatters():
     integ = Integration(periods=40)
     run = simulate_milling(ONE, slow, RPM, ap, feed=fz, indentation=ind, integration=integ)
     assert run.status == "ok" and run.verdict == "stable", run.reason
-    assert "converged" in run.reason or run.growth_slope * 40 <= -math.log(10), run.reason
     m = run.steps_per_period
     bare = simulate_milling(
         ONE, slow, RPM, ap, feed=fz, integration=Integration(periods=40, steps_per_period=m)

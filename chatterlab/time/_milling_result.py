@@ -31,7 +31,8 @@ class MillingSimulation(TimeHistory):
     vx, vy : ndarray (n_t,)
         Its velocity, m/s.
     Fx, Fy : ndarray (n_t,)
-        Cutting force on the tool, N.
+        Cutting force on the tool, N (with the flanks' of process damping
+        when the run models it).
     chip : ndarray (N, n_t)
         Chip thickness of each tooth, m (0 where the tooth does not cut); in a
         linear run the dynamic chip n_j . (r(t) - r(t - tau_j)) while in the arc.
