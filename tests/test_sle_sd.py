@@ -236,3 +236,29 @@ def test_two_dof_benchmark_sd_orbit_converges_to_the_spectral_one() -> None:
         err.append(max(np.max(np.abs(r.x - ref.x)), np.max(np.abs(r.y - ref.y))) / scale)
     assert abs(_order(steps, err) - 2.0) <= 0.5, err
     assert err[-1] < 1e-3, err  # 1.2e-4 measured
+
+
+def test_a_chattering_cut_is_not_called_stable_by_a_coarse_sd_run() -> None:
+    """The 1-DOF benchmark (y-flexible) at 9000 rpm, a_p = 4.91 mm flips
+    (spectral |mu| = 1.0139, error 2e-11).  SD at 40 steps puts |mu| at 0.930
+    and at 80 steps at 0.989: the change (0.058) is only (1 - 2^-p) of the
+    40-step error (0.084 here, p ~ 1.2 before the asymptotic range), so a
+    verdict on |mu(40)| within the change of 1 said "stable" and printed an
+    SLE for a chattering cut.  The bound of an SD result is twice the change
+    (p >= 1, Multipliers.bound): the 40-step verdict is "undetermined", and
+    the finer SD runs agree with the spectral one."""
+    from pathlib import Path
+
+    import chatterlab as cl
+    from chatterlab.lobes._milling_model import milling_loop_of
+
+    root = Path(__file__).resolve().parents[1]
+    loop = milling_loop_of(
+        cl.assemble(cl.load_model(root / "studies" / "sle" / "benchmark_1dof_y.toml")).at()
+    )
+    spectral = forced_response(loop, 9000.0, 4.91e-3, FZ)
+    assert spectral.multipliers.verdict == "unstable" and spectral.multipliers.spectral_radius > 1.01
+    coarse = forced_response(loop, 9000.0, 4.91e-3, FZ, method="sdm", steps=40)
+    assert coarse.multipliers.spectral_radius < 0.95 and coarse.multipliers.verdict == "undetermined"
+    fine = forced_response(loop, 9000.0, 4.91e-3, FZ, method="sdm", steps=320)
+    assert fine.multipliers.verdict == "unstable"

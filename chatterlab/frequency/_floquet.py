@@ -187,11 +187,22 @@ class Multipliers(Result):
 
     # ------------------------------------------------------------------ verdict
     @property
+    def bound(self) -> float:
+        """The bound on the error of ``spectral_radius`` the verdict uses:
+        spectral elements converge geometrically, so the change to the raised
+        degree (``error``) is the lower degree's error; first-order SD
+        converges as steps^-p with p = 2, p = 1 before the asymptotic range
+        (:func:`~chatterlab.frequency._floquet_sdm.sdm_multipliers`), and the
+        change when the steps are doubled is (1 - 2^-p) of the error of the
+        ``steps`` result: the bound is error / (1 - 2^-1) = 2 error."""
+        return 2.0 * self.error if self.method == "sdm" else self.error
+
+    @property
     def verdict(self) -> str:
-        """``"stable"`` (every |mu| < 1 by more than the convergence error),
-        ``"unstable"`` or ``"undetermined"`` (|mu| within its error of 1:
+        """``"stable"`` (every |mu| < 1 by more than :attr:`bound`),
+        ``"unstable"`` or ``"undetermined"`` (|mu| within that bound of 1:
         neither claim is proven)."""
-        if abs(self.spectral_radius - 1.0) <= self.error:
+        if abs(self.spectral_radius - 1.0) <= self.bound:
             return "undetermined"
         return "stable" if self.spectral_radius < 1.0 else "unstable"
 
