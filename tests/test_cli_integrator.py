@@ -117,3 +117,20 @@ def test_a_mode_the_step_does_not_resolve_is_no_contradiction(capsys):
     assert code == 0, cap.err
     assert "CONTRADICTION" not in cap.out + cap.err
     assert cap.out.count("envelope: decaying") == 4
+
+
+@pytest.mark.parametrize("integrator", ["exponential", "newmark"])
+def test_a_run_within_the_first_delay_decides_nothing(tool, integrator, capsys):
+    """At 0.39 mm, 3000 rpm (T = 20 ms) the rightmost root is +0.689 1/s:
+    the cut chatters.  A run of one delay only shows the structure's own
+    decay (-94.8 1/s: the delayed term reads the zero history before t = 0),
+    which the exponential map resolves so well that its error bar was tiny
+    and the verdict said "decaying" (found by review).  Such a window is
+    undetermined, with the reason, and is no contradiction of the root."""
+    code = main(["simulate", str(tool), "--width", "0.39", "--speed", "3000", "--duration", "0.02",
+                 "--q0", "tip.x=0.001", "--integrator", integrator, "--quiet"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0 and "decaying" not in out and "CONTRADICTION" not in out, out
+    assert _rightmost(tool, 0.39e-3) > 0.5
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("tool.x"))
+    assert "envelope: undetermined" in line

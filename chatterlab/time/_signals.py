@@ -578,6 +578,10 @@ def time_verdict(
     at most ``ASYMPTOTIC_PHASE`` rad; otherwise the verdict is undetermined
     with the step that would make the estimate valid.
 
+    With ``delay`` T > 0 a window that starts within the first delay is
+    undetermined: there the delayed term reads the history before t = 0,
+    so the fitted motion is the structure's own, not the closed loop's.
+
     ``order`` is the scheme's order (2: Newmark; ``p + 1`` for the
     exponential step map, whose error is only the delayed term's
     interpolation: no period error, so the h^2 regime test is skipped and
@@ -607,11 +611,21 @@ def time_verdict(
         step_err = RICHARDSON_SAFETY * abs(e_signed)
     else:
         e_signed, step_err = math.nan, math.nan
+    early = delay > 0.0 and float(main.t_fit[0]) < delay * (1.0 - 1e-9)
     if diverged:
         cls, how, decide = "diverged", "the run diverged", math.nan
     elif not ok:
         cls, decide = "undetermined", math.nan
         how = "no rate: " + (main.message if not math.isfinite(rate) else "the check run gave no rate")
+    elif early:
+        # within the first delay the delayed term reads the history before t = 0, not the motion:
+        # the fitted decay is the structure's alone, not the closed loop's (its roots)
+        cls, decide = "undetermined", math.nan
+        how = (
+            f"sigma = {rate:+.6g} 1/s fitted from t = {float(main.t_fit[0]):.4g} s, within the first delay"
+            f" T = {delay:.4g} s, where the regenerative term has not yet acted on the motion: ask for a run"
+            " of several delays"
+        )
     else:
         cls, how, decide, step_err = _richardson_class(
             main, (step, check_step, check_rate), (e_signed, step_err), frequency, delay, tol, int(order)
@@ -623,7 +637,7 @@ def time_verdict(
         k = int(np.argmax(lam.real))
         r_rate, r_hz = float(lam[k].real), abs(float(lam[k].imag)) / (2.0 * math.pi)
         r_err = ROOT_REL_ERROR * abs(lam[k]) + 1e-12
-        if roots_certain:
+        if roots_certain and not early:  # within the first delay the rate is not the loop's to compare
             contra = _contradiction(
                 name, cls, rate, fit_err + step_err, frequency, span, step, r_rate, r_hz, r_err, int(order)
             )
