@@ -95,7 +95,16 @@ def test_a_milling_run_refuses_the_exponential_integrator(capsys):
     assert_clean_error(code, capsys.readouterr().err, "--integrator exponential", "milling")
 
 
-@pytest.mark.parametrize("rtol", ["0", "2", "nan"])
+def test_a_milling_run_refuses_rtol(capsys):
+    """A milling run integrates with Newmark: an error target there would be ignored (found by review)."""
+    from pathlib import Path
+
+    mill = Path(__file__).resolve().parents[1] / "studies" / "milling" / "benchmark_1dof.toml"
+    code = main(["simulate", str(mill), "--width", "0.2", "--rtol", "1e-3", "--quiet"])
+    assert_clean_error(code, capsys.readouterr().err, "--rtol", "milling")
+
+
+@pytest.mark.parametrize("rtol", ["0", "2", "nan", "1e-20"])
 def test_an_rtol_outside_0_1_is_one_line(tool, rtol, capsys):
     code = main(["simulate", str(tool), "--integrator", "exponential", "--rtol", rtol, "--quiet"])
     assert_clean_error(code, capsys.readouterr().err, "rtol")

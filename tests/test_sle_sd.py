@@ -262,3 +262,31 @@ def test_a_chattering_cut_is_not_called_stable_by_a_coarse_sd_run() -> None:
     assert coarse.multipliers.spectral_radius < 0.95 and coarse.multipliers.verdict == "undetermined"
     fine = forced_response(loop, 9000.0, 4.91e-3, FZ, method="sdm", steps=320)
     assert fine.multipliers.verdict == "unstable"
+
+
+def test_too_few_steps_are_refused_with_the_count_that_works() -> None:
+    """A 20/340 deg pitch: the short delay is 1/18 of the revolution, so SD
+    needs a step shorter than it: 18 steps per revolution at least.  The
+    refusal names that count (it asked for twice the steps given: 34 for 17,
+    where 18 works; found by review), and 18 steps run."""
+    loop = _loop("up", 0.3, pitch=(math.radians(20), math.radians(340)))
+    for m in (2, 8, 17):
+        with pytest.raises(InputError, match=rf"steps >= 18; got {m}\)"):
+            sdm_multipliers(loop, 10000.0, A_P, m, check=False)
+    mu, _ = sdm_multipliers(loop, 10000.0, A_P, 18, check=False)
+    assert np.all(np.isfinite(mu))
+
+
+@pytest.mark.parametrize("method", ["spectral", "sdm"])
+def test_a_varying_spindle_speed_is_refused(method: str) -> None:
+    """The orbit's forcing, static chip and wall instants assume a constant
+    speed; under spindle-speed variation the two routes disagreed (+4.8 vs
+    -5.3 um; found by review): refused in one line instead."""
+    from test_forced_milling import _structure
+
+    from chatterlab.process import SpeedVariation, milling_loop, varying_milling
+
+    base = _loop("down", 0.5)
+    vm = varying_milling(base.milling, SpeedVariation(0.1, 0.05))
+    with pytest.raises(InputError, match="constant spindle speed only"):
+        forced_response(milling_loop(_structure("y"), vm), 10000.0, A_P, FZ, method=method)

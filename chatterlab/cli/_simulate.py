@@ -121,10 +121,11 @@ def run(args: argparse.Namespace) -> int:
         )
     model = load(args)
     if model.process is not None and model.process.kind == "milling":
-        if args.integrator == "exponential":
+        if args.integrator == "exponential" or args.rtol is not None:
             raise InputError(
-                "--integrator exponential needs a linear cut with constant coefficients; a milling run "
-                "integrates with Newmark (its teeth enter and leave the cut): drop --integrator"
+                f"{'--rtol' if args.rtol is not None else '--integrator exponential'} is the exponential step"
+                " map's, which needs a linear cut with constant coefficients; a milling run integrates with"
+                f" Newmark (its teeth enter and leave the cut): drop {'--rtol' if args.rtol is not None else '--integrator'}"
             )
         if args.q0 or args.v0 or args.history != "zero":
             raise InputError(

@@ -4,6 +4,7 @@ method compared with the spectral reference in
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -174,8 +175,11 @@ class _Steps:
         self.fe = np.clip(lag_end - e1, 0.0, None)
         self.me = e1 - 1
         if np.any(self.mj < 1) or np.any(self.me < 0):
+            # the lags are in steps of this grid: the shortest one, 1 step at least, asks this many
+            short = float(min(np.min(lag_start), np.min(lag_end)))
+            need = math.ceil(m / short - 1e-9) if short > 0 else 2 * m
             raise InputError(
-                f"sdm: steps must make the step shorter than the shortest delay (steps >= {m * 2})"
+                f"sdm: steps must make the step shorter than the shortest delay (steps >= {need}; got {m})"
             )
         self.Lh = int(max(self.mj.max(), self.me.max())) + 1  # history r_{i-1} .. r_{i-Lh}
         self.D = d + self.rho * self.Lh

@@ -368,6 +368,12 @@ def _check_loop(loop: ClosedLoop, feed: float) -> float:
             "forced response and surface location: straight teeth only (helix_deg = 0); a helical flute"
             " generates the wall along its length at different instants"
         )
+    if getattr(loop.milling, "variation", None) is not None:
+        raise InputError(
+            "forced response and surface location: a constant spindle speed only; under spindle-speed"
+            " variation the static chip, the forcing and the instants the wall is generated follow the"
+            " varying speed, which this orbit does not (drop the variation)"
+        )
     return check_nonneg(feed, "feed per tooth f_z", "m")
 
 
@@ -610,6 +616,21 @@ class SurfaceLocation(Result):
                 " (positive: undercut)"
             )
             lines.append(f"peak-to-valley up to {np.max(self.peak_to_valley[ok]) * 1e6:.4g} um")
+            e = np.abs(self.sle_error[ok])
+            if np.isfinite(e).any():
+                big = float(np.nanmax(e))
+                rel = big / max(float(np.max(np.abs(s))), 1e-300)
+                # SD's change when the steps are doubled is (1 - 2^-p) of its error: up to half
+                line = f"SLE check: change at the higher resolution up to {big * 1e6:.3g} um ({rel:.2g} of the largest |SLE|)"
+                if self.method == "sdm":
+                    line += "; the SD result's error is up to twice that"
+                if rel > 0.1:
+                    line += (
+                        ": COARSE, raise --steps"
+                        if self.method == "sdm"
+                        else ": COARSE, the degree is too low"
+                    )
+                lines.append(line)
         return "\n".join(lines)
 
     def plot(self, ax: Any = None, *, lobes: Any = None, **style: Any) -> Any:

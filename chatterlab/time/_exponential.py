@@ -101,7 +101,7 @@ from numpy.typing import ArrayLike
 
 from chatterlab.errors import InputError
 
-from ._options import TimeResponse
+from ._options import TimeResponse, check_rtol
 from ._plan import _check_problem, _history_function, _outputs, _vector
 from ._problems import FloatArray
 
@@ -468,8 +468,7 @@ def exponential(
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or not 1 <= degree <= 7:
         raise InputError(f"degree must be an integer 1..7 (got {degree!r})")
     p = int(degree)
-    if not (isinstance(rtol, (int, float)) and 0.0 < float(rtol) < 1.0):
-        raise InputError(f"rtol must be a number in (0, 1) (got {rtol!r})")
+    check_rtol(rtol)
     if h is not None and not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
         raise InputError(f"h (the step) must be a number > 0 s (got {h!r})")
     if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:

@@ -275,6 +275,21 @@ _FIELDS = {"q": "displacement", "v": "velocity", "a": "acceleration"}
 # =========================================================================== the options of a simulation
 
 
+#: the smallest error target of the exponential step map: round-off (1e-16 per step, grown over
+#: the run's steps) bounds what it can reach; below, it would only take more steps
+RTOL_MIN = 1e-12
+
+
+def check_rtol(rtol: Any) -> float:
+    """The exponential step map's error target, checked: a number in [RTOL_MIN, 1)."""
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not RTOL_MIN <= float(rtol) < 1.0:
+        raise InputError(
+            f"rtol must be a number in [{RTOL_MIN:g}, 1), e.g. 1e-3 (got {rtol!r}): round-off bounds what"
+            " a step map can reach"
+        )
+    return float(rtol)
+
+
 #: the schemes of a simulation (:attr:`Integration.integrator`)
 INTEGRATORS = ("auto", "newmark", "exponential")
 
@@ -338,11 +353,8 @@ class Integration:
             raise InputError(
                 f"integrator must be one of {', '.join(repr(i) for i in INTEGRATORS)} (got {self.integrator!r})"
             )
-        r_tol = self.rtol
-        if r_tol is not None and (
-            isinstance(r_tol, bool) or not isinstance(r_tol, (int, float)) or not 0.0 < float(r_tol) < 1.0
-        ):
-            raise InputError(f"rtol must be a number in (0, 1), e.g. 1e-3 (got {r_tol!r})")
+        if self.rtol is not None:
+            check_rtol(self.rtol)
         if self.duration is not None:
             object.__setattr__(self, "duration", check_positive(self.duration, "duration", "s"))
         if self.periods is not None:
