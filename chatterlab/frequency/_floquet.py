@@ -72,7 +72,7 @@ from ..errors import InputError, check_nonneg, check_positive
 from ..io import Result
 from ..process._damping import milling_rubbing
 from ..process._loop import ClosedLoop
-from ._floquet_sdm import finite_monodromy, matched_change, sdm_monodromy, sdm_multipliers
+from ._floquet_sdm import check_method, finite_monodromy, matched_change, sdm_monodromy, sdm_multipliers
 from ._floquet_spectral import (
     CHECK_DEGREE,
     DEGREE,
@@ -446,7 +446,7 @@ def multipliers(
         T = milling.period(rpm)
         f_hz = chatter_frequency(complex(mu[0]), T, loop)
     else:
-        raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+        check_method(method)  # one line naming the methods
     mu = mu[np.abs(mu) > 1e-300]
     return Multipliers.ranked(
         mu,

@@ -162,6 +162,17 @@ def sd_step_product(
     return _sd_product(A_steps, B_steps, Jq, lag_start, lag_end, dt)[0]
 
 
+#: the discretisations of a one-period map (Floquet multipliers, the forced orbit, SSV)
+METHODS = ("spectral", "sdm")
+
+
+def check_method(method: Any) -> str:
+    """``method`` if it is one of :data:`METHODS`, else one line naming them."""
+    if method not in METHODS:
+        raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+    return str(method)
+
+
 class _Steps:
     """The grid of :func:`sd_step_product`: where each step's delayed r comes from (the
     history slots and their weights) and the state's size D = d + rho L."""

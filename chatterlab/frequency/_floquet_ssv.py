@@ -96,7 +96,7 @@ import scipy.linalg as sla
 
 from ..errors import InputError, check_count, check_nonneg
 from ..process import ClosedLoop, SpeedVariation, VaryingDelayLoop, ssv_loop
-from ._floquet_sdm import finite_monodromy, matched_change, sd_step_product
+from ._floquet_sdm import check_method, finite_monodromy, matched_change, sd_step_product
 from ._floquet_spectral import CHECK_DEGREE, DEGREE, ELEMENT_SPAN, QuasiStatic, _bary, _cheb, split_structure
 
 __all__ = [
@@ -489,7 +489,7 @@ def ssv_multipliers(
         err = matched_change(complex(mu[0]), np.linalg.eigvals(mono_sd(2 * m))) if check else float("nan")
         res = f"{m} steps"
     else:
-        raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+        check_method(method)  # one line naming the methods
     if not math.isfinite(f_c):  # the family member nearest a pole of the structure
         f_c = chatter_frequency(complex(mu[0]), sys.period, loop)
     meta = {"folds": float(sys.folds), "rva": variation.amplitude, "rvf": variation.frequency}

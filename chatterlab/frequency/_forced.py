@@ -128,7 +128,7 @@ from ..io._result import Result
 from ..model._items import tooth_period
 from ..process._loop import ClosedLoop
 from ._floquet import Multipliers, chatter_frequency
-from ._floquet_sdm import _ranked, finite_monodromy, matched_change, sdm_forced
+from ._floquet_sdm import _ranked, check_method, finite_monodromy, matched_change, sdm_forced
 from ._floquet_spectral import CHECK_DEGREE, SpectralMonodromy
 
 __all__ = [
@@ -377,13 +377,8 @@ def _check_loop(loop: ClosedLoop, feed: float) -> float:
     return check_nonneg(feed, "feed per tooth f_z", "m")
 
 
-#: the forced response's discretisations: of the one-period map whose multipliers decide the stability
-METHODS = ("spectral", "sdm")
-
-
 def _method(method: str, steps: int) -> int:
-    if method not in METHODS:
-        raise InputError(f"method must be 'spectral' or 'sdm' (got {method!r})")
+    check_method(method)
     return check_count(steps, "steps", 2)
 
 
