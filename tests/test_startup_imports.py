@@ -56,7 +56,7 @@ NOT_LOADED = (
 _PROBE = """
 import json, os, sys
 from chatterlab.cli import main
-code = main(sys.argv[1:])
+code = main()  # as the console script calls it: the command owns the process
 tasks = len(os.listdir("/proc/self/task")) if os.path.isdir("/proc/self/task") else -1
 print("PROBE " + json.dumps({"code": code, "modules": sorted(sys.modules), "threads": tasks,
       "openblas_env": os.environ.get("OPENBLAS_NUM_THREADS")}))

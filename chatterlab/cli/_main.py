@@ -279,7 +279,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     guards = _PipeGuard(out), _PipeGuard(err)
     sys.stdout, sys.stderr = guards
     try:
-        return _run(args)
+        # the command owns the process when it was started as one (argv from the command line):
+        # a Python caller's main([...]) leaves its BLAS threads as they would have been
+        return _run(args, own_process=argv is None)
     finally:
         for g in guards:
             g.flush()
@@ -298,8 +300,9 @@ class _SingleThreadLoad:
     they are loaded (``restore``), so the sweep engine's worker processes
     start with the user's environment.  Nothing changes when the user set
     the variable (or ``GOTO_NUM_THREADS``/``OMP_NUM_THREADS``, which OpenBLAS
-    reads after it), nor in a process that loaded numpy before (a test
-    calling :func:`main`)."""
+    reads after it), nor in a process that loaded numpy before, nor when
+    :func:`main` is called from Python with its arguments (the caller's
+    process keeps the BLAS threads it would have had)."""
 
     _VARS = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
 
@@ -325,7 +328,9 @@ class _SingleThreadLoad:
 _SINGLE_THREAD_LOAD = _SingleThreadLoad()
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, own_process: bool = True) -> int:
+    if not own_process:
+        return _run_command(args)
     with _SINGLE_THREAD_LOAD:
         return _run_command(args)
 
