@@ -31,6 +31,7 @@ PKG = Path(__file__).resolve().parents[1] / "chatterlab"
 LAYERS = {
     "_version": 0,
     "_threads": 0,
+    "_lazy": 0,  # the subpackages' names loaded on first use (imports nothing of chatterlab)
     "_progress": 0,  # the one progress bar (sweeps, diagrams, simulations)
     "_examples": 1,  # the bundled examples (imports errors only)
     "errors": 0,
@@ -173,13 +174,15 @@ def test_no_import_cycle():
 @pytest.mark.parametrize(("unit", "allowed"), [("sweep", ("io", "plot")), ("io", ()), ("plot", ())])
 def test_engines_know_nothing_of_chatter(unit, allowed):
     """The sweep engine may write files (io) and draw its result (plot); io and plot use nothing else
-    (besides the layer-0 utilities: errors, _version, _threads, _progress)."""
+    (besides the layer-0 utilities: errors, _version, _threads, _progress, _lazy)."""
     graph, _ = _graph()
     for mod, deps in graph.items():
         if _unit(mod) != unit:
             continue
         foreign = {
-            d for d in deps if _unit(d) not in (unit, "errors", "_version", "_threads", "_progress", *allowed)
+            d
+            for d in deps
+            if _unit(d) not in (unit, "errors", "_version", "_threads", "_progress", "_lazy", *allowed)
         }
         assert not foreign, f"{mod} imports {sorted(foreign)}"
 
