@@ -311,7 +311,7 @@ def test_chatterlab_simulate_of_a_milling_model_takes_its_linear_c_pd(tmp_path, 
     code = main(["simulate", str(path), "--speed", "10000", "--width", "0.1", "--revolutions", "20",
                  "--linear", "--out", str(out)])  # fmt: skip
     text = capsys.readouterr().out
-    assert code in (0, 1) and "process damping: C_pd = 200000 N/m" in text, text
+    assert code in (0, 1) and "process damping: linear, C_pd = 200000 N/m" in text, text
     model = cl.load_model(path)
     fz = cl.assemble(model).at()
     from chatterlab.cli._milling import PERTURBATION

@@ -168,16 +168,9 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
             f" {run.steps_per_period} steps per period): {run.verdict}"
         )
         print(f"  {run.reason}")
-        pd = model.process_damping
-        if pd is not None and pd.indentation:  # the flank's area per tooth: the run names its model
-            print(f"  process damping: {run.attrs['process_damping']}")
-        elif pd is not None and pd.C_pd > 0.0:
-            from ..model._items import cutting_speed
-
-            print(
-                f"  process damping: C_pd = {pd.C_pd:.6g} N/m, each cutting tooth's a_p C_pd / V along its"
-                f" radial direction (V = {cutting_speed(run.rpm, model.process.milling.diameter):.4g} m/s)"
-            )
+        damping = run.attrs.get("process_damping", "none")
+        if damping != "none":  # the run names the model it ran: each cutting tooth's rubbing or flank
+            print(f"  process damping: {damping}")
         print(
             f"  growth per period {run.growth_per_period:+.5f} (|mu| = {abs(run.multiplier):.5f}),"
             f" chatter {run.chatter_frequency:.2f} Hz, tooth out of the material {run.fraction_out_of_cut:.1%}"
