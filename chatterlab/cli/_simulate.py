@@ -171,11 +171,12 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
         damping = run.attrs.get("process_damping", "none")
         if damping != "none":  # the run names the model it ran: each cutting tooth's rubbing or flank
             print(f"  process damping: {damping}")
-        print(
-            f"  growth per period {run.growth_per_period:+.5f} (|mu| = {abs(run.multiplier):.5f}),"
-            f" chatter {run.chatter_frequency:.2f} Hz, tooth out of the material {run.fraction_out_of_cut:.1%}"
-            " of its time in the arc"
-        )
+        said = [f"growth per period {run.growth_per_period:+.5f} (|mu| = {abs(run.multiplier):.5f})"]
+        if math.isfinite(run.chatter_frequency):  # none when the samples converge (a periodic motion)
+            said.append(f"chatter {run.chatter_frequency:.2f} Hz")
+        if math.isfinite(run.fraction_out_of_cut):  # a linear run never leaves the cut
+            said.append(f"tooth out of the material {run.fraction_out_of_cut:.1%} of its time in the arc")
+        print("  " + ", ".join(said))
         from ._milling import PERTURBATION
 
         print(
