@@ -177,16 +177,7 @@ def lobes(
 
 def _damping_meta(bd: Any) -> dict[str, Any]:
     """What a damped diagram says of its process damping (files, plot)."""
-    t = bd.term
-    return {
-        "C_pd": float(t.C_pd),
-        "model": "indentation (linearised: C_pd = K_sp w^2 / 4)" if t.indentation else "linear",
-        "K_sp": float(t.K_sp),
-        "wear_land": float(t.wear_land),
-        "clearance_deg": float(np.degrees(t.clearance)),
-        "diameter": float("nan") if t.diameter is None else float(t.diameter),
-        "cells": len(bd.cells),
-    }
+    return {**bd.term.meta(), "cells": len(bd.cells)}
 
 
 def _process_of(frozen: FrozenSystem | None, process: Any) -> Any:

@@ -142,12 +142,7 @@ def _damping_meta(loop: ClosedLoop, split: bool) -> dict[str, Any]:
     )
     return {
         **note,
-        "C_pd": float(t.C_pd),
-        "model": "indentation (linearised: C_pd = K_sp w^2 / 4)" if t.indentation else "linear",
-        "K_sp": float(t.K_sp),
-        "wear_land": float(t.wear_land),
-        "clearance_deg": float(np.degrees(t.clearance)),
-        "diameter": float("nan") if t.diameter is None else float(t.diameter),
+        **t.meta(),
         "periodic": "the rubbing teeth's W(t) in the Floquet engines",
     }
 

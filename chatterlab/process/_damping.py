@@ -127,6 +127,18 @@ class DampingTerm:
     def indentation(self) -> bool:
         return not math.isnan(self.K_sp)
 
+    def meta(self) -> dict[str, Any]:
+        """What a result says of this term (files, plots): the coefficient, which
+        model gave it, the indentation fields and the cutting diameter."""
+        return {
+            "C_pd": float(self.C_pd),
+            "model": "indentation (linearised: C_pd = K_sp w^2 / 4)" if self.indentation else "linear",
+            "K_sp": float(self.K_sp),
+            "wear_land": float(self.wear_land),
+            "clearance_deg": float(np.degrees(self.clearance)),
+            "diameter": float("nan") if self.diameter is None else float(self.diameter),
+        }
+
     def milling_cutter(self) -> Any:
         """The cutter whose directional matrices are the rubbing teeth's
         r_j r_j^T (K_t = 0, K_n = 1): :meth:`Milling.directional` of it is
