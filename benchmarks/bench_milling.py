@@ -66,8 +66,6 @@ import json
 import os
 import platform
 import re
-import resource
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -87,6 +85,9 @@ try:
 except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import chatterlab as cl
+
+from _common import loadavg_text as loadavg
+from _common import peak_rss_mb, source_commit, stats
 
 ROOT = Path(__file__).resolve().parents[1]
 ONE_DOF = ROOT / "studies" / "milling" / "benchmark_1dof.toml"
@@ -110,47 +111,6 @@ FE_GOAL_S = 10.0
 
 
 # ============================================================================ the machine
-def loadavg() -> str:
-    try:
-        return Path("/proc/loadavg").read_text().strip()
-    except OSError:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def source_commit() -> str:
-    """The commit of the chatterlab actually imported, '+dirty' when its tracked files differ."""
-    src = Path(cl.__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(
-            ["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no", "chatterlab"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        return head + ("+dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return f"not a checkout ({src})"
-
-
-def stats(wall: list[float], cpu: list[float]) -> dict[str, Any]:
-    return {
-        "min_s": min(wall),
-        "median_s": float(np.median(wall)),
-        "wall_s": wall,
-        "cpu_min_s": min(cpu),
-        "cpu_median_s": float(np.median(cpu)),
-        "cpu_s": cpu,
-    }
 
 
 # ============================================================================ the problem
@@ -322,7 +282,10 @@ def row_lobes(repeat: int, n_speeds: int) -> dict[str, Any]:
             with np.errstate(invalid="ignore", divide="ignore"):
                 est = np.asarray(d.error) / np.asarray(d.a_lim)
                 ref_est = np.asarray(ref.error) / np.asarray(ref.a_lim)
-            s_cl, s_sd = stats(wall["chatterlab"], cpu["chatterlab"]), stats(wall["sdm"], cpu["sdm"])
+            s_cl, s_sd = (
+                stats(wall["chatterlab"], cpu["chatterlab"], wall_key="wall_s"),
+                stats(wall["sdm"], cpu["sdm"], wall_key="wall_s"),
+            )
             out[f"{imm:g}"] = {
                 "immersion": imm,
                 "speeds": n_speeds,

@@ -43,7 +43,6 @@ import math
 import os
 import platform
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -57,6 +56,9 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import chatterlab as cl
 
+from _common import loadavg_text as loadavg
+from _common import source_commit as commit
+
 from chatterlab.frequency import forced_response
 from chatterlab.frequency._forced import _orbit, _sd_orbit, _setup, static_load
 from chatterlab.lobes import milling_loop_of
@@ -67,22 +69,6 @@ OUT = ROOT / "benchmarks" / "results" / "sle.json"
 MODEL = ROOT / "studies" / "sle" / "benchmark_1dof_y.toml"
 FEED = 1e-4
 CASES = ((8000.0, 1e-3), (12000.0, 1e-3), (22000.0, 1e-3))  # (rpm, a_p m): stable cuts
-
-
-def loadavg() -> str:
-    try:
-        return Path("/proc/loadavg").read_text().strip()
-    except OSError:
-        return "n/a"
-
-
-def commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def _sim(loop: Any, rpm: float, a: float, m: int, revs: int) -> Any:

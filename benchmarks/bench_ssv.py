@@ -39,13 +39,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _common import load1 as load
 
 import chatterlab as cl
 from chatterlab.frequency import ssv_limit, ssv_multipliers
@@ -61,14 +61,6 @@ WIDTH_MAX, SCAN, RTOL = 4e-3, 10, 1e-9
 DEGREES = (6, 8, 12, 16)
 STEPS = (40, 80, 160, 320)
 TARGETS = (1e-2, 1e-3, 1e-4)
-
-
-def load() -> float:
-    return (
-        float(Path("/proc/loadavg").read_text().split()[0])
-        if Path("/proc/loadavg").exists()
-        else os.getloadavg()[0]
-    )
 
 
 def loops() -> dict[float, object]:

@@ -52,15 +52,14 @@ import time
 from pathlib import Path
 from typing import Any
 
+from _common import load1, loadavg
+from _common import source_commit as commit
+
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results" / "startup.json"
 LOADED = 1.0  # 1-minute load average above which a run is flagged (2 cores)
 GOAL = 2.0  # main job / floor
 DPI = 130  # the main job's savefig dpi (chatterlab.plot.savefig)
-
-
-def load1() -> float:
-    return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
 
 
 def chatterlab_command() -> list[str]:
@@ -87,17 +86,6 @@ def png_size(path: Path) -> tuple[int, int]:
     """Width and height (pixels) from a PNG's IHDR chunk."""
     head = path.read_bytes()[:24]
     return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
-
-
-def commit() -> str:
-    try:
-        r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "chatterlab"], cwd=ROOT, capture_output=True, text=True
-        )
-        return r.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
-    except OSError:
-        return ""
 
 
 def summary(samples: list[dict[str, Any]]) -> dict[str, Any]:
@@ -136,7 +124,7 @@ def main() -> None:
         floor = [sys.executable, "-c", floor_code]
         run(floor, tmp, env)
         cases = {"floor": floor, "main job": job}
-        load0 = list(os.getloadavg())
+        load0 = list(loadavg())
         print(f"load {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}; figure {w} x {h} px; {rep} repeats")
         samples: dict[str, list[dict[str, Any]]] = {k: [] for k in cases}
         for i in range(rep):
@@ -149,7 +137,7 @@ def main() -> None:
                 )
                 + f"  (load {load1():.2f})"
             )
-        load_end = list(os.getloadavg())
+        load_end = list(loadavg())
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     res = {k: summary(v) for k, v in samples.items()}
