@@ -18,7 +18,7 @@ instead of guessing.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -27,7 +27,7 @@ from ..io import Result
 from ..process._loop import ClosedLoop, closed_loop
 from ..structure._assembly import FrozenSystem
 
-__all__ = ["Stability", "stability", "loop_band", "MARGINAL_TOL"]
+__all__ = ["Stability", "stability", "loop_band", "MARGINAL_TOL", "mesh_checked"]
 
 #: |Re lambda| below this fraction of |lambda| (plus 1e-9 1/s) counts as on the axis.
 MARGINAL_TOL = 1e-7
@@ -65,6 +65,9 @@ class Stability(Result):
     terms: str
     position: float | None
     process: str = ""  #: the model's process kind (turning, shaping, delay, milling); "" without one
+    #: a model with beams: the verdict on the mesh twice as fine and the margin's
+    #: discretisation error (:func:`mesh_checked`); empty otherwise
+    mesh: dict[str, Any] = field(default_factory=dict)
 
     @property
     def chatter_hz(self) -> float:
@@ -98,6 +101,7 @@ class Stability(Result):
                 }
                 for z, f, d in zip(r.roots, r.frequency_hz, r.damping_ratio, strict=True)
             ],
+            **({"mesh": self.mesh} if self.mesh else {}),
             "winding": None
             if self.winding is None
             else {
@@ -116,6 +120,7 @@ class Stability(Result):
             + f", feedback {self.terms}"
             + (f", position {self.position:g} m" if self.position is not None else ""),
             f"  {self.message}",
+            *([f"  {self.mesh['line']}"] if self.mesh else []),
             self.roots.table(),
         ]
         return "\n".join(lines)
@@ -130,6 +135,9 @@ class Stability(Result):
                  "delay_s": float("nan") if self.delay is None else self.delay, "terms": self.terms,
                  "position_m": float("nan") if self.position is None else self.position,
                  "winding": json.dumps(d["winding"])}  # fmt: skip
+        attrs.update({f"mesh_{k}": v for k, v in self.mesh.items() if k != "line"})
+        if self.mesh:
+            attrs["mesh"] = self.mesh["line"]
         return coords, data, attrs
 
     def plot(self, ax: Any = None, *, title: str | None = None, **style: Any) -> Any:
@@ -265,6 +273,28 @@ def _stability(
         frozen.position,
         proc.kind if proc else "",
     )
+
+
+def mesh_checked(coarse: Stability, fine: Stability, model: Any) -> Stability:
+    """The verdict of a model with beams: ``coarse`` (on its mesh) judged
+    against ``fine`` (the same cut on :meth:`Model.with_finer_mesh`) by
+    :func:`chatterlab.model._mesh.mesh_verdict` -- undetermined when the two
+    verdicts differ or the margin is within its discretisation error
+    (docs/lobes.md, Eq. M3).  The roots and the count stay those of
+    ``coarse``; ``mesh`` says what the finer mesh gave."""
+    from ..model._mesh import P_MIN, MeshEstimate, mesh_verdict
+
+    verdict, line = mesh_verdict(model, coarse.verdict, coarse.abscissa, fine.verdict, fine.abscissa)
+    mesh = {
+        "line": line,
+        "beam_elements": sum(b.elements for b in model.beams),
+        "coarse_verdict": coarse.verdict,
+        "fine_verdict": fine.verdict,
+        "fine_abscissa_per_s": fine.abscissa,
+        "abscissa_error_bound_per_s": float(MeshEstimate(coarse.abscissa, fine.abscissa).bound),
+        "order": P_MIN,
+    }
+    return replace(coarse, verdict=verdict, mesh=mesh)
 
 
 def loop_band(fb: ClosedLoop, tol: float = 1e-4) -> float:

@@ -444,6 +444,8 @@ def _boundary_lines(d: LobeDiagram) -> list[str]:
         )
     lines += _ceiling_lines(d)
     lines += _check_lines(d)
+    if d.meta.get("mesh"):  # a model with beams: the discretisation error (lobes._mesh_error)
+        lines.append(f"  {d.meta['mesh']}")
     return lines
 
 

@@ -678,6 +678,18 @@ class Model:
             overrides=dict(self.overrides) | dict(values),
         )
 
+    def with_finer_mesh(self, factor: int = 2) -> Model:
+        """The same model with every ``[[beam]]`` in ``factor`` times as many
+        elements (h / factor): the one place a mesh is refined, through
+        :meth:`with_parameters` (the ``beam.ID.elements`` paths, after the
+        model's variant and overrides).  A model without beams is returned
+        unchanged (see :mod:`chatterlab.model._mesh`)."""
+        if isinstance(factor, bool) or not isinstance(factor, int) or factor < 1:
+            raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
+        if not self.beams or factor == 1:
+            return self
+        return self.with_parameters({f"beam.{b.id}.elements": factor * b.elements for b in self.beams})
+
     def summary(self) -> dict[str, Any]:
         """Counts of the model's items (see also :meth:`System.summary`)."""
         return {

@@ -1,0 +1,139 @@
+"""The discretisation error of a result of a model with beams.
+
+A ``[[beam]]`` is divided into ``elements`` equal Timoshenko elements of
+length h; a result f (a limit width, a natural frequency, a stability
+margin) computed on that mesh is f_h.  The mesh twice as fine is
+:meth:`Model.with_finer_mesh` (every beam's count doubled, through the
+model's own override path: no second assembly).  With the change
+``d = f_{h/2} - f_h`` and the asymptotic error model
+
+    f_h = f + C h^p + o(h^p),  p >= P_MIN = 1                       (docs/lobes.md, Eq. M1)
+
+the error of the result on h is
+
+    |f_h - f| = |d| / (1 - 2^-p) <= |d| / (1 - 2^-P_MIN) = 2 |d|    (Eq. M3)
+
+(docs/lobes.md, "The discretisation error of a result").  p >= 1 is the
+lowest order the bundled shaper shows: springs and contacts inside elements
+make the Timoshenko element's shear strain jump, which costs rate 1; a
+smooth mode converges at rate 2 (studies/traverse_shaper/mesh_convergence.py).
+The bound assumes the asymptotic regime: the two meshes on the same side of
+the limit, the higher-order terms small.  Before it (a lobe that changes
+order between the meshes) it is an estimate, not a proof.
+
+:func:`mesh_verdict` combines two stability verdicts, on h and on h/2,
+so that a claim survives only if neither the finer mesh nor the error of
+its margin contradicts it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["P_MIN", "MeshEstimate", "bound_factor", "mesh_verdict", "mesh_words", "converged_variant"]
+
+#: the lowest order of convergence assumed (point loads inside elements)
+P_MIN = 1.0
+
+
+def bound_factor(order: float = P_MIN) -> float:
+    """1 / (1 - 2^-p): the error of the result on h per unit change on h/2 (2 at p = 1)."""
+    if not order > 0:
+        raise ValueError(f"order must be > 0, got {order!r}")
+    return 1.0 / (1.0 - 2.0**-order)
+
+
+@dataclass(frozen=True)
+class MeshEstimate:
+    """A result on h (``coarse``) and on h/2 (``fine``), and the bound on
+    the error of the coarse one (Eq. M3).  Works elementwise on arrays; inf
+    or nan in either gives a nan bound (no estimate: a limit at the ceiling)."""
+
+    coarse: Any
+    fine: Any
+    order: float = P_MIN
+
+    @property
+    def change(self) -> Any:
+        """d = f_{h/2} - f_h."""
+        with np.errstate(invalid="ignore"):
+            return np.asarray(self.fine, float) - np.asarray(self.coarse, float)
+
+    @property
+    def relative_change(self) -> Any:
+        """d / |f_h|."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.change / np.abs(np.asarray(self.coarse, float))
+
+    @property
+    def bound(self) -> Any:
+        """|d| / (1 - 2^-p): the largest error of the coarse result (nan where
+        either value is not finite)."""
+        d = self.change
+        with np.errstate(invalid="ignore"):
+            return np.where(np.isfinite(d), np.abs(d) * bound_factor(self.order), np.nan)
+
+    @property
+    def relative_bound(self) -> Any:
+        """The bound relative to |f_h|."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.bound / np.abs(np.asarray(self.coarse, float))
+
+
+def mesh_words(model: Any) -> str:
+    """ "6 beam elements" (every beam's count summed)."""
+    n = sum(b.elements for b in model.beams)
+    return f"{n} beam element{'s' * (n != 1)}"
+
+
+def converged_variant(model: Any) -> str | None:
+    """The model file's variant named ``converged`` (None if it has none or
+    it is the one in use): what the advice names."""
+    try:
+        variants = json.loads(model.raw).get("variant", {}) if model.raw else {}
+    except (ValueError, AttributeError):
+        return None
+    return "converged" if "converged" in variants and model.variant != "converged" else None
+
+
+def _advice(model: Any) -> str:
+    v = converged_variant(model)
+    return "refine the beams" + (f" or use the {v} variant (--variant {v})" if v else " (elements = N)")
+
+
+def mesh_verdict(
+    model: Any, verdict: str, margin: float, fine_verdict: str, fine_margin: float
+) -> tuple[str, str]:
+    """The verdict of a model with beams from its verdict and margin on h and
+    on h/2 (margin: the rightmost real part, 1/s, negative when stable), and
+    one line why.
+
+    * the two verdicts differ: ``undetermined``;
+    * they agree but the margin's error bound (Eq. M3) reaches the margin
+      (|a_h| <= 2 |a_{h/2} - a_h|): ``undetermined`` -- the sign of the
+      margin on the continuum is not established;
+    * otherwise the verdict stands.
+    An undetermined coarse verdict stays undetermined."""
+    advice = _advice(model)
+    if verdict == "undetermined":
+        return verdict, f"mesh: {mesh_words(model)}; undetermined already on this mesh"
+    if fine_verdict != verdict:
+        return "undetermined", (
+            f"mesh: {verdict} on this mesh, {fine_verdict} on a mesh twice as fine: {advice}"
+        )
+    e = MeshEstimate(margin, fine_margin)
+    bound = float(e.bound)
+    if not np.isfinite(bound) or bound >= abs(margin):
+        return "undetermined", (
+            f"mesh: {verdict} on this mesh and on one twice as fine, but the margin {margin:.4g} 1/s"
+            f" is within its discretisation error <= {bound:.2g} 1/s (twice its change {float(e.change):+.2g}"
+            f" 1/s on the finer mesh): {advice}"
+        )
+    return verdict, (
+        f"mesh: {mesh_words(model)}; also {fine_verdict} on a mesh twice as fine (margin {fine_margin:.4g}"
+        f" 1/s); the margin's discretisation error <= {bound:.2g} 1/s, below |margin|"
+    )
