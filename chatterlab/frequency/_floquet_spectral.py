@@ -140,7 +140,8 @@ def auto_degree(omega_L: float, tol: float) -> int:
     checks the error it gives)."""
     wl = max(float(omega_L), 1e-3)
     goal = math.log(1.0 / max(tol, 1e-15))
-    p = max(P_MIN - 6, 2)
+    # no p <= e omega L / 4 passes (its base is <= 1): start above them
+    p = min(max(P_MIN - 6, 2, int(math.e * wl / 4.0)), 200)
     while p < 200:
         base = 4.0 * p / (math.e * wl)
         if base > 1.0 and p * math.log(base) >= goal:
@@ -477,7 +478,8 @@ class SpectralMonodromy:
         # scaled states x^ = (q, q' / ws): A^ = S^-1 A S has entries ~ ws, the collocation rows are
         # divided by ws (U's condition number ~1e4 instead of 1e12 unscaled)
         ws = max(loop.omega_max, 1.0 / T)
-        sc = np.r_[np.ones(n), np.full(n, ws)]
+        sc = np.ones(2 * n)
+        sc[n:] = ws
         self.ws, self.state_scale = ws, sc
         Ah = A * sc[None, :] / sc[:, None]
         Bh = np.zeros((d, rho))
@@ -501,8 +503,10 @@ class SpectralMonodromy:
             return
         deg = mesh.deg
         nn = deg + 1
-        node_off = np.r_[0, np.cumsum(nn)]  # first node of each element
-        f_off = np.r_[0, np.cumsum(deg)]  # first force node (collocation node 1) of each element
+        node_off = np.zeros(S + 1, dtype=int)  # first node of each element
+        np.cumsum(nn, out=node_off[1:])
+        f_off = np.zeros(S + 1, dtype=int)  # first force node (collocation node 1) of each element
+        np.cumsum(deg, out=f_off[1:])
         Nn = int(node_off[-1])
         m_nodes = int(f_off[-1])
         m_f = m_nodes * rho
@@ -565,8 +569,8 @@ class SpectralMonodromy:
             blk = B4.reshape((p + 1) * d, (p + 1) * d)
             rhs = np.zeros(((p + 1) * d, d + p * rho))
             rhs[:d, :d] = I_d
-            for k in range(p):
-                rhs[(k + 1) * d : (k + 2) * d, d + k * rho : d + (k + 1) * rho] = Bh / ws
+            # node k's force (columns d + k rho ...) drives its own collocation rows (k + 1) d ...
+            rhs[d:, d:].reshape(p, d, p, rho)[idx - 1, :, idx - 1, :] = Bh / ws
             sol = np.linalg.solve(blk, rhs)
             Phi, Gam = sol[:, :d], sol[:, d:]
             rows = slice(node_off[s] * d, node_off[s + 1] * d)
@@ -1064,11 +1068,8 @@ class SpectralMonodromy:
 
     def _modes_A(self) -> tuple[np.ndarray, np.ndarray, bool]:
         """The state matrix's eigenvalues and eigenvectors, and whether the latter are well
-        conditioned (cond < 1e8), computed once."""
-        if not hasattr(self, "_eigA"):
-            lam_A, V = np.linalg.eig(self.structure.state_matrix)
-            self._eigA = (lam_A, V, bool(np.linalg.cond(V) < 1e8))
-        return self._eigA
+        conditioned (cond < 1e8), computed once per structure (:func:`_state_modes`)."""
+        return _state_modes(self.structure)
 
     def critical(self, depth: float, samples: int = 128, near: float = 0.0) -> tuple[complex, float]:
         """The critical multiplier at depth a_p and the frequency (Hz) of its
@@ -1111,6 +1112,16 @@ class SpectralMonodromy:
         kk = int(np.argmax(power))
         k = kk if kk <= samples // 2 else kk - samples
         return float(abs(lam.imag + 2 * np.pi * k / T) / (2 * np.pi))
+
+
+@lru_cache(maxsize=32)
+def _state_modes(loop: ClosedLoop) -> tuple[np.ndarray, np.ndarray, bool]:
+    """:meth:`SpectralMonodromy._modes_A` of a structure, cached (every speed of a diagram
+    reads the same ones)."""
+    lam_A, V = np.linalg.eig(loop.state_matrix)
+    for x in (lam_A, V):
+        x.setflags(write=False)
+    return lam_A, V, bool(np.linalg.cond(V) < 1e8)
 
 
 def _derivatives(mu: np.ndarray, vr: np.ndarray, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -122,15 +122,15 @@ def _end_safe(
     """One end of an interval, the other end at a distance h (signed: -h from the
     right end): see :func:`_interval_safe`."""
     with np.errstate(invalid="ignore", over="ignore"):
-        move = np.abs(dmu) * abs(h) + miss
-        move = np.where(np.isnan(move), np.inf, move)
         reach = np.maximum(np.abs(mu), np.abs(mu + dmu * h)) + miss
-    reach = np.where(np.isnan(reach), np.inf, reach)
-    ok = reach < 1.0
+    ok = reach < 1.0  # nan: not ok
     if skip is not None:
         ok |= np.abs(mu - skip) <= 1e-6
-    if np.all(ok):
+    if ok.all():
         return True
+    with np.errstate(invalid="ignore", over="ignore"):
+        move = np.abs(dmu) * abs(h) + miss
+    move = np.where(np.isnan(move), np.inf, move)
     real = np.nonzero(mu.imag == 0.0)[0]
     for i in np.nonzero(~ok)[0]:
         if mu[i].imag != 0.0 or abs(mu[i]) >= 1.0 or not np.isfinite(move[i]):
@@ -194,7 +194,7 @@ def _miss(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], h:
     mu, dmu = a
     with np.errstate(invalid="ignore", over="ignore"):
         pred = mu + dmu * h
-        d = np.min(np.abs(pred[:, None] - b[0][None, :]), axis=1)
+        d = np.abs(pred[:, None] - b[0][None, :]).min(axis=1)
     return np.where(np.isfinite(d), d, np.inf)
 
 
@@ -213,17 +213,17 @@ def _step(mu: np.ndarray, dmu: np.ndarray, room: float) -> float:
     limits the step)."""
     r = np.abs(mu)
     rate = np.abs(dmu)
-    if np.any(r >= 1.0) or not np.all(np.isfinite(rate)):
+    if r.max(initial=0.0) >= 1.0 or not np.isfinite(rate).all():
         return 0.0
     real = mu.imag == 0.0
-    s = np.real(np.conj(mu) * dmu) / np.where(r > 0.0, r, 1.0)
+    s = (mu.conj() * dmu).real / np.where(r > 0.0, r, 1.0)
     c = r + SAFE * (1.0 - r)
     with np.errstate(divide="ignore", invalid="ignore"):
         # the positive root of |mu + dmu t|^2 = c^2: rate^2 t^2 + 2 r s t + r^2 - c^2 = 0
         limit = (np.sqrt((r * s) ** 2 + rate**2 * (c**2 - r**2)) - r * s) / rate**2
         limit = np.where(rate > 0.0, limit, np.inf)
         # a real multiplier's distance to the others matters only where its modulus limit binds
-        bound = float(np.min(limit[~real], initial=room))
+        bound = float(limit[~real].min(initial=room))
         near = np.nonzero(real & (limit < bound))[0]
         if near.size:
             ri = np.nonzero(real)[0]
@@ -240,9 +240,9 @@ def _step(mu: np.ndarray, dmu: np.ndarray, room: float) -> float:
     if np.isfinite(h_out):
         pair = np.abs(mu - mu[j]) <= 1e-12 * r[j]
         pair |= np.abs(mu - np.conj(mu[j])) <= 1e-12 * r[j]
-        if h_out <= float(np.min(limit[~pair], initial=np.inf)):
+        if h_out <= float(limit[~pair].min(initial=np.inf)):
             return min(h_out, room)
-    return min(float(np.min(limit)), room)
+    return min(float(limit.min()), room)
 
 
 def _slope(mu: np.ndarray, dmu: np.ndarray, i: int) -> float:
