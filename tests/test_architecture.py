@@ -33,6 +33,7 @@ LAYERS = {
     "_threads": 0,
     "_lazy": 0,  # the subpackages' names loaded on first use (imports nothing of chatterlab)
     "_progress": 0,  # the one progress bar (sweeps, diagrams, simulations)
+    "_minimize": 0,  # Brent's bounded minimum (imports nothing of chatterlab)
     "_examples": 1,  # the bundled examples (imports errors only)
     "errors": 0,
     "io": 1,

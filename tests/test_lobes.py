@@ -400,13 +400,23 @@ def test_bad_speed_lists(turning, speeds, match):
 def test_a_reversed_speed_list_gives_the_same_diagram_reversed(turning):
     """lobes() does not refuse a descending (or unordered) speed list: each
     speed's boundary is computed on its own, so the result is the same,
-    point for point."""
+    point for point, up to the order of operations of the vectorised
+    kernels (tests/_roundoff.py: the tolerance is the boundary's measured
+    sensitivity to one rounding of the structure)."""
+    from _roundoff import roundoff_tolerance
+
     sp = np.linspace(2000.0, 5000.0, 40)
     fwd = lobes(turning, sp, verify=0)
     rev = lobes(turning, sp[::-1], verify=0)
-    np.testing.assert_array_equal(rev.b_lim, fwd.b_lim[::-1])
+    tol = roundoff_tolerance(lambda fz, v: lobes(fz, v, verify=0).b_lim, turning, sp, fwd.b_lim)
+    back = rev.b_lim[::-1]
+    np.testing.assert_array_equal(np.isfinite(back), np.isfinite(fwd.b_lim))
+    fin = np.isfinite(back)
+    assert np.all(np.abs(back[fin] - fwd.b_lim[fin]) <= tol[fin])
     np.testing.assert_array_equal(rev.lobe, fwd.lobe[::-1])
-    assert rev.minimum == fwd.minimum
+    i = int(np.argmin(np.where(fin, fwd.b_lim, np.inf)))
+    assert abs(rev.minimum["width"] - fwd.minimum["width"]) <= tol[i]
+    assert rev.minimum["speed"] == fwd.minimum["speed"]
 
 
 def test_other_bad_arguments(turning):

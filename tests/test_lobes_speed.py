@@ -161,21 +161,37 @@ def recorded() -> dict[str, Any]:
     ],
 )
 def test_diagram_equals_the_recording_before_the_change(cases, recorded, name):
+    """The recording was made on another CPU and BLAS: the numbers may differ
+    by round-off, within the tolerance that the boundary's measured
+    sensitivity to one rounding of the structure gives (tests/_roundoff.py);
+    the counts and lobe numbers are exact."""
+    from _roundoff import roundoff_tolerance
+
     c, ref = cases[name], recorded[name]
     new = _summary(lobes(c["fz"], c["speeds"], **c["kw"]))
+    kw0 = {**c["kw"], "verify": 0}  # the checks do not change the numbers compared
+
+    def numbers(d: Any) -> np.ndarray:
+        return np.concatenate([d.b_lim, d.chatter_hz, [d.minimum["width"], d.absolute_minimum["width"]]])
+
+    got = np.concatenate([new["b_lim"], new["chatter_hz"], [new["minimum"], new["absolute_minimum"]]])
+    want = np.concatenate([ref["b_lim"], ref["chatter_hz"], [ref["minimum"], ref["absolute_minimum"]]])
+    tol = roundoff_tolerance(lambda fz, sp: numbers(lobes(fz, sp, **kw0)), c["fz"], c["speeds"], got)
     b0, b1 = np.array(ref["b_lim"]), np.array(new["b_lim"])
     fin = np.isfinite(b0)
     assert np.array_equal(fin, np.isfinite(b1)), name
-    np.testing.assert_allclose(b1[fin], b0[fin], rtol=1e-12, atol=0)
-    np.testing.assert_allclose(np.array(new["chatter_hz"])[fin], np.array(ref["chatter_hz"])[fin], rtol=1e-13)
+    m = b0.size
+    keep = np.concatenate([fin, fin, [True, True]])  # chatter_hz is nan where b_lim is inf
+    bad = np.nonzero(keep & ~(np.abs(got - want) <= tol))[0]
+    assert not bad.size, [(int(i % m), got[i], want[i], tol[i]) for i in bad[:5]]
     assert new["lobe"] == ref["lobe"]
-    for key in ("minimum", "absolute_minimum"):
-        assert new[key] == pytest.approx(ref[key], rel=1e-12, abs=0), key
     for key in ("folds", "n_frequencies", "n_lobes_listed", "n_lobes"):
         assert new[key] == ref[key], key
-    np.testing.assert_allclose(new["band_hz"], ref["band_hz"], rtol=1e-12)
+    # the band and the checks' widths are computed from the same boundary: its relative round-off level
+    rtol = float(np.max(tol[keep] / np.abs(got[keep])))
+    np.testing.assert_allclose(new["band_hz"], ref["band_hz"], rtol=rtol)
     assert [c[:1] + c[2:] for c in new["checks"]] == [c[:1] + c[2:] for c in ref["checks"]]
-    np.testing.assert_allclose([c[1] for c in new["checks"]], [c[1] for c in ref["checks"]], rtol=1e-12)
+    np.testing.assert_allclose([c[1] for c in new["checks"]], [c[1] for c in ref["checks"]], rtol=rtol)
     assert all(c[2] == ("unstable" if c[0] == "above" else "stable") for c in new["checks"]), new["checks"]
 
 
@@ -266,10 +282,24 @@ def test_fold_bisection_in_batches_visits_the_same_points(cases):
             B._BISECT_DEPTH = old
     (w1, x1, f1, n1), (w4, x4, f4, n4) = out[1], out[B._BISECT_DEPTH]
     assert np.array_equal(w1, w4) and f1 == f4 == 5
-    # the widths at each point: the same but for the batch's BLAS blocking (a few ulp)
-    assert all(
-        a.size == b.size and np.allclose(a, b, rtol=1e-14, atol=0) for a, b in zip(x1, x4, strict=True)
-    )
+    # the widths at each point: the same but for the batch's BLAS blocking, i.e. within each width's
+    # round-off (tests/_roundoff.py): its change when the structure is moved by one ulp, at the same
+    # frequencies, times 2 N; near a fold a width is a near-double root of Q and far more sensitive
+    from _roundoff import EPS, perturbed
+
+    fz = cases["shaper"]["fz"]
+    flat, spread, measured = np.concatenate(x1), np.zeros(sum(a.size for a in x1)), 0
+    for seed in (11, 12, 13):
+        bp, _, _ = _grid_ops(perturbed(fz, seed), 1e-3)
+        xp, _ = B.widths(_ops(bp.plant, w1), 1e-3)
+        if [a.size for a in xp] != [a.size for a in x1]:
+            continue  # a fold moved across a point: no measure from this seed
+        measured += 1
+        spread = np.maximum(spread, np.abs(np.concatenate(xp) - flat))
+    assert measured >= 1
+    tol = 2.0 * (2 * fz.n) * np.maximum(spread, EPS * np.abs(flat))
+    assert all(a.size == b.size for a, b in zip(x1, x4, strict=True))
+    assert np.all(np.abs(np.concatenate(x4) - flat) <= tol)
     assert n1 >= 30 and n4 <= n1 // 3 + 1, (n1, n4)
 
 

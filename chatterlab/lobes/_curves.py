@@ -287,13 +287,15 @@ def envelope(
         Ts = T[o]
         lo = np.minimum(segs.T0, segs.T1)
         hi = np.maximum(segs.T0, segs.T1)
-        i0 = np.searchsorted(Ts, lo, "left")
-        i1 = np.searchsorted(Ts, hi, "right")
+        near = np.flatnonzero((hi >= Ts[0]) & (lo <= Ts[-1]))  # the segments over these delays (a zoom: few)
+        i0 = np.searchsorted(Ts, lo[near], "left")
+        i1 = np.searchsorted(Ts, hi[near], "right")
         cnt = np.maximum(i1 - i0, 0)
-        seg = np.repeat(np.arange(segs.n), cnt)
+        seg = np.repeat(near, cnt)
         if seg.size:
+            pos = np.repeat(np.arange(near.size), cnt)  # each pair's place in `near`
             start = np.cumsum(cnt) - cnt
-            gi = o[i0[seg] + np.arange(seg.size) - start[seg]]
+            gi = o[i0[pos] + np.arange(seg.size) - start[pos]]
             val, f, ok = segs.at(seg, T[gi])
             gi, val, f, seg = gi[ok], val[ok], f[ok], seg[ok]
             order = np.lexsort((val, gi))

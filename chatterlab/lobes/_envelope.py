@@ -32,6 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .._minimize import bounded_minimum
 from ..errors import InputError, check_width
 from ..frequency._bounds import Band, PoleResidue
 from ..process._loop import closed_loop_unwarned
@@ -397,7 +398,6 @@ def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[
     bmin, sg, j = min(cand, key=lambda c: c[0])
     # bounded Brent refinement of min over w of beta(w) between the neighbouring samples
     if 0 < j < sg.omega.size - 1:
-        from scipy.optimize import minimize_scalar
 
         def f(w: float) -> float:
             ops = _ops(plant, np.array([w]))
@@ -411,9 +411,9 @@ def _absolute_minimum(plant: Plant, segs: list[_Segment], b_ref: float) -> dict[
         a, c = sorted((float(sg.omega[j - 1]), float(sg.omega[j + 1])))
         if not c > a:
             return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
-        res = minimize_scalar(f, bounds=(a, c), method="bounded", options={"xatol": 1e-10 * c})
-        if np.isfinite(res.fun) and res.fun <= bmin:
-            return {"width": float(res.fun) * b_ref, "chatter_hz": float(res.x) / (2 * np.pi)}
+        w_min, b_min, _ = bounded_minimum(f, a, c, xatol=1e-10 * c)
+        if np.isfinite(b_min) and b_min <= bmin:
+            return {"width": float(b_min) * b_ref, "chatter_hz": float(w_min) / (2 * np.pi)}
     return {"width": bmin * b_ref, "chatter_hz": float(sg.omega[j] / (2 * np.pi))}
 
 
