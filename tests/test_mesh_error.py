@@ -236,6 +236,25 @@ def test_the_mesh_check_is_cheap(shaper_diagram):
     assert shaper_diagram.meta["mesh_seconds"] < 0.5
 
 
+def test_the_line_without_a_minimum_on_one_of_the_meshes():
+    """inf on either mesh: no bound, and the line says which (no number made up)."""
+    from chatterlab.lobes._mesh_error import mesh_line
+
+    model = cl.load_model(SHAPER)
+    base = {"mesh_envelope_change_median": float("nan"), "mesh_envelope_change_max": float("nan")}
+    for b_h, b_h2, words in ((np.inf, np.inf, "no b_lim below the ceiling"), (np.inf, 2e-4, "not converged")):
+        e = MeshEstimate(b_h, b_h2)
+        meta = {
+            **base,
+            "mesh_fine_absolute_min_m": b_h2,
+            "mesh_absolute_min_change": float(e.relative_change),
+            "mesh_absolute_min_error_bound": float(e.relative_bound),
+            "mesh_envelope_speeds": 0,
+        }
+        line = mesh_line(meta, model)
+        assert words in line and "<=" not in line and "nan" not in line
+
+
 # ---------------------------------------------------------------------------- verdicts
 
 

@@ -83,8 +83,13 @@ def mesh_line(meta: dict[str, Any], model: Any, limit: str = "b_lim") -> str:
     """The summary's line: the minimum on the mesh twice as fine, the bound
     of the error of this diagram's minimum, and how far its envelope moves."""
     b2 = meta["mesh_fine_absolute_min_m"]
-    if not np.isfinite(b2) or not np.isfinite(meta["mesh_absolute_min_error_bound"]):
+    if not np.isfinite(b2):
         head = f"twice as fine: no {limit} below the ceiling; no estimate of the minimum's error"
+    elif not np.isfinite(meta["mesh_absolute_min_error_bound"]):  # a minimum on h/2 only
+        head = (
+            f"twice as fine: min {limit} {b2 * 1e3:.4g} mm, where this mesh has none below the ceiling:"
+            " this diagram is not converged"
+        )
     else:
         head = (
             f"twice as fine: min {limit} {b2 * 1e3:.4g} mm ({_pct(meta['mesh_absolute_min_change'], '+')}),"
