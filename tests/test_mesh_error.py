@@ -196,6 +196,10 @@ def test_converged_variant_reports_a_small_error():
     assert d.meta["mesh_absolute_min_error_bound"] < 0.01
     assert abs(b_h - RICHARDSON) <= bound + RICHARDSON_ERROR
     assert "--variant converged" not in d.meta["mesh"]  # it is the one in use
+    # from another variant it would change more than the mesh: not advised
+    printed = cl.load_model(SHAPER, variant="printed")
+    verdict, line = mesh_verdict(printed, "stable", -1.0, "unstable", 0.1)
+    assert verdict == "undetermined" and "--variant" not in line and "elements = N" in line
 
 
 def test_lobes_cli_prints_the_mesh_line_and_writes_the_attributes(tmp_path, capsys):

@@ -91,13 +91,15 @@ def mesh_words(model: Any) -> str:
 
 
 def converged_variant(model: Any) -> str | None:
-    """The model file's variant named ``converged`` (None if it has none or
-    it is the one in use): what the advice names."""
+    """The model file's variant named ``converged``, when the model is the
+    file's default (no variant: one variant is applied at a time, so from
+    another one -- the shaper's ``printed`` -- it would change more than the
+    mesh); None otherwise.  What the advice names."""
     try:
         variants = json.loads(model.raw).get("variant", {}) if model.raw else {}
     except (ValueError, AttributeError):
         return None
-    return "converged" if "converged" in variants and model.variant != "converged" else None
+    return "converged" if "converged" in variants and model.variant is None else None
 
 
 def _advice(model: Any) -> str:
