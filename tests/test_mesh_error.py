@@ -184,13 +184,38 @@ def test_shaper_minimum_bound_covers_the_richardson_value(shaper_diagram):
     assert m["mesh"] in d.summary()
 
 
-def test_converged_variant_reports_a_small_error():
+@pytest.fixture(scope="module")
+def converged_diagram():
+    model = cl.load_model(SHAPER, variant="converged")
+    fz = cl.assemble(model).at()
+    return with_mesh_error(lobes(fz, SPEEDS, width_max=WIDTH_MAX, verify=0), fz)
+
+
+def test_the_envelope_change_is_no_bound_per_speed(shaper_diagram, converged_diagram):
+    """docs/lobes.md, "What it assumes": per speed, 2|d| of the paper's mesh
+    covers the error against the converged variant (allowing its stated 1 %)
+    at most speeds but not at all (measured 257 of 297): where another
+    lobe sets the envelope on h/2, Eq. M1 fails at that speed.  So the
+    envelope is reported as a change, never as a bound."""
+    fine = lobes(
+        cl.assemble(cl.load_model(SHAPER).with_finer_mesh()).at(), SPEEDS, width_max=WIDTH_MAX, verify=0
+    )
+    b, ref = shaper_diagram.b_lim, converged_diagram.b_lim
+    e = MeshEstimate(b, fine.b_lim)
+    both = np.isfinite(e.bound) & np.isfinite(ref)
+    covered = e.bound[both] >= np.abs(b[both] - ref[both]) - 0.01 * ref[both]
+    assert 0.5 * both.sum() < covered.sum() < both.sum()
+    assert (
+        "envelope moves by" in shaper_diagram.meta["mesh"]
+        and "envelope <=" not in shaper_diagram.meta["mesh"]
+    )
+
+
+def test_converged_variant_reports_a_small_error(converged_diagram):
     """The shipped converged mesh (stated tolerance 1 %): its minimum moves by
     far less than 1 % twice as fine, and the bound covers its error against
     the Richardson value (measured -0.012 %)."""
-    model = cl.load_model(SHAPER, variant="converged")
-    fz = cl.assemble(model).at()
-    d = with_mesh_error(lobes(fz, SPEEDS, width_max=WIDTH_MAX, verify=0), fz)
+    d = converged_diagram
     b_h = d.absolute_minimum["width"]
     bound = d.meta["mesh_absolute_min_error_bound"] * b_h
     assert d.meta["mesh_absolute_min_error_bound"] < 0.01
