@@ -10,7 +10,9 @@ printed by a following ``$ echo $?``, 2 when its output starts with
 
 Every line the page shows as its output must be printed again (issue 20,
 item 6: documented outputs had drifted): the same words, and every number to
-the digits the page prints (the printed value rounds to the page's).  Not compared, because they depend
+the digits the page prints (the printed value rounds to the page's).  A number printed at full
+precision (15 or more significant digits: a float's repr, as CSV and JSON write it) is compared to
+``FULL_RTOL`` relative: its last digits are the round-off of the CPU and BLAS that ran it.  Not compared, because they depend
 on the machine and not on chatterlab: run times (a number of seconds after
 ``in`` or a comma), rates (``steps/s``), progress lines (``sweep:  10% (...``),
 numbers at round-off level (|x| < 1e-12: only that they are as small), a
@@ -175,12 +177,28 @@ def _unit(number: str) -> float:
     return 10.0 ** (int(m.group(2) or 0) - len(m.group(1)))
 
 
+#: relative tolerance of a number printed at full precision.  The worst-conditioned such column on
+#: the pages is a damping ratio of a lightly damped mode, zeta = -Re(lambda)/|lambda|: eigenvalues
+#: carry an absolute round-off ~ n eps |lambda| (n states), so zeta carries ~ n eps / zeta relative
+#: -- 72 x 2.2e-16 / 2.05e-4 = 8e-11 for the shaper's least damped mode; 1e-9 is above that
+FULL_RTOL = 1e-9
+
+
+def _significant(number: str) -> int:
+    """How many significant digits a number is printed with."""
+    mantissa = re.sub(r"[eE].*$", "", number).lstrip("+-").replace(".", "").lstrip("0")
+    return len(mantissa)
+
+
 def _same_number(shown: str, printed: str) -> bool:
     """The printed value rounds to the page's digits: equal at equal digits, within half a unit
-    of the page's last digit (plus the printed rounding) when printed with more."""
+    of the page's last digit (plus the printed rounding) when printed with more; at full precision
+    (15 or more digits) within ``FULL_RTOL``."""
     a, b = float(shown), float(printed)
     if abs(a) < 1e-12:  # round-off: its digits depend on the BLAS, its size does not
         return abs(b) < 1e-12
+    if _significant(shown) >= 15:
+        return abs(a - b) <= FULL_RTOL * abs(a)
     us, up = _unit(shown), _unit(printed)
     if up >= us:
         return abs(a - b) <= 1e-9 * max(abs(a), us)
@@ -195,6 +213,12 @@ def _same_line(shown: str, printed: str) -> bool:
 
 def test_the_comparison_masks_times_and_rounds_to_the_page():
     """The rules of the module docstring, on lines of the pages."""
+    # full precision: the CSV of `modes` on two CPUs (the page's, and an AMD EPYC's)
+    assert _same_line(
+        "2,83.3387196896594,523.632619073226,0.011999224414819985,0.0005065376931499945",
+        "2,83.33871968965701,523.632619073211,0.011999224414820328,0.0005065376931508095",
+    )
+    assert not _same_line("2,83.3387196896594", "2,83.3387206896594")  # 1.2e-8: not round-off
     assert _same_line(
         "  106 fields, 169 model evaluations, 14.20 s", "  106 fields, 169 model evaluations, 3.1 s"
     )
