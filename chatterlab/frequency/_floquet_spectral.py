@@ -75,6 +75,13 @@ __all__ = [
     "ELEMENT_SPAN",
 ]
 
+#: free multipliers (a_p = 0) this close, relative to the largest, are one repeated eigenvalue
+#: (a symmetric tool's: equal to rounding, ~1e-15), whose rates are those of the projected
+#: derivative (:meth:`SpectralMonodromy._tangent_free`)
+REPEATED = 1e-10
+#: ... if semisimple: its eigenvectors' condition number at most this (defective, Jordan
+#: blocks: LAPACK's vectors nearly parallel, condition ~ eps^-1/2 and beyond)
+SEMISIMPLE = 1e6
 #: default mesh with an explicit degree: sub-elements short enough that omega L <= ELEMENT_SPAN
 #: (omega: the highest pole frequency, stiffened by the cut); with the degree 16 the critical
 #: multiplier of the Insperger-Stepan benchmark is then within ~1e-10 of its converged value
@@ -851,8 +858,8 @@ class SpectralMonodromy:
         """:meth:`tangent` at several depths in one batch (the same numbers); the
         eigenvectors are kept for :meth:`critical` at those depths."""
         a = np.atleast_1d(np.asarray(depths, dtype=float))
-        if a.size == 1:
-            return [self._tangent_one(float(a[0]))]
+        if a.size == 1 or not a.all():  # a = 0: see _tangent_free
+            return [self._tangent_one(float(x)) for x in a]
         X, dX_ = self._batch(a, True)
         assert dX_ is not None
         dX = dX_
@@ -875,7 +882,11 @@ class SpectralMonodromy:
     def _tangent_one(self, a: float) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`tangents` at one depth with plain 2-D LAPACK calls and no batch
         bookkeeping (the same numbers: one depth costs little more than its
-        eigenproblem)."""
+        eigenproblem); at a = 0 :meth:`_tangent_free`."""
+        if a == 0.0:
+            free = self._tangent_free()
+            if free is not None:
+                return free
         if self.m_f:
             Minv = np.linalg.inv(self._I + a * self.K)
             W = Minv @ self.Q
@@ -895,6 +906,59 @@ class SpectralMonodromy:
         self._eigs[a] = (complex(mu[order[0]]), vr[:, order[0]])
         return mu[order], dmu[order]
 
+    def _tangent_free(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`tangent` at a = 0, where multipliers are repeated (None if X0 is
+        not of the form below: both cut set-ups build it so).
+
+        The free map reads only the carried end state: X0 = [[C_d, 0], [C_r, 0]]
+        (d columns, C_d = the state's map over one period, regular), so
+        det(X0 - z I) = det(C_d - z I) (-z)^(k-d): the free multipliers lam
+        (eigenvalues of C_d) and 0 with multiplicity k - d, semisimple (the kernel
+        {z_d = 0} has dimension k - d).  At a repeated semisimple multiplier the
+        rates of the multipliers leaving it are the eigenvalues of the projected
+        derivative Y^H X'(0) V, V and Y^H right and left bases of the eigenspace
+        with Y^H V = I (Kato, Perturbation Theory for Linear Operators, 1966, ch. II
+        sec. 2.3 and 5.4; Lancaster, Numer. Math. 6, 1964), the same for every
+        basis (a similarity); the diagonal of W^-1 X' W that one eigendecomposition
+        gives depends on the basis LAPACK picks (on the 1-DOF benchmark at full
+        immersion it was about half the true rates of the zeros).  Here X'(0) = P Q;
+
+        * 0: V = [0; I], Y^H = [-C_r C_d^-1, I] (Y^H X0 = 0), so the k - d rates
+          are the eigenvalues of X'_rr - C_r C_d^-1 X'_dr (r: the rows/columns
+          after d);
+        * lam, right eigenvector [x_d; C_r x_d / lam], left [y_d; 0] with y_d
+          C_d's: y_d^H X'_d. x / y_d^H x_d, or for a repeated lam (a symmetric
+          tool: every free multiplier twice) by :func:`_repeated_rates`.
+
+        This is first order (mu = mu0 + a nu + o(a)); where the projected
+        derivative is itself defective (the zeros' often is: its eigenvectors
+        have condition numbers 1e8-1e13 on the benchmarks) the remainder is
+        o(a) but not O(a^2), and at the depths the search steps it dominates
+        (docs/milling.md, "The rates at a = 0")."""
+        d, k = self.d, self.k
+        X0 = self.X0
+        Cd, Cr = X0[:d, :d], X0[d:, :d]
+        lam, vd = np.linalg.eig(Cd)
+        if np.any(X0[:, d:]) or not np.all(lam != 0.0):
+            return None
+        dX = self.P @ self.Q  # P (I + a K)^-2 Q at a = 0
+        x = np.vstack([vd, (Cr @ vd) / lam])
+        try:
+            Zd = np.linalg.solve(vd, dX[:d].astype(vd.dtype))  # y_d^H X'_d. (y_d^H x_d = 1)
+        except np.linalg.LinAlgError:  # C_d defective: the plain route (inf rates)
+            return None
+        rate = _repeated_rates(lam, x, Zd, np.einsum("kj,jk->k", Zd, x))
+        nu = np.linalg.eigvals(dX[d:, d:] - Cr @ np.linalg.solve(Cd, dX[:d, d:]))
+        mu = np.concatenate([lam, np.zeros(k - d, dtype=lam.dtype)])
+        dmu = np.concatenate([rate, nu.astype(complex)])
+        dmu = np.where(np.isfinite(dmu), dmu, np.inf)
+        order = np.argsort(-np.abs(mu))
+        if len(self._eigs) > 256:
+            self._eigs.clear()
+        top = x[:, order[0]]
+        self._eigs[0.0] = (complex(mu[order[0]]), top / np.linalg.norm(top))
+        return mu[order], dmu[order]
+
     def tangent(self, depth: float) -> tuple[np.ndarray, np.ndarray]:
         """The Floquet multipliers mu_k at depth a_p and their derivatives
         d mu_k / d a_p (without helix: (1) holds at every depth).
@@ -908,7 +972,8 @@ class SpectralMonodromy:
         multiplier (two real multipliers meeting) y^H x = 0 and the
         derivative is infinite: a singular W gives inf, a nearly singular
         one huge rates, which a caller must read as "moves arbitrarily fast
-        here"."""
+        here".  At a = 0, where multipliers repeat, the rates of the multipliers
+        leaving them (:meth:`_tangent_free`)."""
         if self.helix_depth is not None:
             raise InputError("tangent: with a helix the matrices are not affine in a_p")
         return self.tangents(np.array([float(depth)]))[0]
@@ -1122,6 +1187,32 @@ def _state_modes(loop: ClosedLoop) -> tuple[np.ndarray, np.ndarray, bool]:
     for x in (lam_A, V):
         x.setflags(write=False)
     return lam_A, V, bool(np.linalg.cond(V) < 1e8)
+
+
+def _repeated_rates(mu: np.ndarray, vr: np.ndarray, Z: np.ndarray, dmu: np.ndarray) -> np.ndarray:
+    """The first-order rates ``dmu`` (the diagonal of Z vr, Z the rows of vr^-1 times
+    X') with those of every repeated multiplier replaced by the eigenvalues of its
+    projected derivative Z[g] vr[:, g] (:meth:`SpectralMonodromy._tangent_free`; g the
+    multipliers within ``REPEATED`` of each other, assigned in any order: they are
+    equal).  Defective (the group's eigenvectors dependent, condition number above
+    ``SEMISIMPLE``: Jordan blocks, multipliers moving like a^(1/j), no finite rate):
+    left as they are, huge or inf, which the search reads as "moves arbitrarily
+    fast" (it certifies nothing from there)."""
+    tol = REPEATED * float(np.abs(mu).max())
+    out = dmu.copy()
+    done = np.zeros(mu.size, dtype=bool)
+    for i in range(mu.size):
+        if done[i]:
+            continue
+        g = np.nonzero(~done & (np.abs(mu - mu[i]) <= tol))[0]
+        done[g] = True
+        if g.size < 2:
+            continue
+        V = vr[:, g]
+        if not np.linalg.cond(V) <= SEMISIMPLE:
+            continue
+        out[g] = np.linalg.eigvals(Z[g] @ V)
+    return out
 
 
 def _derivatives(mu: np.ndarray, vr: np.ndarray, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -268,7 +268,8 @@ def certified_crossing(
        (start, stop], exactly, from two real eigenproblems
        (:meth:`SpectralMonodromy.unit_depths`); no sampling.
     2. Complex pairs (secondary Hopf): the multipliers and their exact
-       derivatives (:meth:`SpectralMonodromy.tangent`) at depths stepped
+       derivatives (:meth:`SpectralMonodromy.tangent`; at 0, where multipliers
+       repeat, the rates of those leaving them) at depths stepped
        from ``start`` to the first flip/fold depth, each step as long as
        :func:`_step` predicts the interval passes :func:`_interval_safe`
        (every multiplier's first-order path within half its gap to the unit
