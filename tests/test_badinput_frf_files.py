@@ -284,8 +284,15 @@ def test_fuzz_damaged_files_are_refused_or_read_whole(capsys, tmp_path, fmt, how
     if t is not None:  # accepted: then it is the whole of what is there
         if fmt == "uff":
             np.testing.assert_array_equal(t.frequency_hz, full.frequency_hz)
-            np.testing.assert_allclose(t.data, full.data, rtol=1e-9)
-            np.testing.assert_allclose(t.coherence, full.coherence, rtol=1e-9)
+            # a cut right after a dataset's closing '    -1' leaves a valid file of the datasets before
+            # it (UFF has no count of datasets): read whole, they are the full file's entries exactly
+            rows = [full.outputs.index(o) for o in t.outputs]
+            cols = [full.inputs.index(i) for i in t.inputs]
+            np.testing.assert_allclose(t.data, full.data[np.ix_(rows, cols)], rtol=1e-9)
+            if t.coherence is not None:
+                np.testing.assert_allclose(t.coherence, full.coherence[np.ix_(rows, cols)], rtol=1e-9)
+            if t.data.shape != full.data.shape or t.coherence is None:
+                assert how == "truncate" and p.read_bytes().rstrip(b"\r\n").endswith(b"    -1"), how
         else:
             assert how == "truncate", how
             text = p.read_bytes().decode()
@@ -671,3 +678,23 @@ def test_a_sweep_over_an_frf_model_is_refused_once_before_the_work(capsys, layou
                             "--backend", "serial", "--quiet")  # fmt: skip
     assert_clean_error(code, err, str(model), "measured FRF", "chatterlab lobes")
     assert "task" not in err and "sweep of" not in out
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_uff_cut_right_after_a_dataset_is_those_datasets(tmp_path, binary):
+    """UFF has no count of its datasets: a file that ends right after a
+    dataset's closing '    -1' is a valid file of the datasets before it
+    (found by the fuzz test above on a 58b file cut at byte 1209).  It is
+    read as exactly those, never a part of one."""
+    from chatterlab.io._frf_uff import _uff_tags
+
+    p = tmp_path / "tap.uff"
+    full = _uff_file(p, 12, binary=binary)
+    data = p.read_bytes()
+    close = _uff_tags(data)[1]  # the first dataset's closing tag
+    p.write_bytes(data[: close + 6])
+    t = read_frf(p)
+    assert t.data.shape == (1, 1, 12) and t.coherence is None
+    np.testing.assert_allclose(
+        t.data[0, 0], full.data[full.outputs.index(t.outputs[0]), full.inputs.index(t.inputs[0])], rtol=1e-9
+    )
