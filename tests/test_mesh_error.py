@@ -371,3 +371,24 @@ def test_a_model_without_beams_is_unchanged(capsys):
     assert "mesh" not in json.loads(out)
     code, out, _ = run(capsys, "modes", "example:damped_turning.toml")
     assert "df(h/2)" not in out and "mesh:" not in out
+
+
+def test_the_figure_says_what_the_mesh_costs(shaper_diagram):
+    """The lobe figure of a model with beams carries the mesh's line (right
+    of the bottom panel's title), with the numbers of the diagram's meta; a
+    diagram without the estimate draws none."""
+    import dataclasses
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from chatterlab.plot import plot_lobes
+
+    m = shaper_diagram.meta
+    axes = plot_lobes(shaper_diagram)
+    note = axes[-1].get_title(loc="right")
+    assert f"beam mesh of {m['mesh_beam_elements']} elements" in note
+    assert f"within {m['mesh_absolute_min_error_bound']:.0%}" in note
+    assert f"moves {m['mesh_envelope_change_median']:.0%}" in note
+    bare = dataclasses.replace(shaper_diagram, meta={k: v for k, v in m.items() if not k.startswith("mesh")})
+    assert plot_lobes(bare)[-1].get_title(loc="right") == ""
