@@ -773,7 +773,12 @@ class ActiveDesign(Result):
         opt = f"{self.width * 1e3:.5g} mm"
         if not math.isfinite(self.width):
             ceiling = float(self.after.width_max)
-            opt = f"above the {ceiling * 1e3:.4g} mm ceiling (no boundary below it)"
+            # the objective is flat there: any gains that clear the ceiling are optimal, and the
+            # ones printed are where the search stopped (they differ between CPUs in the 4th digit)
+            opt = (
+                f"above the {ceiling * 1e3:.4g} mm ceiling (no boundary below it: any gains that reach it are"
+                " optimal, these are where the search stopped)"
+            )
             gain = f"more than x {ceiling / self.bare_width:.3g}" if self.bare_width > 0 else "from 0"
         lines.append(
             f"  optimised: {opt}; without the actuator: {bare} ({gain});"
