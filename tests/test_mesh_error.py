@@ -327,6 +327,7 @@ def test_a_clear_verdict_stands_with_its_mesh_line(capsys):
 
 class _M:  # the fields mesh_verdict reads
     beams = (type("B", (), {"elements": 1})(),)
+    beam_elements = 1
     raw = json.dumps({"variant": {"converged": {}}})
     variant = None
 

@@ -77,8 +77,8 @@ def _mesh_doc(model: Any, f: Any, fine: Any) -> dict[str, Any]:
 
     e = MeshEstimate(f[: len(fine)], fine)
     return {
-        "beam_elements": sum(b.elements for b in model.beams),
-        "fine_beam_elements": 2 * sum(b.elements for b in model.beams),
+        "beam_elements": model.beam_elements,
+        "fine_beam_elements": 2 * model.beam_elements,
         "order": P_MIN,
         "fine_frequency_hz": [float(x) for x in fine],
         "change_hz": [float(x) for x in e.change],

@@ -287,7 +287,7 @@ def mesh_checked(coarse: Stability, fine: Stability, model: Any) -> Stability:
     verdict, line = mesh_verdict(model, coarse.verdict, coarse.abscissa, fine.verdict, fine.abscissa)
     mesh = {
         "line": line,
-        "beam_elements": sum(b.elements for b in model.beams),
+        "beam_elements": model.beam_elements,
         "coarse_verdict": coarse.verdict,
         "fine_verdict": fine.verdict,
         "fine_abscissa_per_s": fine.abscissa,

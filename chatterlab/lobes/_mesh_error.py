@@ -63,8 +63,8 @@ def with_mesh_error(
     env = np.abs(MeshEstimate(diagram.b_lim, b_fine).relative_change)
     env = env[np.isfinite(env)]
     meta: dict[str, Any] = {
-        "mesh_beam_elements": int(sum(b.elements for b in model.beams)),
-        "mesh_fine_beam_elements": int(sum(b.elements for b in fine.beams)),
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": fine.beam_elements,
         "mesh_fine_absolute_min_m": float(am["width"]),
         "mesh_fine_absolute_min_chatter_hz": float(am["chatter_hz"]),
         "mesh_absolute_min_change": float(est.relative_change),

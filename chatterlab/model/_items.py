@@ -690,6 +690,11 @@ class Model:
             return self
         return self.with_parameters({f"beam.{b.id}.elements": factor * b.elements for b in self.beams})
 
+    @property
+    def beam_elements(self) -> int:
+        """Every ``[[beam]]``'s element count, summed (0 without beams)."""
+        return sum(b.elements for b in self.beams)
+
     def summary(self) -> dict[str, Any]:
         """Counts of the model's items (see also :meth:`System.summary`)."""
         return {
@@ -699,7 +704,7 @@ class Model:
             "bodies": len(self.bodies),
             "massless bodies": sum(1 for b in self.bodies if b.mass == 0.0),
             "beams": len(self.beams),
-            "beam elements": sum(b.elements for b in self.beams),
+            "beam elements": self.beam_elements,
             "nodes": len(self.nodes),
             "springs": len(self.springs),
             "attachments": len(self.attachments),

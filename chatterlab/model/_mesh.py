@@ -86,7 +86,7 @@ class MeshEstimate:
 
 def mesh_words(model: Any) -> str:
     """ "6 beam elements" (every beam's count summed)."""
-    n = sum(b.elements for b in model.beams)
+    n = model.beam_elements
     return f"{n} beam element{'s' * (n != 1)}"
 
 
