@@ -31,7 +31,7 @@ from chatterlab._examples import example_path
 from chatterlab.cli import main
 from chatterlab.lobes._diagram import lobes
 from chatterlab.lobes._mesh_error import with_mesh_error
-from chatterlab.model._mesh import P_MIN, MeshEstimate, bound_factor, mesh_verdict
+from chatterlab.model._mesh import P_MIN, MeshEstimate, bound_factor, limit_line, mesh_verdict, width_verdict
 
 SHAPER = "studies/traverse_shaper/model.toml"
 #: the conforming family's Richardson estimate of the minimum b_lim (m) and
@@ -345,6 +345,35 @@ class _M:  # the fields mesh_verdict reads
 def test_mesh_verdict_rules(coarse, fine, expected):
     verdict, line = mesh_verdict(_M(), coarse[0], coarse[1], fine[0], fine[1])
     assert verdict == expected and line.startswith("mesh: ") and "\n" not in line
+
+
+@pytest.mark.parametrize(
+    ("width", "limit", "fine", "expected"),
+    [
+        (1.0, 2.0, 2.1, "stable"),  # margin 1 > 2|d| = 0.2
+        (1.0, 2.0, 1.5, "undetermined"),  # margin 1 <= 2|d| = 1: inside the bound
+        (1.0, 2.0, 0.9, "undetermined"),  # the finer mesh contradicts it
+        (3.0, 2.0, 2.1, "unstable"),  # past both limits by more than 0.2
+        (2.05, 2.0, 2.1, "undetermined"),  # unstable on h, stable on h/2
+        (2.15, 2.0, 2.1, "undetermined"),  # unstable on both, but 0.15 <= 0.2
+        (1.0, np.inf, 2.0, "undetermined"),  # a limit on one mesh only: no bound
+        (1.0, np.inf, np.inf, "stable"),  # the ceiling claim is the caller's
+    ],
+)
+def test_width_verdict_rules(width, limit, fine, expected):
+    """A cut is claimed stable (or unstable) only when the finer mesh agrees and
+    the limit's error bound, 2|d| (Eq. M3 at p = 1), is below its distance to the cut."""
+    verdict, line = width_verdict(_M(), width, limit, fine)
+    assert verdict == expected and line.startswith("mesh: ") and "\n" not in line
+
+
+def test_limit_line_states_the_change_and_the_bound():
+    """0.2 -> 0.21 mm: +5.0 %, bound 2 x 5 % = 10.0 %; at the ceiling no bound is claimed."""
+    line = limit_line(_M(), "a_lim", 0.2e-3, 0.21e-3)
+    assert "a_lim 0.21 mm (+5.0%)" in line and "<= 10.0%" in line and "--variant converged" in line
+    assert "not converged" in limit_line(_M(), "a_lim", 0.2e-3, np.inf)
+    assert "not converged" in limit_line(_M(), "a_lim", np.inf, 0.2e-3)
+    assert "no estimate" in limit_line(_M(), "a_lim", np.inf, np.inf)
 
 
 # ---------------------------------------------------------------------------- no beams

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..frequency._delay_system import single_threaded
-from ..model._mesh import P_MIN, MeshEstimate, converged_variant, mesh_words
+from ..model._mesh import P_MIN, MeshEstimate, converged_tail, mesh_words, pct
 from ..structure._assembly import FrozenSystem, assemble
 from ._damped import Boundary
 from ._result import LobeDiagram
@@ -92,21 +92,13 @@ def mesh_line(meta: dict[str, Any], model: Any, limit: str = "b_lim") -> str:
         )
     else:
         head = (
-            f"twice as fine: min {limit} {b2 * 1e3:.4g} mm ({_pct(meta['mesh_absolute_min_change'], '+')}),"
-            f" discretisation error of this diagram's minimum <= {_pct(meta['mesh_absolute_min_error_bound'])}"
+            f"twice as fine: min {limit} {b2 * 1e3:.4g} mm ({pct(meta['mesh_absolute_min_change'], '+')}),"
+            f" discretisation error of this diagram's minimum <= {pct(meta['mesh_absolute_min_error_bound'])}"
         )
     env = ""
     if np.isfinite(meta["mesh_envelope_change_median"]):
         env = (
-            f"; its envelope moves by {_pct(meta['mesh_envelope_change_median'])} (median over"
-            f" {meta['mesh_envelope_speeds']} speeds), up to {_pct(meta['mesh_envelope_change_max'])}"
+            f"; its envelope moves by {pct(meta['mesh_envelope_change_median'])} (median over"
+            f" {meta['mesh_envelope_speeds']} speeds), up to {pct(meta['mesh_envelope_change_max'])}"
         )
-    v = converged_variant(model)
-    tail = f"; a converged mesh: --variant {v}" if v else ""
-    return f"mesh: {mesh_words(model)}; {head}{env}{tail}"
-
-
-def _pct(x: float, sign: str = "") -> str:
-    """A fraction as a percentage: one decimal from 1 % up (7.7%, 193.0%), two
-    significant digits below (0.012%)."""
-    return f"{x:{sign}.1%}" if abs(x) >= 0.01 else f"{x * 100:{sign}.2g}%"
+    return f"mesh: {mesh_words(model)}; {head}{env}{converged_tail(model)}"

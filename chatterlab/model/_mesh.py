@@ -34,7 +34,18 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["P_MIN", "MeshEstimate", "bound_factor", "mesh_verdict", "mesh_words", "converged_variant"]
+__all__ = [
+    "P_MIN",
+    "MeshEstimate",
+    "bound_factor",
+    "mesh_verdict",
+    "mesh_words",
+    "converged_variant",
+    "pct",
+    "limit_line",
+    "width_verdict",
+    "converged_tail",
+]
 
 #: the lowest order of convergence assumed (point loads inside elements)
 P_MIN = 1.0
@@ -100,6 +111,83 @@ def converged_variant(model: Any) -> str | None:
     except (ValueError, AttributeError):
         return None
     return "converged" if "converged" in variants and model.variant is None else None
+
+
+def pct(x: float, sign: str = "") -> str:
+    """A fraction as a percentage: one decimal from 1 % up (7.7%, 193.0%), two
+    significant digits below (0.012%)."""
+    return f"{x:{sign}.1%}" if abs(x) >= 0.01 else f"{x * 100:{sign}.2g}%"
+
+
+def limit_line(
+    model: Any, name: str, coarse: float, fine: float, unit: str = "mm", scale: float = 1e3
+) -> str:
+    """One line on a limit (a width, a depth: SI ``coarse`` on h, ``fine`` on
+    h/2) for a command's summary: the value on the mesh twice as fine, its
+    change and the bound of the coarse value's error (Eq. M3), or why there
+    is no bound (a limit at the ceiling on either mesh).  Shown in ``unit``
+    (``scale`` units per SI unit)."""
+    e = MeshEstimate(coarse, fine)
+    if not np.isfinite(fine) and not np.isfinite(coarse):
+        head = f"twice as fine: no {name} below the ceiling either; no estimate of its error"
+    elif not np.isfinite(fine):
+        head = f"twice as fine: no {name} below the ceiling, where this mesh has one: this result is not converged"
+    elif not np.isfinite(coarse):
+        head = (
+            f"twice as fine: {name} {fine * scale:.4g} {unit}, where this mesh has none below the ceiling:"
+            " this result is not converged"
+        )
+    else:
+        head = (
+            f"twice as fine: {name} {fine * scale:.4g} {unit} ({pct(float(e.relative_change), '+')}),"
+            f" discretisation error of this {name} <= {pct(float(e.relative_bound))}"
+        )
+    return f"mesh: {mesh_words(model)}; {head}{converged_tail(model)}"
+
+
+def width_verdict(model: Any, width: float, limit: float, fine_limit: float) -> tuple[str, str]:
+    """The verdict on a cut of ``width`` (or depth) against the stability
+    limit ``limit`` on h and ``fine_limit`` on h/2 (SI; inf: none below the
+    ceiling searched), and one line why: the limit's analogue of
+    :func:`mesh_verdict`.
+
+    * ``stable`` on both meshes (width below both limits) with the margin
+      limit - width larger than the limit's error bound 2 |fine - limit|
+      (Eq. M3): ``stable``;
+    * ``unstable`` on both (width at or above both limits) with
+      width - limit beyond the bound: ``unstable``;
+    * otherwise (the meshes disagree, the margin is inside the bound, or
+      one limit is at the ceiling and the other not): ``undetermined``.
+    Both limits at the ceiling: ``stable`` as far as the ceiling searched
+    (the caller's claim about the ceiling stands)."""
+    advice = _advice(model)
+    on_h = "stable" if width < limit else "unstable"
+    on_h2 = "stable" if width < fine_limit else "unstable"
+    if not np.isfinite(limit) and not np.isfinite(fine_limit):
+        return (
+            "stable",
+            f"mesh: {mesh_words(model)}; no limit below the ceiling on this mesh or one twice as fine",
+        )
+    if on_h != on_h2:
+        return "undetermined", f"mesh: {on_h} on this mesh, {on_h2} on a mesh twice as fine: {advice}"
+    e = MeshEstimate(limit, fine_limit)
+    bound = float(e.bound)
+    if not np.isfinite(bound) or bound >= abs(limit - width):
+        return "undetermined", (
+            f"mesh: {on_h} on this mesh and on one twice as fine, but the limit is within"
+            f" {pct(abs(limit - width) / abs(width))} of the cut and its discretisation error"
+            f" <= {pct(float(e.relative_bound))}: {advice}"
+        )
+    return on_h, (
+        f"mesh: {mesh_words(model)}; also {on_h2} on a mesh twice as fine; the limit's discretisation error"
+        f" <= {pct(float(e.relative_bound))}, less than its distance to the cut"
+    )
+
+
+def converged_tail(model: Any) -> str:
+    """ "; a converged mesh: --variant converged" when the model file has that variant (else "")."""
+    v = converged_variant(model)
+    return f"; a converged mesh: --variant {v}" if v else ""
 
 
 def _advice(model: Any) -> str:
