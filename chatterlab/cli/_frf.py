@@ -74,9 +74,17 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
         kind=args.kind,
         method=args.method,
     )
+    # a model with beams: the resonance peaks on the mesh twice as fine (None: no beams)
+    mesh = _mesh(args, fz, w, res)
     if args.out or args.format or not (args.plot or args.nyquist):
         if args.format == "json":
-            emit(res.to_json(), outs.path(args.out) if args.out else None)
+            if mesh is None:
+                emit(res.to_json(), outs.path(args.out) if args.out else None)
+            else:
+                from ..io._files import json_text
+
+                doc = {**res.to_dict(), "mesh": mesh}
+                emit(json_text(doc, indent=None), outs.path(args.out) if args.out else None)
         else:
             # magnitude, phase, real and imaginary part per pair, 17 digits; no comment lines (a plain table)
             res.to_csv(outs.path(args.out) if args.out else sys.stdout, form="both", comments=False)
@@ -85,6 +93,13 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
             f"frf: {len(res.frequency_hz)} frequencies, {res.data.shape[0]} output(s) x {res.data.shape[1]}"
             " input(s); add --out FILE to keep the table"
         )
+    if mesh is not None and args.format != "json":
+        from ._mesh_checks import frf_lines
+
+        # the CSV on standard output stays a plain table: the lines go to standard error then
+        to_err = not args.out and (args.format is not None or not (args.plot or args.nyquist))
+        for line in frf_lines(fz.model, mesh):
+            print(line, file=sys.stderr if to_err else sys.stdout)
     if args.nyquist and fb is not None:
         _nyquist(args, outs, fz, w, fb)
     if args.plot:
@@ -99,6 +114,49 @@ def _run(args: argparse.Namespace, outs: Outputs) -> int:
             ]
         savefig(plot_frf_pairs(curves, title=fz.model.name, peaks=2), outs.path(args.plot))
     return 0
+
+
+def _mesh(args: argparse.Namespace, fz: Any, w: Any, res: Any) -> dict[str, Any] | None:
+    """The resonance peaks of every (output, input) pair of ``res`` on the
+    model's mesh and on the mesh twice as fine, with the bound of their
+    discretisation error (:func:`chatterlab.cli._mesh_checks.frf_check`);
+    None for a model without beams."""
+    model = fz.model
+    if not model.beams:
+        return None
+    import numpy as np
+
+    from ..frequency._frf import frf
+    from ..process import closed_loop
+    from ..structure._assembly import assemble
+    from ._mesh_checks import frf_check, frf_peaks
+
+    fz2 = assemble(model.with_finer_mesh()).at(args.position)
+    systems = [fz, fz2]
+    if args.closed_loop:
+        systems = [
+            closed_loop(s, width=width_m(args), speed=args.speed, delay=args.delay, terms=args.terms)
+            for s in systems
+        ]
+    f = np.asarray(res.frequency_hz, float)
+    peaks: list[list[Any]] = [[], []]
+    names = []
+    for o, out in enumerate(res.outputs):
+        for i, inp in enumerate(res.inputs):
+            names.append(f"{out}/{inp}")
+            for k, s in enumerate(systems):
+
+                def mag(fhz: float, s: Any = s, out: str = out, inp: str = inp) -> float:
+                    r = frf(s, np.array([2 * np.pi * fhz]), inputs=[inp], outputs=[out], kind=args.kind,
+                            method=args.method)  # fmt: skip
+                    return float(abs(r.data[0, 0, 0]))
+
+                curve = res.data[o, i] if k == 0 else None
+                if curve is None:
+                    r2 = frf(s, w, inputs=[inp], outputs=[out], kind=args.kind, method=args.method)
+                    curve = r2.data[0, 0]
+                peaks[k].append(frf_peaks(mag, f, np.abs(curve)))
+    return frf_check(model, peaks[0], peaks[1], names)
 
 
 def _nyquist(args: argparse.Namespace, outs: Outputs, fz: Any, w: Any, fb: Any) -> None:

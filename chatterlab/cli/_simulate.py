@@ -143,11 +143,13 @@ def run(args: argparse.Namespace) -> int:
         args, *((f, "--out", DATA_SUFFIXES) for f in files), (args.plot, "--plot", PLOT_SUFFIXES)
     ) as outs:
         simulate_case = _runner(args, model, q0, v0)
+        mesh_check = _mesh_checker(args, model)
         sims, contradictions = [], []
         for fb in cases:
             sim = simulate_case(fb)
             sims.append(sim)
             contradictions += _summary(sim, fb)
+            mesh_check(sim, fb)
         code = _report(args, outs, sims, files)
     if contradictions:
         # the time domain and the roots of the same frozen system cannot both be right
@@ -259,6 +261,34 @@ def _runner(
         )
 
     return simulate_case
+
+
+def _mesh_checker(args: argparse.Namespace, model: Any) -> Callable[[Any, str], None]:
+    """A model with beams: ``(run, feedback case) -> None`` printing the
+    verdict of the run's frozen system on its mesh and on the mesh twice as
+    fine (:func:`chatterlab.cli._mesh_checks.simulate_check`) and putting
+    the facts in the run's ``meta`` (its netCDF attributes ``mesh_*``).
+    Without beams: does nothing (the output is unchanged)."""
+    if not model.beams:
+        return lambda sim, fb: None
+    from ..structure._assembly import assemble
+    from ._mesh_checks import simulate_check, simulate_lines
+
+    fine: list[Any] = []
+    width = width_m(args) if args.width is not None else None
+
+    def check(sim: Any, fb: str) -> None:
+        roots = None
+        if sim.roots is not None:
+            if not fine:
+                fine.append(assemble(model.with_finer_mesh()))
+            roots = _frozen_roots(fine[0], fb, width, args)
+        facts = simulate_check(model, sim, roots)
+        sim.meta.update(facts)
+        for line in simulate_lines(facts):
+            print(line)
+
+    return check
 
 
 #: characteristic roots computed for a continuous cut: enough to hold the

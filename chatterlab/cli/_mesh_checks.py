@@ -1,0 +1,358 @@
+"""The discretisation error of ``simulate``, ``frf`` and ``sweep`` on a model
+with beams (docs/lobes.md, "The discretisation error of a result", Eqs.
+M1-M5; the machinery is :mod:`chatterlab.model._mesh`, never repeated here).
+
+* ``simulate`` of a continuous cut: the rightmost characteristic root of the
+  very frozen system the run integrates, on the model's mesh and on
+  :meth:`Model.with_finer_mesh`, judged by :func:`mesh_verdict`: the run's
+  "no chatter" / "chatter" stands only when both meshes agree and the
+  margin is larger than its error bound 2 |a_{h/2} - a_h| (Eq. M3); else it
+  is ``undetermined``.  A moving slide has no frozen system: no verdict is
+  claimed and the line says that nothing was checked.
+* ``frf``: each resonance peak of |H| (frequency and magnitude, refined
+  between grid points) on both meshes, its change and bound (Eq. M3).
+* ``sweep``: the quantity recomputed on the finer mesh at the grid's most
+  critical point(s) only (:func:`sweep_check`), and the line names them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..model._mesh import P_MIN, MeshEstimate, limit_line, mesh_verdict, mesh_words, pct
+
+__all__ = ["root_verdict", "simulate_check", "frf_peaks", "frf_check", "sweep_check"]
+
+#: simulate's words for a verdict of the frozen system
+CHATTER_WORDS = {"stable": "no chatter", "unstable": "chatter", "undetermined": "undetermined"}
+
+
+def root_verdict(lam: Any, certain: bool) -> tuple[str, float]:
+    """The verdict and margin (rightmost Re, 1/s) of characteristic roots
+    (upper half plane, sorted by decreasing real part): ``unstable`` when a
+    root lies right of the axis (a root found proves it), ``stable`` when
+    every root is left of it and the band searched is certified to hold
+    every root right of the rightmost one (``certain``), else
+    ``undetermined``."""
+    if lam is None or not np.size(lam):
+        return "undetermined", math.nan
+    a = float(np.max(np.real(lam)))
+    if a > 0:
+        return "unstable", a
+    return ("stable" if certain and a < 0 else "undetermined"), a
+
+
+def simulate_check(model: Any, sim: Any, fine_roots: Any) -> dict[str, Any]:
+    """The mesh facts of one ``simulate`` run of a model with beams
+    (``fine_roots``: the characteristic roots of the same frozen system on
+    the mesh twice as fine, None for a moving slide), as the netCDF
+    attributes ``mesh_*`` (docs/cli.md, "Time histories") and ``mesh`` (the
+    printed line)."""
+    base: dict[str, Any] = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": 2 * model.beam_elements,
+        "mesh_order": P_MIN,
+    }
+    if sim.roots is None:
+        return {
+            **base,
+            "mesh_verdict": "none",
+            "mesh": f"mesh: {mesh_words(model)}; the slide moves: no verdict is claimed, and the"
+            " histories' discretisation error is not estimated (nothing was computed on a finer mesh;"
+            " a frozen configuration: chatterlab roots --position S)",
+        }
+    coarse, a_h = root_verdict(sim.roots, sim.roots_certain)
+    lam2 = np.asarray(fine_roots.roots, complex).reshape(-1)
+    # certain as the run's own roots (Simulation.roots_certain): a converged search whose
+    # certified band holds every root right of the rightmost one found
+    certain2 = bool(
+        lam2.size
+        and fine_roots.converged
+        and float(getattr(fine_roots, "complete_above", math.nan)) < float(lam2.real.max())
+    )
+    fine, a_h2 = root_verdict(lam2, certain2)
+    verdict, why = mesh_verdict(model, coarse, a_h, fine, a_h2)
+    return {
+        **base,
+        "mesh_coarse_verdict": coarse,
+        "mesh_fine_verdict": fine,
+        "mesh_abscissa_per_s": a_h,
+        "mesh_fine_abscissa_per_s": a_h2,
+        "mesh_abscissa_error_bound_per_s": float(MeshEstimate(a_h, a_h2).bound),
+        "mesh_verdict": verdict,
+        "mesh": why,
+    }
+
+
+def simulate_lines(facts: dict[str, Any]) -> list[str]:
+    """The summary's lines of :func:`simulate_check`: the verdict (for a
+    frozen system) and the mesh's line."""
+    if facts["mesh_verdict"] == "none":
+        return [f"  {facts['mesh']}"]
+    v, c = facts["mesh_verdict"], facts["mesh_coarse_verdict"]
+    head = f"  verdict: {CHATTER_WORDS[v]} (the frozen system's rightmost root {facts['mesh_abscissa_per_s']:+.4g} 1/s"
+    if v == "undetermined" and c != "undetermined":
+        head += f"; {CHATTER_WORDS[c]} on this mesh alone: the envelopes above are this mesh's)"
+    elif v == "undetermined":
+        head += ": not certified on this mesh)"
+    else:
+        head += ", on this mesh and on one twice as fine)"
+    return [head, f"  {facts['mesh']}"]
+
+
+# ---------------------------------------------------------------------------- frf
+
+#: a peak is a local maximum of |H| at least this fraction of the pair's largest
+PEAK_FLOOR = 1e-2
+#: the most peaks reported per (output, input) pair (the largest)
+MAX_PEAKS = 3
+
+
+def frf_peaks(response: Any, f: Any, mag: Any) -> list[tuple[float, float]]:
+    """The resonance peaks of one |H| curve on the grid ``f`` (Hz): interior
+    local maxima of at least PEAK_FLOOR of the largest, the MAX_PEAKS
+    largest, each refined by a golden-section search of ``response(f) ->
+    |H|`` between its grid neighbours.  ``[(f_peak, |H|_peak)]`` by
+    increasing frequency."""
+    mag = np.asarray(mag, float)
+    if mag.size < 3 or not np.all(np.isfinite(mag)):
+        return []
+    i = np.nonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:]))[0] + 1
+    i = i[mag[i] >= PEAK_FLOOR * mag.max()]
+    i = i[np.argsort(-mag[i])][:MAX_PEAKS]
+    out = [_golden(response, float(f[k - 1]), float(f[k + 1])) for k in sorted(i)]
+    return out
+
+
+def _golden(g: Any, a: float, b: float, tol: float = 1e-9) -> tuple[float, float]:
+    """The maximum of g on [a, b] (unimodal there), to ``tol`` relative in f."""
+    r = (math.sqrt(5) - 1) / 2
+    c, d = b - r * (b - a), a + r * (b - a)
+    gc, gd = g(c), g(d)
+    while b - a > tol * abs(b):
+        if gc > gd:
+            b, d, gd = d, c, gc
+            c = b - r * (b - a)
+            gc = g(c)
+        else:
+            a, c, gc = c, d, gd
+            d = a + r * (b - a)
+            gd = g(d)
+    x = 0.5 * (a + b)
+    return x, float(g(x))
+
+
+def frf_check(model: Any, coarse: list[list[Any]], fine: list[list[Any]], names: list[str]) -> dict[str, Any]:
+    """The ``mesh`` member of ``frf --format json`` (and the printed lines):
+    per (output, input) pair ``names[k]``, the peaks on h (``coarse[k]``) and
+    on h/2 (``fine[k]``) matched by rank in frequency where both meshes have
+    the same number of peaks; the change and the bound (Eq. M3) of the
+    frequency and of the magnitude."""
+    pairs = []
+    for name, pc, pf in zip(names, coarse, fine, strict=True):
+        entry: dict[str, Any] = {"pair": name, "peaks": []}
+        if len(pc) != len(pf):
+            entry["unmatched"] = (
+                f"{len(pc)} peak(s) on this mesh, {len(pf)} on the mesh twice as fine: not matched, no bound"
+            )
+        else:
+            for (f1, m1), (f2, m2) in zip(pc, pf, strict=True):
+                ef, em = MeshEstimate(f1, f2), MeshEstimate(m1, m2)
+                entry["peaks"].append(
+                    {
+                        "frequency_hz": f1,
+                        "fine_frequency_hz": f2,
+                        "frequency_error_bound_hz": float(ef.bound),
+                        "magnitude": m1,
+                        "fine_magnitude": m2,
+                        "magnitude_error_bound": float(em.bound),
+                    }
+                )
+        pairs.append(entry)
+    return {
+        "beam_elements": model.beam_elements,
+        "fine_beam_elements": 2 * model.beam_elements,
+        "order": P_MIN,
+        "pairs": pairs,
+    }
+
+
+def frf_lines(model: Any, doc: dict[str, Any]) -> list[str]:
+    """One head line, then one line per pair: each peak's frequency and
+    magnitude change on the mesh twice as fine and their bounds (Eq. M3)."""
+    from ..model._mesh import converged_tail
+
+    out = [
+        f"mesh: {mesh_words(model)}; resonance peaks on a mesh twice as fine: the change of the peak's"
+        f" frequency and magnitude, and the discretisation error of this mesh's, <= 2 |change|"
+        f" (docs/lobes.md, Eq. M3){converged_tail(model)}"
+    ]
+    for p in doc["pairs"]:
+        if "unmatched" in p:
+            out.append(f"  {p['pair']}: {p['unmatched']}")
+            continue
+        if not p["peaks"]:
+            out.append(f"  {p['pair']}: no resonance peak inside the frequency range")
+            continue
+        parts = []
+        for k in p["peaks"]:
+            df = k["fine_frequency_hz"] - k["frequency_hz"]
+            dm = (k["fine_magnitude"] - k["magnitude"]) / k["magnitude"]
+            parts.append(
+                f"{k['frequency_hz']:.2f} Hz {df:+.3g} Hz (err <= {k['frequency_error_bound_hz']:.2g} Hz),"
+                f" |H| {pct(dm, '+')} (err <= {pct(k['magnitude_error_bound'] / k['magnitude'])})"
+            )
+        out.append(f"  {p['pair']}: " + "; ".join(parts))
+    return out
+
+
+# ---------------------------------------------------------------------------- sweep
+
+
+def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
+    """The sweep's quantity recomputed on the mesh twice as fine at its most
+    critical point(s), or None (no beams, or nothing to check).
+
+    * ``stable``, ``rightmost-root``: the stable point nearest the boundary
+      (the largest negative abscissa) and the unstable one nearest it (the
+      smallest positive), each judged by :func:`mesh_verdict`; a checked
+      ``stable`` point that becomes undetermined is set to NaN;
+    * ``b-lim``, ``min-b-lim``, ``a-lim``: the point of the smallest
+      (finite) limit, by :func:`limit_line`;
+    * ``natural-frequencies``: the point of the lowest f1, f1 to f3 there.
+
+    Returns the attributes (``mesh_*``, ``mesh``: the line) and, under the
+    key ``_set_nan``, the flat indices whose ``stable`` became NaN."""
+    import dataclasses
+
+    model = task.model
+    if not model.beams:
+        return None
+    fine_task = dataclasses.replace(task, model=model.with_finer_mesh())
+    q = task.quantity
+    names = list(grid.names)
+    shape = grid.shape
+
+    def point(flat: int) -> dict[str, float]:
+        idx = np.unravel_index(flat, shape)
+        return {n: float(np.asarray(ax.values)[i]) for n, ax, i in zip(names, grid.axes, idx, strict=True)}
+
+    def where(p: dict[str, float]) -> str:
+        return ", ".join(
+            f"{n} {v * 1e3:.4g} mm" if n == "width" else f"{task.aliases.get(n, n)} {v:.6g}"
+            for n, v in p.items()
+        )
+
+    ok = np.asarray(res.task_status).reshape(-1) == 0 if res.task_status is not None else True
+    base = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": 2 * model.beam_elements,
+        "mesh_order": P_MIN,
+        "mesh_points_checked": 0,
+        "mesh_points": int(grid.size),
+    }
+    if q in ("stable", "rightmost-root"):
+        a = np.asarray(res.data["abscissa"], float).reshape(-1)
+        good = np.isfinite(a) & ok
+        picks = []
+        neg = np.nonzero(good & (a < 0))[0]
+        if neg.size:
+            picks.append(int(neg[np.argmax(a[neg])]))
+        pos = np.nonzero(good & (a > 0))[0]
+        if pos.size:
+            picks.append(int(pos[np.argmin(a[pos])]))
+        if not picks:
+            return {
+                **base,
+                "mesh": f"mesh: {mesh_words(model)}; no point with a margin to check on a finer mesh",
+            }
+        checks, set_nan, texts = [], [], []
+        for flat in picks:
+            p = point(flat)
+            if q == "stable":
+                code = float(np.asarray(res.data["stable"], float).reshape(-1)[flat])
+                coarse = {1.0: "stable", 0.0: "unstable"}.get(code, "undetermined")
+            else:
+                coarse = "stable" if a[flat] < 0 else "unstable"
+            fv = fine_task(**p)
+            fa = float(fv["abscissa"])
+            if q == "stable":
+                fine = {1.0: "stable", 0.0: "unstable"}.get(float(fv["stable"]), "undetermined")
+            else:
+                fine = "stable" if fa < 0 else ("unstable" if fa > 0 else "undetermined")
+            verdict, why = mesh_verdict(model, coarse, float(a[flat]), fine, fa)
+            if q == "stable" and verdict == "undetermined" and coarse != "undetermined":
+                set_nan.append(flat)
+            checks.append(
+                {"point": p, "coarse_verdict": coarse, "fine_verdict": fine, "verdict": verdict,
+                 "abscissa_per_s": float(a[flat]), "fine_abscissa_per_s": fa,
+                 "abscissa_error_bound_per_s": float(MeshEstimate(a[flat], fa).bound)}
+            )  # fmt: skip
+            texts.append(f"at {where(p)}: {verdict} ({why.removeprefix('mesh: ')})")
+        n = len(picks)
+        line = (
+            f"mesh: {mesh_words(model)}; checked on a mesh twice as fine at {n} of {grid.size} points, the"
+            f" {'stable and the unstable point' if n == 2 else 'point'} nearest the boundary (smallest |abscissa|);"
+            " the others are this mesh's: " + " | ".join(texts)
+        )
+        import json
+
+        return {
+            **base,
+            "mesh_points_checked": n,
+            "mesh_checks": json.dumps(checks),
+            "mesh_undetermined_points": len(set_nan),
+            "mesh": line,
+            "_set_nan": set_nan,
+        }
+    key = {"b-lim": "b_lim", "min-b-lim": "b_lim_min", "a-lim": "a_lim", "natural-frequencies": "f1"}.get(q)
+    if key is None:
+        return None
+    v = np.asarray(res.data[key], float).reshape(-1)
+    good = np.nonzero(np.isfinite(v) & ok)[0]
+    if not good.size:
+        return {**base, "mesh": f"mesh: {mesh_words(model)}; no finite {key} to check on a finer mesh"}
+    flat = int(good[np.argmin(v[good])])
+    p = point(flat)
+    fv = fine_task(**p)
+    where_p = (
+        f"; checked at {where(p)} only, the point of the smallest {key} (the other {grid.size - 1} points"
+        " are this mesh's)"
+    )
+    if q == "natural-frequencies":
+        fs = [float(np.asarray(res.data[k], float).reshape(-1)[flat]) for k in ("f1", "f2", "f3")]
+        f2s = [float(fv[k]) for k in ("f1", "f2", "f3")]
+        e = MeshEstimate(np.array(fs), np.array(f2s))
+        text = ", ".join(
+            f"{k} {pct(float(c), '+')} (err <= {pct(float(b))})"
+            for k, c, b in zip(("f1", "f2", "f3"), e.relative_change, e.relative_bound, strict=True)
+        )
+        return {
+            **base,
+            "mesh_points_checked": 1,
+            "mesh_point": json_point(p),
+            "mesh_fine_values_hz": f2s,
+            "mesh_error_bounds_hz": [float(x) for x in e.bound],
+            "mesh": f"mesh: {mesh_words(model)}; twice as fine: {text}{where_p}",
+        }
+    fine_v = float(fv[key])
+    e = MeshEstimate(v[flat], fine_v)
+    line = limit_line(model, key, float(v[flat]), fine_v) + where_p
+    return {
+        **base,
+        "mesh_points_checked": 1,
+        "mesh_point": json_point(p),
+        "mesh_fine_value_m": fine_v,
+        "mesh_change": float(e.relative_change),
+        "mesh_error_bound": float(e.relative_bound),
+        "mesh": line,
+    }
+
+
+def json_point(p: dict[str, float]) -> str:
+    import json
+
+    return json.dumps(p)
