@@ -240,14 +240,118 @@ def _speeds(args: argparse.Namespace, model: Any, margin: float, count: int, out
         model, speeds, machine=mach, margin=margin, count=count, width_max=width_max, position=position,
         points=args.points, refine=refine, check=not args.no_check, **options,
     )  # fmt: skip
+    rec = mesh_checked(rec, model, position, options)
     print(rec.summary())
     write_result(rec, args, outs, model=model)
     if not rec.speed.size:
         return 1
     if any(str(v) in ("unstable", "undetermined") for v in rec.verdict):
-        print("chatterlab: a recommended cut was not confirmed stable by its own check", file=sys.stderr)
+        how = " or on the mesh twice as fine" if rec.meta.get("mesh_undetermined") else ""
+        print(
+            f"chatterlab: a recommended cut was not confirmed stable by its own check{how}", file=sys.stderr
+        )
         return 1
     return 0
+
+
+# ----------------------------------------------------------------------------- the mesh
+def mesh_checked(rec: Any, model: Any, position: float | None, options: dict[str, Any]) -> Any:
+    """``rec`` of a model with beams with each cut checked on the mesh twice as
+    fine (unchanged without beams, or without a cut).
+
+    The stability limit at every recommended speed is computed again on
+    :meth:`Model.with_finer_mesh` (the same lobes' route, options and
+    ceiling) and each cut of width > 0 is judged by
+    :func:`chatterlab.model._mesh.width_verdict` against the limit on h and
+    h/2: a cut that the finer mesh, or the limit's discretisation error
+    (docs/lobes.md, Eq. M3), does not confirm becomes ``undetermined`` (a cut
+    the roots found unstable stays so); its ``check`` gets the verdict's
+    line.  A note says how far the limits the ranking rests on move and
+    their error bound; ``meta`` carries the same for the files (``mesh_*``,
+    docs/cli.md)."""
+    if not model.beams or not rec.speed.size:
+        return rec
+    import dataclasses
+    import json
+    import time
+
+    import numpy as np
+
+    from ..lobes import lobes
+    from ..model._mesh import P_MIN, MeshEstimate, converged_tail, mesh_words, pct, width_verdict
+    from ..selection._recommend import stable_width
+
+    t0 = time.perf_counter()
+    fine = model.with_finer_mesh()
+    opts = dict(options)
+    if model.process.kind != "milling" or opts.get("method") == "zoa":
+        opts["verify"] = 0  # a limit's value; the argument principle confirms a boundary, it does not move it
+    d = lobes(fine, np.asarray(rec.speed, float), width_max=rec.width_max, position=position, **opts)
+    b, ceiling = stable_width(d)
+    fine_lim = np.where(ceiling, np.inf, b)  # nan: the finer mesh's lobes establish nothing there
+    verdicts, checks, mesh_v = list(rec.verdict), list(rec.check), []
+    for i in range(rec.speed.size):
+        w, lim, lim2 = float(rec.width[i]), float(rec.limit[i]), float(fine_lim[i])
+        if not w > 0:
+            mesh_v.append("not checked")
+            continue
+        if np.isnan(lim2):
+            v, line = (
+                "undetermined",
+                (
+                    "mesh: the lobes on a mesh twice as fine establish nothing at this speed: refine the beams"
+                    + converged_tail(model)
+                ),
+            )
+        else:
+            v, line = width_verdict(model, w, lim, lim2)
+        mesh_v.append(v)
+        if v != "stable" and verdicts[i] != "unstable":
+            verdicts[i] = v
+        checks[i] = f"{checks[i]}; {line}"
+    both = np.isfinite(rec.limit) & np.isfinite(fine_lim)
+    est = MeshEstimate(np.asarray(rec.limit, float)[both], fine_lim[both])
+    und = sum(v == "undetermined" for v in mesh_v)
+    n = rec.speed.size
+    name = rec.limit_name
+    if np.any(both):
+        ch = est.relative_change
+        lo, hi = float(np.min(ch)), float(np.max(ch))
+        moves = pct(lo, "+") if lo == hi else f"{pct(lo, '+')} .. {pct(hi, '+')}"
+        head = (
+            f"twice as fine, the {name} at the {int(np.sum(both))} recommended speeds with a limit on both"
+            f" meshes moves by {moves}; discretisation error of these limits <= {pct(float(np.max(est.relative_bound)))}"
+            " (docs/lobes.md, Eq. M3)"
+        )
+    else:
+        head = f"no recommended speed has a {name} below the ceiling on both meshes: no estimate of its error"
+    tail = f"; {und} of {n} cut{'s' * (n != 1)} undetermined on it" if und else "; every cut confirmed on it"
+    line = f"mesh: {mesh_words(model)}; {head}{tail}{converged_tail(model)}"
+
+    def js(x: Any) -> str:
+        return json.dumps([None if not np.isfinite(v) else float(v) for v in np.asarray(x, float)])
+
+    full = MeshEstimate(np.asarray(rec.limit, float), fine_lim)
+    meta = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": fine.beam_elements,
+        "mesh_order": P_MIN,
+        "mesh_fine_limit_m": js(fine_lim),
+        "mesh_limit_change": js(full.relative_change),
+        "mesh_limit_error_bound": js(full.relative_bound),
+        "mesh_verdicts": json.dumps(mesh_v),
+        "mesh_undetermined": int(und),
+        "mesh_seconds": time.perf_counter() - t0,
+        "mesh": line,
+    }
+    return dataclasses.replace(
+        rec,
+        verdict=np.array(verdicts, dtype=str),
+        check=tuple(checks),
+        notes=(*rec.notes, line),
+        elapsed=rec.elapsed + meta["mesh_seconds"],
+        meta={**rec.meta, **meta},
+    )
 
 
 # ----------------------------------------------------------------------------- the rule
