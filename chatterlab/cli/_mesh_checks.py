@@ -293,10 +293,11 @@ def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
             )  # fmt: skip
             texts.append(f"at {where(p)}: {verdict} ({why.removeprefix('mesh: ')})")
         n = len(picks)
+        nan_note = f"; {len(set_nan)} of them set to NaN (undetermined) in the results" if set_nan else ""
         line = (
             f"mesh: {mesh_words(model)}; checked on a mesh twice as fine at {n} of {grid.size} points, the"
-            f" {'stable and the unstable point' if n == 2 else 'point'} nearest the boundary (smallest |abscissa|);"
-            " the others are this mesh's: " + " | ".join(texts)
+            f" {'stable and the unstable point' if n == 2 else 'point'} nearest the boundary (smallest |abscissa|)"
+            f"{nan_note}; the others are this mesh's: " + " | ".join(texts)
         )
         import json
 

@@ -152,7 +152,10 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
             **engine_opts(args),
         )
     drop_checkpoint_after(args, outs, res)  # once the files below are in place
-    _summary(args, grid, res, QUANTITIES[args.quantity], task, model)
+    res, mesh = _mesh(args, outs, task, grid, res)
+    _summary(args, grid, res, QUANTITIES[args.quantity], task, model, mesh)
+    if mesh is not None:
+        print(f"  {mesh['mesh']}")
     if args.out and args.out.lower().endswith(".csv"):
         res.to_csv(outs.path(args.out))  # (a .nc file was streamed by the sweep)
     if args.plot:
@@ -163,8 +166,43 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     return 0 if res.status == "ok" else 1
 
 
+def _mesh(args: argparse.Namespace, outs: CommandOutputs, task: Any, grid: Any, res: Any) -> tuple[Any, Any]:
+    """A model with beams: the quantity on the mesh twice as fine at the
+    grid's most critical point(s) (:func:`chatterlab.cli._mesh_checks.sweep_check`);
+    a ``stable`` point it leaves undetermined becomes NaN; the facts become
+    the result's attributes ``mesh_*`` (a ``.nc`` file streamed by the sweep
+    is written again with them).  ``(result, facts or None)``; without beams
+    the result unchanged."""
+    import dataclasses
+
+    import numpy as np
+
+    from ._mesh_checks import sweep_check
+
+    facts = sweep_check(task, grid, res)
+    if facts is None:
+        return res, None
+    set_nan = facts.pop("_set_nan", [])
+    data = {k: np.array(v) for k, v in res.data.items()}  # copies: a streamed file's are memory maps
+    if set_nan:
+        flat = data["stable"].reshape(-1)
+        flat[set_nan] = np.nan
+    status = None if res.task_status is None else np.array(res.task_status)
+    res = dataclasses.replace(res, data=data, task_status=status, attrs={**res.attrs, **facts})
+    if args.out and not args.out.lower().endswith(".csv"):
+        # staged after the sweep's own file, so moved onto it last; announced once
+        res.to_netcdf(outs.path(args.out, announce=False))
+    return res, facts
+
+
 def _summary(
-    args: argparse.Namespace, grid: Any, res: Any, outputs: dict[str, Any], task: Any, model: Any
+    args: argparse.Namespace,
+    grid: Any,
+    res: Any,
+    outputs: dict[str, Any],
+    task: Any,
+    model: Any,
+    mesh: dict[str, Any] | None = None,
 ) -> None:
     """The range of every output; an ``inf`` b_lim says what it means there."""
     import numpy as np
@@ -185,6 +223,8 @@ def _summary(
                 f" {task.width_max * 1e3:g} mm (a band narrower than {task.width_max * 1e3 / MILLING_SCAN:.3g} mm"
                 " between two of them can be missed)"
             )
+        if k == "stable" and args.quantity == "stable" and mesh and np.isnan(a).any():
+            rng += f"; NaN (undetermined or marginal) at {int(np.isnan(a).sum())} points, the mesh line's included"
         if k == "stable" and args.quantity == "spectral-radius" and np.isnan(a).any():
             rng += f"; undetermined (|mu| within its error of 1) at {int(np.isnan(a).sum())} points"
         print(f"  {k} [{outputs[k]}]: {rng}")
