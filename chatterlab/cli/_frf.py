@@ -129,7 +129,7 @@ def _mesh(args: argparse.Namespace, fz: Any, w: Any, res: Any) -> dict[str, Any]
     from ..frequency._frf import frf
     from ..process import closed_loop
     from ..structure._assembly import assemble
-    from ._mesh_checks import frf_check, frf_peaks
+    from ._mesh_checks import follow_peak, frf_check, frf_peaks, refine_peak
 
     fz2 = assemble(model.with_finer_mesh()).at(args.position)
     systems = [fz, fz2]
@@ -139,24 +139,33 @@ def _mesh(args: argparse.Namespace, fz: Any, w: Any, res: Any) -> dict[str, Any]
             for s in systems
         ]
     f = np.asarray(res.frequency_hz, float)
-    peaks: list[list[Any]] = [[], []]
+    coarse: list[list[Any]] = []
+    fine: list[list[Any]] = []
     names = []
     for o, out in enumerate(res.outputs):
         for i, inp in enumerate(res.inputs):
             names.append(f"{out}/{inp}")
-            for k, s in enumerate(systems):
 
-                def mag(fhz: float, s: Any = s, out: str = out, inp: str = inp) -> float:
-                    r = frf(s, np.array([2 * np.pi * fhz]), inputs=[inp], outputs=[out], kind=args.kind,
-                            method=args.method)  # fmt: skip
-                    return float(abs(r.data[0, 0, 0]))
+            def mag(fhz: float, s: Any, out: str = out, inp: str = inp) -> float:
+                r = frf(s, np.array([2 * np.pi * fhz]), inputs=[inp], outputs=[out], kind=args.kind,
+                        method=args.method)  # fmt: skip
+                return float(abs(r.data[0, 0, 0]))
 
-                curve = res.data[o, i] if k == 0 else None
-                if curve is None:
-                    r2 = frf(s, w, inputs=[inp], outputs=[out], kind=args.kind, method=args.method)
-                    curve = r2.data[0, 0]
-                peaks[k].append(frf_peaks(mag, f, np.abs(curve)))
-    return frf_check(model, peaks[0], peaks[1], names)
+            curve = np.abs(res.data[o, i])
+            curve2 = np.abs(
+                frf(systems[1], w, inputs=[inp], outputs=[out], kind=args.kind, method=args.method).data[0, 0]
+            )
+            ks = frf_peaks(curve)
+            coarse.append([refine_peak(lambda x: mag(x, systems[0]), f, k) for k in ks])
+            js = [follow_peak(curve2, k) for k in ks]
+            # two peaks climbing to the same one on the finer mesh: only the nearest is that resonance
+            for n, (k, j) in enumerate(zip(ks, js, strict=True)):
+                if j is not None and any(
+                    j == j2 and abs(k2 - j) < abs(k - j) for k2, j2 in zip(ks, js, strict=True)
+                ):
+                    js[n] = None
+            fine.append([None if j is None else refine_peak(lambda x: mag(x, systems[1]), f, j) for j in js])
+    return frf_check(model, coarse, fine, names)
 
 
 def _nyquist(args: argparse.Namespace, outs: Outputs, fz: Any, w: Any, fb: Any) -> None:

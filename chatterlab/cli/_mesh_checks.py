@@ -111,20 +111,37 @@ PEAK_FLOOR = 1e-2
 MAX_PEAKS = 3
 
 
-def frf_peaks(response: Any, f: Any, mag: Any) -> list[tuple[float, float]]:
-    """The resonance peaks of one |H| curve on the grid ``f`` (Hz): interior
+def frf_peaks(mag: Any) -> list[int]:
+    """The grid indices of the resonance peaks of one |H| curve: interior
     local maxima of at least PEAK_FLOOR of the largest, the MAX_PEAKS
-    largest, each refined by a golden-section search of ``response(f) ->
-    |H|`` between its grid neighbours.  ``[(f_peak, |H|_peak)]`` by
-    increasing frequency."""
+    largest, by increasing frequency."""
     mag = np.asarray(mag, float)
     if mag.size < 3 or not np.all(np.isfinite(mag)):
         return []
     i = np.nonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:]))[0] + 1
     i = i[mag[i] >= PEAK_FLOOR * mag.max()]
-    i = i[np.argsort(-mag[i])][:MAX_PEAKS]
-    out = [_golden(response, float(f[k - 1]), float(f[k + 1])) for k in sorted(i)]
-    return out
+    return sorted(int(k) for k in i[np.argsort(-mag[i])][:MAX_PEAKS])
+
+
+def follow_peak(mag: Any, k: int) -> int | None:
+    """The same resonance on another curve on the same grid: the local
+    maximum reached by climbing ``mag`` from index ``k``; None when the
+    climb ends at the end of the grid (the peak has left the range)."""
+    mag = np.asarray(mag, float)
+    while 0 < k < mag.size - 1:
+        if mag[k - 1] > mag[k] and mag[k - 1] >= mag[k + 1]:
+            k -= 1
+        elif mag[k + 1] > mag[k]:
+            k += 1
+        else:
+            return k
+    return None
+
+
+def refine_peak(response: Any, f: Any, k: int) -> tuple[float, float]:
+    """The peak of ``response(f_hz) -> |H|`` between the grid neighbours of
+    index ``k`` (golden-section search): ``(f_peak, |H|_peak)``."""
+    return _golden(response, float(f[k - 1]), float(f[k + 1]))
 
 
 def _golden(g: Any, a: float, b: float, tol: float = 1e-9) -> tuple[float, float]:
@@ -147,31 +164,27 @@ def _golden(g: Any, a: float, b: float, tol: float = 1e-9) -> tuple[float, float
 
 def frf_check(model: Any, coarse: list[list[Any]], fine: list[list[Any]], names: list[str]) -> dict[str, Any]:
     """The ``mesh`` member of ``frf --format json`` (and the printed lines):
-    per (output, input) pair ``names[k]``, the peaks on h (``coarse[k]``) and
-    on h/2 (``fine[k]``) matched by rank in frequency where both meshes have
-    the same number of peaks; the change and the bound (Eq. M3) of the
-    frequency and of the magnitude."""
+    per (output, input) pair ``names[k]``, each peak on h (``coarse[k]``: a
+    list of ``(f, |H|)``) and the same resonance on h/2 (``fine[k]``: ``(f,
+    |H|)`` or None where it left the range); the change and the bound (Eq.
+    M3) of the frequency and of the magnitude."""
     pairs = []
     for name, pc, pf in zip(names, coarse, fine, strict=True):
-        entry: dict[str, Any] = {"pair": name, "peaks": []}
-        if len(pc) != len(pf):
-            entry["unmatched"] = (
-                f"{len(pc)} peak(s) on this mesh, {len(pf)} on the mesh twice as fine: not matched, no bound"
+        peaks = []
+        for (f1, m1), other in zip(pc, pf, strict=True):
+            f2, m2 = other if other is not None else (math.nan, math.nan)
+            ef, em = MeshEstimate(f1, f2), MeshEstimate(m1, m2)
+            peaks.append(
+                {
+                    "frequency_hz": f1,
+                    "fine_frequency_hz": f2,
+                    "frequency_error_bound_hz": float(ef.bound),
+                    "magnitude": m1,
+                    "fine_magnitude": m2,
+                    "magnitude_error_bound": float(em.bound),
+                }
             )
-        else:
-            for (f1, m1), (f2, m2) in zip(pc, pf, strict=True):
-                ef, em = MeshEstimate(f1, f2), MeshEstimate(m1, m2)
-                entry["peaks"].append(
-                    {
-                        "frequency_hz": f1,
-                        "fine_frequency_hz": f2,
-                        "frequency_error_bound_hz": float(ef.bound),
-                        "magnitude": m1,
-                        "fine_magnitude": m2,
-                        "magnitude_error_bound": float(em.bound),
-                    }
-                )
-        pairs.append(entry)
+        pairs.append({"pair": name, "peaks": peaks})
     return {
         "beam_elements": model.beam_elements,
         "fine_beam_elements": 2 * model.beam_elements,
@@ -191,14 +204,17 @@ def frf_lines(model: Any, doc: dict[str, Any]) -> list[str]:
         f" (docs/lobes.md, Eq. M3){converged_tail(model)}"
     ]
     for p in doc["pairs"]:
-        if "unmatched" in p:
-            out.append(f"  {p['pair']}: {p['unmatched']}")
-            continue
         if not p["peaks"]:
             out.append(f"  {p['pair']}: no resonance peak inside the frequency range")
             continue
         parts = []
         for k in p["peaks"]:
+            if not math.isfinite(k["fine_frequency_hz"]):
+                parts.append(
+                    f"{k['frequency_hz']:.2f} Hz: not found again on the finer mesh (it left the range or merged"
+                    " with another peak): no estimate"
+                )
+                continue
             df = k["fine_frequency_hz"] - k["frequency_hz"]
             dm = (k["fine_magnitude"] - k["magnitude"]) / k["magnitude"]
             parts.append(

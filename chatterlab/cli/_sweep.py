@@ -179,6 +179,8 @@ def _mesh(args: argparse.Namespace, outs: CommandOutputs, task: Any, grid: Any, 
 
     from ._mesh_checks import sweep_check
 
+    if not task.model.beams:
+        return res, None
     facts = sweep_check(task, grid, res)
     if facts is None:
         return res, None
