@@ -948,7 +948,16 @@ class SpectralMonodromy:
         except np.linalg.LinAlgError:  # C_d defective: the plain route (inf rates)
             return None
         rate = _repeated_rates(lam, x, Zd, np.einsum("kj,jk->k", Zd, x))
-        nu = np.linalg.eigvals(dX[d:, d:] - Cr @ np.linalg.solve(Cd, dX[:d, d:]))
+        try:
+            nu = np.linalg.eigvals(dX[d:, d:] - Cr @ np.linalg.solve(Cd, dX[:d, d:]))
+        except np.linalg.LinAlgError:
+            # C_d singular in floating point (a mode so damped that its free multiplier underflows to 0,
+            # e.g. the tool_cantilever end mill at 12 beam elements): that multiplier joins the zeros and
+            # the projection above does not apply; the plain route, whose first interval rests on its
+            # right end's evaluation (docs/milling.md, "The rates at a = 0")
+            return None
+        if not np.all(np.isfinite(nu)):
+            return None
         mu = np.concatenate([lam, np.zeros(k - d, dtype=lam.dtype)])
         dmu = np.concatenate([rate, nu.astype(complex)])
         dmu = np.where(np.isfinite(dmu), dmu, np.inf)

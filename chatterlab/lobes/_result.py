@@ -549,6 +549,8 @@ def _floquet_lines(d: LobeDiagram) -> list[str]:
             f" shown (a lower bound; {_mm(d.b_lim[j])} at {_speed(d, d.speed[j])})"
         )
     lines += _ceiling_lines(d)
+    if d.meta.get("mesh"):  # a model with beams: the discretisation error (cli._milling)
+        lines.append(f"  {d.meta['mesh']}")
     lines.append(f"  {d.evaluations} evaluations, {d.elapsed:.2f} s")
     return lines
 

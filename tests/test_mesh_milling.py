@@ -1,0 +1,105 @@
+"""The discretisation error of milling lobes of a tool with beams
+(chatterlab/cli/_milling.py ``_with_mesh_error``; docs/milling.md, "The beam
+mesh"; docs/lobes.md, Eqs. M1-M5), and the Floquet search on a beam mesh
+fine enough that a free multiplier underflows to zero.
+
+Oracle: the end mill of studies/milling/tool_cantilever.toml refined
+3, 6, ..., 96 elements.  Its limit at 8000 rpm converges at order 2
+(changes 6.4e-6, 1.2e-6, 2.8e-7, 6.9e-8, 1.7e-8 mm... ratios 4-5), so the
+96-element value is a reference whose own error, by Eq. M3 at p = 1, is at
+most 2 |a_96 - a_48|; the bound the command prints for the 3-element mesh
+must cover |a_3 - a_96| less that.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from chatterlab.cli import main
+from chatterlab.cli._milling import _structure
+from chatterlab.lobes._milling import milling_lobes
+from chatterlab.model._reader import load_model
+
+TOOL = "studies/milling/tool_cantilever.toml"
+CEILING = 0.1087  # m: the command's own ceiling for these speeds (three times the ZOA limit)
+
+
+def limit(elements: int, rpm: float) -> float:
+    """a_lim (m) of the end mill refined to ``elements`` beam elements."""
+    m = load_model(TOOL)
+    while m.beam_elements < elements:
+        m = m.with_finer_mesh()
+    assert m.beam_elements == elements
+    S, _, _ = _structure(m, None)
+    return float(milling_lobes(S, np.array([rpm]), depth_max=CEILING).b_lim[0])
+
+
+@pytest.fixture(scope="module")
+def reference() -> tuple[float, float]:
+    """The 96-element limit at 8000 rpm and the bound of its own error (Eq. M3, p = 1)."""
+    a48, a96 = limit(48, 8000.0), limit(96, 8000.0)
+    return a96, 2.0 * abs(a96 - a48)
+
+
+def test_a_free_multiplier_that_underflows_does_not_stop_the_search(reference, monkeypatch):
+    """At 12 elements a kept mode's free multiplier is 0 in floating point on
+    one of the search's meshes, so the projection of the rates at a = 0
+    (C_d^-1) does not exist: the search falls back to the plain rates (it
+    raised LinAlgError before) and its limit lies within the mesh bound of
+    the reference."""
+    from chatterlab.frequency import SpectralMonodromy
+
+    seen: list[bool] = []
+    original = SpectralMonodromy._tangent_free
+
+    def spy(self):
+        out = original(self)
+        seen.append(out is None)
+        return out
+
+    monkeypatch.setattr(SpectralMonodromy, "_tangent_free", spy)
+    a12 = limit(12, 8000.0)
+    assert any(seen)  # the fallback ran
+    monkeypatch.undo()
+    a24 = limit(24, 8000.0)
+    ref, ref_err = reference
+    assert abs(a12 - ref) <= 2.0 * abs(a24 - a12) + ref_err
+
+
+def test_lobes_prints_the_bound_of_the_smallest_limit(tmp_path, capsys, reference):
+    """The line names the speed checked, the limit there on 6 elements and
+    the bound, which covers the true error of the 3-element limit; the netCDF
+    file carries the same numbers."""
+    out = tmp_path / "m.nc"
+    code = main(["lobes", TOOL, "--speed", "8000", "12000", "--points", "3", "--quiet", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code == 0
+    line = next(s for s in text.splitlines() if "mesh:" in s)
+    assert "3 beam elements" in line and "a_lim at 8000 rpm" in line and "not computed twice as fine" in line
+    with xr.open_dataset(out) as ds:
+        at = ds.attrs
+        a3 = float(ds["a_lim"].sel(speed=8000.0))
+    assert at["mesh_beam_elements"] == 3 and at["mesh_fine_beam_elements"] == 6
+    assert at["mesh_check_speed_rpm"] == 8000.0
+    ref, ref_err = reference
+    # the same search on the finer mesh; its ceiling (from 3 speeds) sets other depth stages, so the two
+    # agree to the convergence check's target, 1e-6 relative each
+    assert at["mesh_fine_min_m"] == pytest.approx(limit(6, 8000.0), rel=2e-6)
+    assert abs(a3 - ref) <= at["mesh_min_error_bound"] * a3 + ref_err
+
+
+def test_a_claim_of_no_chatter_is_searched_again_on_the_finer_mesh(capsys):
+    """Below every limit (a 5 mm ceiling, the limits are 10.8-15.5 mm) each
+    speed claims stability up to the ceiling: all are searched twice as fine."""
+    code = main(["lobes", TOOL, "--speed", "8000", "12000", "--points", "3", "--quiet", "--width-max", "5"])
+    text = capsys.readouterr().out
+    assert code == 0
+    assert "the 3 speeds with no a_lim below the ceiling have none on the mesh twice as fine either" in text
+
+
+def test_a_tool_without_beams_gets_no_mesh_line(capsys):
+    code = main(["lobes", "studies/milling/benchmark_1dof.toml", "--speed", "10000", "12000", "--points", "3",
+                 "--quiet"])  # fmt: skip
+    assert code == 0 and "mesh:" not in capsys.readouterr().out
