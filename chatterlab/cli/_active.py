@@ -16,12 +16,14 @@ from ..errors import InputError, check_count, check_positive
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
 from ._common import mm_to_m, model_args, outputs, write_result
 from ._design_common import (
+    design_mesh,
     lobe_args,
     lobe_model,
     objective_arg,
     speed_args,
     speeds_and_ceiling,
     verified_status,
+    with_attributes,
 )
 
 HELP = "co-design an active damper's gains (and placement) for the widest chatter-free cut; lobes before and after"
@@ -130,7 +132,7 @@ def _places(items: list[str] | None) -> list[tuple[str, str]] | None:
 
 
 def _run(args: argparse.Namespace, outs: Any) -> int:
-    from ..design import design_active, with_actuator
+    from ..design import design_active, with_actuator, without_actuators
 
     starts = check_count(args.starts, "--starts")
     if args.tradeoff < 0:
@@ -189,5 +191,11 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         confirm=not args.no_confirm,
     )
     print(des.summary())
-    write_result(des, args, outs)
+    result: Any = des
+    mesh = design_mesh(without_actuators(model), des.model, des.width, des.bare_width, des.objective, v,
+                       args.position, wmax, "actuators")  # fmt: skip
+    if mesh is not None:  # a model with beams: before and after on the mesh twice as fine
+        print("\n".join(f"  {ln}" for ln in mesh[0]))
+        result = with_attributes(des, mesh[1])
+    write_result(result, args, outs, plot=des.plot)
     return verified_status(des.verified, "the optimised design")

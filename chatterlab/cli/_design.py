@@ -14,6 +14,7 @@ from ..errors import InputError, check_count, check_positive
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
 from ._common import model_args, outputs, write_result
 from ._design_common import (
+    design_mesh,
     lobe_args,
     lobe_model,
     objective_arg,
@@ -69,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, outs: Any) -> int:
-    from ..design import tune_absorbers, with_absorber
+    from ..design import tune_absorbers, with_absorber, without_absorbers
 
     refuse_json(args, "the tuned design's lobes")
     starts = check_count(args.starts, "--starts")
@@ -117,5 +118,13 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         verify=args.verify,
     )
     print(des.summary())
-    write_result(des.after, args, outs, plot=des.plot)
+    after = des.after
+    mesh = design_mesh(without_absorbers(model), des.model, des.width, des.bare_width, des.objective, v,
+                       args.position, wmax, "absorbers")  # fmt: skip
+    if mesh is not None:  # a model with beams: before and after on the mesh twice as fine
+        import dataclasses
+
+        print("\n".join(f"  {ln}" for ln in mesh[0]))
+        after = dataclasses.replace(after, meta={**after.meta, **mesh[1]})
+    write_result(after, args, outs, plot=des.plot)
     return verified_status(des.verified, "the tuned design")
