@@ -120,13 +120,15 @@ def pct(x: float, sign: str = "") -> str:
 
 
 def limit_line(
-    model: Any, name: str, coarse: float, fine: float, unit: str = "mm", scale: float = 1e3
+    model: Any, name: str, coarse: float, fine: float, unit: str = "mm", scale: float = 1e3, tail: bool = True
 ) -> str:
     """One line on a limit (a width, a depth: SI ``coarse`` on h, ``fine`` on
     h/2) for a command's summary: the value on the mesh twice as fine, its
     change and the bound of the coarse value's error (Eq. M3), or why there
     is no bound (a limit at the ceiling on either mesh).  Shown in ``unit``
-    (``scale`` units per SI unit)."""
+    (``scale`` units per SI unit); ``tail``: end with the advice to use the
+    file's converged variant (:func:`converged_tail`), or leave it to the
+    caller, who adds more first."""
     e = MeshEstimate(coarse, fine)
     if not np.isfinite(fine) and not np.isfinite(coarse):
         head = f"twice as fine: no {name} below the ceiling either; no estimate of its error"
@@ -142,7 +144,7 @@ def limit_line(
             f"twice as fine: {name} {fine * scale:.4g} {unit} ({pct(float(e.relative_change), '+')}),"
             f" discretisation error of this {name} <= {pct(float(e.relative_bound))}"
         )
-    return f"mesh: {mesh_words(model)}; {head}{converged_tail(model)}"
+    return f"mesh: {mesh_words(model)}; {head}{converged_tail(model) if tail else ''}"
 
 
 def width_verdict(model: Any, width: float, limit: float, fine_limit: float) -> tuple[str, str]:
