@@ -249,3 +249,54 @@ def test_sensitivity_without_beams_is_unchanged(tmp_path, capsys):
 
     with xr.open_dataset(out) as ds:
         assert not [k for k in ds.attrs if k.startswith("mesh")]
+
+
+# ---------------------------------------------------------------------------- risk
+
+
+def test_risk_on_a_model_with_beams(tmp_path, capsys):
+    """The shaper with an uncertain joint: the nominal limit on h/2 and the
+    probabilities said to be the coarse mesh's; the nominal model at the
+    oracle point (0.2 mm, 0.1 m/s; stable on 6 elements, unstable converged)
+    is undetermined; the samples are not run on h/2 (one diagram more)."""
+    text = (
+        open(SHAPER).read()
+        + '\n[uncertainty]\n"spring.table-bed-2.c2" = { "distribution" = "normal", "std" = 3.5e6 }\n'
+    )
+    p = tmp_path / "shaper_u.toml"
+    p.write_text(text)
+    out = tmp_path / "r.nc"
+    code, text, err = run(
+        capsys, "risk", str(p), "--speed", "0.1", "1.0", "--points", "20", "--width-max", "1", "--samples", "8",
+        "--replicates", "4", "--point", "0.1", "0.2", "--quiet", "--out", str(out),
+    )  # fmt: skip
+    assert code == 0, err
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip().startswith("mesh:")]
+    assert len(lines) == 3
+    assert lines[0].startswith("mesh: 6 beam elements; twice as fine: nominal smallest b_lim")
+    assert "are those of this mesh" in lines[1]
+    assert lines[2].startswith("mesh: the nominal model at 0.1 m/s, 0.2 mm: undetermined")
+    import xarray as xr
+
+    with xr.open_dataset(out) as ds:
+        a = dict(ds.attrs)
+    assert json.loads(a["mesh_point_verdicts"]) == ["undetermined"]
+    assert a["mesh_probabilities"] == "on the coarse mesh"
+    # the nominal minimum: the converged one within the bound the coarse mesh reports
+    nominal = float(text.split("(nominal ")[1].split(" mm")[0]) * 1e-3
+    assert abs(RICHARDSON - nominal) <= a["mesh_nominal_min_error_bound"] * nominal * (1 + 1e-3)
+
+
+def test_risk_without_beams_has_no_mesh_line(tmp_path, capsys):
+    """The tap-test model of docs/uncertainty.md (modes, no beams): no mesh line, no attribute."""
+    out = tmp_path / "r.nc"
+    code, text, err = run(
+        capsys, "risk", "studies/tap_test/fit_uncertain.toml", "--speed", "10000", "16000", "--points", "10",
+        "--width-max", "1", "--samples", "8", "--replicates", "4", "--quiet", "--out", str(out),
+    )  # fmt: skip
+    assert code == 0, err
+    assert "mesh" not in text
+    import xarray as xr
+
+    with xr.open_dataset(out) as ds:
+        assert not [k for k in ds.attrs if k.startswith("mesh")]

@@ -147,12 +147,16 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     print(res.summary())
     if risk_level is not None:
         _recommend(res, risk_level)
+    mesh = _mesh(res, model, args, opts)
+    if mesh is not None:  # a model with beams: the nominal limit on the mesh twice as fine
+        print("\n".join(f"  {ln}" for ln in mesh[0]))
     if args.out:
         if args.out.lower().endswith(".csv"):
             res.to_csv(outs.path(args.out))
         else:
             res.to_netcdf(
-                outs.path(args.out), attrs={"model_text": model.text, "command": " ".join(sys.argv)}
+                outs.path(args.out),
+                attrs={"model_text": model.text, "command": " ".join(sys.argv), **(mesh[1] if mesh else {})},
             )
     if args.plot or args.plot_sobol:
         from ..plot import savefig
@@ -199,3 +203,60 @@ def _recommend(res: Any, risk_level: float) -> None:
             f"    {v}: width up to {r['width'] * 1e3:.4g} mm (P(chatter) there {r['p_chatter']:.4f},"
             f" at most {min(r['p_chatter_high'], 1.0):.4f})"
         )
+
+
+def _mesh(res: Any, model: Any, args: argparse.Namespace, opts: dict[str, Any]) -> Any:
+    """A model with beams (else None): the nominal model's smallest limit over
+    the speeds on the mesh twice as fine (:meth:`Model.with_finer_mesh`; one
+    lobe diagram, the samples are not run again) by
+    :func:`chatterlab.model._mesh.limit_line` (its change and the bound of its
+    error, docs/lobes.md Eq. M3); a line that says the probabilities are
+    those of the model's own mesh; and the nominal model at each ``--point``
+    judged on both meshes by :func:`chatterlab.model._mesh.width_verdict`
+    (its limit at the point's speed on h and h/2).  Returns the summary's
+    lines and the netCDF file's ``mesh_*`` attributes."""
+    if not model.beams:
+        return None
+    import json
+    import time
+
+    import numpy as np
+
+    from ..lobes import lobes
+    from ..model._mesh import P_MIN, MeshEstimate, limit_line, mesh_words, width_verdict
+
+    t0 = time.perf_counter()
+    nom = res.nominal
+    fine = lobes(model.with_finer_mesh(), nom.speed, width_max=float(nom.width_max), position=args.position,
+                 verify=0, **opts)  # fmt: skip
+    b, b2 = float(nom.minimum["width"]), float(fine.minimum["width"])
+    e = MeshEstimate(b, b2)
+    lines = [
+        limit_line(model, f"nominal smallest {nom.limit_name}", b, b2),
+        f"mesh: the probabilities, quantile lobes and safe points above are those of this mesh ({mesh_words(model)}"
+        f" in every sample; not recomputed twice as fine): the nominal limit's error is not in their intervals",
+    ]
+    verdicts = []
+    for sp, w in np.asarray(res.points, float).reshape(-1, 2):
+        k = int(np.argmin(np.abs(np.asarray(nom.speed, float) - sp)))
+        lim, lim2 = float(nom.b_lim[k]), float(fine.b_lim[k])
+        verdict, why = width_verdict(model, float(w), lim, lim2)
+        verdicts.append(verdict)
+        at = f"{sp:.0f} {nom.speed_unit}" if nom.speed_unit == "rpm" else f"{sp:.5g} {nom.speed_unit}"
+        lines.append(
+            f"mesh: the nominal model at {at}, {w * 1e3:.4g} mm: {verdict} ({nom.limit_name} {lim * 1e3:.4g} mm"
+            f" on this mesh, {lim2 * 1e3:.4g} mm twice as fine; {why.removeprefix('mesh: ')})"
+        )
+    meta = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": 2 * model.beam_elements,
+        "mesh_order": P_MIN,
+        "mesh_fine_nominal_min_m": b2,
+        "mesh_nominal_min_change": float(e.relative_change),
+        "mesh_nominal_min_error_bound": float(e.relative_bound),
+        "mesh_probabilities": "on the coarse mesh",
+        "mesh_point_verdicts": json.dumps(verdicts),
+        "mesh_seconds": time.perf_counter() - t0,
+        "mesh": " | ".join(lines),
+    }
+    return lines, meta
