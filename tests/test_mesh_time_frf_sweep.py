@@ -246,3 +246,24 @@ def test_a_model_without_beams_is_unchanged(no_mesh_code, tmp_path, capsys):
         "--quiet",
     )
     assert code == 0 and "mesh" not in text
+
+
+def test_sweep_of_a_milling_model_with_beams_checks_its_critical_point(capsys):
+    """The end mill on 3 beam elements: spectral-radius is judged at the point
+    nearest |mu| = 1 with the margin ln|mu| / T (1/s, T the tooth period);
+    a-lim at its smallest limit, and where every limit is at the ceiling the
+    finer mesh is asked whether it is there too (never a claim unchecked)."""
+    tool = "studies/milling/tool_cantilever.toml"
+    code, text, _ = run(
+        capsys, "sweep", tool, "--quantity", "spectral-radius", "--grid", "width=0.5:3:3", "--speed", "10000",
+        "--quiet",
+    )  # fmt: skip
+    assert code == 0
+    assert "mesh: 3 beam elements; checked on a mesh twice as fine at 1 of 3 points" in text
+    assert "smallest |ln spectral_radius|" in text and "also stable on a mesh twice as fine" in text
+    code, text, _ = run(
+        capsys, "sweep", tool, "--quantity", "a-lim", "--grid", "speed=8000:12000:3", "--width-max", "10",
+        "--quiet",
+    )  # fmt: skip
+    assert code == 0
+    assert "no a_lim below the ceiling either" in text and "checked at speed 8000 only" in text

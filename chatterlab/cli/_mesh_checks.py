@@ -270,8 +270,12 @@ def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
         "mesh_points_checked": 0,
         "mesh_points": int(grid.size),
     }
-    if q in ("stable", "rightmost-root"):
-        a = np.asarray(res.data["abscissa"], float).reshape(-1)
+    if q in ("stable", "rightmost-root", "spectral-radius"):
+        if q == "spectral-radius":  # ln|mu|: its sign is the verdict's; per period, the margin below
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a = np.log(np.asarray(res.data["spectral_radius"], float).reshape(-1))
+        else:
+            a = np.asarray(res.data["abscissa"], float).reshape(-1)
         good = np.isfinite(a) & ok
         picks = []
         neg = np.nonzero(good & (a < 0))[0]
@@ -288,31 +292,37 @@ def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
         checks, set_nan, texts = [], [], []
         for flat in picks:
             p = point(flat)
-            if q == "stable":
+            if q != "rightmost-root":
                 code = float(np.asarray(res.data["stable"], float).reshape(-1)[flat])
                 coarse = {1.0: "stable", 0.0: "unstable"}.get(code, "undetermined")
             else:
                 coarse = "stable" if a[flat] < 0 else "unstable"
             fv = fine_task(**p)
-            fa = float(fv["abscissa"])
-            if q == "stable":
+            if q == "spectral-radius":
+                # the Floquet exponent's real part, ln|mu| / T (T: the tooth period), 1/s as a root's
+                T = float(model.process.delay(p.get("speed", task.fixed.get("speed", model.process.speed))))
+                a_flat, fa = float(a[flat]) / T, math.log(float(fv["spectral_radius"])) / T
+            else:
+                a_flat, fa = float(a[flat]), float(fv["abscissa"])
+            if q != "rightmost-root":
                 fine = {1.0: "stable", 0.0: "unstable"}.get(float(fv["stable"]), "undetermined")
             else:
                 fine = "stable" if fa < 0 else ("unstable" if fa > 0 else "undetermined")
-            verdict, why = mesh_verdict(model, coarse, float(a[flat]), fine, fa)
-            if q == "stable" and verdict == "undetermined" and coarse != "undetermined":
+            verdict, why = mesh_verdict(model, coarse, a_flat, fine, fa)
+            if q != "rightmost-root" and verdict == "undetermined" and coarse != "undetermined":
                 set_nan.append(flat)
             checks.append(
                 {"point": p, "coarse_verdict": coarse, "fine_verdict": fine, "verdict": verdict,
-                 "abscissa_per_s": float(a[flat]), "fine_abscissa_per_s": fa,
-                 "abscissa_error_bound_per_s": float(MeshEstimate(a[flat], fa).bound)}
+                 "abscissa_per_s": a_flat, "fine_abscissa_per_s": fa,
+                 "abscissa_error_bound_per_s": float(MeshEstimate(a_flat, fa).bound)}
             )  # fmt: skip
             texts.append(f"at {where(p)}: {verdict} ({why.removeprefix('mesh: ')})")
         n = len(picks)
         nan_note = f"; {len(set_nan)} of them set to NaN (undetermined) in the results" if set_nan else ""
         line = (
             f"mesh: {mesh_words(model)}; checked on a mesh twice as fine at {n} of {grid.size} points, the"
-            f" {'stable and the unstable point' if n == 2 else 'point'} nearest the boundary (smallest |abscissa|)"
+            f" {'stable and the unstable point' if n == 2 else 'point'} nearest the boundary (smallest"
+            f" {'|ln spectral_radius|' if q == 'spectral-radius' else '|abscissa|'})"
             f"{nan_note}; the others are this mesh's: " + " | ".join(texts)
         )
         import json
@@ -330,15 +340,16 @@ def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
         return None
     v = np.asarray(res.data[key], float).reshape(-1)
     good = np.nonzero(np.isfinite(v) & ok)[0]
-    if not good.size:
-        return {**base, "mesh": f"mesh: {mesh_words(model)}; no finite {key} to check on a finer mesh"}
+    what = f"the point of the smallest {key}"
+    if not good.size:  # every limit at the ceiling (inf): is it there on the finer mesh too?
+        good = np.nonzero(~np.isnan(v) & ok)[0]
+        what = f"the first point (every {key} is at the ceiling here)"
+        if not good.size:
+            return {**base, "mesh": f"mesh: {mesh_words(model)}; no {key} to check on a finer mesh"}
     flat = int(good[np.argmin(v[good])])
     p = point(flat)
     fv = fine_task(**p)
-    where_p = (
-        f"; checked at {where(p)} only, the point of the smallest {key} (the other {grid.size - 1} points"
-        " are this mesh's)"
-    )
+    where_p = f"; checked at {where(p)} only, {what} (the other {grid.size - 1} points are this mesh's)"
     if q == "natural-frequencies":
         fs = [float(np.asarray(res.data[k], float).reshape(-1)[flat]) for k in ("f1", "f2", "f3")]
         f2s = [float(fv[k]) for k in ("f1", "f2", "f3")]
