@@ -267,3 +267,33 @@ def test_sweep_of_a_milling_model_with_beams_checks_its_critical_point(capsys):
     )  # fmt: skip
     assert code == 0
     assert "no a_lim below the ceiling either" in text and "checked at speed 8000 only" in text
+
+
+# ---------------------------------------------------------------------------- sle
+
+
+def test_sle_of_a_milling_model_with_beams_is_checked_at_its_critical_speeds(tmp_path, capsys):
+    """End mill, a_p = 12 mm, 5000-30000 rpm: the stable speed nearest |mu| = 1
+    (20000 rpm, which also has the largest |SLE|) and the unstable one
+    (5000 rpm) are computed again twice as fine; both verdicts stand (margins
+    far beyond 2|d|, Eq. M3), the line says 2 of 6 speeds, the JSON file
+    carries the record; a model without beams gets none of it."""
+    out = tmp_path / "sle.json"
+    argv = ["sle", "studies/milling/tool_cantilever.toml", "--speed", "5000", "30000", "--points", "6"]
+    code, text, _ = run(capsys, *argv, "--width", "12", "--feed", "0.1", "--quiet", "--out", str(out))
+    assert code == 1  # one speed chatters: sle's own rule
+    assert "checked on a mesh twice as fine at 2 of 6 speeds" in text
+    doc = json.loads(out.read_text())
+    checks = json.loads(doc["attrs"]["mesh_checks"])
+    assert [(c["speed_rpm"], c["verdict"]) for c in checks] == [(20000.0, "stable"), (5000.0, "unstable")]
+    for c in checks:
+        assert c["margin_error_bound_per_s"] == pytest.approx(
+            2 * abs(c["fine_margin_per_s"] - c["margin_per_s"]), rel=1e-12
+        )
+        assert c["margin_error_bound_per_s"] < abs(c["margin_per_s"])
+    assert doc["attrs"]["mesh"] in text
+    code, text, _ = run(
+        capsys, "sle", "studies/milling/benchmark_1dof.toml", "--speed", "5000", "30000", "--points", "3",
+        "--width", "0.5", "--quiet",
+    )  # fmt: skip
+    assert "mesh" not in text

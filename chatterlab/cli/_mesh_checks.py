@@ -17,6 +17,7 @@ M1-M5; the machinery is :mod:`chatterlab.model._mesh`, never repeated here).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -384,3 +385,105 @@ def json_point(p: dict[str, float]) -> str:
     import json
 
     return json.dumps(p)
+
+
+# ---------------------------------------------------------------------------- sle (milling)
+
+
+def sle_check(model: Any, res: Any, fine: Any, picks: list[int]) -> tuple[Any, dict[str, Any], list[str]]:
+    """The SLE of a milling model with beams judged on the mesh twice as
+    fine at the speeds ``picks`` (indices into ``res.speeds``; ``fine``: the
+    :class:`SurfaceLocation` of those speeds on the finer mesh).  Each
+    checked verdict by :func:`mesh_verdict` with the margin ln|mu| / T (1/s,
+    T the tooth period); a checked ``stable`` speed that does not survive
+    becomes ``undetermined`` (no SLE).  The largest |SLE| among the checked
+    stable speeds gets its change and bound (Eq. M3, absolute, m).
+    ``(result with a mesh record, the record, the printed lines)``."""
+    import dataclasses
+    import json
+
+    verdict = list(res.verdict)
+    sle, p2v = np.array(res.sle, float), np.array(res.peak_to_valley, float)
+    checks, texts = [], []
+    for j, i in enumerate(picks):
+        rpm = float(res.speeds[i])
+        T = float(model.process.delay(rpm))
+        a_h = math.log(float(res.spectral_radius[i])) / T
+        a_h2 = math.log(float(fine.spectral_radius[j])) / T
+        v, why = mesh_verdict(model, res.verdict[i], a_h, fine.verdict[j], a_h2)
+        if v == "undetermined" and verdict[i] == "stable":
+            verdict[i], sle[i], p2v[i] = "undetermined", math.nan, math.nan
+        e = MeshEstimate(res.sle[i], fine.sle[j])
+        checks.append(
+            {"speed_rpm": rpm, "coarse_verdict": res.verdict[i], "fine_verdict": fine.verdict[j], "verdict": v,
+             "margin_per_s": a_h, "fine_margin_per_s": a_h2,
+             "margin_error_bound_per_s": float(MeshEstimate(a_h, a_h2).bound),
+             "sle_m": float(res.sle[i]), "fine_sle_m": float(fine.sle[j]), "sle_error_bound_m": float(e.bound)}
+        )  # fmt: skip
+        sle_text = (
+            f"; SLE {res.sle[i] * 1e6:.4g} um, {fine.sle[j] * 1e6:.4g} um twice as fine (err <= {float(e.bound) * 1e6:.2g} um)"
+            if np.isfinite(e.bound)
+            else ""
+        )
+        texts.append(f"  at {rpm:g} rpm: {v} ({why.removeprefix('mesh: ')}){sle_text}")
+    n_nan = sum(1 for a, b in zip(verdict, res.verdict, strict=True) if a != b)
+    head = (
+        f"mesh: {mesh_words(model)}; checked on a mesh twice as fine at {len(picks)} of {len(res.speeds)} speeds"
+        " (the stable and the unstable speed nearest |mu| = 1, and the largest |SLE|); the others are this"
+        " mesh's" + (f"; {n_nan} stable speed(s) now undetermined (no SLE)" if n_nan else "")
+    )
+    record = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": 2 * model.beam_elements,
+        "mesh_order": P_MIN,
+        "mesh_speeds_checked": len(picks),
+        "mesh_checks": json.dumps(checks),
+        "mesh": head,
+    }
+    out = _meshed_surface_location()(
+        **{f.name: getattr(res, f.name) for f in dataclasses.fields(res)},
+        mesh=record,
+    )
+    out = dataclasses.replace(out, verdict=verdict, sle=sle, peak_to_valley=p2v)
+    return out, record, [head, *texts]
+
+
+def sle_picks(res: Any) -> list[int]:
+    """The speeds an SLE is checked at: the stable one with the largest
+    spectral radius, the unstable one with the smallest, and the stable one
+    with the largest |SLE| (distinct, in order)."""
+    rho = np.asarray(res.spectral_radius, float)
+    st = [i for i, v in enumerate(res.verdict) if v == "stable" and np.isfinite(rho[i])]
+    un = [i for i, v in enumerate(res.verdict) if v == "unstable" and np.isfinite(rho[i])]
+    picks = []
+    if st:
+        picks.append(max(st, key=lambda i: rho[i]))
+    if un:
+        picks.append(min(un, key=lambda i: rho[i]))
+    ok = [i for i in st if np.isfinite(res.sle[i])]
+    if ok:
+        k = max(ok, key=lambda i: abs(float(res.sle[i])))
+        if k not in picks:
+            picks.append(k)
+    return picks
+
+
+@functools.cache
+def _meshed_surface_location() -> Any:
+    """The class, built on first use (importing chatterlab.frequency._forced costs)."""
+    from dataclasses import dataclass, field
+
+    from ..frequency._forced import SurfaceLocation
+
+    @dataclass(frozen=True, eq=False)
+    class MeshedSurfaceLocation(SurfaceLocation):
+        """A :class:`SurfaceLocation` with its mesh check: the ``mesh_*``
+        attributes of its files (netCDF, JSON)."""
+
+        mesh: dict[str, Any] = field(default_factory=dict)
+
+        def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+            coords, data, attrs = super().dataset_parts()
+            return coords, data, {**attrs, **self.mesh}
+
+    return MeshedSurfaceLocation

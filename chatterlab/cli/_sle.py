@@ -126,6 +126,7 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
                 "--eccentricity is for turning; a milling cut's SLE comes from its feed per tooth"
             )
         res, lobes = _milling(args, model, v)
+        res = _mesh(args, model, res)
     else:
         if args.no_lobes:
             raise InputError("--no-lobes is for milling's SLE plot; the turning plot has no lobes")
@@ -190,6 +191,31 @@ def _milling(args: argparse.Namespace, model: Any, v: Any) -> tuple[Any, Any]:
         wmax, _ = milling_ceiling(loop, v)
         lobes = milling_lobes(loop, v, method=method, steps=steps, depth_max=max(wmax, 1.5 * a))
     return res, lobes
+
+
+def _mesh(args: argparse.Namespace, model: Any, res: Any) -> Any:
+    """A milling model with beams: the SLE's critical speeds computed again
+    on the mesh twice as fine (:func:`chatterlab.cli._mesh_checks.sle_check`),
+    its lines printed, its facts in the files; ``res`` unchanged without beams."""
+    if not model.beams:
+        return res
+    from ..frequency._forced import surface_location
+    from ._mesh_checks import sle_check, sle_picks
+    from ._milling import _structure
+
+    picks = sle_picks(res)
+    if not picks:
+        print(f"mesh: {model.beam_elements} beam elements; no speed with a verdict to check on a finer mesh")
+        return res
+    loop, _, _ = _structure(model.with_finer_mesh(), _position(args), args)
+    method: Literal["spectral", "sdm"] = "sdm" if args.method == "sdm" else "spectral"
+    fine = surface_location(
+        loop, res.speeds[picks], res.depth, res.feed, method=method, steps=args.steps, check=not args.no_check
+    )
+    out, _, lines = sle_check(model, res, fine, picks)
+    for line in lines:
+        print(line)
+    return out
 
 
 def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
