@@ -297,3 +297,22 @@ def test_sle_of_a_milling_model_with_beams_is_checked_at_its_critical_speeds(tmp
         "--width", "0.5", "--quiet",
     )  # fmt: skip
     assert "mesh" not in text
+
+
+def test_ssv_of_a_model_with_beams_says_its_limits_are_unchecked(monkeypatch, capsys):
+    """ssv's limit search costs minutes on a beam model (the shaper: 127 s CPU
+    for one speed, docs/ssv.md), so it is not repeated on the finer mesh; the
+    output says the limits are this mesh's instead of staying silent.  The
+    search is stubbed: the line, not the search, is under test."""
+    import chatterlab.frequency as freq
+
+    class Stub:
+        def table(self) -> str:
+            return "(limits)"
+
+    monkeypatch.setattr(freq, "ssv_limits", lambda *a, **k: Stub())
+    code, text, _ = run(capsys, "ssv", SHAPER, "--speed", "3", "--rva", "0", "--rvf", "0.5")
+    assert code == 0
+    assert text.splitlines()[-1].startswith(
+        "mesh: 6 beam elements; these limits are this mesh's: not checked"
+    )

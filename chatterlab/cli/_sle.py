@@ -136,6 +136,13 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
                 " closed loop's FRF at the spindle frequency: drop them"
             )
         res, lobes = _turning(args, model, v), None
+        if model.beams:
+            from ..model._mesh import mesh_words
+
+            print(
+                f"mesh: {mesh_words(model)}; the runout response and its verdicts are this mesh's: not checked"
+                " on a finer mesh (not implemented for turning); check a speed with chatterlab roots"
+            )
     write_result(
         res, args, outs, model=model, plot=(lambda: res.plot(lobes=lobes)) if lobes is not None else None
     )

@@ -155,6 +155,14 @@ def run(args: argparse.Namespace) -> int:
             split=args.split, degree=args.degree, span=args.span,
         )  # fmt: skip
         print(res.table())
+        if model.beams:
+            from ..model._mesh import mesh_words
+
+            # a limit search on the mesh twice as fine costs as much again (minutes on the shaper): not run
+            print(
+                f"mesh: {mesh_words(model)}; these limits are this mesh's: not checked on a finer mesh; its"
+                " constant-speed lobes' discretisation error: chatterlab lobes"
+            )
         if args.out:
             path = outs.path(args.out)
             suffix = str(args.out).rsplit(".", 1)[-1].lower()
