@@ -117,6 +117,30 @@ def test_recommend_without_beams_is_unchanged(tmp_path, capsys):
     assert "mesh" not in text
 
 
+def test_recommend_rule_speeds_on_the_finer_mesh(tmp_path, capsys):
+    """The chatter-frequency rule at 0.5 m/s with a depth of 0.1 mm: each
+    speed's verdict is judged on both meshes; a claim the finer mesh does not
+    confirm is undetermined, and what stays stable is: 0.1 mm lies below the
+    converged absolute minimum (0.1949 mm), below every speed's limit."""
+    out = tmp_path / "rule.json"
+    code, text, err = run(capsys, "recommend", SHAPER, "--chatter", "83.4", "--running", "0.5", "--depth", "0.1",
+                          "--count", "3", "--out", str(out))  # fmt: skip
+    assert code == 0, err
+    doc = json.loads(out.read_text())
+    mesh = json.loads(doc["attrs"]["mesh_verdicts"])
+    verdicts = [ln.split()[-1] for ln in text.splitlines() if ln.strip()[:3].strip().isdigit()]
+    assert len(verdicts) == len(mesh) == 3
+    for v, m in zip(verdicts, mesh, strict=True):
+        assert v == ("undetermined" if m == "undetermined" else "stable")
+    assert "stable" in verdicts and 0.1e-3 < RICHARDSON
+    assert "note: mesh: 6 beam elements; twice as fine, the b_lim at the 3 speeds of the rule" in text
+    # a model without beams: nothing added
+    code, text, err = run(capsys, "recommend", TURNING, "--chatter", "120", "--running", "1000", "--depth", "0.5",
+                          "--count", "2", "--out", str(tmp_path / "t.json"))  # fmt: skip
+    assert code == 0, err
+    assert "mesh" not in text and "mesh" not in (tmp_path / "t.json").read_text()
+
+
 # ---------------------------------------------------------------------------- absorber, active
 
 #: the minimum b_lim of the shaper on 0.1-1.0 m/s: on the mesh twice as fine (the lobes' own mesh

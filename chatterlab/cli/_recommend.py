@@ -272,6 +272,75 @@ def mesh_checked(rec: Any, model: Any, position: float | None, options: dict[str
     if not model.beams or not rec.speed.size:
         return rec
     import dataclasses
+
+    import numpy as np
+
+    mesh_v, why, note, meta = _mesh_widths(
+        model, rec.speed, rec.width, rec.limit, rec.width_max, position, options, rec.limit_name, "cut"
+    )
+    verdicts, checks = list(rec.verdict), list(rec.check)
+    for i, (v, line) in enumerate(zip(mesh_v, why, strict=True)):
+        if v == "not checked":
+            continue
+        if v != "stable" and verdicts[i] != "unstable":
+            verdicts[i] = v
+        checks[i] = f"{checks[i]}; {line}"
+    return dataclasses.replace(
+        rec,
+        verdict=np.array(verdicts, dtype=str),
+        check=tuple(checks),
+        notes=(*rec.notes, note),
+        elapsed=rec.elapsed + meta["mesh_seconds"],
+        meta={**rec.meta, **meta},
+    )
+
+
+def rule_mesh_checked(res: Any, model: Any, position: float | None, options: dict[str, Any]) -> Any:
+    """The chatter-frequency rule's speeds of a model with beams (``res``
+    unchanged otherwise) judged on the mesh twice as fine, as
+    :func:`mesh_checked` judges a cut: the depth (``--depth``), else the width
+    each speed allows with the margin, against the limit there on h and h/2
+    (:func:`chatterlab.model._mesh.width_verdict`).  A verdict the finer mesh
+    or the limit's error bound does not confirm becomes ``undetermined``;
+    each reason gets the line, the notes the limits' change and bound."""
+    import numpy as np
+
+    if not model.beams or res.diagram is None or not res.speed.size:
+        return res
+    import dataclasses
+
+    widths = np.full(res.speed.size, res.depth) if res.depth is not None else np.asarray(res.width, float)
+    judged = np.isin(np.asarray(res.verdict).astype(str), ("stable", "within margin", "unstable", "limit"))
+    widths = np.where(judged, widths, 0.0)
+    mesh_v, why, note, meta = _mesh_widths(
+        model, res.speed, widths, res.limit, float(res.diagram.width_max), position, options,
+        res.diagram.limit_name, "speed",
+    )  # fmt: skip
+    verdicts, reasons = list(res.verdict), list(res.reason)
+    for i, (v, line) in enumerate(zip(mesh_v, why, strict=True)):
+        if v == "not checked":
+            continue
+        if v == "undetermined":
+            verdicts[i] = "undetermined"
+        reasons[i] = f"{reasons[i]}; {line}"
+    return dataclasses.replace(
+        res,
+        verdict=np.array(verdicts, dtype=str),
+        reason=tuple(reasons),
+        notes=(*res.notes, note),
+        meta={**res.meta, **meta},
+    )
+
+
+def _mesh_widths(
+    model: Any, speeds: Any, widths: Any, limits: Any, width_max: float, position: float | None,
+    options: dict[str, Any], name: str, item: str,
+) -> tuple[list[str], list[str], str, dict[str, Any]]:  # fmt: skip
+    """Each width (> 0; else "not checked") at its speed judged against the
+    limit there on h (``limits``) and on :meth:`Model.with_finer_mesh` (the
+    same lobes' route and ceiling) by :func:`chatterlab.model._mesh.width_verdict`:
+    the verdicts, their lines, one note on how far the limits move and the
+    largest bound of their error (Eq. M3), and the files' ``mesh_*``."""
     import json
     import time
 
@@ -286,17 +355,22 @@ def mesh_checked(rec: Any, model: Any, position: float | None, options: dict[str
     opts = dict(options)
     if model.process.kind != "milling" or opts.get("method") == "zoa":
         opts["verify"] = 0  # a limit's value; the argument principle confirms a boundary, it does not move it
-    d = lobes(fine, np.asarray(rec.speed, float), width_max=rec.width_max, position=position, **opts)
+    v = np.asarray(speeds, float)
+    o = np.argsort(v, kind="stable")
+    d = lobes(fine, v[o], width_max=width_max, position=position, **opts)
     b, ceiling = stable_width(d)
-    fine_lim = np.where(ceiling, np.inf, b)  # nan: the finer mesh's lobes establish nothing there
-    verdicts, checks, mesh_v = list(rec.verdict), list(rec.check), []
-    for i in range(rec.speed.size):
-        w, lim, lim2 = float(rec.width[i]), float(rec.limit[i]), float(fine_lim[i])
+    fine_lim = np.empty(v.size)
+    fine_lim[o] = np.where(ceiling, np.inf, b)  # nan: the finer mesh's lobes establish nothing there
+    limits = np.asarray(limits, float)
+    mesh_v, why = [], []
+    for i in range(v.size):
+        w, lim, lim2 = float(widths[i]), float(limits[i]), float(fine_lim[i])
         if not w > 0:
             mesh_v.append("not checked")
+            why.append("")
             continue
-        if np.isnan(lim2):
-            v, line = (
+        if np.isnan(lim2) or np.isnan(lim):
+            verdict, line = (
                 "undetermined",
                 (
                     "mesh: the lobes on a mesh twice as fine establish nothing at this speed: refine the beams"
@@ -304,34 +378,36 @@ def mesh_checked(rec: Any, model: Any, position: float | None, options: dict[str
                 ),
             )
         else:
-            v, line = width_verdict(model, w, lim, lim2)
-        mesh_v.append(v)
-        if v != "stable" and verdicts[i] != "unstable":
-            verdicts[i] = v
-        checks[i] = f"{checks[i]}; {line}"
-    both = np.isfinite(rec.limit) & np.isfinite(fine_lim)
-    est = MeshEstimate(np.asarray(rec.limit, float)[both], fine_lim[both])
-    und = sum(v == "undetermined" for v in mesh_v)
-    n = rec.speed.size
-    name = rec.limit_name
+            verdict, line = width_verdict(model, w, lim, lim2)
+        mesh_v.append(verdict)
+        why.append(line)
+    both = np.isfinite(limits) & np.isfinite(fine_lim)
+    est = MeshEstimate(limits[both], fine_lim[both])
+    und = sum(x == "undetermined" for x in mesh_v)
+    n = sum(x != "not checked" for x in mesh_v)
+    where = "recommended speeds" if item == "cut" else "speeds of the rule"
     if np.any(both):
         ch = est.relative_change
         lo, hi = float(np.min(ch)), float(np.max(ch))
         moves = pct(lo, "+") if lo == hi else f"{pct(lo, '+')} .. {pct(hi, '+')}"
         head = (
-            f"twice as fine, the {name} at the {int(np.sum(both))} recommended speeds with a limit on both"
+            f"twice as fine, the {name} at the {int(np.sum(both))} {where} with a limit on both"
             f" meshes moves by {moves}; discretisation error of these limits <= {pct(float(np.max(est.relative_bound)))}"
             " (docs/lobes.md, Eq. M3)"
         )
     else:
-        head = f"no recommended speed has a {name} below the ceiling on both meshes: no estimate of its error"
-    tail = f"; {und} of {n} cut{'s' * (n != 1)} undetermined on it" if und else "; every cut confirmed on it"
-    line = f"mesh: {mesh_words(model)}; {head}{tail}{converged_tail(model)}"
+        head = f"no {where[:-1]} has a {name} below the ceiling on both meshes: no estimate of its error"
+    tail = (
+        f"; {und} of {n} {item}{'s' * (n != 1)} undetermined on it"
+        if und
+        else (f"; every {item} confirmed on it" if n else "")
+    )
+    note = f"mesh: {mesh_words(model)}; {head}{tail}{converged_tail(model)}"
 
     def js(x: Any) -> str:
-        return json.dumps([None if not np.isfinite(v) else float(v) for v in np.asarray(x, float)])
+        return json.dumps([None if not np.isfinite(y) else float(y) for y in np.asarray(x, float)])
 
-    full = MeshEstimate(np.asarray(rec.limit, float), fine_lim)
+    full = MeshEstimate(limits, fine_lim)
     meta = {
         "mesh_beam_elements": model.beam_elements,
         "mesh_fine_beam_elements": fine.beam_elements,
@@ -342,16 +418,9 @@ def mesh_checked(rec: Any, model: Any, position: float | None, options: dict[str
         "mesh_verdicts": json.dumps(mesh_v),
         "mesh_undetermined": int(und),
         "mesh_seconds": time.perf_counter() - t0,
-        "mesh": line,
+        "mesh": note,
     }
-    return dataclasses.replace(
-        rec,
-        verdict=np.array(verdicts, dtype=str),
-        check=tuple(checks),
-        notes=(*rec.notes, line),
-        elapsed=rec.elapsed + meta["mesh_seconds"],
-        meta={**rec.meta, **meta},
-    )
+    return mesh_v, why, note, meta
 
 
 # ----------------------------------------------------------------------------- the rule
@@ -416,6 +485,13 @@ def _rule(args: argparse.Namespace, model: Any, margin: float, count: int, outs:
         chatter, running, source=model, teeth=teeth, depth=depth, margin=margin, count=count, machine=mach,
         width_max=width_max, position=position, **options,
     )  # fmt: skip
+    out: Any = res
+    if model is not None:  # a model with beams: each speed's verdict on the mesh twice as fine
+        res = rule_mesh_checked(res, model, position, options)
+        if res.meta.get("mesh"):
+            from ._design_common import with_attributes
+
+            out = with_attributes(res, {k: v for k, v in res.meta.items() if k.startswith("mesh")})
     print(res.summary())
-    write_result(res, args, outs, model=model)
+    write_result(out, args, outs, model=model, plot=res.plot)
     return 0
