@@ -299,7 +299,10 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Comm
             **engine_opts(args),
         )
     drop_checkpoint_after(args, outs, res)  # once the files below are in place
-    _atlas_summary(model, task, res, pos, v, wmax)
+    fine = _atlas_mesh(args, model, task, res, pos, v) if model.beams else None
+    if fine is not None:
+        res = dataclasses.replace(res, attrs={**res.attrs, **fine[1]})
+    _atlas_summary(model, task, res, pos, v, wmax, None if fine is None else fine[0])
     if res.failures:
         print(f"  {len(res.failures)} task(s) failed: {res.message}", file=sys.stderr)
     if args.out:
@@ -319,9 +322,89 @@ def _atlas(args: argparse.Namespace, model: Any, v: Any, wmax: float, outs: Comm
     return 0 if res.status == "ok" else 1
 
 
-def _atlas_summary(model: Any, task: Any, res: Any, pos: Any, v: Any, wmax: float) -> None:
+def _atlas_mesh(
+    args: argparse.Namespace, model: Any, task: Any, res: Any, pos: Any, v: Any
+) -> tuple[Any, dict[str, Any]]:
+    """The atlas of a model with beams on the mesh twice as fine
+    (:meth:`Model.with_finer_mesh`), every point, through the same sweep
+    engine (its jobs and progress; no checkpoint: an interrupted run computes
+    it again), and the ``mesh_*`` attributes of its discretisation error
+    (docs/lobes.md, Eqs. M1-M5): the worst case's value twice as fine and its
+    bound, the change of every point (median, largest: a change, not a bound)
+    and the points that end at the ceiling on this mesh but not on the finer
+    one.  Returns (b_lim on h/2 [position, speed], attributes)."""
+    import time
+
+    import numpy as np
+
+    from ..model._mesh import P_MIN, MeshEstimate, converged_tail, limit_line, pct
+    from ..quantities._tasks import AtlasTask
+    from ..sweep._engine import sweep
+
+    t0 = time.perf_counter()
+    fm = model.with_finer_mesh()
+    ft = AtlasTask(fm, task.width_max, task.speeds, terms=task.terms, fmin=task.fmin, fmax=task.fmax)
+    opts = {**engine_opts(args), "keep_checkpoint": False}
+    if opts["progress"]:
+        print(
+            f"mesh check: the atlas again on a mesh twice as fine ({fm.beam_elements} beam elements)",
+            file=sys.stderr,
+        )
+    fres = sweep(
+        ft,
+        {"position": (pos, "m"), "speed": (v, model.process.speed_unit)},
+        outputs={
+            "b_lim": ("m", "largest chatter-free width of cut, mesh twice as fine"),
+            "chatter_frequency": ("Hz", "chatter frequency, mesh twice as fine"),
+        },
+        chunk_size=v.size,
+        **opts,
+    )
+    bl, b2 = np.asarray(res.data["b_lim"], float), np.asarray(fres.data["b_lim"], float)
+    worst, worst2 = float(np.nanmin(bl)), float(np.nanmin(b2))  # inf where every point is at the ceiling
+    env = np.abs(MeshEstimate(bl, b2).relative_change)
+    env = env[np.isfinite(env)]
+    free = ok_infs(bl, res.task_status)
+    lost = int(np.count_nonzero(free & np.isfinite(b2)))
+    est = MeshEstimate(worst, worst2)
+    attrs: dict[str, Any] = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": fm.beam_elements,
+        "mesh_order": P_MIN,
+        "mesh_fine_worst_m": worst2,
+        "mesh_worst_change": float(est.relative_change),
+        "mesh_worst_error_bound": float(est.relative_bound),
+        "mesh_envelope_change_median": float(np.median(env)) if env.size else float("nan"),
+        "mesh_envelope_change_max": float(env.max()) if env.size else float("nan"),
+        "mesh_envelope_points": int(env.size),
+        "mesh_free_points": int(np.count_nonzero(free)),
+        "mesh_free_points_fine_limited": lost,
+        "mesh_position_min_fine_m": np.nanmin(np.where(np.isnan(b2), np.inf, b2), axis=1),
+    }
+    line = limit_line(model, "worst-case b_lim", worst, worst2, tail=False)
+    if env.size:
+        line += (
+            f"; the atlas moves by {pct(attrs['mesh_envelope_change_median'])} (median over {env.size} points),"
+            f" up to {pct(attrs['mesh_envelope_change_max'])}"
+        )
+    if lost:
+        line += (
+            f"; at {lost} of the {attrs['mesh_free_points']} points with no b_lim below the ceiling the finer"
+            " mesh finds one: their stability is not established"
+        )
+    if fres.status != "ok":
+        line += f"; the finer mesh's run is {fres.status} ({fres.message})"
+    line += converged_tail(model)
+    attrs["mesh_seconds"] = time.perf_counter() - t0
+    attrs["mesh"] = line
+    return b2, attrs
+
+
+def _atlas_summary(model: Any, task: Any, res: Any, pos: Any, v: Any, wmax: float, fine: Any = None) -> None:
     """The worst case along the stroke and the smallest b_lim per position;
-    a position with ``inf`` says what it means there (its band checked)."""
+    a position with ``inf`` says what it means there (its band checked); a
+    model with beams: each position's smallest b_lim on the mesh twice as
+    fine (``fine``, :func:`_atlas_mesh`) and the mesh line."""
     import numpy as np
 
     bl = res.data["b_lim"]
@@ -350,4 +433,9 @@ def _atlas_summary(model: Any, task: Any, res: Any, pos: Any, v: Any, wmax: floa
             line += ("; " if fin.size else ", ") + inf_note(
                 [claims[k]] * int(infs[k].sum()), row.size, "speeds"
             )
+        if fine is not None:
+            f2 = fine[k][np.isfinite(fine[k])]
+            line += "; twice as fine: " + (f"{m_to_mm(f2.min()):.4g} mm" if f2.size else "no finite b_lim")
         print(line)
+    if "mesh" in res.attrs:
+        print(f"  {res.attrs['mesh']}")
