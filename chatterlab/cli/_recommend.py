@@ -396,7 +396,9 @@ def _mesh_widths(
             " (docs/lobes.md, Eq. M3)"
         )
     else:
-        head = f"no {where[:-1]} has a {name} below the ceiling on both meshes: no estimate of its error"
+        head = (
+            f"no {where[:-1]} has a limit ({name}) below the ceiling on both meshes: no estimate of its error"
+        )
     tail = (
         f"; {und} of {n} {item}{'s' * (n != 1)} undetermined on it"
         if und
