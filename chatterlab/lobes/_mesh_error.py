@@ -47,7 +47,10 @@ def with_mesh_error(
     both meshes have a limit below the ceiling: a change, not a bound --
     where the lobe that sets the envelope changes between the meshes the
     asymptotic model of Eq. M1 does not hold per speed); ``mesh_seconds``
-    (the cost); ``mesh`` (the line)."""
+    (the cost); ``mesh_free_speeds`` (speeds with no limit below the
+    ceiling on h: a claim of no chatter) and ``mesh_free_speeds_fine_limited``
+    (how many of them have a limit on h/2: the claim is not established
+    there); ``mesh`` (the line)."""
     model = frozen.model
     if not model.beams:
         return diagram
@@ -62,6 +65,11 @@ def with_mesh_error(
     est = MeshEstimate(diagram.absolute_minimum["width"], am["width"])
     env = np.abs(MeshEstimate(diagram.b_lim, b_fine).relative_change)
     env = env[np.isfinite(env)]
+    # the speeds that end at the ceiling (a claim of no chatter below it) where the finer mesh has a limit
+    free = np.isinf(np.asarray(diagram.b_lim, float)) & (
+        np.asarray(diagram.kind).astype(str) != "undetermined"
+    )
+    lost = int(np.count_nonzero(free & np.isfinite(np.asarray(b_fine, float))))
     meta: dict[str, Any] = {
         "mesh_beam_elements": model.beam_elements,
         "mesh_fine_beam_elements": fine.beam_elements,
@@ -73,6 +81,8 @@ def with_mesh_error(
         "mesh_envelope_change_median": float(np.median(env)) if env.size else float("nan"),
         "mesh_envelope_change_max": float(env.max()) if env.size else float("nan"),
         "mesh_envelope_speeds": int(env.size),
+        "mesh_free_speeds": int(np.count_nonzero(free)),
+        "mesh_free_speeds_fine_limited": lost,
     }
     meta["mesh_seconds"] = time.perf_counter() - t0
     meta["mesh"] = mesh_line(meta, model, diagram.limit_name)
@@ -101,4 +111,10 @@ def mesh_line(meta: dict[str, Any], model: Any, limit: str = "b_lim") -> str:
             f"; its envelope moves by {pct(meta['mesh_envelope_change_median'])} (median over"
             f" {meta['mesh_envelope_speeds']} speeds), up to {pct(meta['mesh_envelope_change_max'])}"
         )
-    return f"mesh: {mesh_words(model)}; {head}{env}{converged_tail(model)}"
+    lost = ""
+    if meta.get("mesh_free_speeds_fine_limited"):
+        lost = (
+            f"; at {meta['mesh_free_speeds_fine_limited']} of the {meta['mesh_free_speeds']} speeds with no {limit}"
+            " below the ceiling the mesh twice as fine finds one: their stability is not established"
+        )
+    return f"mesh: {mesh_words(model)}; {head}{env}{lost}{converged_tail(model)}"
