@@ -324,3 +324,32 @@ def test_ssv_of_a_model_with_beams_says_its_limits_are_unchecked(monkeypatch, ca
     assert text.splitlines()[-1].startswith(
         "mesh: 6 beam elements; these limits are this mesh's: not checked"
     )
+
+
+def test_simulate_of_a_milling_model_with_beams_checks_the_linearised_verdict(tmp_path, capsys):
+    """End mill, a_p = 5 mm at 20000 rpm (4 revolutions: the check does not
+    depend on the run's length): the linearised cut's |mu| = 0.81 on 3
+    elements, the same twice as fine; the margin ln|mu|/T = -140 1/s is far
+    beyond its bound 2|d| (Eq. M3), so stable stands; the netCDF file says
+    so.  A milling model without beams prints none of it."""
+    xr = pytest.importorskip("xarray")
+    out = tmp_path / "m.nc"
+    code, text, _ = run(
+        capsys, "simulate", "studies/milling/tool_cantilever.toml", "--width", "5", "--speed", "20000",
+        "--revolutions", "4", "--out", str(out),
+    )  # fmt: skip
+    assert code == 0
+    assert (
+        "linearised verdict (Floquet, |mu| = 0.81" in text and "also stable on a mesh twice as fine" in text
+    )
+    with xr.open_dataset(out) as ds:
+        a = ds.attrs
+        assert a["mesh_verdict"] == "stable" and int(a["mesh_beam_elements"]) == 3
+        assert float(a["mesh_margin_error_bound_per_s"]) == pytest.approx(
+            2 * abs(float(a["mesh_fine_margin_per_s"]) - float(a["mesh_margin_per_s"])), rel=1e-12
+        )
+    code, text, _ = run(
+        capsys, "simulate", "studies/milling/benchmark_1dof.toml", "--width", "0.5", "--speed", "18000",
+        "--revolutions", "4",
+    )  # fmt: skip
+    assert "mesh" not in text and "linearised verdict" not in text

@@ -487,3 +487,60 @@ def _meshed_surface_location() -> Any:
             return coords, data, {**attrs, **self.mesh}
 
     return MeshedSurfaceLocation
+
+
+# ---------------------------------------------------------------------------- simulate (milling)
+
+
+def milling_run_check(model: Any, run: Any, position: Any) -> tuple[dict[str, Any], list[str]]:
+    """The verdict of a milling run of a model with beams on the mesh twice as
+    fine: the linearised cut's Floquet multipliers at the run's (a_p, rpm)
+    (the sweep's ``spectral-radius`` task, |mu| against its convergence
+    error) on both meshes, judged by :func:`mesh_verdict` on the margin
+    ln|mu| / T (1/s, T the tooth period).  The run's own ``stable`` stands
+    only when that verdict does; a chatter verdict of the run is reported
+    beside it (the nonlinear run can chatter where the linearisation does
+    not: a finite-amplitude effect, not the mesh's).  ``(attributes, lines)``."""
+    import dataclasses
+
+    from ..quantities import QuantityTask
+
+    fixed = {"width": float(run.depth), "speed": float(run.rpm)}
+    if position is not None:
+        fixed["position"] = float(position)
+    task = QuantityTask(model, "spectral-radius", fixed)
+    coarse_v, fine_v = task(), dataclasses.replace(task, model=model.with_finer_mesh())()
+    T = float(model.process.delay(float(run.rpm)))
+    words = {1.0: "stable", 0.0: "unstable"}
+    c = words.get(float(coarse_v["stable"]), "undetermined")
+    f = words.get(float(fine_v["stable"]), "undetermined")
+    a_h = math.log(float(coarse_v["spectral_radius"])) / T
+    a_h2 = math.log(float(fine_v["spectral_radius"])) / T
+    verdict, why = mesh_verdict(model, c, a_h, f, a_h2)
+    facts: dict[str, Any] = {
+        "mesh_beam_elements": model.beam_elements,
+        "mesh_fine_beam_elements": 2 * model.beam_elements,
+        "mesh_order": P_MIN,
+        "mesh_coarse_verdict": c,
+        "mesh_fine_verdict": f,
+        "mesh_margin_per_s": a_h,
+        "mesh_fine_margin_per_s": a_h2,
+        "mesh_margin_error_bound_per_s": float(MeshEstimate(a_h, a_h2).bound),
+        "mesh_verdict": verdict,
+        "mesh": why,
+    }
+    run_stable = str(run.verdict) == "stable"
+    head = (
+        f"  linearised verdict (Floquet, |mu| = {float(coarse_v['spectral_radius']):.5g}): {verdict}"
+        f" (on this mesh: {c}; margin ln|mu|/T = {a_h:+.4g} 1/s)"
+    )
+    lines = [head, f"  {why}"]
+    if run_stable and verdict != "stable":
+        lines.append(
+            "  verdict: undetermined (this run is stable on this mesh alone; the mesh twice as fine does"
+            " not confirm it)"
+        )
+        facts["mesh_run_verdict"] = "undetermined"
+    else:
+        facts["mesh_run_verdict"] = str(run.verdict)
+    return facts, lines

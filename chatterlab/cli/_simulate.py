@@ -186,16 +186,33 @@ def _milling(args: argparse.Namespace, model: Any) -> int:
             f" feed per tooth {run.feed * 1e3:g} mm"
         )
         print(f"  {run.message}")
+        mesh = _milling_mesh(args, model, run)
         if args.out:
             if args.out.lower().endswith(".csv"):
                 run.to_csv(outs.path(args.out))
             else:
-                run.to_netcdf(outs.path(args.out), attrs={"model_text": model.text})
+                run.to_netcdf(outs.path(args.out), attrs={"model_text": model.text, **mesh})
         if args.plot:
             from ..plot import savefig
 
             savefig(run.plot(), outs.path(args.plot))
     return 0 if run.status == "ok" else 1
+
+
+def _milling_mesh(args: argparse.Namespace, model: Any, run: Any) -> dict[str, Any]:
+    """A milling model with beams: the linearised cut's Floquet verdict at the
+    run's (a_p, rpm) on its mesh and on the mesh twice as fine
+    (:func:`chatterlab.cli._mesh_checks.milling_run_check`), printed; its
+    facts as the netCDF attributes ``mesh_*``.  Without beams: {} and
+    nothing printed."""
+    if not model.beams:
+        return {}
+    from ._mesh_checks import milling_run_check
+
+    facts, lines = milling_run_check(model, run, args.position)
+    for line in lines:
+        print(line)
+    return facts
 
 
 def _named(values: list[str] | None, option: str, unit: str) -> dict[str, float] | None:
