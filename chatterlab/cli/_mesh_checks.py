@@ -1,5 +1,5 @@
-"""The discretisation error of ``simulate``, ``frf`` and ``sweep`` on a model
-with beams (docs/lobes.md, "The discretisation error of a result", Eqs.
+"""The discretisation error of ``simulate``, ``frf``, ``sweep`` and ``sle`` on a
+model with beams (docs/lobes.md, "The discretisation error of a result", Eqs.
 M1-M5; the machinery is :mod:`chatterlab.model._mesh`, never repeated here).
 
 * ``simulate`` of a continuous cut: the rightmost characteristic root of the
@@ -13,6 +13,10 @@ M1-M5; the machinery is :mod:`chatterlab.model._mesh`, never repeated here).
   between grid points) on both meshes, its change and bound (Eq. M3).
 * ``sweep``: the quantity recomputed on the finer mesh at the grid's most
   critical point(s) only (:func:`sweep_check`), and the line names them.
+* ``sle`` of a milling model: its critical speeds (:func:`sle_picks`,
+  :func:`sle_check`); ``simulate`` of a milling model: the linearised cut's
+  Floquet verdict at the run's (a_p, rpm) (:func:`milling_run_check`).  A
+  milling verdict's margin is the Floquet exponent ln|mu| / T (1/s).
 """
 
 from __future__ import annotations
@@ -25,7 +29,20 @@ import numpy as np
 
 from ..model._mesh import P_MIN, MeshEstimate, limit_line, mesh_verdict, mesh_words, pct
 
-__all__ = ["root_verdict", "simulate_check", "frf_peaks", "frf_check", "sweep_check"]
+__all__ = [
+    "root_verdict",
+    "simulate_check",
+    "simulate_lines",
+    "frf_peaks",
+    "follow_peak",
+    "refine_peak",
+    "frf_check",
+    "frf_lines",
+    "sweep_check",
+    "sle_picks",
+    "sle_check",
+    "milling_run_check",
+]
 
 #: simulate's words for a verdict of the frozen system
 CHATTER_WORDS = {"stable": "no chatter", "unstable": "chatter", "undetermined": "undetermined"}
