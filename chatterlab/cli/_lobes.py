@@ -190,12 +190,19 @@ def _diagram(args: argparse.Namespace, sy: Any, v: Any, wmax: float) -> Any:
     """The lobe diagram of the model's structure at --position (and its
     --confirm table on standard error): the branch point for other inputs."""
     from ..lobes._diagram import lobes
-    from ..lobes._mesh_error import with_mesh_error
 
     fz = sy.at(args.position)
-    d = lobes(fz, v, width_max=wmax, terms=args.terms, fmin=args.fmin, fmax=args.fmax, verify=args.verify)
     # a model with beams: the minimum (and envelope) on the mesh twice as fine, and the error bound
-    d = with_mesh_error(d, fz, fmin=args.fmin, fmax=args.fmax)
+    d = lobes(
+        fz,
+        v,
+        width_max=wmax,
+        terms=args.terms,
+        fmin=args.fmin,
+        fmax=args.fmax,
+        verify=args.verify,
+        mesh_error=True,
+    )
     if args.confirm:
         from ..lobes._confirm import confirm
 

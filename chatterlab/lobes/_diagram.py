@@ -86,6 +86,7 @@ def lobes(
     plant: Plant | None = None,
     name: str | None = None,
     damping: Any = None,
+    mesh_error: bool = False,
 ) -> LobeDiagram:
     """Stability lobe diagram b_lim(speed) at a frozen configuration.
 
@@ -128,6 +129,12 @@ def lobes(
         boundary couples the width and the delay through the cutting speed
         (:mod:`chatterlab.lobes._damped`) and ``meta["process_damping"]``
         says so.
+    mesh_error : bool
+        A model with beams: the absolute minimum and the envelope again on
+        the mesh twice as fine, and the discretisation error in ``meta``
+        (:func:`chatterlab.lobes.with_mesh_error`; docs/lobes.md, Eqs.
+        M1-M5), as ``chatterlab lobes`` reports it.  Off, the summary of a
+        model with beams says that the error was not estimated.
 
     Returns
     -------
@@ -172,7 +179,14 @@ def lobes(
             replace(diagram, meta={**diagram.meta, "process_damping": _damping_meta(bd)})
         )
     checks = _verify(frozen, diagram, verify, couplings) if verify and frozen is not None else ()
-    return replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
+    diagram = replace(diagram, checks=checks, elapsed=time.perf_counter() - t0)
+    if frozen is not None and frozen.model.beams:
+        from ._mesh_error import not_estimated, with_mesh_error
+
+        if not mesh_error:
+            return replace(diagram, meta={**diagram.meta, "mesh": not_estimated(frozen.model)})
+        return with_mesh_error(diagram, frozen, fmin=fmin, fmax=fmax, couplings=couplings)
+    return diagram
 
 
 def _damping_meta(bd: Any) -> dict[str, Any]:

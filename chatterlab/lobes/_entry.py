@@ -18,7 +18,8 @@ source                     route                                       options
                            measured FRF in ``[frf]``
 ``FrozenSystem``           D-subdivision (:mod:`._diagram`)            ``terms``, ``process``, ``fmin``,
                                                                        ``fmax``, ``n_frequencies``,
-                                                                       ``verify``, ``couplings``, ``name``
+                                                                       ``verify``, ``couplings``, ``name``,
+                                                                       ``mesh_error``
 ``ClosedLoop`` (milling)   Floquet multipliers or ZOA                  ``method``, ``scan``, ``rtol``,
                            (:mod:`._milling`)                          ``degree``, ``elements``, ``steps``,
                                                                        ``check``
@@ -56,6 +57,7 @@ from ._result import LobeDiagram
 __all__ = ["lobes"]
 
 _FROZEN = ("terms", "process", "fmin", "fmax", "n_frequencies", "verify", "couplings", "name")
+_MESH = (*_FROZEN, "mesh_error")  # a frozen configuration of a model (beams: its mesh error)
 _FLOQUET = ("method", "scan", "rtol", "degree", "elements", "steps", "check")
 _MEASURED = ("process", "milling", "fmin", "fmax", "n_frequencies", "name", "Kf", "force_angle",
              "normal_angle", "Kv", "coordinates", "DP", "DV", "DO", "width_ref")  # fmt: skip
@@ -101,7 +103,7 @@ def lobes(
     LobeDiagram
     """
     if isinstance(source, FrozenSystem):
-        _only("a frozen configuration", options, _FROZEN)
+        _only("a frozen configuration", options, _MESH)
         return _d_subdivision(source, speeds, width_max=_w(width_max, 0.02), **options)
     if isinstance(source, Plant):
         _only("a plant", options, _FROZEN)
@@ -160,7 +162,12 @@ def _model(model: Any, speeds: Any, width_max: float | None, position: float | N
         loop = milling_loop_of(frozen)
         if not model.modes and not model.is_matrix_model:  # a structural model: the modes that matter
             loop = reduce_structure(loop)[0]
-        return lobes(loop, speeds, width_max=width_max, **options)
+        d = lobes(loop, speeds, width_max=width_max, **options)
+        if model.beams:  # a beam tool's mesh error: the command line estimates it (cli._milling)
+            from ._mesh_error import not_estimated
+
+            d = replace(d, meta={**d.meta, "mesh": not_estimated(model, option=False)})
+        return d
     zoa = options.pop("method", None) == "zoa"
     d = lobes(frozen, speeds, width_max=width_max, **options)
     # a milling model's coupling is the time-averaged cut (process.ce_maps): the zeroth-order approximation

@@ -23,7 +23,7 @@ from ..structure._assembly import FrozenSystem, assemble
 from ._damped import Boundary
 from ._result import LobeDiagram
 
-__all__ = ["with_mesh_error", "mesh_line"]
+__all__ = ["with_mesh_error", "mesh_line", "not_estimated"]
 
 
 @single_threaded
@@ -87,6 +87,18 @@ def with_mesh_error(
     meta["mesh_seconds"] = time.perf_counter() - t0
     meta["mesh"] = mesh_line(meta, model, diagram.limit_name)
     return dataclasses.replace(diagram, meta={**diagram.meta, **meta})
+
+
+def not_estimated(model: Any, option: bool = True) -> str:
+    """The summary's line of a diagram of a model with beams computed without
+    :func:`with_mesh_error`: what it does not say (``option``: the route
+    takes ``mesh_error=True``; a milling tool's is the command's)."""
+    how = (
+        "lobes(..., mesh_error=True) or the lobes command estimate it"
+        if option
+        else "the lobes command estimates it"
+    )
+    return f"mesh: {mesh_words(model)}; its discretisation error was not estimated ({how})"
 
 
 def mesh_line(meta: dict[str, Any], model: Any, limit: str = "b_lim") -> str:
