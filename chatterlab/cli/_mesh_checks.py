@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model._mesh import P_MIN, MeshEstimate, limit_line, mesh_verdict, mesh_words, pct
+from ..model._mesh import P_MIN, MeshEstimate, converged_tail, limit_line, mesh_verdict, mesh_words, pct
 
 __all__ = [
     "root_verdict",
@@ -214,7 +214,6 @@ def frf_check(model: Any, coarse: list[list[Any]], fine: list[list[Any]], names:
 def frf_lines(model: Any, doc: dict[str, Any]) -> list[str]:
     """One head line, then one line per pair: each peak's frequency and
     magnitude change on the mesh twice as fine and their bounds (Eq. M3)."""
-    from ..model._mesh import converged_tail
 
     out = [
         f"mesh: {mesh_words(model)}; resonance peaks on a mesh twice as fine: the change of the peak's"
@@ -386,7 +385,7 @@ def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
         }
     fine_v = float(fv[key])
     e = MeshEstimate(v[flat], fine_v)
-    line = limit_line(model, key, float(v[flat]), fine_v) + where_p
+    line = limit_line(model, key, float(v[flat]), fine_v, tail=False) + where_p + converged_tail(model)
     return {
         **base,
         "mesh_points_checked": 1,
