@@ -103,3 +103,19 @@ def test_a_tool_without_beams_gets_no_mesh_line(capsys):
     code = main(["lobes", "studies/milling/benchmark_1dof.toml", "--speed", "10000", "12000", "--points", "3",
                  "--quiet"])  # fmt: skip
     assert code == 0 and "mesh:" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("width_mm", "expected"), [(5.0, "stable"), (10.8, "undetermined"), (12.0, "unstable")]
+)
+def test_roots_judges_a_milling_cut_on_both_meshes(capsys, width_mm, expected):
+    """10.8 mm at 8000 rpm lies between the limit on 6 elements (10.7966 mm)
+    and on 3 (10.8029 mm), and above the converged 10.7950 mm: the 3-element
+    mesh's "stable" was wrong, and it is now undetermined; cuts far from the
+    limit keep their verdict (the margin ln|mu|/T against twice its change)."""
+    import json
+
+    code = main(["roots", TOOL, "--width", str(width_mm), "--speed", "8000", "--format", "json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0 and doc["verdict"] == expected and doc["mesh"]["verdict"] == expected
+    assert doc["mesh"]["beam_elements"] == 3 and doc["mesh"]["fine_beam_elements"] == 6

@@ -226,14 +226,20 @@ class _MultiplierTable:
     ``count``), the reduction note, and the one ``roots`` JSON contract
     (:meth:`chatterlab.frequency.Multipliers.to_dict`)."""
 
-    def __init__(self, r: Any, count: int, note: str) -> None:
-        self.r, self.count, self.note = r, count, note
+    def __init__(self, r: Any, count: int, note: str, mesh: dict[str, Any] | None = None) -> None:
+        self.r, self.count, self.note, self.mesh = r, count, note, mesh or {}
 
     def undetermined(self) -> bool:
-        """|mu| within its own convergence error of 1: neither claim is proven."""
-        return bool(self.r.verdict == "undetermined")
+        """|mu| within its own convergence error of 1, or (a tool with beams)
+        the mesh twice as fine does not confirm the verdict: neither claim is
+        proven."""
+        return bool(self.r.verdict == "undetermined" or self.mesh.get("verdict") == "undetermined")
 
     def verdict(self) -> str:
+        if self.mesh.get("verdict") == "undetermined" and self.r.verdict != "undetermined":
+            return (
+                f"undetermined: on this mesh {self.r.verdict_line()}, not confirmed on the mesh twice as fine"
+            )
         return str(self.r.verdict_line())
 
     def table(self) -> str:
@@ -252,6 +258,8 @@ class _MultiplierTable:
         for mu in r.mu[: self.count]:
             lines.append(f"  {abs(mu):10.6f}  {np.degrees(np.angle(mu)):12.4f}   {classify(complex(mu))}")
         lines.append(f"critical: {self.verdict()}; chatter frequency {r.frequency_hz:.2f} Hz")
+        if self.mesh:
+            lines.append(self.mesh["line"])
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -259,6 +267,9 @@ class _MultiplierTable:
         d["roots"] = d["roots"][: self.count]
         d["multipliers"] = d["multipliers"][: self.count]
         d["reduction"] = self.note
+        if self.mesh:
+            d["verdict"] = self.mesh["verdict"]
+            d["mesh"] = dict(self.mesh)
         return d
 
 
@@ -279,7 +290,41 @@ def milling_verdict(args: argparse.Namespace, model: Any) -> Any:
     S, mill, note = _structure(model, args.position, args)
     _helix_cost(mill, a)
     r = multipliers(S, float(rpm), a, method="sdm" if method == "sdm" else "spectral", steps=args.steps)
-    return _MultiplierTable(r, args.count, note)
+    mesh: dict[str, Any] = {}
+    if model.beams:  # the same cut on the mesh twice as fine (docs/milling.md, "The beam mesh")
+        S2, _, _ = _structure(model.with_finer_mesh(), args.position, args)
+        r2 = multipliers(S2, float(rpm), a, method="sdm" if method == "sdm" else "spectral", steps=args.steps)
+        mesh = _mesh_facts(model, r, r2)
+    return _MultiplierTable(r, args.count, note, mesh)
+
+
+def _mesh_facts(model: Any, r: Any, r2: Any) -> dict[str, Any]:
+    """The verdict of a milling cut of a tool with beams on h and h/2 judged
+    by :func:`chatterlab.model._mesh.mesh_verdict` on the Floquet exponent
+    ln|mu| / T (1/s, T the multipliers' period: the margin's analogue of a
+    root's real part), as ``roots`` judges a continuous cut."""
+    import math
+
+    from ..model._mesh import P_MIN, MeshEstimate, mesh_verdict
+
+    def margin(x: Any) -> float:
+        rho = float(x.spectral_radius)
+        return math.log(rho) / float(x.period) if rho > 0 else -math.inf
+
+    a_h, a_h2 = margin(r), margin(r2)
+    verdict, line = mesh_verdict(model, str(r.verdict), a_h, str(r2.verdict), a_h2)
+    return {
+        "beam_elements": model.beam_elements,
+        "fine_beam_elements": model.with_finer_mesh().beam_elements,
+        "order": P_MIN,
+        "coarse_verdict": str(r.verdict),
+        "fine_verdict": str(r2.verdict),
+        "abscissa_per_s": a_h,
+        "fine_abscissa_per_s": a_h2,
+        "abscissa_error_bound_per_s": float(MeshEstimate(a_h, a_h2).bound),
+        "verdict": verdict,
+        "line": line,
+    }
 
 
 def milling_simulation(args: argparse.Namespace, model: Any) -> Any:
