@@ -125,7 +125,7 @@ def design_mesh(
     import math
     import time
 
-    from ..model._mesh import P_MIN, MeshEstimate, converged_tail, limit_line, pct
+    from ..model._mesh import MeshEstimate, converged_tail, limit_line, mesh_record, pct
 
     if not designed.beams:
         return None
@@ -138,9 +138,7 @@ def design_mesh(
         limit_line(designed, f"{name} with the {what}", width, fine_width),
     ]
     meta: dict[str, Any] = {
-        "mesh_beam_elements": designed.beam_elements,
-        "mesh_fine_beam_elements": 2 * designed.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(designed),
         "mesh_fine_width_m": fine_width,
         "mesh_fine_bare_width_m": fine_bare,
         "mesh_width_error_bound": float(MeshEstimate(width, fine_width).relative_bound),

@@ -344,7 +344,7 @@ def _atlas_mesh(
 
     import numpy as np
 
-    from ..model._mesh import P_MIN, MeshEstimate, converged_tail, limit_line, pct
+    from ..model._mesh import MeshEstimate, converged_tail, limit_line, mesh_record, pct
     from ..quantities._tasks import AtlasTask
     from ..sweep._engine import sweep
 
@@ -375,9 +375,7 @@ def _atlas_mesh(
     lost = int(np.count_nonzero(free & np.isfinite(b2)))
     est = MeshEstimate(worst, worst2)
     attrs: dict[str, Any] = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": fm.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_fine_worst_m": worst2,
         "mesh_worst_change": float(est.relative_change),
         "mesh_worst_error_bound": float(est.relative_bound),

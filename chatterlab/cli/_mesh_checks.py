@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model._mesh import P_MIN, MeshEstimate, converged_tail, limit_line, mesh_verdict, mesh_words, pct
+from ..model._mesh import MeshEstimate, converged_tail, limit_line, mesh_record, mesh_verdict, mesh_words, pct
 
 __all__ = [
     "root_verdict",
@@ -70,9 +70,7 @@ def simulate_check(model: Any, sim: Any, fine_roots: Any) -> dict[str, Any]:
     attributes ``mesh_*`` (docs/cli.md, "Time histories") and ``mesh`` (the
     printed line)."""
     base: dict[str, Any] = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": 2 * model.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
     }
     if sim.roots is None:
         return {
@@ -204,9 +202,7 @@ def frf_check(model: Any, coarse: list[list[Any]], fine: list[list[Any]], names:
             )
         pairs.append({"pair": name, "peaks": peaks})
     return {
-        "beam_elements": model.beam_elements,
-        "fine_beam_elements": 2 * model.beam_elements,
-        "order": P_MIN,
+        **mesh_record(model, prefix=""),
         "pairs": pairs,
     }
 
@@ -281,9 +277,7 @@ def sweep_check(task: Any, grid: Any, res: Any) -> dict[str, Any] | None:
 
     ok = np.asarray(res.task_status).reshape(-1) == 0 if res.task_status is not None else True
     base = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": 2 * model.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_points_checked": 0,
         "mesh_points": int(grid.size),
     }
@@ -449,9 +443,7 @@ def sle_check(model: Any, res: Any, fine: Any, picks: list[int]) -> tuple[Any, d
         " mesh's" + (f"; {n_nan} stable speed(s) now undetermined (no SLE)" if n_nan else "")
     )
     record = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": 2 * model.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_speeds_checked": len(picks),
         "mesh_checks": json.dumps(checks),
         "mesh": head,
@@ -534,9 +526,7 @@ def milling_run_check(model: Any, run: Any, position: Any) -> tuple[dict[str, An
     a_h2 = math.log(float(fine_v["spectral_radius"])) / T
     verdict, why = mesh_verdict(model, c, a_h, f, a_h2)
     facts: dict[str, Any] = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": 2 * model.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_coarse_verdict": c,
         "mesh_fine_verdict": f,
         "mesh_margin_per_s": a_h,

@@ -168,7 +168,7 @@ def _with_mesh_error(args: argparse.Namespace, model: Any, rpm: Any, ml: Any, co
 
     import numpy as np
 
-    from ..model._mesh import P_MIN, MeshEstimate, limit_line, mesh_words
+    from ..model._mesh import MeshEstimate, limit_line, mesh_record, mesh_words
 
     t0 = time.perf_counter()
     basis = np.asarray(ml.basis).astype(str)
@@ -180,9 +180,7 @@ def _with_mesh_error(args: argparse.Namespace, model: Any, rpm: Any, ml: Any, co
     if j >= 0:
         idx = sorted({j, *idx})
     meta: dict[str, Any] = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": model.with_finer_mesh().beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
     }
     if not idx:  # every speed undetermined: nothing claimed to check
         meta["mesh"] = (
@@ -305,7 +303,7 @@ def _mesh_facts(model: Any, r: Any, r2: Any) -> dict[str, Any]:
     root's real part), as ``roots`` judges a continuous cut."""
     import math
 
-    from ..model._mesh import P_MIN, MeshEstimate, mesh_verdict
+    from ..model._mesh import MeshEstimate, mesh_record, mesh_verdict
 
     def margin(x: Any) -> float:
         rho = float(x.spectral_radius)
@@ -314,9 +312,7 @@ def _mesh_facts(model: Any, r: Any, r2: Any) -> dict[str, Any]:
     a_h, a_h2 = margin(r), margin(r2)
     verdict, line = mesh_verdict(model, str(r.verdict), a_h, str(r2.verdict), a_h2)
     return {
-        "beam_elements": model.beam_elements,
-        "fine_beam_elements": model.with_finer_mesh().beam_elements,
-        "order": P_MIN,
+        **mesh_record(model, prefix=""),
         "coarse_verdict": str(r.verdict),
         "fine_verdict": str(r2.verdict),
         "abscissa_per_s": a_h,

@@ -73,13 +73,11 @@ def _fine_frequencies(model: Any, md: Any, position: Any, rigid: Literal["report
 
 def _mesh_doc(model: Any, f: Any, fine: Any) -> dict[str, Any]:
     """The ``mesh`` member of ``--format json`` (docs/cli.md)."""
-    from ..model._mesh import P_MIN, MeshEstimate
+    from ..model._mesh import MeshEstimate, mesh_record
 
     e = MeshEstimate(f[: len(fine)], fine)
     return {
-        "beam_elements": model.beam_elements,
-        "fine_beam_elements": 2 * model.beam_elements,
-        "order": P_MIN,
+        **mesh_record(model, prefix=""),
         "fine_frequency_hz": [float(x) for x in fine],
         "change_hz": [float(x) for x in e.change],
         "error_bound_hz": [float(x) for x in e.bound],

@@ -347,7 +347,7 @@ def _mesh_widths(
     import numpy as np
 
     from ..lobes import lobes
-    from ..model._mesh import P_MIN, MeshEstimate, converged_tail, mesh_words, pct, width_verdict
+    from ..model._mesh import MeshEstimate, converged_tail, mesh_record, mesh_words, pct, width_verdict
     from ..selection._recommend import stable_width
 
     t0 = time.perf_counter()
@@ -411,9 +411,7 @@ def _mesh_widths(
 
     full = MeshEstimate(limits, fine_lim)
     meta = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": fine.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_fine_limit_m": js(fine_lim),
         "mesh_limit_change": js(full.relative_change),
         "mesh_limit_error_bound": js(full.relative_bound),

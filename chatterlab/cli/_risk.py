@@ -223,7 +223,7 @@ def _mesh(res: Any, model: Any, args: argparse.Namespace, opts: dict[str, Any]) 
     import numpy as np
 
     from ..lobes import lobes
-    from ..model._mesh import P_MIN, MeshEstimate, limit_line, mesh_words, width_verdict
+    from ..model._mesh import MeshEstimate, limit_line, mesh_record, mesh_words, width_verdict
 
     t0 = time.perf_counter()
     nom = res.nominal
@@ -248,9 +248,7 @@ def _mesh(res: Any, model: Any, args: argparse.Namespace, opts: dict[str, Any]) 
             f" on this mesh, {lim2 * 1e3:.4g} mm twice as fine; {why.removeprefix('mesh: ')})"
         )
     meta = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": 2 * model.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_fine_nominal_min_m": b2,
         "mesh_nominal_min_change": float(e.relative_change),
         "mesh_nominal_min_error_bound": float(e.relative_bound),

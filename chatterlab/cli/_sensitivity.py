@@ -124,7 +124,7 @@ def _mesh(s: Any, model: Any, speeds: Any, args: argparse.Namespace, wmax: float
     import numpy as np
 
     from ..design import sensitivity
-    from ..model._mesh import P_MIN, MeshEstimate, limit_line, pct
+    from ..model._mesh import MeshEstimate, limit_line, mesh_record, pct
 
     t0 = time.perf_counter()
     top = [s.fields[i] for i in s.ranked(args.by, args.limit)[:k]]
@@ -158,9 +158,7 @@ def _mesh(s: Any, model: Any, speeds: Any, args: argparse.Namespace, wmax: float
         )
     e = MeshEstimate(b, b2)
     meta: dict[str, Any] = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": 2 * model.beam_elements,
-        "mesh_order": P_MIN,
+        **mesh_record(model),
         "mesh_fine_width_m": b2,
         "mesh_width_change": float(e.relative_change),
         "mesh_width_error_bound": float(e.relative_bound),

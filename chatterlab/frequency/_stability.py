@@ -282,17 +282,16 @@ def mesh_checked(coarse: Stability, fine: Stability, model: Any) -> Stability:
     verdicts differ or the margin is within its discretisation error
     (docs/lobes.md, Eq. M3).  The roots and the count stay those of
     ``coarse``; ``mesh`` says what the finer mesh gave."""
-    from ..model._mesh import P_MIN, MeshEstimate, mesh_verdict
+    from ..model._mesh import MeshEstimate, mesh_record, mesh_verdict
 
     verdict, line = mesh_verdict(model, coarse.verdict, coarse.abscissa, fine.verdict, fine.abscissa)
     mesh = {
         "line": line,
-        "beam_elements": model.beam_elements,
+        **mesh_record(model, prefix=""),
         "coarse_verdict": coarse.verdict,
         "fine_verdict": fine.verdict,
         "fine_abscissa_per_s": fine.abscissa,
         "abscissa_error_bound_per_s": float(MeshEstimate(coarse.abscissa, fine.abscissa).bound),
-        "order": P_MIN,
     }
     return replace(coarse, verdict=verdict, mesh=mesh)
 

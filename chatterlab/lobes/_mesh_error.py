@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..frequency._delay_system import single_threaded
-from ..model._mesh import P_MIN, MeshEstimate, converged_tail, mesh_words, pct
+from ..model._mesh import MeshEstimate, converged_tail, mesh_record, mesh_words, pct
 from ..structure._assembly import FrozenSystem, assemble
 from ._damped import Boundary
 from ._result import LobeDiagram
@@ -71,13 +71,11 @@ def with_mesh_error(
     )
     lost = int(np.count_nonzero(free & np.isfinite(np.asarray(b_fine, float))))
     meta: dict[str, Any] = {
-        "mesh_beam_elements": model.beam_elements,
-        "mesh_fine_beam_elements": fine.beam_elements,
+        **mesh_record(model),
         "mesh_fine_absolute_min_m": float(am["width"]),
         "mesh_fine_absolute_min_chatter_hz": float(am["chatter_hz"]),
         "mesh_absolute_min_change": float(est.relative_change),
         "mesh_absolute_min_error_bound": float(est.relative_bound),
-        "mesh_order": P_MIN,
         "mesh_envelope_change_median": float(np.median(env)) if env.size else float("nan"),
         "mesh_envelope_change_max": float(env.max()) if env.size else float("nan"),
         "mesh_envelope_speeds": int(env.size),

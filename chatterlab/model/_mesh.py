@@ -45,6 +45,7 @@ __all__ = [
     "limit_line",
     "width_verdict",
     "converged_tail",
+    "mesh_record",
 ]
 
 #: the lowest order of convergence assumed (point loads inside elements)
@@ -93,6 +94,18 @@ class MeshEstimate:
         """The bound relative to |f_h|."""
         with np.errstate(invalid="ignore", divide="ignore"):
             return self.bound / np.abs(np.asarray(self.coarse, float))
+
+
+def mesh_record(model: Any, prefix: str = "mesh_") -> dict[str, Any]:
+    """The facts every mesh record starts with: the beam elements on this
+    mesh and on the one twice as fine (:meth:`Model.with_finer_mesh`), and
+    the order p assumed by the bound (``prefix`` before each key: ``mesh_``
+    for file attributes and ``meta``, none inside a JSON ``mesh`` member)."""
+    return {
+        f"{prefix}beam_elements": model.beam_elements,
+        f"{prefix}fine_beam_elements": model.with_finer_mesh().beam_elements,
+        f"{prefix}order": P_MIN,
+    }
 
 
 def mesh_words(model: Any) -> str:
