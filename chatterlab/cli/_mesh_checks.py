@@ -30,7 +30,6 @@ import numpy as np
 from ..model._mesh import MeshEstimate, converged_tail, limit_line, mesh_record, mesh_verdict, mesh_words, pct
 
 __all__ = [
-    "root_verdict",
     "simulate_check",
     "simulate_lines",
     "frf_peaks",
@@ -45,34 +44,22 @@ __all__ = [
 ]
 
 #: simulate's words for a verdict of the frozen system
-CHATTER_WORDS = {"stable": "no chatter", "unstable": "chatter", "undetermined": "undetermined"}
+CHATTER_WORDS = {
+    "stable": "no chatter",
+    "unstable": "chatter",
+    "undetermined": "undetermined",
+    "marginal": "marginal",
+}
 
 
-def root_verdict(lam: Any, certain: bool) -> tuple[str, float]:
-    """The verdict and margin (rightmost Re, 1/s) of characteristic roots
-    (upper half plane, sorted by decreasing real part): ``unstable`` when a
-    root lies right of the axis (a root found proves it), ``stable`` when
-    every root is left of it and the band searched is certified to hold
-    every root right of the rightmost one (``certain``), else
-    ``undetermined``."""
-    if lam is None or not np.size(lam):
-        return "undetermined", math.nan
-    a = float(np.max(np.real(lam)))
-    if a > 0:
-        return "unstable", a
-    return ("stable" if certain and a < 0 else "undetermined"), a
-
-
-def simulate_check(model: Any, sim: Any, fine_roots: Any) -> dict[str, Any]:
-    """The mesh facts of one ``simulate`` run of a model with beams
-    (``fine_roots``: the characteristic roots of the same frozen system on
-    the mesh twice as fine, None for a moving slide), as the netCDF
-    attributes ``mesh_*`` (docs/cli.md, "Time histories") and ``mesh`` (the
-    printed line)."""
-    base: dict[str, Any] = {
-        **mesh_record(model),
-    }
-    if sim.roots is None:
+def simulate_check(model: Any, st: Any) -> dict[str, Any]:
+    """The mesh facts of one ``simulate`` run of a model with beams (``st``:
+    the :class:`~chatterlab.frequency.Stability` of its frozen system judged
+    on both meshes by :func:`~chatterlab.frequency.mesh_checked`, None for a
+    moving slide), as the netCDF attributes ``mesh_*`` (docs/cli.md, "Time
+    histories") and ``mesh`` (the printed line)."""
+    base: dict[str, Any] = mesh_record(model)
+    if st is None:
         return {
             **base,
             "mesh_verdict": "none",
@@ -80,26 +67,16 @@ def simulate_check(model: Any, sim: Any, fine_roots: Any) -> dict[str, Any]:
             " histories' discretisation error is not estimated (nothing was computed on a finer mesh;"
             " a frozen configuration: chatterlab roots --position S)",
         }
-    coarse, a_h = root_verdict(sim.roots, sim.roots_certain)
-    lam2 = np.asarray(fine_roots.roots, complex).reshape(-1)
-    # certain as the run's own roots (Simulation.roots_certain): a converged search whose
-    # certified band holds every root right of the rightmost one found
-    certain2 = bool(
-        lam2.size
-        and fine_roots.converged
-        and float(getattr(fine_roots, "complete_above", math.nan)) < float(lam2.real.max())
-    )
-    fine, a_h2 = root_verdict(lam2, certain2)
-    verdict, why = mesh_verdict(model, coarse, a_h, fine, a_h2)
+    m = st.mesh
     return {
         **base,
-        "mesh_coarse_verdict": coarse,
-        "mesh_fine_verdict": fine,
-        "mesh_abscissa_per_s": a_h,
-        "mesh_fine_abscissa_per_s": a_h2,
-        "mesh_abscissa_error_bound_per_s": float(MeshEstimate(a_h, a_h2).bound),
-        "mesh_verdict": verdict,
-        "mesh": why,
+        "mesh_coarse_verdict": m["coarse_verdict"],
+        "mesh_fine_verdict": m["fine_verdict"],
+        "mesh_abscissa_per_s": float(st.abscissa),
+        "mesh_fine_abscissa_per_s": m["fine_abscissa_per_s"],
+        "mesh_abscissa_error_bound_per_s": m["abscissa_error_bound_per_s"],
+        "mesh_verdict": st.verdict,
+        "mesh": m["line"],
     }
 
 

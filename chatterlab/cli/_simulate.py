@@ -283,24 +283,30 @@ def _runner(
 def _mesh_checker(args: argparse.Namespace, model: Any) -> Callable[[Any, str], None]:
     """A model with beams: ``(run, feedback case) -> None`` printing the
     verdict of the run's frozen system on its mesh and on the mesh twice as
-    fine (:func:`chatterlab.cli._mesh_checks.simulate_check`) and putting
-    the facts in the run's ``meta`` (its netCDF attributes ``mesh_*``).
+    fine -- :func:`chatterlab.frequency.stability` on both and
+    :func:`chatterlab.frequency.mesh_checked`, the one verdict rule of
+    ``roots`` -- and putting the facts in the run's ``meta`` (its netCDF
+    attributes ``mesh_*``, :func:`chatterlab.cli._mesh_checks.simulate_check`).
     Without beams: does nothing (the output is unchanged)."""
     if not model.beams:
         return lambda sim, fb: None
+    from ..frequency._stability import mesh_checked, stability
     from ..structure._assembly import assemble
     from ._mesh_checks import simulate_check, simulate_lines
 
-    fine: list[Any] = []
-    width = width_m(args) if args.width is not None else None
+    systems: list[Any] = []
+    # the width the run used: --width, else the cut's reference width (time._simulate._check_run)
+    width = width_m(args) if args.width is not None else model.couplings[0].width_ref
 
     def check(sim: Any, fb: str) -> None:
-        roots = None
-        if sim.roots is not None:
-            if not fine:
-                fine.append(assemble(model.with_finer_mesh()))
-            roots = _frozen_roots(fine[0], fb, width, args)
-        facts = simulate_check(model, sim, roots)
+        st = None
+        if sim.roots is not None:  # a continuous cut: a frozen system (a moving slide has none)
+            if not systems:
+                systems.extend([assemble(model), assemble(model.with_finer_mesh())])
+            kw = {"width": width, "speed": args.speed, "delay": args.delay, "terms": fb, "count": ROOTS_COUNT}
+            coarse, fine = (stability(sy.at(args.position), **kw) for sy in systems)
+            st = mesh_checked(coarse, fine, model)
+        facts = simulate_check(model, st)
         sim.meta.update(facts)
         for line in simulate_lines(facts):
             print(line)
