@@ -437,5 +437,9 @@ def test_the_figure_says_what_the_mesh_costs(shaper_diagram):
     assert f"beam mesh of {m['mesh_beam_elements']} elements" in note
     assert f"within {m['mesh_absolute_min_error_bound']:.0%}" in note
     assert f"moves {m['mesh_envelope_change_median']:.0%}" in note
+    # a claim of no chatter at the ceiling that the finer mesh does not confirm: its legend entry says so
+    assert m["mesh_free_speeds_fine_limited"] > 0
+    labels = [t.get_text() for t in axes[0].get_legend().get_texts()]
+    assert any("ceiling\n(not confirmed on a mesh twice as fine)" in t for t in labels)
     bare = dataclasses.replace(shaper_diagram, meta={k: v for k, v in m.items() if not k.startswith("mesh")})
     assert plot_lobes(bare)[-1].get_title(loc="right") == ""
