@@ -119,3 +119,19 @@ def test_roots_judges_a_milling_cut_on_both_meshes(capsys, width_mm, expected):
     doc = json.loads(capsys.readouterr().out)
     assert code == 0 and doc["verdict"] == expected and doc["mesh"]["verdict"] == expected
     assert doc["mesh"]["beam_elements"] == 3 and doc["mesh"]["fine_beam_elements"] == 6
+
+
+def test_python_lobes_of_a_beam_tool_checks_its_mesh_on_request():
+    """The library route: without mesh_error the summary says the error was
+    not estimated; with it, the command's facts (the limit at 8000 rpm on
+    6 elements, as the command finds it with the same ceiling)."""
+    import chatterlab as cl
+
+    m = load_model(TOOL)
+    rpm = np.array([8000.0, 12000.0])
+    plain = cl.lobes(m, rpm, width_max=CEILING)
+    assert "discretisation error was not estimated" in plain.summary()
+    est = cl.lobes(m, rpm, width_max=CEILING, mesh_error=True)
+    assert est.meta["mesh_check_speed_rpm"] == 8000.0
+    assert est.meta["mesh_fine_min_m"] == limit(6, 8000.0)  # the same search, ceiling and mesh
+    assert "a_lim at 8000 rpm" in est.summary()

@@ -97,16 +97,11 @@ def _helix_cost(mill: Any, depth: float) -> None:
 def _structure(
     model: Any, position: float | None, args: argparse.Namespace | None = None
 ) -> tuple[Any, Any, str]:
-    from ..lobes._milling_model import milling_loop_of, reduce_structure
+    from ..lobes._milling_model import model_milling_loop
     from ..structure._assembly import assemble
 
-    fz = assemble(model).at(position)
-    S = milling_loop_of(fz)
-    note = ""
-    if not model.modes and not model.is_matrix_model:  # a structural model: keep the modes that matter
-        S, info = reduce_structure(S)
-        note = info.note()
-    return S, S.milling, note
+    S, info = model_milling_loop(assemble(model).at(position))  # a structural model: the modes that matter
+    return S, S.milling, "" if info is None else info.note()
 
 
 def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float | None) -> Any:
@@ -151,72 +146,10 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float | 
         # the same limits on the mesh twice as fine: the smallest, and every claim of none below the ceiling
         kw = {"method": method, "depth_max": wmax, "scan": check_count(args.scan, "--scan", 2),
               "steps": check_count(args.steps, "--steps", 2)}  # fmt: skip
-        ml = _with_mesh_error(args, model, rpm, ml, compute, kw)
+        from ..lobes._milling_mesh import milling_with_mesh_error
+
+        ml = milling_with_mesh_error(ml, model, args.position, rpm, **kw)
     return ml
-
-
-def _with_mesh_error(args: argparse.Namespace, model: Any, rpm: Any, ml: Any, compute: Any, kw: Any) -> Any:
-    """A milling diagram of a model with beams with its discretisation
-    error in ``meta`` (docs/milling.md, "The beam mesh"; docs/lobes.md,
-    Eqs. M1-M5): the limit at the speed of the smallest a_lim computed again
-    on :meth:`Model.with_finer_mesh` (its change and the bound of Eq. M3),
-    and every speed with no limit below the ceiling (a claim of stability)
-    searched again there.  The other speeds are not: a Floquet search costs
-    seconds per speed on an FE tool, and the line says which were checked."""
-    import dataclasses
-    import time
-
-    import numpy as np
-
-    from ..model._mesh import MeshEstimate, limit_line, mesh_record, mesh_words
-
-    t0 = time.perf_counter()
-    basis = np.asarray(ml.basis).astype(str)
-    und = basis == "undetermined"
-    fin = np.isfinite(ml.b_lim) & ~und
-    free = ~np.isfinite(ml.b_lim) & ~und  # "no instability found up to the ceiling"
-    idx = np.nonzero(free)[0].tolist()
-    j = int(np.argmin(np.where(fin, ml.b_lim, np.inf))) if fin.any() else -1
-    if j >= 0:
-        idx = sorted({j, *idx})
-    meta: dict[str, Any] = {
-        **mesh_record(model),
-    }
-    if not idx:  # every speed undetermined: nothing claimed to check
-        meta["mesh"] = (
-            f"mesh: {mesh_words(model)}; every speed undetermined on this mesh: not checked twice as fine"
-        )
-        return dataclasses.replace(ml, meta={**ml.meta, **meta})
-    S2, _, _ = _structure(model.with_finer_mesh(), args.position, args)
-    fine = compute(S2, np.asarray(rpm, float)[idx], **kw)
-    at = dict(zip(idx, np.asarray(fine.b_lim, float).tolist(), strict=True))
-    parts = []
-    lim = ml.limit_name
-    if j >= 0:
-        est = MeshEstimate(float(ml.b_lim[j]), at[j])
-        meta.update({
-            "mesh_check_speed_rpm": float(rpm[j]),
-            "mesh_fine_min_m": at[j],
-            "mesh_min_change": float(est.relative_change),
-            "mesh_min_error_bound": float(est.relative_bound),
-        })  # fmt: skip
-        parts.append(limit_line(model, f"{lim} at {float(rpm[j]):g} rpm", float(ml.b_lim[j]), at[j]))
-    if free.any():
-        k = np.nonzero(free)[0]
-        found = [at[i] for i in k.tolist() if np.isfinite(at[i])]
-        meta["mesh_free_speeds"] = int(k.size)
-        meta["mesh_free_speeds_fine_limited"] = len(found)
-        if found:
-            text = (
-                f"at {len(found)} of the {k.size} speeds with no {lim} below the ceiling, the mesh twice as fine"
-                f" finds one (smallest {min(found) * 1e3:.4g} mm): their stability is not established"
-            )
-        else:
-            text = f"the {k.size} speeds with no {lim} below the ceiling have none on the mesh twice as fine either"
-        parts.append(text if parts else f"mesh: {mesh_words(model)}; {text}")
-    meta["mesh_seconds"] = time.perf_counter() - t0
-    meta["mesh"] = "; ".join(parts) + "; the other speeds were not computed twice as fine"
-    return dataclasses.replace(ml, meta={**ml.meta, **meta})
 
 
 class _MultiplierTable:

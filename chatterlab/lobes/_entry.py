@@ -157,16 +157,19 @@ def _model(model: Any, speeds: Any, width_max: float | None, position: float | N
         return lobes_model_frf(model, np.asarray(speeds, float), width_max=_w(width_max, 0.02), **options)
     frozen = assemble(model).at(position)
     if model.process is not None and model.process.kind == "milling" and options.get("method") != "zoa":
-        from ._milling_model import milling_loop_of, reduce_structure
+        from ._milling_model import model_milling_loop
 
-        loop = milling_loop_of(frozen)
-        if not model.modes and not model.is_matrix_model:  # a structural model: the modes that matter
-            loop = reduce_structure(loop)[0]
+        loop = model_milling_loop(frozen)[0]  # a structural model: the modes that matter
+        mesh_error = bool(options.pop("mesh_error", False))
         d = lobes(loop, speeds, width_max=width_max, **options)
-        if model.beams:  # a beam tool's mesh error: the command line estimates it (cli._milling)
+        # a beam tool: its mesh error (lobes._mesh_error), or the word that it was not estimated
+        if model.beams:
             from ._mesh_error import not_estimated
+            from ._milling_mesh import milling_with_mesh_error
 
-            d = replace(d, meta={**d.meta, "mesh": not_estimated(model, option=False)})
+            if mesh_error:
+                return milling_with_mesh_error(d, model, position, speeds, **options)
+            d = replace(d, meta={**d.meta, "mesh": not_estimated(model)})
         return d
     zoa = options.pop("method", None) == "zoa"
     d = lobes(frozen, speeds, width_max=width_max, **options)

@@ -87,16 +87,14 @@ def with_mesh_error(
     return dataclasses.replace(diagram, meta={**diagram.meta, **meta})
 
 
-def not_estimated(model: Any, option: bool = True) -> str:
+def not_estimated(model: Any) -> str:
     """The summary's line of a diagram of a model with beams computed without
-    :func:`with_mesh_error`: what it does not say (``option``: the route
-    takes ``mesh_error=True``; a milling tool's is the command's)."""
-    how = (
-        "lobes(..., mesh_error=True) or the lobes command estimate it"
-        if option
-        else "the lobes command estimates it"
+    its mesh check (:func:`with_mesh_error`, :func:`milling_with_mesh_error`):
+    what it does not say."""
+    return (
+        f"mesh: {mesh_words(model)}; its discretisation error was not estimated (lobes(..., mesh_error=True)"
+        " or the lobes command estimate it)"
     )
-    return f"mesh: {mesh_words(model)}; its discretisation error was not estimated ({how})"
 
 
 def mesh_line(meta: dict[str, Any], model: Any, limit: str = "b_lim") -> str:

@@ -43,7 +43,14 @@ from ..process import ClosedLoop, Milling, milling_loop
 #: a direction of the cut this many times stiffer (static compliance) than the other is held rigid
 RIGID_RATIO = 1e2
 
-__all__ = ["milling_of", "milling_loop_of", "is_milling", "reduce_structure", "Reduction"]
+__all__ = [
+    "milling_of",
+    "milling_loop_of",
+    "is_milling",
+    "reduce_structure",
+    "Reduction",
+    "model_milling_loop",
+]
 
 
 def is_milling(model: Any) -> bool:
@@ -151,3 +158,16 @@ def reduce_structure(S: ClosedLoop, f_keep: float | None = None) -> tuple[Closed
     H, Hr = full_S.frf(w), R.frf(w)
     err = float(np.max(np.abs(H - Hr)) / np.max(np.abs(H)))
     return R, Reduction(S.n, kept, R.n - kept, float(f_keep), err, full, float(R.omega_max), rigid)
+
+
+def model_milling_loop(frozen: Any) -> tuple[ClosedLoop, Reduction | None]:
+    """The milling loop of a model's frozen configuration as every route
+    analyses it: :func:`milling_loop_of`, and a structural model (not modal,
+    not given by matrices) reduced to the modes that matter
+    (:func:`reduce_structure`; its :class:`Reduction`, None when not
+    reduced)."""
+    S = milling_loop_of(frozen)
+    model = frozen.model
+    if model.modes or model.is_matrix_model:
+        return S, None
+    return reduce_structure(S)

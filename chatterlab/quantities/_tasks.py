@@ -334,7 +334,7 @@ class QuantityTask:
         up to ``width_max``)."""
         from ..frequency._floquet import multipliers
         from ..lobes._milling import milling_lobes
-        from ..lobes._milling_model import is_milling, milling_loop_of, reduce_structure
+        from ..lobes._milling_model import is_milling, model_milling_loop
 
         mdl = sy.model
         if not is_milling(mdl):
@@ -344,8 +344,7 @@ class QuantityTask:
             )
 
         def structure() -> Any:
-            S = milling_loop_of(fz)
-            return S if (mdl.modes or mdl.is_matrix_model) else reduce_structure(S)[0]
+            return model_milling_loop(fz)[0]
 
         S = _cached(("tool", self.key, pkey, pos), structure)
         rpm = float(vals.get("speed", mdl.process.speed))

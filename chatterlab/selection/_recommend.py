@@ -116,11 +116,9 @@ def source_of(source: Any, position: float | None = None, method: Any = None) ->
 
         frozen = assemble(source).at(position)
         if source.process.kind == "milling" and method != "zoa":
-            from ..lobes import milling_loop_of, reduce_structure
+            from ..lobes._milling_model import model_milling_loop
 
-            loop = milling_loop_of(frozen)
-            if not source.modes and not source.is_matrix_model:
-                loop = reduce_structure(loop)[0]
+            loop = model_milling_loop(frozen)[0]
             return Source(source, source.process, source.couplings, source.machine, name, loop=loop,
                           position=position)  # fmt: skip
         return Source(source, source.process, source.couplings, source.machine, name, frozen=frozen,
