@@ -344,7 +344,7 @@ def _atlas_mesh(
 
     import numpy as np
 
-    from ..model._mesh import MeshEstimate, converged_tail, limit_line, mesh_record, pct
+    from ..model._mesh import MeshEstimate, converged_tail, envelope_record, limit_line, mesh_record, pct
     from ..quantities._tasks import AtlasTask
     from ..sweep._engine import sweep
 
@@ -369,28 +369,21 @@ def _atlas_mesh(
     )
     bl, b2 = np.asarray(res.data["b_lim"], float), np.asarray(fres.data["b_lim"], float)
     worst, worst2 = float(np.nanmin(bl)), float(np.nanmin(b2))  # inf where every point is at the ceiling
-    env = np.abs(MeshEstimate(bl, b2).relative_change)
-    env = env[np.isfinite(env)]
-    free = ok_infs(bl, res.task_status)
-    lost = int(np.count_nonzero(free & np.isfinite(b2)))
     est = MeshEstimate(worst, worst2)
     attrs: dict[str, Any] = {
         **mesh_record(model),
         "mesh_fine_worst_m": worst2,
         "mesh_worst_change": float(est.relative_change),
         "mesh_worst_error_bound": float(est.relative_bound),
-        "mesh_envelope_change_median": float(np.median(env)) if env.size else float("nan"),
-        "mesh_envelope_change_max": float(env.max()) if env.size else float("nan"),
-        "mesh_envelope_points": int(env.size),
-        "mesh_free_points": int(np.count_nonzero(free)),
-        "mesh_free_points_fine_limited": lost,
+        **envelope_record(bl, b2, ok_infs(bl, res.task_status), "points"),
         "mesh_position_min_fine_m": np.nanmin(np.where(np.isnan(b2), np.inf, b2), axis=1),
     }
+    lost = attrs["mesh_free_points_fine_limited"]
     line = limit_line(model, "worst-case b_lim", worst, worst2, tail=False)
-    if env.size:
+    if attrs["mesh_envelope_points"]:
         line += (
-            f"; the atlas moves by {pct(attrs['mesh_envelope_change_median'])} (median over {env.size} points),"
-            f" up to {pct(attrs['mesh_envelope_change_max'])}"
+            f"; the atlas moves by {pct(attrs['mesh_envelope_change_median'])} (median over"
+            f" {attrs['mesh_envelope_points']} points), up to {pct(attrs['mesh_envelope_change_max'])}"
         )
     if lost:
         line += (

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..frequency._delay_system import single_threaded
-from ..model._mesh import MeshEstimate, converged_tail, mesh_record, mesh_words, pct
+from ..model._mesh import MeshEstimate, converged_tail, envelope_record, mesh_record, mesh_words, pct
 from ..structure._assembly import FrozenSystem, assemble
 from ._damped import Boundary
 from ._result import LobeDiagram
@@ -63,24 +63,17 @@ def with_mesh_error(
     b_fine, _, _ = bd.envelope(np.asarray(diagram.delay, float))
     am = bd.absolute_minimum()
     est = MeshEstimate(diagram.absolute_minimum["width"], am["width"])
-    env = np.abs(MeshEstimate(diagram.b_lim, b_fine).relative_change)
-    env = env[np.isfinite(env)]
     # the speeds that end at the ceiling (a claim of no chatter below it) where the finer mesh has a limit
     free = np.isinf(np.asarray(diagram.b_lim, float)) & (
         np.asarray(diagram.kind).astype(str) != "undetermined"
     )
-    lost = int(np.count_nonzero(free & np.isfinite(np.asarray(b_fine, float))))
     meta: dict[str, Any] = {
         **mesh_record(model),
         "mesh_fine_absolute_min_m": float(am["width"]),
         "mesh_fine_absolute_min_chatter_hz": float(am["chatter_hz"]),
         "mesh_absolute_min_change": float(est.relative_change),
         "mesh_absolute_min_error_bound": float(est.relative_bound),
-        "mesh_envelope_change_median": float(np.median(env)) if env.size else float("nan"),
-        "mesh_envelope_change_max": float(env.max()) if env.size else float("nan"),
-        "mesh_envelope_speeds": int(env.size),
-        "mesh_free_speeds": int(np.count_nonzero(free)),
-        "mesh_free_speeds_fine_limited": lost,
+        **envelope_record(diagram.b_lim, b_fine, free, "speeds"),
     }
     meta["mesh_seconds"] = time.perf_counter() - t0
     meta["mesh"] = mesh_line(meta, model, diagram.limit_name)

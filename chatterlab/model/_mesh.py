@@ -46,6 +46,7 @@ __all__ = [
     "width_verdict",
     "converged_tail",
     "mesh_record",
+    "envelope_record",
 ]
 
 #: the lowest order of convergence assumed (point loads inside elements)
@@ -105,6 +106,29 @@ def mesh_record(model: Any, prefix: str = "mesh_") -> dict[str, Any]:
         f"{prefix}beam_elements": model.beam_elements,
         f"{prefix}fine_beam_elements": model.with_finer_mesh().beam_elements,
         f"{prefix}order": P_MIN,
+    }
+
+
+def envelope_record(coarse: Any, fine: Any, free: Any, points: str) -> dict[str, Any]:
+    """How far a set of limits moves on the mesh twice as fine (``coarse``,
+    ``fine``: SI arrays of the same shape, inf at the ceiling): the median
+    and largest |fine - coarse| / coarse where both are finite (a change,
+    not a bound) and their count, and of the points ``free`` (a mask: a
+    claim of no chatter below the ceiling) how many have a limit on the
+    finer mesh.  Keys ``mesh_envelope_change_median``, ``_max``,
+    ``mesh_envelope_<points>``, ``mesh_free_<points>``,
+    ``mesh_free_<points>_fine_limited`` (``points``: "speeds", "points")."""
+    env = np.abs(MeshEstimate(coarse, fine).relative_change)
+    env = env[np.isfinite(env)]
+    free = np.asarray(free, bool)
+    return {
+        "mesh_envelope_change_median": float(np.median(env)) if env.size else float("nan"),
+        "mesh_envelope_change_max": float(env.max()) if env.size else float("nan"),
+        f"mesh_envelope_{points}": int(env.size),
+        f"mesh_free_{points}": int(np.count_nonzero(free)),
+        f"mesh_free_{points}_fine_limited": int(
+            np.count_nonzero(free & np.isfinite(np.asarray(fine, float)))
+        ),
     }
 
 
