@@ -50,9 +50,7 @@ def milling_with_mesh_error(
     j = int(np.argmin(np.where(fin, ml.b_lim, np.inf))) if fin.any() else -1
     if j >= 0:
         idx = sorted({j, *idx})
-    meta: dict[str, Any] = {
-        **mesh_record(model),
-    }
+    meta: dict[str, Any] = mesh_record(model)
     if not idx:  # every speed undetermined: nothing claimed to check
         meta["mesh"] = (
             f"mesh: {mesh_words(model)}; every speed undetermined on this mesh: not checked twice as fine"
