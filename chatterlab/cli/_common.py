@@ -116,6 +116,14 @@ def frozen(args: argparse.Namespace) -> Any:
     return fz
 
 
+def unchecked_mesh(model: Any) -> dict[str, Any]:
+    """The ``mesh`` line and ``mesh_estimated = 0`` of a result of a model
+    with beams run with ``--no-mesh-check`` (:func:`chatterlab.lobes._mesh_error.not_estimated`)."""
+    from ..lobes._mesh_error import not_estimated
+
+    return not_estimated(model, "--no-mesh-check; without it the lobes command estimates it")
+
+
 def width_m(args: argparse.Namespace) -> float:
     """``--width`` (mm, required here) in m."""
     if args.width is None:

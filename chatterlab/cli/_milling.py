@@ -142,7 +142,13 @@ def milling_lobes(args: argparse.Namespace, model: Any, rpm: Any, wmax: float | 
         import dataclasses
 
         ml = dataclasses.replace(ml, meta={**ml.meta, "ceiling": why + " (--width-max sets it)"})
-    if model.beams and method != "zoa":
+    if model.beams and method != "zoa" and getattr(args, "no_mesh_check", False):
+        import dataclasses
+
+        from ._common import unchecked_mesh
+
+        ml = dataclasses.replace(ml, meta={**ml.meta, **unchecked_mesh(model)})
+    elif model.beams and method != "zoa":
         # the same limits on the mesh twice as fine: the smallest, and every claim of none below the ceiling
         kw = {"method": method, "depth_max": wmax, "scan": check_count(args.scan, "--scan", 2),
               "steps": check_count(args.steps, "--steps", 2)}  # fmt: skip

@@ -184,7 +184,7 @@ def lobes(
         from ._mesh_error import not_estimated, with_mesh_error
 
         if not mesh_error:
-            return replace(diagram, meta={**diagram.meta, "mesh": not_estimated(frozen.model)})
+            return replace(diagram, meta={**diagram.meta, **not_estimated(frozen.model)})
         return with_mesh_error(diagram, frozen, fmin=fmin, fmax=fmax, couplings=couplings)
     return diagram
 

@@ -169,7 +169,7 @@ def _model(model: Any, speeds: Any, width_max: float | None, position: float | N
 
             if mesh_error:
                 return milling_with_mesh_error(d, model, position, speeds, **options)
-            d = replace(d, meta={**d.meta, "mesh": not_estimated(model)})
+            d = replace(d, meta={**d.meta, **not_estimated(model)})
         return d
     zoa = options.pop("method", None) == "zoa"
     d = lobes(frozen, speeds, width_max=width_max, **options)

@@ -77,17 +77,27 @@ def with_mesh_error(
     }
     meta["mesh_seconds"] = time.perf_counter() - t0
     meta["mesh"] = mesh_line(meta, model, diagram.limit_name)
-    return dataclasses.replace(diagram, meta={**diagram.meta, **meta})
+    return dataclasses.replace(diagram, meta={**estimated(diagram.meta), **meta})
 
 
-def not_estimated(model: Any) -> str:
-    """The summary's line of a diagram of a model with beams computed without
-    its mesh check (:func:`with_mesh_error`, :func:`milling_with_mesh_error`):
-    what it does not say."""
-    return (
-        f"mesh: {mesh_words(model)}; its discretisation error was not estimated (lobes(..., mesh_error=True)"
-        " or the lobes command estimate it)"
-    )
+def estimated(meta: dict[str, Any]) -> dict[str, Any]:
+    """``meta`` without the mark of :func:`not_estimated`: a diagram computed
+    without its mesh check and given it afterwards."""
+    return {k: v for k, v in meta.items() if k != "mesh_estimated"}
+
+
+def not_estimated(
+    model: Any, how: str = "lobes(..., mesh_error=True) or the lobes command estimate it"
+) -> dict[str, Any]:
+    """The meta of a diagram of a model with beams computed without its mesh
+    check (:func:`with_mesh_error`, :func:`milling_with_mesh_error`): the
+    summary's line that says what it does not say (``how``: how to have it
+    estimated) and ``mesh_estimated = 0``, from which the figure says it
+    too."""
+    return {
+        "mesh": f"mesh: {mesh_words(model)}; its discretisation error was not estimated ({how})",
+        "mesh_estimated": 0,
+    }
 
 
 def mesh_line(meta: dict[str, Any], model: Any, limit: str = "b_lim") -> str:

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..model._mesh import MeshEstimate, limit_line, mesh_record, mesh_words
 from ..structure._assembly import assemble
+from ._mesh_error import estimated
 from ._milling import milling_lobes
 from ._milling_model import model_milling_loop
 from ._result import LobeDiagram
@@ -55,7 +56,7 @@ def milling_with_mesh_error(
         meta["mesh"] = (
             f"mesh: {mesh_words(model)}; every speed undetermined on this mesh: not checked twice as fine"
         )
-        return dataclasses.replace(ml, meta={**ml.meta, **meta})
+        return dataclasses.replace(ml, meta={**estimated(ml.meta), **meta})
     S2 = model_milling_loop(assemble(model.with_finer_mesh()).at(position))[0]
     fine = milling_lobes(S2, np.asarray(rpm, float)[idx], **search)
     at = dict(zip(idx, np.asarray(fine.b_lim, float).tolist(), strict=True))
@@ -85,4 +86,4 @@ def milling_with_mesh_error(
         parts.append(text if parts else f"mesh: {mesh_words(model)}; {text}")
     meta["mesh_seconds"] = time.perf_counter() - t0
     meta["mesh"] = "; ".join(parts) + "; the other speeds were not computed twice as fine"
-    return dataclasses.replace(ml, meta={**ml.meta, **meta})
+    return dataclasses.replace(ml, meta={**estimated(ml.meta), **meta})

@@ -154,9 +154,17 @@ def draw_lobe_panel(
     ytop = top if 1.2 * peak >= top else 1.2 * peak
     handles = _draw_lobes_and_envelope(ax, curves, lo, hi, vx, em, ytop, px, dense, measured, d.limit_name)
     handles += _draw_limits(ax, d, lo, hi, references)
-    # a model with beams whose finer mesh has a limit where this one ends at the ceiling (lobes._mesh_error)
-    unconfirmed = bool((getattr(d, "meta", None) or {}).get("mesh_free_speeds_fine_limited"))
-    handles += _draw_claims(ax, _claim_spans(d, vx, em), lo, hi, top, unconfirmed)
+    # a model with beams whose finer mesh has a limit where this one ends at the ceiling
+    # (lobes._mesh_error), or whose mesh was not checked (--no-mesh-check)
+    meta = getattr(d, "meta", None) or {}
+    mesh = (
+        "not confirmed"
+        if meta.get("mesh_free_speeds_fine_limited")
+        else "not checked"
+        if meta.get("mesh_estimated") == 0
+        else ""
+    )
+    handles += _draw_claims(ax, _claim_spans(d, vx, em), lo, hi, top, mesh)
     ax.set_ylim(0, ytop)
     labelled = _label_lobes(ax, curves, vx, em, lo, hi, ytop, lobe_numbers) if not dense else []
     return {
@@ -282,13 +290,14 @@ def _draw_claims(
     lo: float,
     hi: float,
     top: float,
-    unconfirmed: bool = False,
+    mesh: str = "",
 ) -> list[Any]:
     """The claims that are not a boundary, as spans of speed: inf (hatched at
-    the top), undetermined (orange), contradicted (magenta).  ``unconfirmed``:
-    the mesh twice as fine has a limit where this diagram has none below the
-    ceiling, and the legend says so.  Returns the legend handles (one per
-    kind drawn)."""
+    the top), undetermined (orange), contradicted (magenta).  ``mesh``: "not
+    confirmed" when the mesh twice as fine has a limit where this diagram
+    has none below the ceiling, "not checked" when that mesh was not run,
+    and the legend says so.  Returns the legend handles (one per kind
+    drawn)."""
     handles: list[Any] = []
     trans = ax.get_xaxis_transform()
     styles: dict[int, dict[str, Any]] = {
@@ -298,7 +307,7 @@ def _draw_claims(
             fc="none",
             ec="tab:green",
             label=f"no chatter below the {top:g} mm ceiling"
-            + ("\n(not confirmed on a mesh twice as fine)" if unconfirmed else ""),
+            + (f"\n({mesh} on a mesh twice as fine)" if mesh else ""),
         ),
         2: dict(
             y=(0.0, 1.0),

@@ -218,6 +218,11 @@ def _mesh_note(axf: Any, d: Any) -> None:
     (lobes._mesh_error), right of the bottom panel's title, so that the
     figure says what its mesh costs in accuracy."""
     meta = getattr(d, "meta", {}) or {}
+    if meta.get("mesh_estimated") == 0:  # --no-mesh-check
+        axf.set_title(
+            "beam mesh: discretisation error not estimated", fontsize=7, loc="right", color="tab:red"
+        )
+        return
     if "mesh_beam_elements" not in meta:
         return
     bound, env = meta.get("mesh_absolute_min_error_bound"), meta.get("mesh_envelope_change_median")
