@@ -307,22 +307,30 @@ def test_sle_of_a_milling_model_with_beams_is_checked_at_its_critical_speeds(tmp
     assert "mesh" not in text
 
 
-def test_ssv_of_a_model_with_beams_says_its_limits_are_unchecked(monkeypatch, capsys):
-    """ssv's limit search costs minutes on a beam model (the shaper: 127 s CPU
-    for one speed, docs/ssv.md), so it is not repeated on the finer mesh; the
-    output says the limits are this mesh's instead of staying silent.  The
-    search is stubbed: the line, not the search, is under test."""
+def test_ssv_of_a_model_with_beams_checks_its_smallest_limit_on_the_finer_mesh(monkeypatch, capsys):
+    """ssv on a beam model searches its smallest limit again on the mesh
+    twice as fine (tests/test_mesh_ssv_sle.py runs the searches for real).
+    The search is stubbed here (0.2 mm on the paper's 6 elements, 0.21 mm on
+    12): the line gives the change +5.0 % and the bound 2 |change| = 10.0 %."""
+    import numpy as np
+
     import chatterlab.frequency as freq
+    from chatterlab.frequency._floquet_ssv_limit import SsvLimits
 
-    class Stub:
-        def table(self) -> str:
-            return "(limits)"
+    def stub(source, speeds, rva, rvf, **kw):
+        shape = (len(speeds), len(rva), len(rvf))
+        b = np.full(shape, 2.1e-4 if source.model.beam_elements == 12 else 2e-4)
+        return SsvLimits(
+            np.asarray(speeds, float), np.asarray(rva, float), np.asarray(rvf, float), b, np.full(shape, 83.0),
+            np.ones(shape), "sine", "spectral", 5e-3, 20, "m/s",
+        )  # fmt: skip
 
-    monkeypatch.setattr(freq, "ssv_limits", lambda *a, **k: Stub())
+    monkeypatch.setattr(freq, "ssv_limits", stub)
     code, text, _ = run(capsys, "ssv", SHAPER, "--speed", "3", "--rva", "0", "--rvf", "0.5")
     assert code == 0
     assert text.splitlines()[-1].startswith(
-        "mesh: 6 beam elements; these limits are this mesh's: not checked"
+        "mesh: 6 beam elements; twice as fine: b_lim 0.21 mm (+5.0%), discretisation error of this b_lim <= 10.0%"
+        " at speed 3 m/s, RVA 0, RVF 0.5, the grid's smallest b_lim"
     )
 
 

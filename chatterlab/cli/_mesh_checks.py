@@ -1,5 +1,5 @@
-"""The discretisation error of ``simulate``, ``frf``, ``sweep`` and ``sle`` on a
-model with beams (docs/lobes.md, "The discretisation error of a result", Eqs.
+"""The discretisation error of ``simulate``, ``frf``, ``sweep``, ``sle`` and ``ssv``
+on a model with beams (docs/lobes.md, "The discretisation error of a result", Eqs.
 M1-M5; the machinery is :mod:`chatterlab.model._mesh`, never repeated here).
 
 * ``simulate`` of a continuous cut: the rightmost characteristic root of the
@@ -17,17 +17,38 @@ M1-M5; the machinery is :mod:`chatterlab.model._mesh`, never repeated here).
   :func:`sle_check`); ``simulate`` of a milling model: the linearised cut's
   Floquet verdict at the run's (a_p, rpm) (:func:`milling_run_check`).  A
   milling verdict's margin is the Floquet exponent ln|mu| / T (1/s).
+* ``ssv``: the limit searched again at the grid's smallest limit and at up
+  to :data:`SSV_FREE_CAP` points with none below the ceiling
+  (:func:`ssv_picks`, :func:`ssv_check`); a contradicted claim of no
+  chatter becomes NaN (``undetermined``).
+* ``sle`` of a turning model: the whole runout response again on h/2, each
+  verdict by the roots on both meshes and by :func:`width_verdict` on the
+  limits of both (:func:`runout_check`).
+
+The results keep their own class's files and gain the mesh facts through
+:func:`meshed` (one subclass per result class, attributes ``mesh_*`` and
+per-point data variables).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from ..model._mesh import MeshEstimate, converged_tail, limit_line, mesh_record, mesh_verdict, mesh_words, pct
+from ..model._mesh import (
+    MeshEstimate,
+    converged_tail,
+    limit_line,
+    mesh_record,
+    mesh_verdict,
+    mesh_words,
+    pct,
+    width_verdict,
+)
 
 __all__ = [
     "simulate_check",
@@ -41,6 +62,10 @@ __all__ = [
     "sle_picks",
     "sle_check",
     "milling_run_check",
+    "meshed",
+    "ssv_picks",
+    "ssv_check",
+    "runout_check",
 ]
 
 #: simulate's words for a verdict of the frozen system
@@ -386,7 +411,6 @@ def sle_check(model: Any, res: Any, fine: Any, picks: list[int]) -> tuple[Any, d
     becomes ``undetermined`` (no SLE).  The largest |SLE| among the checked
     stable speeds gets its change and bound (Eq. M3, absolute, m).
     ``(result with a mesh record, the record, the printed lines)``."""
-    import dataclasses
     import json
 
     verdict = list(res.verdict)
@@ -425,11 +449,7 @@ def sle_check(model: Any, res: Any, fine: Any, picks: list[int]) -> tuple[Any, d
         "mesh_checks": json.dumps(checks),
         "mesh": head,
     }
-    out = _meshed_surface_location()(
-        **{f.name: getattr(res, f.name) for f in dataclasses.fields(res)},
-        mesh=record,
-    )
-    out = dataclasses.replace(out, verdict=verdict, sle=sle, peak_to_valley=p2v)
+    out = meshed(res, record, verdict=verdict, sle=sle, peak_to_valley=p2v)
     return out, record, [head, *texts]
 
 
@@ -454,24 +474,283 @@ def sle_picks(res: Any) -> list[int]:
 
 
 @functools.cache
-def _meshed_surface_location() -> Any:
-    """The class, built on first use (importing chatterlab.frequency._forced costs)."""
+def _meshed_class(cls: Any) -> Any:
+    """``cls`` (a frozen :class:`~chatterlab.io.Result` dataclass) with its
+    mesh check: ``mesh``, the ``mesh_*`` attributes of its files (netCDF,
+    JSON), and ``mesh_data``, data variables of its files (``name: (values,
+    unit, long name)``, per point of the result); built once per class."""
     from dataclasses import dataclass, field
 
-    from ..frequency._forced import SurfaceLocation
-
     @dataclass(frozen=True, eq=False)
-    class MeshedSurfaceLocation(SurfaceLocation):
-        """A :class:`SurfaceLocation` with its mesh check: the ``mesh_*``
-        attributes of its files (netCDF, JSON)."""
-
+    class Meshed(cls):
         mesh: dict[str, Any] = field(default_factory=dict)
+        mesh_data: dict[str, Any] = field(default_factory=dict)
 
         def dataset_parts(self) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
             coords, data, attrs = super().dataset_parts()
-            return coords, data, {**attrs, **self.mesh}
+            return coords, {**data, **self.mesh_data}, {**attrs, **self.mesh}
 
-    return MeshedSurfaceLocation
+    Meshed.__name__ = Meshed.__qualname__ = f"Meshed{cls.__name__}"
+    return Meshed
+
+
+def meshed(
+    res: Any, record: dict[str, Any], data: dict[str, Any] | None = None, cls: Any = None, **changes: Any
+) -> Any:
+    """``res`` with its mesh check (``cls``, default :func:`_meshed_class` of
+    its type): the attributes ``record``, the data variables ``data``, and
+    the fields ``changes`` (the verdicts and values the finer mesh did not
+    confirm)."""
+    import dataclasses
+
+    fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(res)}
+    cls = cls if cls is not None else _meshed_class(type(res))  # type: ignore[arg-type]
+    return cls(**{**fields, **changes}, mesh=record, mesh_data=data or {})
+
+
+# ---------------------------------------------------------------------------- ssv
+
+#: the most no-chatter points (no limit below the width ceiling) of an ``ssv``
+#: grid that are checked on the finer mesh: each is a whole limit search there
+#: (on the shaper's example in docs/ssv.md about a minute of CPU), so a grid
+#: with more is checked at this many, spread over them, and the line says how
+#: many were not
+SSV_FREE_CAP = 3
+
+
+def ssv_picks(res: Any, cap: int = SSV_FREE_CAP) -> tuple[int | None, list[int], int]:
+    """The flat grid indices (speeds x RVA x RVF) an ``ssv`` result is checked
+    at on the finer mesh: the point of the smallest finite limit (None when
+    there is none), the points with no limit below the ceiling (all of them
+    when at most ``cap``, else ``cap`` spread evenly over them in grid
+    order), and how many of those were left unchecked."""
+    b = np.asarray(res.b_lim, float).reshape(-1)
+    finite = np.nonzero(np.isfinite(b))[0]
+    crit = int(finite[np.argmin(b[finite])]) if finite.size else None
+    free = np.nonzero(np.isposinf(b))[0]
+    chosen = (
+        free
+        if free.size <= cap
+        else free[np.unique(np.round(np.linspace(0, free.size - 1, cap)).astype(int))]
+    )
+    return crit, [int(i) for i in chosen], int(free.size - chosen.size)
+
+
+def ssv_check(
+    model: Any, res: Any, fine_limit: Callable[[float, float, float], float], cap: int = SSV_FREE_CAP
+) -> tuple[Any, dict[str, Any]]:
+    """The SSV limits of a model with beams checked on the mesh twice as fine
+    at the points :func:`ssv_picks` chooses (``fine_limit(speed, rva, rvf)``:
+    the limit there on :meth:`Model.with_finer_mesh`, SI, inf at the
+    ceiling), as ``sweep`` checks a ``b-lim`` grid: the smallest limit's value
+    twice as fine, its change and bound (:func:`limit_line`, Eq. M3); a point
+    with no limit below the ceiling (a claim of no chatter) where the finer
+    mesh finds one is not established: its limit becomes NaN
+    (``undetermined`` in the table).  ``(result with the mesh record, the
+    record)``; the record's ``mesh`` is the printed line."""
+    import json
+    import time
+
+    t0 = time.perf_counter()
+    crit, free, left = ssv_picks(res, cap)
+    b = np.asarray(res.b_lim, float).reshape(-1)
+    name, unit = res.limit_name, res.speed_unit
+
+    def point(flat: int) -> tuple[float, float, float]:
+        i, j, k = np.unravel_index(flat, np.shape(res.b_lim))
+        return float(res.speeds[i]), float(res.rva[j]), float(res.rvf[k])
+
+    def where(flat: int) -> str:
+        s, a, f = point(flat)
+        return f"speed {s:g} {unit}, RVA {a:g}, RVF {f:g}"
+
+    picks = ([crit] if crit is not None else []) + free
+    fine = {flat: float(fine_limit(*point(flat))) for flat in picks}
+    if crit is not None:
+        line = (
+            limit_line(model, name, b[crit], fine[crit], tail=False)
+            + f" at {where(crit)}, the grid's smallest {name}"
+        )
+    else:
+        line = f"mesh: {mesh_words(model)}"
+    n_free = int(np.count_nonzero(np.isposinf(b)))
+    lost = [f for f in free if np.isfinite(fine[f])]
+    held = [f for f in free if not np.isfinite(fine[f])]
+    if n_free:
+        every = " (every point)" if n_free == b.size else ""
+        line += (
+            f"; of the {n_free} point{'s' * (n_free != 1)} with no {name} below the ceiling{every},"
+            f" {len(free)} checked on a mesh twice as fine"
+        )
+        if held:
+            line += ": none below it twice as fine either at " + " and ".join(where(f) for f in held)
+        if lost:
+            line += ("; " if held else ": ") + " and ".join(
+                f"twice as fine {name} {fine[f] * 1e3:.4g} mm at {where(f)}" for f in lost
+            )
+            line += ", so no chatter there is not established: undetermined (NaN in the files)"
+        if left:
+            line += (
+                f"; {left} not checked (at most {cap} are, a limit search each): their claim of no chatter is"
+                " this mesh's"
+            )
+    rest = b.size - len(picks)
+    line += (f"; the other {rest} point{'s' * (rest != 1)} are this mesh's" if rest else "") + converged_tail(
+        model
+    )
+
+    def num(x: float) -> float | None:
+        return float(x) if math.isfinite(x) else None
+
+    checks = [
+        {"point": dict(zip(("speed", "rva", "rvf"), point(f), strict=True)), "limit_m": num(b[f]),
+         "fine_limit_m": num(fine[f]),
+         "verdict": "limit" if f == crit else ("undetermined" if f in lost else "no chatter")}
+        for f in picks
+    ]  # fmt: skip
+    record: dict[str, Any] = {
+        **mesh_record(model),
+        "mesh_points": int(b.size),
+        "mesh_points_checked": len(picks),
+    }
+    if crit is not None:
+        e = MeshEstimate(b[crit], fine[crit])
+        record.update(
+            mesh_point=json.dumps(checks[0]["point"]),
+            mesh_fine_value_m=fine[crit],
+            mesh_change=float(e.relative_change),
+            mesh_error_bound=float(e.relative_bound),
+        )
+    record.update(
+        mesh_free_points=n_free,
+        mesh_free_points_checked=len(free),
+        mesh_free_points_fine_limited=len(lost),
+        mesh_undetermined_points=len(lost),
+        mesh_checks=json.dumps(checks),
+        mesh_seconds=time.perf_counter() - t0,
+        mesh=line,
+    )
+    out = b.copy()
+    out[lost] = math.nan
+    return meshed(res, record, cls=_meshed_ssv_class(), b_lim=out.reshape(np.shape(res.b_lim))), record
+
+
+@functools.cache
+def _meshed_ssv_class() -> Any:
+    """The :class:`SsvLimits` with its mesh check; its table says
+    ``undetermined`` where the check made a limit NaN (the plain table would
+    print a NaN as no limit below the ceiling)."""
+    from dataclasses import dataclass
+
+    from ..frequency._floquet_ssv_limit import SsvLimits
+
+    @dataclass(frozen=True, eq=False)
+    class MeshedSsvLimits(_meshed_class(SsvLimits)):  # type: ignore[misc]
+        def table(self) -> str:
+            lines = super().table().splitlines()
+            b = np.asarray(self.b_lim, float).reshape(-1)
+            first = len(lines) - b.size
+            for flat in np.nonzero(np.isnan(b))[0]:
+                row = lines[first + flat]
+                w = max(12, len(row) - row.rindex("> "))
+                lines[first + flat] = row[: len(row) - w] + "undetermined".rjust(w)
+            return "\n".join(lines)
+
+    return MeshedSsvLimits
+
+
+# ---------------------------------------------------------------------------- sle (turning)
+
+#: at most this many speeds whose verdict the finer mesh did not confirm get a line of their own
+RUNOUT_LINES = 5
+
+
+def runout_check(
+    model: Any, res: Any, fine: Any, limit: Any, fine_limit: Any
+) -> tuple[Any, dict[str, Any], list[str]]:
+    """The runout response of a turning model with beams (``res``, a
+    :class:`RunoutResponse`) against the whole of it on the mesh twice as
+    fine (``fine``: the same speeds on :meth:`Model.with_finer_mesh`);
+    ``limit``, ``fine_limit``: the limit width b_lim at each speed on the two
+    meshes (SI, inf: none below the lobes' ceiling).  A verdict stands only
+    when the roots on both meshes give it and :func:`width_verdict` on the
+    two limits confirms it (the margin b_lim - b outside the limit's bound
+    2 |change|, Eq. M3); else it is ``undetermined`` and a stable speed loses
+    its amplitude (NaN).  Per speed the amplitude twice as fine and the bound
+    of this mesh's, 2 |change|.  ``(result with the record and the per-speed
+    data, the record, the printed lines)``."""
+    from ..frequency._forced import VERDICTS
+
+    n = len(res.speeds)
+    b = float(res.width)
+    verdict, whys = [], []
+    for i in range(n):
+        c, f = str(res.verdict[i]), str(fine.verdict[i])
+        wv, why = width_verdict(model, b, float(limit[i]), float(fine_limit[i]))
+        why = why.removeprefix("mesh: ")
+        if c == "undetermined":
+            v, why = c, "undetermined already on this mesh"
+        elif f != c:
+            v, why = "undetermined", f"{c} on this mesh, {f} on a mesh twice as fine"
+        elif wv != c:
+            v = "undetermined"
+            if wv != "undetermined":
+                why = f"{c} by the roots, but {wv} against the limit b_lim {float(limit[i]) * 1e3:.4g} mm"
+        else:
+            v = c
+        verdict.append(v)
+        whys.append(why)
+    ok = np.array([v == "stable" for v in verdict])
+    e = MeshEstimate(res.amplitude, fine.amplitude)
+    amp = np.where(ok, np.asarray(res.amplitude, float), np.nan)
+    phase = np.where(ok, np.asarray(res.phase, float), np.nan)
+    changed = [i for i in range(n) if verdict[i] != res.verdict[i]]
+    count = {w: verdict.count(w) for w in VERDICTS}
+    line = (
+        f"mesh: {mesh_words(model)}; the whole response again on a mesh twice as fine (all {n} speeds), each"
+        f" verdict also against the limit b_lim on both meshes (Eq. M3): {count['stable']} stable and"
+        f" {count['unstable']} unstable confirmed, {count['undetermined']} undetermined"
+    )
+    if changed:
+        line += f" ({len(changed)} of them not confirmed by the finer mesh: no amplitude)"
+    rel = np.where(ok, np.abs(np.asarray(e.relative_change, float)), np.nan)
+    rb = np.where(ok, np.asarray(e.relative_bound, float), np.nan)
+    if np.any(np.isfinite(rb)):
+        k = int(np.nanargmax(rb))
+        line += (
+            f"; the amplitude moves by up to {pct(float(np.nanmax(rel)))}, its discretisation error <="
+            f" {pct(float(rb[k]))} (largest, at {float(res.speeds[k]):g} rpm; median {pct(float(np.nanmedian(rb)))})"
+        )
+    line += converged_tail(model)
+    lines = [line] + [
+        f"  at {float(res.speeds[i]):g} rpm: {verdict[i]} ({whys[i]})" for i in changed[:RUNOUT_LINES]
+    ]
+    if len(changed) > RUNOUT_LINES:
+        lines.append(
+            f"  and {len(changed) - RUNOUT_LINES} more speeds undetermined (the files' coarse_verdict,"
+            " fine_verdict, b_lim and fine_b_lim)"
+        )
+
+    def codes(vs: Any) -> Any:
+        return np.array([VERDICTS.index(v) if v in VERDICTS else 2 for v in vs], dtype=int)
+
+    record: dict[str, Any] = {
+        **mesh_record(model),
+        "mesh_speeds_checked": n,
+        "mesh_undetermined_speeds": len(changed),
+        "mesh_amplitude_change_max": float(np.nanmax(rel)) if np.any(np.isfinite(rel)) else math.nan,
+        "mesh_amplitude_error_bound_max": float(np.nanmax(rb)) if np.any(np.isfinite(rb)) else math.nan,
+        "mesh": line,
+    }
+    data = {
+        "fine_amplitude": (np.asarray(fine.amplitude, float), "m", "vibration amplitude at the spindle frequency, mesh twice as fine"),
+        "amplitude_error_bound": (np.where(ok, np.asarray(e.bound, float), np.nan), "m", "bound of the amplitude's discretisation error, 2 |change| (Eq. M3)"),
+        "coarse_verdict": (codes(res.verdict), "1", "the verdict on this mesh alone: 0 stable, 1 unstable, 2 undetermined"),
+        "fine_verdict": (codes(fine.verdict), "1", "the verdict on the mesh twice as fine: 0 stable, 1 unstable, 2 undetermined"),
+        "b_lim": (np.asarray(limit, float), "m", "limit width at the speed (inf: none below the ceiling)"),
+        "fine_b_lim": (np.asarray(fine_limit, float), "m", "limit width at the speed, mesh twice as fine"),
+    }  # fmt: skip
+    return meshed(res, record, data, verdict=verdict, amplitude=amp, phase=phase), record, lines
 
 
 # ---------------------------------------------------------------------------- simulate (milling)

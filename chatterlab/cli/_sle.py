@@ -136,13 +136,6 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
                 " closed loop's FRF at the spindle frequency: drop them"
             )
         res, lobes = _turning(args, model, v), None
-        if model.beams:
-            from ..model._mesh import mesh_words
-
-            print(
-                f"mesh: {mesh_words(model)}; the runout response and its verdicts are this mesh's: not checked"
-                " on a finer mesh (not implemented for turning); check a speed with chatterlab roots"
-            )
     write_result(
         res, args, outs, model=model, plot=(lambda: res.plot(lobes=lobes)) if lobes is not None else None
     )
@@ -266,8 +259,12 @@ def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
     if kf is None:
         raise InputError(f"{model.source}: coupling {c.id} has no Kf")
     b = width_m(args)
-    loop = closed_loop(assemble(model).at(_position(args)), width=b, speed=float(v[0]))
+    pos = _position(args)
+    loop = closed_loop(assemble(model).at(pos), width=b, speed=float(v[0]))
     res = runout_response(loop, v, e, feed, float(kf), inputs=point, outputs=point)
+    lines: list[str] = []
+    if model.beams:
+        res, lines = _turning_mesh(model, res, loop.terms, pos, float(kf), point)
     ok = np.array([x == "stable" for x in res.verdict])
     head = (
         f"runout response: {model.name or model.source}, b = {b * 1e3:.4g} mm, e = {e * 1e3:.4g} mm,"
@@ -284,4 +281,47 @@ def _turning(args: argparse.Namespace, model: Any, v: Any) -> Any:
             " the runout is not regenerated"
         )
     print(head)
+    for line in lines:
+        print(line)
     return res
+
+
+#: the ceiling of the limits a turning model's verdicts are judged against on both meshes: the
+#: larger of this and TURNING_CEILING_FACTOR times the width (m)
+TURNING_CEILING = 0.02
+TURNING_CEILING_FACTOR = 4.0
+
+
+def _turning_mesh(
+    model: Any, res: Any, terms: Any, position: Any, kf: float, point: str
+) -> tuple[Any, list[str]]:
+    """A turning model with beams: the whole runout response again on the
+    mesh twice as fine (an FRF and a verdict per speed: about the cost of the
+    response itself), the limit b_lim at each speed on both meshes (the lobes
+    at those speeds, a fraction of a second), each verdict judged by
+    :func:`chatterlab.cli._mesh_checks.runout_check`.  ``(result with its mesh
+    record, the lines to print)``."""
+    import time
+
+    import numpy as np
+
+    from ..frequency._forced import runout_response
+    from ..lobes import lobes
+    from ..process._loop import closed_loop
+    from ..structure._assembly import assemble
+    from ._mesh_checks import runout_check
+
+    t0 = time.perf_counter()
+    b, v = float(res.width), res.speeds
+    ceiling = max(TURNING_CEILING, TURNING_CEILING_FACTOR * b)
+    fz2 = assemble(model.with_finer_mesh()).at(position)
+    loop2 = closed_loop(fz2, width=b, speed=float(v[0]))
+    fine = runout_response(loop2, v, res.eccentricity, res.feed, kf, inputs=point, outputs=point)
+    limits = [
+        np.asarray(lobes(fz, v, width_max=ceiling, terms=terms).b_lim, float)
+        for fz in (assemble(model).at(position), fz2)
+    ]
+    out, record, lines = runout_check(model, res, fine, *limits)
+    record["mesh_width_max_m"] = ceiling
+    record["mesh_seconds"] = time.perf_counter() - t0
+    return out, lines

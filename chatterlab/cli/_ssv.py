@@ -119,6 +119,34 @@ def _grid(args: argparse.Namespace, model: Any) -> tuple[Any, Any, Any, str]:
     return speeds, rva, rvf, shape
 
 
+def _mesh(args: argparse.Namespace, model: Any, res: Any, kwargs: dict[str, Any]) -> Any:
+    """A model with beams: the limit searched again on the mesh twice as fine
+    at the grid's smallest limit and at its points with no limit below the
+    ceiling (at most :data:`~chatterlab.cli._mesh_checks.SSV_FREE_CAP` of
+    them; :func:`~chatterlab.cli._mesh_checks.ssv_check`); the table (with
+    ``undetermined`` where the finer mesh contradicts a claim of no chatter)
+    and the mesh line printed, the facts in the files' ``mesh_*`` attributes."""
+    from ..frequency import ssv_limits
+    from ..structure._assembly import assemble
+    from ._mesh_checks import ssv_check
+
+    fine_model = model.with_finer_mesh()
+    source: Any = assemble(fine_model).at(args.position)
+    if model.process.kind == "milling":
+        from ..lobes import milling_loop_of
+
+        source = milling_loop_of(source)
+
+    def fine_limit(speed: float, rva: float, rvf: float) -> float:
+        r = ssv_limits(source, [speed], [rva], [rvf], **kwargs)
+        return float(r.b_lim.reshape(-1)[0])
+
+    out, record = ssv_check(model, res, fine_limit)
+    print(out.table())
+    print(record["mesh"])
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     from ..frequency import ssv_limits
 
@@ -149,20 +177,17 @@ def run(args: argparse.Namespace) -> int:
             from ..lobes import milling_loop_of
 
             source = milling_loop_of(fz)
-        res = ssv_limits(
-            source, speeds, rva, rvf, shape=shape, width_max=width_max_m(args), scan=args.scan,
-            method=args.method, jobs=args.jobs, backend="loky" if args.jobs > 1 else "serial",
+        kwargs: dict[str, Any] = dict(
+            shape=shape, width_max=width_max_m(args), scan=args.scan, method=args.method,
             split=args.split, degree=args.degree, span=args.span,
         )  # fmt: skip
-        print(res.table())
+        res = ssv_limits(
+            source, speeds, rva, rvf, jobs=args.jobs, backend="loky" if args.jobs > 1 else "serial", **kwargs
+        )
         if model.beams:
-            from ..model._mesh import mesh_words
-
-            # a limit search on the mesh twice as fine costs as much again (minutes on the shaper): not run
-            print(
-                f"mesh: {mesh_words(model)}; these limits are this mesh's: not checked on a finer mesh; its"
-                " constant-speed lobes' discretisation error: chatterlab lobes"
-            )
+            res = _mesh(args, model, res, kwargs)
+        else:
+            print(res.table())
         if args.out:
             path = outs.path(args.out)
             suffix = str(args.out).rsplit(".", 1)[-1].lower()
