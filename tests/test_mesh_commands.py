@@ -58,7 +58,8 @@ def test_recommend_at_the_oracle_cut_is_undetermined(tmp_path, capsys):
     row = next(ln for ln in text.splitlines() if ln.strip().startswith("1 "))
     assert row.split()[-1] == "undetermined"
     assert "check: stable: rightmost root" in text  # the roots alone would have claimed it
-    assert "mesh: stable on this mesh and on one twice as fine, but the limit is within" in text
+    assert "mesh: stable on this mesh and on one twice as fine, but the limit is only" in text
+    assert "of itself above the cut, inside its discretisation error <=" in text  # one scale: the limit's
     a = _attrs(out)
     assert a["mesh_beam_elements"] == 6 and a["mesh_fine_beam_elements"] == 12
     assert json.loads(a["mesh_verdicts"]) == ["undetermined"] and a["mesh_undetermined"] == 1

@@ -213,9 +213,9 @@ def width_verdict(model: Any, width: float, limit: float, fine_limit: float) -> 
     bound = float(e.bound)
     if not np.isfinite(bound) or bound >= abs(limit - width):
         return "undetermined", (
-            f"mesh: {on_h} on this mesh and on one twice as fine, but the limit is within"
-            f" {pct(abs(limit - width) / abs(width))} of the cut and its discretisation error"
-            f" <= {pct(float(e.relative_bound))}: {advice}"
+            f"mesh: {on_h} on this mesh and on one twice as fine, but the limit is only"
+            f" {pct(abs(limit - width) / abs(limit))} of itself {'above' if limit > width else 'below'} the cut,"
+            f" inside its discretisation error <= {pct(float(e.relative_bound))}: {advice}"
         )
     return on_h, (
         f"mesh: {mesh_words(model)}; also {on_h2} on a mesh twice as fine; the limit's discretisation error"
