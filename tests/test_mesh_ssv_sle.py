@@ -148,11 +148,12 @@ def test_ssv_checks_the_smallest_limit_and_a_contradicted_claim_of_no_chatter(ba
     if b_h2 > b_h:
         pytest.skip("the finer mesh's limit is the higher one here: no claim of no chatter to contradict")
     out2 = tmp_path / "s2.json"
-    code, text, _ = run(
+    code, text, err = run(
         capsys, "ssv", bar, "--speed", "6000", "--rva", "0", "--rvf", "0.5", "--split", "3000", "--scan", "2",
         "--width-max", f"{ceiling * 1e3:.9g}", "--out", str(out2),
     )  # fmt: skip
-    assert code == 1  # an undetermined point: not a clean result
+    assert code == 1  # an undetermined point: not a clean result, and standard error says why
+    assert "1 point(s) undetermined: the mesh twice as fine does not confirm" in err
     row = next(ln for ln in text.splitlines() if ln.strip().startswith("6000"))
     assert row.split()[-1] == "undetermined"
     assert "so no chatter there is not established: undetermined" in text

@@ -11,8 +11,6 @@ without beams is unchanged.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 import pytest
 import xarray as xr
@@ -99,27 +97,44 @@ def test_milling_without_the_check_keeps_every_limit(tmp_path, capsys):
     assert b["mesh_estimated"] == 0
 
 
-def test_a_model_without_beams_is_unchanged(tmp_path, capsys):
-    job = [
-        "lobes",
-        "studies/milling/benchmark_1dof.toml",
-        "--speed",
-        "8000",
-        "12000",
-        "--points",
-        "5",
-        "--quiet",
-    ]
-    code, plain = _run(capsys, [*job, "--out", str(tmp_path / "a.nc")])
-    code2, text = _run(capsys, [*job, "--out", str(tmp_path / "b.nc"), "--no-mesh-check"])
-    assert code == code2 == 0
-
-    def same(out: str) -> str:  # but for the file's name and the seconds taken
-        return re.sub(r"\d+\.\d+ s\b", "T s", out.replace("b.nc", "a.nc"))
-
-    assert same(text) == same(plain)
-    assert "mesh:" not in text
-    a, xa = _attrs_and(tmp_path / "a.nc", "a_lim")
-    b, xb = _attrs_and(tmp_path / "b.nc", "a_lim")
-    np.testing.assert_array_equal(xa, xb)
-    assert "mesh_estimated" not in b
+@pytest.mark.parametrize(
+    "source",
+    [
+        ["studies/milling/benchmark_1dof.toml"],
+        [
+            "--frf",
+            "studies/tap_test/tool_point.csv",
+            "--teeth",
+            "3",
+            "--kt",
+            "6e8",
+            "--kn",
+            "2e8",
+            "--immersion",
+            "0.5",
+        ],
+    ],
+    ids=["no beams", "measured FRF"],
+)
+def test_the_option_is_refused_where_there_is_nothing_to_skip(source, tmp_path, capsys):
+    """A model without beams or a measured FRF has no mesh to check: the
+    option is refused (one line, exit 2, nothing written), not ignored."""
+    out = tmp_path / "x.nc"
+    code = main(
+        [
+            "lobes",
+            *source,
+            "--speed",
+            "8000",
+            "12000",
+            "--points",
+            "5",
+            "--quiet",
+            "--no-mesh-check",
+            "--out",
+            str(out),
+        ]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--no-mesh-check" in err[0] and "drop it" in err[0]
+    assert not out.exists()

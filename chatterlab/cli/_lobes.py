@@ -120,6 +120,11 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
     model = frf_model(args) if uses_frf(args) else load(args)
     if model.process is None:
         raise InputError(f"{model.source} has no [process] table: add one so that speeds map to delays")
+    if args.no_mesh_check and not getattr(model, "beams", ()):
+        raise InputError(
+            f"--no-mesh-check skips the check of a model with [[beam]]s on a mesh twice as fine; {model.source}"
+            " has no beams (nothing to skip): drop it"
+        )
     milling_model = model.process.kind == "milling" and model.frf is None and args.method != "zoa"
     if args.positions is None:
         _engine_options_unused(args, milling=milling_model)

@@ -574,8 +574,9 @@ def ssv_check(
     else:
         line = f"mesh: {mesh_words(model)}"
     n_free = int(np.count_nonzero(np.isposinf(b)))
-    lost = [f for f in free if np.isfinite(fine[f])]
-    held = [f for f in free if not np.isfinite(fine[f])]
+    # only none below the ceiling on h/2 too (inf) confirms; a limit, or nothing established (NaN), does not
+    held = [f for f in free if np.isposinf(fine[f])]
+    lost = [f for f in free if f not in held]
     if n_free:
         every = " (every point)" if n_free == b.size else ""
         line += (
@@ -586,7 +587,13 @@ def ssv_check(
             line += ": none below it twice as fine either at " + " and ".join(where(f) for f in held)
         if lost:
             line += ("; " if held else ": ") + " and ".join(
-                f"twice as fine {name} {fine[f] * 1e3:.4g} mm at {where(f)}" for f in lost
+                (
+                    f"twice as fine {name} {fine[f] * 1e3:.4g} mm"
+                    if np.isfinite(fine[f])
+                    else "twice as fine nothing established"
+                )
+                + f" at {where(f)}"
+                for f in lost
             )
             line += ", so no chatter there is not established: undetermined (NaN in the files)"
         if left:
@@ -595,9 +602,9 @@ def ssv_check(
                 " this mesh's"
             )
     rest = b.size - len(picks)
-    line += (f"; the other {rest} point{'s' * (rest != 1)} are this mesh's" if rest else "") + converged_tail(
-        model
-    )
+    line += (
+        f"; the other {rest} point{' is' if rest == 1 else 's are'} this mesh's" if rest else ""
+    ) + converged_tail(model)
 
     def num(x: float) -> float | None:
         return float(x) if math.isfinite(x) else None
@@ -661,6 +668,33 @@ def _meshed_ssv_class() -> Any:
 
 # ---------------------------------------------------------------------------- sle (turning)
 
+
+def established_limits(
+    model: Any, speeds: Any, width_max: float, position: Any = None, **options: Any
+) -> Any:
+    """The limit (m) at each of ``speeds`` (any order) from the lobes of
+    ``model`` at ``position`` on the diagram's own claim
+    (:func:`chatterlab.selection._recommend.stable_width`): inf where no
+    boundary lies below ``width_max`` on a proven basis, NaN where the
+    diagram establishes nothing there (no boundary found in a band not
+    proven complete, or contradicted by a check) -- what
+    :func:`width_verdict` judges.  The D-subdivision routes run without
+    the argument principle (``verify=0``): a limit's value; the principle
+    confirms a boundary, it does not move it."""
+    from ..lobes import lobes
+    from ..selection._recommend import stable_width
+
+    opts = dict(options)
+    if model.process.kind != "milling" or opts.get("method") == "zoa":
+        opts["verify"] = 0
+    v = np.asarray(speeds, float)
+    o = np.argsort(v, kind="stable")
+    b, ceiling = stable_width(lobes(model, v[o], width_max=width_max, position=position, **opts))
+    out = np.empty(v.size)
+    out[o] = np.where(ceiling, np.inf, b)
+    return out
+
+
 #: at most this many speeds whose verdict the finer mesh did not confirm get a line of their own
 RUNOUT_LINES = 5
 
@@ -672,7 +706,8 @@ def runout_check(
     :class:`RunoutResponse`) against the whole of it on the mesh twice as
     fine (``fine``: the same speeds on :meth:`Model.with_finer_mesh`);
     ``limit``, ``fine_limit``: the limit width b_lim at each speed on the two
-    meshes (SI, inf: none below the lobes' ceiling).  A verdict stands only
+    meshes (SI, :func:`established_limits`: inf none below the lobes'
+    ceiling, NaN nothing established).  A verdict stands only
     when the roots on both meshes give it and :func:`width_verdict` on the
     two limits confirms it (the margin b_lim - b outside the limit's bound
     2 |change|, Eq. M3); else it is ``undetermined`` and a stable speed loses
@@ -712,7 +747,7 @@ def runout_check(
         f" {count['unstable']} unstable confirmed, {count['undetermined']} undetermined"
     )
     if changed:
-        line += f" ({len(changed)} of them not confirmed by the finer mesh: no amplitude)"
+        line += f" ({len(changed)} of them not confirmed on both meshes: no amplitude)"
     rel = np.where(ok, np.abs(np.asarray(e.relative_change, float)), np.nan)
     rb = np.where(ok, np.asarray(e.relative_bound, float), np.nan)
     if np.any(np.isfinite(rb)):

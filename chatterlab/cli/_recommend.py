@@ -346,21 +346,12 @@ def _mesh_widths(
 
     import numpy as np
 
-    from ..lobes import lobes
     from ..model._mesh import MeshEstimate, converged_tail, mesh_record, mesh_words, pct, width_verdict
-    from ..selection._recommend import stable_width
+    from ._mesh_checks import established_limits
 
     t0 = time.perf_counter()
-    fine = model.with_finer_mesh()
-    opts = dict(options)
-    if model.process.kind != "milling" or opts.get("method") == "zoa":
-        opts["verify"] = 0  # a limit's value; the argument principle confirms a boundary, it does not move it
     v = np.asarray(speeds, float)
-    o = np.argsort(v, kind="stable")
-    d = lobes(fine, v[o], width_max=width_max, position=position, **opts)
-    b, ceiling = stable_width(d)
-    fine_lim = np.empty(v.size)
-    fine_lim[o] = np.where(ceiling, np.inf, b)  # nan: the finer mesh's lobes establish nothing there
+    fine_lim = established_limits(model.with_finer_mesh(), v, width_max, position, **options)
     limits = np.asarray(limits, float)
     mesh_v, why = [], []
     for i in range(v.size):
@@ -369,16 +360,7 @@ def _mesh_widths(
             mesh_v.append("not checked")
             why.append("")
             continue
-        if np.isnan(lim2) or np.isnan(lim):
-            verdict, line = (
-                "undetermined",
-                (
-                    "mesh: the lobes on a mesh twice as fine establish nothing at this speed: refine the beams"
-                    + converged_tail(model)
-                ),
-            )
-        else:
-            verdict, line = width_verdict(model, w, lim, lim2)
+        verdict, line = width_verdict(model, w, lim, lim2)  # nan: the lobes establish nothing there
         mesh_v.append(verdict)
         why.append(line)
     both = np.isfinite(limits) & np.isfinite(fine_lim)

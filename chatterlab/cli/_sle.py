@@ -296,20 +296,18 @@ def _turning_mesh(
     model: Any, res: Any, terms: Any, position: Any, kf: float, point: str
 ) -> tuple[Any, list[str]]:
     """A turning model with beams: the whole runout response again on the
-    mesh twice as fine (an FRF and a verdict per speed: about the cost of the
-    response itself), the limit b_lim at each speed on both meshes (the lobes
-    at those speeds, a fraction of a second), each verdict judged by
+    mesh twice as fine (an FRF and a verdict per speed on a model twice the
+    size: two to three times the response's own cost, measured), the limit
+    b_lim at each speed on both meshes on the lobes' own claim
+    (:func:`~chatterlab.cli._mesh_checks.established_limits`), each verdict judged by
     :func:`chatterlab.cli._mesh_checks.runout_check`.  ``(result with its mesh
     record, the lines to print)``."""
     import time
 
-    import numpy as np
-
     from ..frequency._forced import runout_response
-    from ..lobes import lobes
     from ..process._loop import closed_loop
     from ..structure._assembly import assemble
-    from ._mesh_checks import runout_check
+    from ._mesh_checks import established_limits, runout_check
 
     t0 = time.perf_counter()
     b, v = float(res.width), res.speeds
@@ -317,9 +315,9 @@ def _turning_mesh(
     fz2 = assemble(model.with_finer_mesh()).at(position)
     loop2 = closed_loop(fz2, width=b, speed=float(v[0]))
     fine = runout_response(loop2, v, res.eccentricity, res.feed, kf, inputs=point, outputs=point)
+    # on each diagram's own claim: NaN where it establishes nothing (width_verdict: undetermined)
     limits = [
-        np.asarray(lobes(fz, v, width_max=ceiling, terms=terms).b_lim, float)
-        for fz in (assemble(model).at(position), fz2)
+        established_limits(m, v, ceiling, position, terms=terms) for m in (model, model.with_finer_mesh())
     ]
     out, record, lines = runout_check(model, res, fine, *limits)
     record["mesh_width_max_m"] = ceiling

@@ -8,6 +8,7 @@ the others' for the gain)."""
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 from ..errors import InputError, check_count
@@ -205,4 +206,12 @@ def run(args: argparse.Namespace) -> int:
 
             savefig(res.plot(), str(outs.path(args.plot)))
     # a claim of no chatter the mesh twice as fine contradicts is undetermined: not a clean result
-    return 1 if (getattr(res, "mesh", None) or {}).get("mesh_undetermined_points") else 0
+    lost = (getattr(res, "mesh", None) or {}).get("mesh_undetermined_points")
+    if lost:
+        print(
+            f"chatterlab: {lost} point(s) undetermined: the mesh twice as fine does not confirm their claim of"
+            " no chatter",
+            file=sys.stderr,
+        )
+        return 1
+    return 0

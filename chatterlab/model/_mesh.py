@@ -196,10 +196,14 @@ def width_verdict(model: Any, width: float, limit: float, fine_limit: float) -> 
     * ``unstable`` on both (width at or above both limits) with
       width - limit beyond the bound: ``unstable``;
     * otherwise (the meshes disagree, the margin is inside the bound, or
-      one limit is at the ceiling and the other not): ``undetermined``.
+      one limit is at the ceiling and the other not, or either is NaN: the
+      lobes establish nothing there): ``undetermined``.
     Both limits at the ceiling: ``stable`` as far as the ceiling searched
     (the caller's claim about the ceiling stands)."""
     advice = _advice(model)
+    if np.isnan(limit) or np.isnan(fine_limit):
+        where = "on this mesh" if np.isnan(limit) else "on a mesh twice as fine"
+        return "undetermined", f"mesh: the lobes {where} establish nothing at this speed: {advice}"
     on_h = "stable" if width < limit else "unstable"
     on_h2 = "stable" if width < fine_limit else "unstable"
     if not np.isfinite(limit) and not np.isfinite(fine_limit):
@@ -209,6 +213,12 @@ def width_verdict(model: Any, width: float, limit: float, fine_limit: float) -> 
         )
     if on_h != on_h2:
         return "undetermined", f"mesh: {on_h} on this mesh, {on_h2} on a mesh twice as fine: {advice}"
+    if np.isinf(limit) or np.isinf(fine_limit):  # one at the ceiling: the limit's error is not bounded
+        none, other = ("this mesh", fine_limit) if np.isinf(limit) else ("a mesh twice as fine", limit)
+        return "undetermined", (
+            f"mesh: {on_h} on this mesh and on one twice as fine, but no limit below the ceiling on {none}"
+            f" and {other * 1e3:.4g} mm on the other: the limit's discretisation error is not bounded: {advice}"
+        )
     e = MeshEstimate(limit, fine_limit)
     bound = float(e.bound)
     if not np.isfinite(bound) or bound >= abs(limit - width):

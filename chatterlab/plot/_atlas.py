@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ._lobe_panel import mesh_claim
 from ._style import axes_arg, cell_edges, model_of
 
 
@@ -49,6 +50,9 @@ def plot_atlas(
     attrs = getattr(result, "attrs", {}) or {}
     wmax = width_max if width_max is not None else attrs.get("width_max_m")
     ceiling = f"the {float(wmax) * 1e3:g} mm ceiling" if wmax is not None else "the width ceiling"
+    mesh = mesh_claim(attrs)  # a model with beams: the claims of no chatter on the mesh twice as fine
+    if mesh:
+        ceiling += f" ({mesh} on a mesh twice as fine)"
     bl = np.asarray(result.data["b_lim"], float) * 1e3
     created = ax is None
     if ax is None:

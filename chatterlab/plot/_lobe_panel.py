@@ -156,15 +156,7 @@ def draw_lobe_panel(
     handles += _draw_limits(ax, d, lo, hi, references)
     # a model with beams whose finer mesh has a limit where this one ends at the ceiling
     # (lobes._mesh_error), or whose mesh was not checked (--no-mesh-check)
-    meta = getattr(d, "meta", None) or {}
-    mesh = (
-        "not confirmed"
-        if meta.get("mesh_free_speeds_fine_limited")
-        else "not checked"
-        if meta.get("mesh_estimated") == 0
-        else ""
-    )
-    handles += _draw_claims(ax, _claim_spans(d, vx, em), lo, hi, top, mesh)
+    handles += _draw_claims(ax, _claim_spans(d, vx, em), lo, hi, top, mesh_claim(getattr(d, "meta", None)))
     ax.set_ylim(0, ytop)
     labelled = _label_lobes(ax, curves, vx, em, lo, hi, ytop, lobe_numbers) if not dense else []
     return {
@@ -282,6 +274,42 @@ def _draw_limits(ax: Any, d: Any, lo: float, hi: float, references: Mapping[str,
             (rl,) = ax.plot(rv, rb * 1e3, color=col, ls=ls, lw=1.2, zorder=4, label=lab)
         handles.append(rl)
     return handles
+
+
+def mesh_claim(meta: Any) -> str:
+    """What a figure adds to its claims of no chatter below the ceiling from a
+    model with beams' mesh check (lobes._mesh_error; a diagram's ``meta`` or
+    an atlas's ``attrs``): "not confirmed" where the mesh twice as fine finds
+    a limit at some of them, "not checked" where that check was not run
+    (``mesh_estimated`` = 0), else ""."""
+    meta = meta or {}
+    if meta.get("mesh_free_speeds_fine_limited") or meta.get("mesh_free_points_fine_limited"):
+        return "not confirmed"
+    return "not checked" if meta.get("mesh_estimated") == 0 else ""
+
+
+def mesh_note(ax: Any, meta: Any) -> None:
+    """A model with beams: the discretisation error the result carries
+    (lobes._mesh_error; a diagram's ``meta``), right of the Axes' title, so
+    that the figure says what its mesh costs in accuracy -- or that it was
+    not estimated (``mesh_estimated`` = 0)."""
+    meta = meta or {}
+    if meta.get("mesh_estimated") == 0:  # --no-mesh-check, lobes(mesh_error=False)
+        ax.set_title(
+            "beam mesh: discretisation error not estimated", fontsize=7, loc="right", color="tab:red"
+        )
+        return
+    if "mesh_beam_elements" not in meta:
+        return
+    bound = meta.get("mesh_absolute_min_error_bound", meta.get("mesh_min_error_bound"))
+    env = meta.get("mesh_envelope_change_median")
+    parts = [f"beam mesh of {meta['mesh_beam_elements']} elements"]
+    if bound is not None and np.isfinite(bound):
+        parts.append(f"minimum within {bound:.0%}")
+    if env is not None and np.isfinite(env):
+        parts.append(f"envelope moves {env:.0%} (median) on a mesh twice as fine")
+    warn = (env or 0) > 0.01 or (bound or 0) > 0.01
+    ax.set_title("; ".join(parts), fontsize=7, loc="right", color="tab:red" if warn else "0.3")
 
 
 def _draw_claims(

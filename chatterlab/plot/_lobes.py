@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ._lobe_panel import DENSE_PIXELS, DISPLAY_DPI, draw_lobe_panel, lobe_density, zoom_range
+from ._lobe_panel import DENSE_PIXELS, DISPLAY_DPI, draw_lobe_panel, lobe_density, mesh_note, zoom_range
 from ._style import LAID_OUT, axes_arg, new_figure
 
 
@@ -104,7 +104,7 @@ def plot_lobes(
     ax.set_ylabel(f"{d.width_name} [mm]")
     ax.grid(alpha=0.3)
     _frequency_panel(axf, main, d)
-    _mesh_note(axf, d)
+    mesh_note(axf, getattr(d, "meta", None))
     if axz is not None:
         ax.set_xlabel(f"{d.speed_name} [{d.speed_unit}]")
     head = title if title is not None else f"{_model_name(d)}: stability lobes"
@@ -211,27 +211,6 @@ def _frequency_panel(axf: Any, main: dict[str, Any], d: Any) -> None:
     axf.set_xlabel(f"{d.speed_name} [{d.speed_unit}]")
     axf.set_title("chatter frequency along the envelope", fontsize=8, loc="left")
     axf.grid(alpha=0.3)
-
-
-def _mesh_note(axf: Any, d: Any) -> None:
-    """A model with beams: the discretisation error the diagram carries
-    (lobes._mesh_error), right of the bottom panel's title, so that the
-    figure says what its mesh costs in accuracy."""
-    meta = getattr(d, "meta", {}) or {}
-    if meta.get("mesh_estimated") == 0:  # --no-mesh-check
-        axf.set_title(
-            "beam mesh: discretisation error not estimated", fontsize=7, loc="right", color="tab:red"
-        )
-        return
-    if "mesh_beam_elements" not in meta:
-        return
-    bound, env = meta.get("mesh_absolute_min_error_bound"), meta.get("mesh_envelope_change_median")
-    parts = [f"beam mesh of {meta['mesh_beam_elements']} elements"]
-    if bound is not None and np.isfinite(bound):
-        parts.append(f"minimum within {bound:.0%}")
-    if env is not None and np.isfinite(env):
-        parts.append(f"envelope moves {env:.0%} (median) on a mesh twice as fine")
-    axf.set_title("; ".join(parts), fontsize=7, loc="right", color="tab:red" if (env or 0) > 0.01 else "0.3")
 
 
 def _lobe_count(curves: list[Any], d: Any) -> str:

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ._lobe_panel import mesh_note
+
 __all__: list[str] = []
 
 #: colours of the lobe types (secondary Hopf, flip = period doubling, fold)
@@ -56,6 +58,7 @@ def plot_milling_lobes(
             fontsize=10,
         )
         ax.grid(alpha=0.3)
+        mesh_note(ax, getattr(ml, "meta", None))
     ax.legend(fontsize=8, loc="upper right")
     return ax
 
