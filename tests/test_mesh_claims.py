@@ -104,3 +104,47 @@ def test_the_figures_carry_the_mark_of_an_unchecked_mesh():
     ax = ml.plot()
     assert ax.get_title(loc="right") == "beam mesh: discretisation error not estimated"
     plt.close("all")
+
+
+def test_the_ssv_and_runout_figures_mark_what_they_do_not_claim(shaper):
+    """plot_ssv marks the points with no limit below the ceiling and the
+    undetermined ones (they were dropped: a figure of empty axes), and
+    plot_runout the speeds without an amplitude (chatter, undetermined);
+    both carry the mesh note of a model with beams."""
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+
+    from chatterlab.cli._mesh_checks import ssv_check
+    from chatterlab.frequency._floquet_ssv_limit import SsvLimits
+    from chatterlab.plot._sle import plot_runout
+
+    inf = math.inf
+    b = np.array([3e-4, inf, inf]).reshape(3, 1, 1)
+    res = SsvLimits(
+        np.array([1.0, 2.0, 3.0]), np.array([0.1]), np.array([0.5]), b, np.full(b.shape, 100.0),
+        np.zeros(b.shape), "sine", "spectral", 1e-3, 4,
+    )  # fmt: skip
+    out, _ = ssv_check(shaper, res, lambda s, a, f: {1.0: 3.1e-4, 2.0: 2e-4, 3.0: inf}[s])
+    ax = out.plot()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "no limit below the ceiling" in labels and "undetermined" in labels
+    assert "1 undetermined on a mesh twice as fine" in ax.get_title(loc="right")
+    plt.close("all")
+
+    run = SimpleNamespace(
+        speeds=np.array([1000.0, 2000.0, 3000.0]), amplitude=np.array([1e-8, np.nan, np.nan]),
+        verdict=["stable", "unstable", "undetermined"], eccentricity=1e-5, width=1e-4,
+        mesh={"mesh_beam_elements": 6, "mesh_amplitude_error_bound_max": 0.04, "mesh_undetermined_speeds": 1},
+    )  # fmt: skip
+    ax = plot_runout(run)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "chatter (no response)" in labels and "undetermined" in labels
+    assert ax.get_title(loc="right") == (
+        "beam mesh of 6 elements; amplitude within 4%; 1 undetermined on a mesh twice as fine"
+    )
+    plt.close("all")

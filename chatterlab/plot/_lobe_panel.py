@@ -288,6 +288,10 @@ def mesh_claim(meta: Any) -> str:
     return "not checked" if meta.get("mesh_estimated") == 0 else ""
 
 
+#: the keys of the smallest limit's relative error bound: a lobe diagram's, a milling one's, ssv's
+_MIN_BOUNDS = ("mesh_absolute_min_error_bound", "mesh_min_error_bound", "mesh_error_bound")
+
+
 def mesh_note(ax: Any, meta: Any) -> None:
     """A model with beams: the discretisation error the result carries
     (lobes._mesh_error; a diagram's ``meta``), right of the Axes' title, so
@@ -301,14 +305,21 @@ def mesh_note(ax: Any, meta: Any) -> None:
         return
     if "mesh_beam_elements" not in meta:
         return
-    bound = meta.get("mesh_absolute_min_error_bound", meta.get("mesh_min_error_bound"))
+    # the smallest limit's bound (a diagram, milling, ssv), the amplitude's (a runout response)
+    bound = next((meta[k] for k in _MIN_BOUNDS if k in meta), None)
+    amp = meta.get("mesh_amplitude_error_bound_max")
     env = meta.get("mesh_envelope_change_median")
+    lost = meta.get("mesh_undetermined_points", meta.get("mesh_undetermined_speeds", 0)) or 0
     parts = [f"beam mesh of {meta['mesh_beam_elements']} elements"]
     if bound is not None and np.isfinite(bound):
         parts.append(f"minimum within {bound:.0%}")
+    if amp is not None and np.isfinite(amp):
+        parts.append(f"amplitude within {amp:.0%}")
     if env is not None and np.isfinite(env):
         parts.append(f"envelope moves {env:.0%} (median) on a mesh twice as fine")
-    warn = (env or 0) > 0.01 or (bound or 0) > 0.01
+    if lost:
+        parts.append(f"{lost} undetermined on a mesh twice as fine")
+    warn = (env or 0) > 0.01 or (bound or 0) > 0.01 or (amp or 0) > 0.01 or lost > 0
     ax.set_title("; ".join(parts), fontsize=7, loc="right", color="tab:red" if warn else "0.3")
 
 

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ._lobe_panel import mesh_note
+
 __all__ = ["plot_sle"]
 
 
@@ -128,11 +130,27 @@ def plot_runout(result: Any, *, ax: Any = None, **style: Any) -> Any:
 
     if ax is None:
         _, ax = plt.subplots(figsize=(8.0, 4.0))
-    ax.plot(np.asarray(result.speeds), np.asarray(result.amplitude) * 1e6, **style)
+    v = np.asarray(result.speeds, float)
+    ax.plot(v, np.asarray(result.amplitude) * 1e6, marker=".", **style)
+    # speeds without an amplitude, marked on the bottom edge: chatter, or undetermined
+    verdict = np.asarray(result.verdict).astype(str)
+    edge = ax.get_xaxis_transform()
+    for word, mk, colour, lab in (("unstable", "v", "tab:red", "chatter (no response)"),
+                                  ("undetermined", "x", "tab:orange", "undetermined")):  # fmt: skip
+        sel = verdict == word
+        if np.any(sel):
+            ax.plot(v[sel], np.full(int(sel.sum()), 0.03), ls="none", marker=mk, ms=7, color=colour,
+                    transform=edge, clip_on=False, label=lab)  # fmt: skip
+    if np.any(verdict != "stable"):
+        ax.legend(fontsize=8)
     ax.set_xlabel("spindle speed [rpm]")
     ax.set_ylabel("amplitude at the spindle frequency [um]")
-    ax.set_title(
-        f"eccentricity {result.eccentricity * 1e6:.3g} um, b = {result.width * 1e3:.3g} mm", fontsize=10
-    )
+    mesh = getattr(result, "mesh", None)
+    ax.set_title(  # a line above the mesh note (a model with beams) when there is one
+        f"eccentricity {result.eccentricity * 1e6:.3g} um, b = {result.width * 1e3:.3g} mm" + ("\n" if mesh else ""),
+        fontsize=10,
+        loc="left" if mesh else "center",
+    )  # fmt: skip
     ax.grid(alpha=0.3)
+    mesh_note(ax, mesh)
     return ax
