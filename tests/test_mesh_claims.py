@@ -21,6 +21,18 @@ SHAPER = "studies/traverse_shaper/model.toml"
 TOOL = "studies/milling/tool_cantilever.toml"
 
 
+def _ssv_result():
+    """Three speeds at one (RVA, RVF): a limit at the first, none below the
+    ceiling at the other two (claims of no chatter)."""
+    from chatterlab.frequency._floquet_ssv_limit import SsvLimits
+
+    b = np.array([3e-4, math.inf, math.inf]).reshape(3, 1, 1)
+    return SsvLimits(
+        np.array([1.0, 2.0, 3.0]), np.array([0.1]), np.array([0.5]), b, np.full(b.shape, 100.0),
+        np.zeros(b.shape), "sine", "spectral", 1e-3, 4,
+    )  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def shaper():
     return load_model(SHAPER)
@@ -62,14 +74,9 @@ def test_ssv_a_claim_the_finer_mesh_establishes_nothing_about_is_undetermined(sh
     by inf on the finer mesh; a NaN there (its search established nothing)
     leaves it undetermined, as a finite limit does."""
     from chatterlab.cli._mesh_checks import ssv_check
-    from chatterlab.frequency._floquet_ssv_limit import SsvLimits
 
     inf = math.inf
-    b = np.array([3e-4, inf, inf]).reshape(3, 1, 1)
-    res = SsvLimits(
-        np.array([1.0, 2.0, 3.0]), np.array([0.1]), np.array([0.5]), b, np.full(b.shape, 100.0),
-        np.zeros(b.shape), "sine", "spectral", 1e-3, 4,
-    )  # fmt: skip
+    res = _ssv_result()
     fine = {1.0: 3.1e-4, 2.0: math.nan, 3.0: inf}
     out, rec = ssv_check(shaper, res, lambda s, a, f: fine[s])
     assert np.isnan(out.b_lim[1, 0, 0]) and np.isinf(out.b_lim[2, 0, 0])
@@ -120,15 +127,10 @@ def test_the_ssv_and_runout_figures_mark_what_they_do_not_claim(shaper):
     import matplotlib.pyplot as plt
 
     from chatterlab.cli._mesh_checks import ssv_check
-    from chatterlab.frequency._floquet_ssv_limit import SsvLimits
     from chatterlab.plot._sle import plot_runout
 
     inf = math.inf
-    b = np.array([3e-4, inf, inf]).reshape(3, 1, 1)
-    res = SsvLimits(
-        np.array([1.0, 2.0, 3.0]), np.array([0.1]), np.array([0.5]), b, np.full(b.shape, 100.0),
-        np.zeros(b.shape), "sine", "spectral", 1e-3, 4,
-    )  # fmt: skip
+    res = _ssv_result()
     out, _ = ssv_check(shaper, res, lambda s, a, f: {1.0: 3.1e-4, 2.0: 2e-4, 3.0: inf}[s])
     ax = out.plot()
     labels = [t.get_text() for t in ax.get_legend().get_texts()]

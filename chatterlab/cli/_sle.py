@@ -312,13 +312,12 @@ def _turning_mesh(
     t0 = time.perf_counter()
     b, v = float(res.width), res.speeds
     ceiling = max(TURNING_CEILING, TURNING_CEILING_FACTOR * b)
-    fz2 = assemble(model.with_finer_mesh()).at(position)
+    fine_model = model.with_finer_mesh()
+    fz2 = assemble(fine_model).at(position)
     loop2 = closed_loop(fz2, width=b, speed=float(v[0]))
     fine = runout_response(loop2, v, res.eccentricity, res.feed, kf, inputs=point, outputs=point)
     # on each diagram's own claim: NaN where it establishes nothing (width_verdict: undetermined)
-    limits = [
-        established_limits(m, v, ceiling, position, terms=terms) for m in (model, model.with_finer_mesh())
-    ]
+    limits = [established_limits(m, v, ceiling, position, terms=terms) for m in (model, fine_model)]
     out, record, lines = runout_check(model, res, fine, *limits)
     record["mesh_width_max_m"] = ceiling
     record["mesh_seconds"] = time.perf_counter() - t0
