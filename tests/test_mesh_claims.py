@@ -78,7 +78,7 @@ def test_ssv_a_claim_the_finer_mesh_establishes_nothing_about_is_undetermined(sh
     inf = math.inf
     res = _ssv_result()
     fine = {1.0: 3.1e-4, 2.0: math.nan, 3.0: inf}
-    out, rec = ssv_check(shaper, res, lambda s, a, f: fine[s])
+    out, rec = ssv_check(shaper, res, lambda pts: [fine[s] for s, _, _ in pts])
     assert np.isnan(out.b_lim[1, 0, 0]) and np.isinf(out.b_lim[2, 0, 0])
     assert rec["mesh_undetermined_points"] == 1
     assert "twice as fine nothing established at speed 2" in rec["mesh"]
@@ -131,7 +131,7 @@ def test_the_ssv_and_runout_figures_mark_what_they_do_not_claim(shaper):
 
     inf = math.inf
     res = _ssv_result()
-    out, _ = ssv_check(shaper, res, lambda s, a, f: {1.0: 3.1e-4, 2.0: 2e-4, 3.0: inf}[s])
+    out, _ = ssv_check(shaper, res, lambda pts: [{1.0: 3.1e-4, 2.0: 2e-4, 3.0: inf}[s] for s, _, _ in pts])
     ax = out.plot()
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "no limit below the ceiling" in labels and "undetermined" in labels

@@ -112,11 +112,13 @@ def test_ssv_checks_the_smallest_limit_and_a_contradicted_claim_of_no_chatter(ba
     line names both; at RVA 0 the limit on h/2 is the lobes' of h/2, and the
     bound covers the converged variant's limit.  Then a ceiling between the
     two meshes' limits: no chatter on h is contradicted on h/2, so the table
-    says undetermined and the file holds NaN (null)."""
+    says undetermined and the file holds NaN (null).  The first run has
+    --jobs 2 (the grid and the searches twice as fine in two processes), the
+    second runs serially."""
     out = tmp_path / "s.json"
     code, text, _ = run(
         capsys, "ssv", bar, "--speed", "6000", "--rva", "0", "0.1", "--rvf", "0.5", "--split", "3000",
-        "--scan", "2", "--width-max", "1", "--out", str(out),
+        "--scan", "2", "--width-max", "1", "--out", str(out), "--jobs", "2",
     )  # fmt: skip
     assert code == 0
     line = next(ln for ln in text.splitlines() if ln.startswith("mesh:"))
@@ -182,9 +184,9 @@ def test_ssv_check_caps_the_claims_of_no_chatter_it_searches_again(bar):
     model = load_model(bar)
     asked = []
 
-    def fine(speed, rva, rvf):
-        asked.append(speed)
-        return {3000.0: 3.9e-4, 4000.0: 8e-4}.get(speed, inf)
+    def fine(points):
+        asked.extend(speed for speed, _, _ in points)
+        return [{3000.0: 3.9e-4, 4000.0: 8e-4}.get(speed, inf) for speed, _, _ in points]
 
     out, rec = ssv_check(model, res, fine)
     assert asked == [3000.0, 1000.0, 4000.0, 7000.0]

@@ -277,6 +277,25 @@ def test_the_limit_at_rva_zero_is_the_closed_form_and_the_sweep_runs_the_grid():
     )
 
 
+def test_limits_at_listed_points_are_the_grid_s_serial_or_in_parallel():
+    """ssv_limits_at (the mesh check's searches twice as fine) runs the grid's
+    own task at listed points: the same search, so the same numbers bit for
+    bit, in any order, serially or in two worker processes; bad points are
+    refused before any work, as the grid's are."""
+    from chatterlab.frequency import ssv_limits, ssv_limits_at
+
+    fz = cl.assemble(cl.loads_model(TURNING)).at()
+    opts = dict(width_max=4e-3, scan=4)
+    grid = ssv_limits(fz, [1500.0, 6000.0], [0.0, 0.2], [0.5], **opts)
+    pts = [(6000.0, 0.2, 0.5), (1500.0, 0.0, 0.5), (6000.0, 0.0, 0.5)]
+    want = [grid.b_lim[1, 1, 0], grid.b_lim[0, 0, 0], grid.b_lim[1, 0, 0]]
+    assert ssv_limits_at(fz, pts, **opts).tolist() == want
+    assert ssv_limits_at(fz, pts, jobs=2, backend="loky", **opts).tolist() == want
+    assert ssv_limits_at(fz, [], **opts).size == 0
+    with pytest.raises(InputError, match="speed"):
+        ssv_limits_at(fz, [(-1.0, 0.0, 0.5)], **opts)
+
+
 def test_the_limits_are_a_result(tmp_path):
     import matplotlib
 

@@ -537,12 +537,15 @@ def ssv_picks(res: Any, cap: int = SSV_FREE_CAP) -> tuple[int | None, list[int],
 
 
 def ssv_check(
-    model: Any, res: Any, fine_limit: Callable[[float, float, float], float], cap: int = SSV_FREE_CAP
+    model: Any,
+    res: Any,
+    fine_limits: Callable[[list[tuple[float, float, float]]], Any],
+    cap: int = SSV_FREE_CAP,
 ) -> tuple[Any, dict[str, Any]]:
     """The SSV limits of a model with beams checked on the mesh twice as fine
-    at the points :func:`ssv_picks` chooses (``fine_limit(speed, rva, rvf)``:
-    the limit there on :meth:`Model.with_finer_mesh`, SI, inf at the
-    ceiling), as ``sweep`` checks a ``b-lim`` grid: the smallest limit's value
+    at the points :func:`ssv_picks` chooses (``fine_limits(points)``: the
+    limits at those (speed, rva, rvf) on :meth:`Model.with_finer_mesh`, SI,
+    inf at the ceiling; one call, so that it can search them in parallel), as ``sweep`` checks a ``b-lim`` grid: the smallest limit's value
     twice as fine, its change and bound (:func:`limit_line`, Eq. M3); a point
     with no limit below the ceiling (a claim of no chatter) where the finer
     mesh finds one is not established: its limit becomes NaN
@@ -565,7 +568,8 @@ def ssv_check(
         return f"speed {s:g} {unit}, RVA {a:g}, RVF {f:g}"
 
     picks = ([crit] if crit is not None else []) + free
-    fine = {flat: float(fine_limit(*point(flat))) for flat in picks}
+    found = np.asarray(fine_limits([point(flat) for flat in picks]), dtype=float).reshape(-1)
+    fine = {flat: float(x) for flat, x in zip(picks, found, strict=True)}
     if crit is not None:
         line = (
             limit_line(model, name, b[crit], fine[crit], tail=False)

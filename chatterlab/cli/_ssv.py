@@ -127,7 +127,7 @@ def _mesh(args: argparse.Namespace, model: Any, res: Any, kwargs: dict[str, Any]
     them; :func:`~chatterlab.cli._mesh_checks.ssv_check`); the table (with
     ``undetermined`` where the finer mesh contradicts a claim of no chatter)
     and the mesh line printed, the facts in the files' ``mesh_*`` attributes."""
-    from ..frequency import ssv_limits
+    from ..frequency import ssv_limits_at
     from ..structure._assembly import assemble
     from ._mesh_checks import ssv_check
 
@@ -138,11 +138,12 @@ def _mesh(args: argparse.Namespace, model: Any, res: Any, kwargs: dict[str, Any]
 
         source = milling_loop_of(source)
 
-    def fine_limit(speed: float, rva: float, rvf: float) -> float:
-        r = ssv_limits(source, [speed], [rva], [rvf], **kwargs)
-        return float(r.b_lim.reshape(-1)[0])
+    def fine_limits(points: list[tuple[float, float, float]]) -> Any:
+        return ssv_limits_at(
+            source, points, jobs=args.jobs, backend="loky" if args.jobs > 1 else "serial", **kwargs
+        )
 
-    out, record = ssv_check(model, res, fine_limit)
+    out, record = ssv_check(model, res, fine_limits)
     print(out.table())
     print(record["mesh"])
     return out

@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # what type checkers and the API reference see; at run time, 
     )
     from ._floquet_spectral import QuasiStatic, split_structure
     from ._floquet_ssv import ssv_monodromy, ssv_multipliers
-    from ._floquet_ssv_limit import SsvLimits, SsvLimitTask, ssv_limit, ssv_limits
+    from ._floquet_ssv_limit import SsvLimits, SsvLimitTask, ssv_limit, ssv_limits, ssv_limits_at
     from ._forced import (
         ForcedResponse,
         RunoutResponse,
@@ -104,6 +104,7 @@ _HOME = {
             "SsvLimitTask",
             "ssv_limit",
             "ssv_limits",
+            "ssv_limits_at",
         ),
         "_floquet_ssv_limit",
     ),
@@ -209,6 +210,7 @@ __all__ = [
     "ssv_monodromy",
     "ssv_limit",
     "ssv_limits",
+    "ssv_limits_at",
     "SsvLimits",
     "SsvLimitTask",
     "classify",

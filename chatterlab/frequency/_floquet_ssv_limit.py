@@ -41,7 +41,7 @@ from ..process._loop import closed_loop_unwarned
 from ._floquet import classify
 from ._floquet_ssv import ssv_multipliers, ssv_split
 
-__all__ = ["SsvLimits", "SsvLimitTask", "ssv_limit", "ssv_limits", "SCAN", "KIND_CODES"]
+__all__ = ["SsvLimits", "SsvLimitTask", "ssv_limit", "ssv_limits", "ssv_limits_at", "SCAN", "KIND_CODES"]
 
 #: default scan samples over (0, width_max]
 SCAN = 20
@@ -376,21 +376,10 @@ def ssv_limits(
     sp = np.atleast_1d(np.asarray(speeds, dtype=float))
     ra = np.atleast_1d(np.asarray(rva, dtype=float))
     rf = np.atleast_1d(np.asarray(rvf, dtype=float))
-    for name, arr in (("speeds", sp), ("rva", ra), ("rvf", rf)):
-        if arr.size == 0 or not np.all(np.isfinite(arr)):
-            raise InputError(f"ssv limits: {name} must be finite numbers (got {arr.tolist()})")
-    for s in sp:
-        check_positive(s, "speed")
-    for a in ra:
-        for f in rf:
-            SpeedVariation(float(a), float(f), shape)  # refused here, before any work
-    task = SsvLimitTask.of(
-        source, shape=shape, width_max=float(width_max), scan=int(scan), rtol=float(rtol), method=method,
-        degree=degree, steps=steps, span=span, split=split,
+    task, outputs = _task_of(
+        source, sp, ra, rf, shape=shape, width_max=float(width_max), scan=int(scan), rtol=float(rtol),
+        method=method, degree=degree, steps=steps, span=span, split=split,
     )  # fmt: skip
-    outputs = dict(SsvLimitTask.OUTPUTS)
-    if split is not None:
-        outputs["split_error"] = "1"
     res = sweep(
         task, Grid({"speed": sp, "rva": ra, "rvf": rf}), outputs=outputs, jobs=jobs,
         backend=backend, progress=progress, on_error="raise",  # type: ignore[arg-type]
@@ -411,3 +400,75 @@ def ssv_limits(
         sp, ra, rf, get("b_lim"), get("chatter_frequency"), get("kind"), shape, method, float(width_max),
         int(scan), speed_unit, limit_name, meta=meta,
     )  # fmt: skip
+
+
+def _task_of(
+    source: Any, sp: np.ndarray, ra: np.ndarray, rf: np.ndarray, **options: Any
+) -> tuple[SsvLimitTask, dict[str, str]]:
+    """The task for ``source`` and the sweep's outputs, once the speeds, RVA
+    and RVF it is asked at are valid (an InputError naming the first bad one
+    before any work)."""
+    for name, arr in (("speeds", sp), ("rva", ra), ("rvf", rf)):
+        if arr.size == 0 or not np.all(np.isfinite(arr)):
+            raise InputError(f"ssv limits: {name} must be finite numbers (got {arr.tolist()})")
+    for s in sp:
+        check_positive(s, "speed")
+    for a in ra:
+        for f in rf:
+            SpeedVariation(
+                float(a), float(f), str(options.get("shape", "sine"))
+            )  # refused here, before any work
+    outputs = dict(SsvLimitTask.OUTPUTS)
+    if options.get("split") is not None:
+        outputs["split_error"] = "1"
+    return SsvLimitTask.of(source, **options), outputs
+
+
+@dataclass(frozen=True)
+class _AtPoints:
+    """An SSV task at listed points (speed, rva, rvf), called by the point's
+    index: the sweep engine's one axis (picklable, as the task is)."""
+
+    task: SsvLimitTask
+    points: tuple[tuple[float, float, float], ...]
+
+    def __call__(self, point: float) -> dict[str, float]:
+        return self.task(*self.points[int(point)])
+
+
+def ssv_limits_at(
+    source: Any,
+    points: Any,
+    *,
+    jobs: int = 1,
+    backend: str = "serial",
+    shape: str = "sine",
+    width_max: float,
+    scan: int = SCAN,
+    rtol: float = 1e-6,
+    method: str = "spectral",
+    degree: int | None = None,
+    steps: int | None = None,
+    span: float | None = None,
+    split: float | None = None,
+) -> np.ndarray:
+    """The limits b_lim (m; inf: none up to ``width_max``) at listed points,
+    not a grid: ``points`` is a sequence of (speed, rva, rvf), searched as
+    :func:`ssv_limits` searches a grid point, in parallel through the sweep
+    engine (``jobs``, ``backend`` as there).  The mesh check of ``ssv``
+    searches its picked points of a grid again on a finer mesh with it."""
+    from ..sweep import Grid, sweep
+
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if pts.shape[0] == 0:
+        return np.zeros(0)
+    task, outputs = _task_of(
+        source, pts[:, 0], pts[:, 1], pts[:, 2], shape=shape, width_max=float(width_max), scan=int(scan),
+        rtol=float(rtol), method=method, degree=degree, steps=steps, span=span, split=split,
+    )  # fmt: skip
+    at = _AtPoints(task, tuple((float(s), float(a), float(f)) for s, a, f in pts))
+    res = sweep(
+        at, Grid({"point": np.arange(pts.shape[0], dtype=float)}), outputs=outputs, jobs=min(jobs, pts.shape[0]),
+        backend=backend, progress=False, on_error="raise",  # type: ignore[arg-type]
+    )  # fmt: skip
+    return np.asarray(res["b_lim"], dtype=float).reshape(-1)
