@@ -46,3 +46,15 @@ def test_milling_quantities_refuse_other_models(shaper_path):
     task = QuantityTask(cl.load_model(shaper_path), "a-lim")
     with pytest.raises(InputError, match=r"for milling models"):
         task(speed=0.5)
+
+
+@pytest.mark.parametrize("quantity", ["stable", "rightmost-root", "b-lim", "min-b-lim"])
+def test_the_time_averaged_quantities_are_refused_on_a_milling_model(quantity):
+    """At 9147.7 rpm and 10.77 mm the benchmark's averaged loop is stable
+    (rightmost root -4.8 1/s) while its Floquet multiplier is -1.72 (flip
+    chatter): a quantity of the averaged loop would call a chattering cut
+    stable, so it is refused before any work, naming the two that are not."""
+    with pytest.raises(InputError, match="spectral-radius.*a-lim"):
+        QuantityTask(cl.load_model(ONE), quantity, fixed={"width": 10.77e-3})
+    r = multipliers(milling_loop_of(cl.assemble(cl.load_model(ONE)).at()), 9147.7, 10.77e-3)
+    assert r.spectral_radius > 1.5  # the cut the averaged loop called stable chatters

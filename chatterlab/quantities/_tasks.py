@@ -186,6 +186,15 @@ class QuantityTask:
                 " (chatterlab.structure.fit_modes(...).to_model(), docs/tap-test.md) and sweep that model"
             )
         object.__setattr__(self, "width_max", check_width(self.width_max, "width_max"))
+        if self.quantity in ("stable", "rightmost-root", "b-lim", "min-b-lim"):
+            from ..lobes._milling_model import is_milling
+
+            if is_milling(self.model):  # these are the time-averaged loop's: flip lobes are not in it
+                raise InputError(
+                    f"{self.model.source}: quantity '{self.quantity}' of a milling model would be its"
+                    " time-averaged (zeroth-order) loop's, which misses the flip lobes; use --quantity"
+                    " spectral-radius (stable where < 1) or a-lim (the Floquet limit depth)"
+                )
         unknown = set(self.fixed) - _BUILTIN_AXES
         if unknown:
             raise InputError(
