@@ -386,6 +386,24 @@ def test_the_tests_file_is_checked_in_one_line(tmp_path, capsys, text, says):
     assert code == 2 and not out.exists() and says in err and len(err.strip().splitlines()) == 1, err
 
 
+def test_the_tests_file_is_never_an_output(tmp_path, capsys):
+    """--out naming the tests file it reads (review: it was replaced by the
+    fit's table, exit 0): one line, status 2, the file byte for byte."""
+    from chatterlab.cli._main import main
+
+    cuts, model = tmp_path / "cuts.csv", tmp_path / "m.toml"
+    cuts.write_bytes((ROOT / "studies/process_damping/cuts.csv").read_bytes())
+    model.write_text(BASE)
+    before = cuts.read_bytes()
+    code = main(["fit-damping", str(cuts), "--model", str(model), "--out", str(cuts)])
+    err = capsys.readouterr().err
+    assert code == 2 and "is an input of this command" in err and len(err.strip().splitlines()) == 1, err
+    assert cuts.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == [
+        "cuts.csv",
+        "m.toml",
+    ]
+
+
 def test_the_shipped_files_are_what_the_study_writes():
     files = ROOT / "studies/process_damping"
     assert (files / "turning.toml").read_text() == ST.model_text(None)
