@@ -137,3 +137,29 @@ def test_a_killed_run_resumes_with_nothing_lost(tmp_path):
     assert resumed.returncode == 0, resumed.stderr
     assert (tmp_path / "killed.csv").read_text() == (tmp_path / "clean.csv").read_text()
     assert not ck.exists()
+
+
+def test_samples_that_establish_nothing_are_never_counted_stable(capsys, tmp_path):
+    """Review: on the tap-test model with its search band cut to 100-1000 Hz
+    and the checks off, every sample's diagram found no boundary in a band it
+    did not prove complete (claim 2: inf, establishing nothing), and risk
+    printed P(chatter) = 0 at 12850 rpm, 0.3 mm, exit 0 -- where the cut
+    chatters (its rightmost characteristic root is positive, computed here
+    independently by `roots` on the nominal model).  Such samples are now
+    NaN: the estimate is undetermined, no operating point is offered, and
+    the command exits 1 saying why."""
+    from chatterlab.frequency import stability
+    from chatterlab.model._reader import load_model
+    from chatterlab.structure._assembly import assemble
+
+    model = "studies/tap_test/fit_uncertain.toml"
+    code, out, err = run(
+        capsys, "risk", model, "--speed", "10000", "16000", "--points", "20", "--width-max", "1", "--samples",
+        "16", "--fmin", "100", "--fmax", "1000", "--point", "12850", "0.3", "--risk", "5", "--jobs", "1",
+        "--quiet", "--verify", "0", "--checkpoint", str(tmp_path / "ck"),
+    )  # fmt: skip
+    assert code == 1 and "establishing nothing at some speeds" in err
+    assert "P(chatter) at 12850 rpm, 0.3 mm: undetermined" in out
+    assert "0.0000" not in out.split("P(chatter) at 12850 rpm")[1].splitlines()[0]
+    fz = assemble(load_model(model)).at()
+    assert stability(fz, width=0.3e-3, speed=12850.0).verdict == "unstable"

@@ -165,10 +165,11 @@ def _run(args: argparse.Namespace, outs: CommandOutputs) -> int:
             savefig(res.plot(risk=risk_level), outs.path(args.plot))
         if args.plot_sobol:
             savefig(res.plot_sensitivity(), outs.path(args.plot_sobol))
-    if res.n_contradicted or res.n_failed:
+    if res.n_contradicted or res.n_failed or res.n_undetermined:
         print(
             f"chatterlab: {res.n_contradicted} sample diagram(s) contradicted by their checks, {res.n_failed}"
-            " failed task(s): the estimates include them as computed",
+            f" failed task(s), {res.n_undetermined} establishing nothing at some speeds: the estimates there"
+            " are undetermined (NaN)",
             file=sys.stderr,
         )
         return 1
@@ -197,6 +198,8 @@ def _recommend(res: Any, risk_level: float) -> None:
     print(
         f"  operating points with P(chatter) <= {100 * risk_level:g} % (safe side of the {100 * res.level:g} % interval):"
     )
+    if not rec:
+        print("    none: no speed has a width whose P(chatter) is established at most this")
     for r in rec:
         v = f"{r['speed']:.0f} {u}" if u == "rpm" else f"{r['speed']:.5g} {u}"
         print(

@@ -174,7 +174,8 @@ def _model(model: Any, speeds: Any, width_max: float | None, position: float | N
     zoa = options.pop("method", None) == "zoa"
     d = lobes(frozen, speeds, width_max=width_max, **options)
     # a milling model's coupling is the time-averaged cut (process.ce_maps): the zeroth-order approximation
-    return replace(d, method="zoa") if zoa else d
+    # the averaged loop's limits, so a zoa basis (claim 6: flip lobes not modelled), as milling_lobes gives
+    return replace(d, method="zoa", basis=np.full(np.shape(d.b_lim), "zoa")) if zoa else d
 
 
 def _is_lti(x: Any) -> bool:

@@ -61,8 +61,9 @@ LINE_POINTS_MAX = 6000
 #: a lobe missing from a dense diagram's curves -- removes that stretch of the curves, and the next
 #: round seeds the next peak)
 SEED_ROUNDS = 3
-#: claims of a lobe diagram (LobeDiagram.CLAIMS) that establish nothing at a speed
-_UNTRUSTED = (2, 3)
+#: claims of a lobe diagram (LobeDiagram.CLAIMS) that establish nothing at a speed: no boundary in a band
+#: not proven, contradicted by a check, the zeroth-order approximation (its flip lobes are missing)
+_UNTRUSTED = (2, 3, 6)
 
 
 def check_margin(margin: Any) -> float:
@@ -580,7 +581,8 @@ def _notes(tab: _Table, removal: Removal, mach: Any) -> list[str]:
     if und:
         out.append(
             f"{und} of {tab.v.size} speeds allow no cut: the lobes establish nothing there (no boundary found"
-            " in a band not proven complete, or a failed check)"
+            " in a band not proven complete, a failed check, or the zeroth-order approximation, which misses the"
+            " flip lobes: use the default Floquet method)"
         )
     if np.any(tab.binding == "ceiling"):
         out.append(

@@ -137,11 +137,13 @@ def sobol_indices(fA: Any, fB: Any, fAB: Any, level: float = 0.95) -> tuple[Esti
 
 def p_stable_replicates(b_lim: np.ndarray, widths: np.ndarray) -> np.ndarray:
     """P(b < b_lim) per replicate, speed and width: (R, speeds, widths) from
-    the samples' limits (R, n, speeds)."""
+    the samples' limits (R, n, speeds); NaN (undetermined) at a speed where a
+    sample's limit is NaN (its diagram establishes nothing there, or its task
+    failed): such a sample is neither stable nor chattering."""
     R, n, nv = b_lim.shape
     out = np.empty((R, nv, widths.size))
     for r in range(R):
         for v in range(nv):
             s = np.sort(b_lim[r, :, v])
             out[r, v] = (n - np.searchsorted(s, widths, side="right")) / n
-    return out
+    return np.where(np.isnan(b_lim).any(axis=1)[:, :, None], np.nan, out)

@@ -137,6 +137,8 @@ class ProbabilisticLobes(Result):
     errors: tuple[float, ...] = ()  #: the stopping rule's error after each stage
     n_failed: int = 0
     n_contradicted: int = 0
+    #: sample diagrams that establish nothing at some speed (NaN there: undetermined, never stable)
+    n_undetermined: int = 0
     n_unverified: int = 0
     n_checked: int = 0
     elapsed: float = 0.0
@@ -173,7 +175,9 @@ class ProbabilisticLobes(Result):
         qs = quantile_estimate(b[:, :, grid], quantile_levels, level)
         pj = np.searchsorted(all_speeds, points[:, 0]) if points.size else np.zeros(0, int)
         chatter = b[:, :, pj] <= points[None, None, :, 1]
-        p_ch = replicate_estimate(chatter.mean(axis=1).reshape(R, -1), level)
+        # a sample whose limit is NaN there (nothing established, or failed) makes the point undetermined
+        p_pt = np.where(np.isnan(b[:, :, pj]).any(axis=1), np.nan, chatter.mean(axis=1))
+        p_ch = replicate_estimate(p_pt.reshape(R, -1), level)
         bmin = data["b_min"][:, 0, :, 0]  # (R, n)
         with np.errstate(invalid="ignore"):
             b_mean = replicate_estimate(bmin.mean(axis=1), level)
@@ -214,6 +218,7 @@ class ProbabilisticLobes(Result):
             seed=design.seed,
             distributions=tuple(space.describe()),
             n_contradicted=int(np.sum(np.any(claim == 3, axis=-1))),
+            n_undetermined=int(np.sum(np.any(np.isnan(data["b_lim"]), axis=-1))),
             n_unverified=int(np.sum(ver == 0)),
             n_checked=int(np.sum(np.isfinite(ver))),
             evaluations=int(np.prod(ver.shape)),
@@ -272,7 +277,8 @@ class ProbabilisticLobes(Result):
         So every width up to it has an estimated probability of chatter at
         most ``risk`` -- on the safe side of the sampling error with
         ``conservative``.  0 where no width is safe enough (too few samples
-        to claim the risk), inf where every width up to the ceiling is."""
+        to claim the risk, or a sample establishes nothing at that speed), inf
+        where every width up to the ceiling is."""
         from ._estimate import t_factor
 
         if not 0 < risk < 1:
@@ -284,6 +290,8 @@ class ProbabilisticLobes(Result):
         out = np.zeros(grid.size)
         for i, j in enumerate(grid):
             b = self.samples[:, :, j]
+            if np.isnan(b).any():  # a sample establishes nothing here: no width is claimed safe
+                continue
             # the estimate is a step function: on [s_(k-1), s_k) it is P(b_lim < s_k) (s_-1 = 0, s_K = inf)
             edges = np.append(np.unique(b[np.isfinite(b)]), np.inf)
             reps = np.sort(b, axis=1)
@@ -322,7 +330,7 @@ class ProbabilisticLobes(Result):
         ]
         peaks.sort(key=lambda j: -fin[j])
         out = []
-        for j in peaks[:count]:
+        for j in [j for j in peaks if w[j] > 0][:count]:  # a top at 0: nothing is safe there
             e = self.p_chatter_at(float(self.speed[j]), float(w[j]))
             out.append(
                 {
@@ -336,6 +344,14 @@ class ProbabilisticLobes(Result):
         return out
 
     # ------------------------------------------------------------------ words
+    def _nominal_minimum(self) -> float:
+        """The nominal diagram's smallest limit, NaN (undetermined) where it
+        establishes nothing at some speed (selection's ``stable_width``)."""
+        from ..selection._recommend import stable_width
+
+        known = np.isfinite(stable_width(self.nominal)[0]).all()
+        return float(self.nominal.minimum["width"]) if known else float("nan")
+
     def summary(self) -> str:
         """What the run says, in words (mm and the process's speed unit)."""
         u = self.speed_unit
@@ -354,7 +370,7 @@ class ProbabilisticLobes(Result):
                 f" {100 * q:g} %: {_mm(x)}"
                 for q, x in zip(self.quantile_levels, np.asarray(self.b_min_quantiles.value), strict=True)
             )
-            + f" (nominal {_mm(self.nominal.minimum['width'])})"
+            + f" (nominal {_mm(self._nominal_minimum())})"
         )
         qv = np.asarray(self.quantiles.value)
         for q, row in zip(self.quantile_levels, qv, strict=True):
@@ -370,6 +386,9 @@ class ProbabilisticLobes(Result):
             lines.append(
                 f"  P(chatter) at {_v(v, u)}, {_mm(b)}: {float(e.value[k]):.4f} (interval"
                 f" {max(float(e.low[k]), 0.0):.4f} .. {min(float(e.high[k]), 1.0):.4f} at {100 * self.level:g} %)"
+                if np.isfinite(e.value[k])
+                else f"  P(chatter) at {_v(v, u)}, {_mm(b)}: undetermined (a sample's diagram establishes nothing"
+                " at this speed)"
             )
         for out, (s1, st) in self.sobol.items():
             what = f"smallest {lim}" if out == "b_min" else f"chatter at point {int(out.split('@')[1]) + 1}"
@@ -394,6 +413,12 @@ class ProbabilisticLobes(Result):
                 else ""
             )
             + (f"; {self.n_failed} failed tasks (NaN)" if self.n_failed else "")
+            + (
+                f"; {self.n_undetermined} establish nothing at some speeds (no boundary in a band not proven,"
+                " contradicted, or zeroth-order): the estimates there are undetermined (NaN), never stable"
+                if self.n_undetermined
+                else ""
+            )
         )
         lines.append(f"  stop: {self.stop}")
         return "\n".join(lines)
@@ -487,6 +512,7 @@ class ProbabilisticLobes(Result):
             "fields": json.dumps(list(self.paths)),
             "n_failed": self.n_failed,
             "n_contradicted": self.n_contradicted,
+            "n_undetermined": self.n_undetermined,
             "n_verified": self.n_checked - self.n_unverified,
             "n_checked": self.n_checked,
             "evaluations": self.evaluations,
@@ -540,7 +566,11 @@ class ProbabilisticLobes(Result):
 
 def _mm(x: Any) -> str:
     x = float(x)
-    return f"{x * 1e3:.4g} mm" if np.isfinite(x) else ("inf" if x > 0 else "nan")
+    return (
+        f"{x * 1e3:.4g} mm"
+        if np.isfinite(x)
+        else ("inf" if x > 0 else "undetermined" if np.isnan(x) else "nan")
+    )
 
 
 def _v(v: float, unit: str) -> str:

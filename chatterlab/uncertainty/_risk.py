@@ -313,13 +313,15 @@ def _target_error(
     if pts.size:
         j = np.searchsorted(all_v, pts[:, 0])
         chatter = b[:, :, j] <= pts[None, None, :, 1]
-        reps = chatter.mean(axis=1)  # (R, points)
+        reps = np.where(np.isnan(b[:, :, j]).any(axis=1), np.nan, chatter.mean(axis=1))  # (R, points)
     else:
         j = np.searchsorted(all_v, grid_v)
         reps = p_stable_replicates(b[:, :, j], b_grid).reshape(R, -1)
     se = reps.std(axis=0, ddof=1) / math.sqrt(R)
     floor = -math.log(1.0 - level) / (R * n)
-    return float(max(np.nanmax(t_factor(R, level) * se), floor))
+    # undetermined estimates (NaN: a sample establishes nothing there) are not made precise by more samples
+    err = t_factor(R, level) * se
+    return float(max(np.max(err[np.isfinite(err)], initial=0.0), floor))
 
 
 # ---------------------------------------------------------------------------- checks

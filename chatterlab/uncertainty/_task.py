@@ -111,15 +111,21 @@ class LobeSampleTask:
         if hit is not None:
             _ROWS.move_to_end(key)
             return hit
+        from ..selection._recommend import stable_width
+
         d = self.diagram(eid)
         n = len(self.speeds)
         ver = d.verified
         absmin = d.absolute_minimum.get("width", np.nan) if d.absolute_minimum else np.nan
+        # the limits on the diagram's own claim: NaN (undetermined) where it establishes nothing -- no
+        # boundary in a band not proven, contradicted by a check, the zeroth-order approximation's --
+        # never counted as stable; nor is its minimum over the speeds then
+        known = np.isfinite(stable_width(d)[0])
         out = {
-            "b_lim": np.asarray(d.b_lim, float),
+            "b_lim": np.where(known, np.asarray(d.b_lim, float), np.nan),
             "chatter_frequency": np.asarray(d.chatter_hz, float),
             "claim": np.asarray(d.claim, float),
-            "b_min": np.full(n, float(d.minimum["width"])),
+            "b_min": np.full(n, float(d.minimum["width"]) if known.all() else np.nan),
             "b_abs_min": np.full(n, float(absmin)),
             "verified": np.full(n, np.nan if ver is None else float(ver)),
         }
