@@ -371,3 +371,26 @@ def test_plot_of_a_measured_frf_draws_no_envelope_between_the_requested_speeds()
             assert not [c for c in axes[0].collections if c.get_gid() == "claim-2"]
     finally:
         plt.close("all")
+
+
+def test_milling_lobes_of_a_measured_frf_claim_only_the_zeroth_order(tmp_path, capsys):
+    """A measured FRF has no matrices for the Floquet engines, so its milling
+    lobes are the zeroth-order approximation's and claim no more (claim 6,
+    basis zoa: flip lobes not modelled).  Review: they carried the measured
+    band's claim, and recommend's speed rule called a cut stable whose
+    Floquet multiplier is 1.49; recommend reads claim 6 as establishing
+    nothing."""
+    import csv
+
+    from chatterlab.cli import main
+
+    out = tmp_path / "m.csv"
+    code = main([
+        "lobes", "--frf", "studies/tap_test/tool_point.csv", "--teeth", "3", "--kt", "6e8", "--kn", "2e8",
+        "--immersion", "0.5", "--speed", "4000", "12000", "--points", "12", "--width-max", "5", "--out", str(out),
+    ])  # fmt: skip
+    capsys.readouterr()
+    assert code == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 12 and {r["basis"] for r in rows} == {"zoa"}
+    assert {r["claim"] for r in rows} == {"zeroth-order approximation (flip lobes not modelled)"}

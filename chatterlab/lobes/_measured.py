@@ -273,7 +273,11 @@ def lobes_measured(
         plant=plant,
         name=label + f" (milling, ZOA, {milling.teeth} teeth)",
     )
-    return replace(d, method="zoa", resolution=f"D-subdivision on {d.n_frequencies} measured frequencies")
+    # the averaged cut's limits (claim 6: the flip lobes are not modelled), as milling_lobes' ZOA gives
+    return replace(
+        d, method="zoa", basis=np.full(np.shape(d.b_lim), "zoa"),
+        resolution=f"D-subdivision on {d.n_frequencies} measured frequencies",
+    )  # fmt: skip
 
 
 def model_frf(model: Any) -> FRF:
@@ -374,7 +378,7 @@ def lobes_model_frf(
         )
     c = cs[0]
     coords, (DP, DV, DO) = _frf_cut(model, frf, c)
-    return lobes_measured(
+    d = lobes_measured(
         frf,
         speeds,
         process=model.process,
@@ -395,3 +399,6 @@ def lobes_model_frf(
         DO=DO,
         width_ref=c.width_ref,
     )
+    if model.process.kind == "milling":  # the averaged cut's limits: claim 6 (flip lobes not modelled)
+        d = replace(d, basis=np.full(np.shape(d.b_lim), "zoa"))
+    return d

@@ -391,7 +391,8 @@ def _verdict(
     if not np.isfinite(stable):
         return (
             "undetermined",
-            "the lobes establish nothing at this speed (no boundary found in a band not proven complete)",
+            "the lobes establish nothing at this speed (no boundary found in a band not proven complete, a failed"
+            " check, or the zeroth-order approximation's limit, which misses the flip lobes)",
         )
     lim = f"no limit up to {wmax * 1e3:.4g} mm" if ceiling else f"limit {stable * 1e3:.4g} mm"
     allowed = (1 - margin) * stable
