@@ -440,3 +440,23 @@ def test_the_indentation_force_has_the_linear_models_first_harmonic():
             # and it is a half-wave force: none while the tool moves out of the material
             # (delta = X [theta cos(w t) + theta^2 sin(w t) / 2 + ...] < 0 for cos(w t) < -theta_max)
             assert np.all(np.array(F)[np.cos(om * t) < -om * land / V] == 0.0)
+
+
+def test_an_onset_off_the_fit_disagrees_and_a_test_above_the_ceiling_is_refused():
+    """Review: an onset always 'agreed'.  An onset says C_pd = C_i within its
+    width's error: at 1e9 rpm the cut of 2.363 mm is below the limit without
+    any damping (C_i = 0), so it cannot agree with a fit of C_pd > 0, while
+    the onset that sets the fit agrees.  And a test at or above the width
+    ceiling would get the ceiling's coefficient, not its own (the review's
+    --width-max 1 fitted 1.1e5 instead of 2e5): refused, naming the test."""
+    from chatterlab.errors import InputError
+    from chatterlab.lobes._fit_damping import fit_process_damping
+
+    model = cl.load_model(ROOT / "studies/process_damping/turning.toml")
+    fit = fit_process_damping(
+        model, [1e9, 230.0], [2.363e-3, 1.554e-3], ["onset", "onset"], sigma=[1e-5, 1e-5]
+    )
+    assert fit.critical[0] == 0.0 and fit.C_pd > 0
+    assert fit.consistent.tolist() == [False, True]
+    with pytest.raises(InputError, match=r"test 2: its width 3 mm is not below the width ceiling 2\.5 mm"):
+        fit_process_damping(model, [230.0, 190.0], [1.554e-3, 3e-3], ["onset", "stable"], width_max=2.5e-3)

@@ -74,7 +74,8 @@ class DampingFit(Result):
         damping; inf: no coefficient makes it stable below the width ceiling).
     consistent : ndarray of bool
         The test agrees with the estimate (a stable cut with C_i <= C_pd, a
-        chattering one with C_i >= C_pd; onsets: always).
+        chattering one with C_i >= C_pd; an onset with |ln C_i - ln C_pd| <= 1.96 s_i,
+        its width's error mapped to ln C: within its 95 % interval).
     model : str
     """
 
@@ -261,16 +262,27 @@ def fit_process_damping(
         model = model.with_parameter("process_damping.C_pd", 1.0)  # the term's structure; C_pd is fitted
     T = np.asarray(proc.delay(v), dtype=float)
     ceiling = float(width_max) if width_max is not None else 2.0 * float(b.max())
+    over = np.nonzero(b >= ceiling)[0]
+    if over.size:  # its critical coefficient would be the ceiling's, not the test's
+        k = int(over[0])
+        raise InputError(
+            f"test {k + 1}: its width {b[k] * 1e3:.4g} mm is not below the width ceiling {ceiling * 1e3:.4g} mm"
+            " of the limits searched; raise the ceiling (--width-max) above the widest test"
+        )
     bd = DampedBoundary(assemble(model).at(position), width_max=ceiling)
     V = np.asarray(bd.term.speed(T), dtype=float)
     g_star, slope = _critical_gains(bd, T, b)
     crit = g_star * V  # C_i, N/m
     with np.errstate(divide="ignore", invalid="ignore"):
         su = s / (b * slope)  # the width's error in ln C
-    est, std, interval = _estimate(np.log(crit), su, res)
+    with np.errstate(divide="ignore"):  # C_i = 0 (below the limit undamped): ln C_i = -inf, one-sided
+        u = np.log(crit)
+    est, std, interval = _estimate(u, su, res)
     C = float(np.exp(est))
+    with np.errstate(divide="ignore", invalid="ignore"):  # an onset: C_i = C_pd within its 95 % interval
+        onset_ok = np.abs(u - est) <= 1.96 * su
     consistent = np.where(
-        res == "stable", crit <= C * (1 + 1e-9), np.where(res == "chatter", crit >= C * (1 - 1e-9), True)
+        res == "stable", crit <= C * (1 + 1e-9), np.where(res == "chatter", crit >= C * (1 - 1e-9), onset_ok)
     )
     return DampingFit(
         C_pd=C,
