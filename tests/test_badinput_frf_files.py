@@ -292,7 +292,8 @@ def test_fuzz_damaged_files_are_refused_or_read_whole(capsys, tmp_path, fmt, how
             if t.coherence is not None:
                 np.testing.assert_allclose(t.coherence, full.coherence[np.ix_(rows, cols)], rtol=1e-9)
             if t.data.shape != full.data.shape or t.coherence is None:
-                assert how == "truncate" and p.read_bytes().rstrip(b"\r\n").endswith(b"    -1"), how
+                # (blanks after it, the start of the next dataset's delimiter line, are still a whole file)
+                assert how == "truncate" and p.read_bytes().rstrip().endswith(b"    -1"), how
         else:
             assert how == "truncate", how
             text = p.read_bytes().decode()
@@ -698,3 +699,22 @@ def test_a_uff_cut_right_after_a_dataset_is_those_datasets(tmp_path, binary):
     np.testing.assert_allclose(
         t.data[0, 0], full.data[full.outputs.index(t.outputs[0]), full.inputs.index(t.inputs[0])], rtol=1e-9
     )
+
+
+def test_a_cross_frf_is_not_taken_for_the_driving_point(capsys, tmp_path):
+    """Review: a file holding only tool.x/tool.y (the response at x to a
+    force along y) gave lobes with exit 0, as if it were tool.x/tool.x.  The
+    cut feeds back at one point: one line, status 2, naming both the file's
+    pair and the measurement to give.  An unnamed FRF (re, im columns) is
+    still read as the driving point."""
+    f = np.arange(100.0, 1500.0, 4.0)
+    rows = "".join(
+        f"{a!r},{z.real!r},{z.imag!r}\n" for a, z in zip(f.tolist(), sdof(f).tolist(), strict=True)
+    )
+    p = tmp_path / "cross.csv"
+    p.write_text(f"# units: m/N\nf,tool.x/tool.y re,tool.x/tool.y im\n{rows}")
+    code, _, err, _ = run(capsys, "lobes", "--frf", p, *LOBES)
+    assert_clean_error(code, err, "cross.csv", "this one is tool.x/tool.y, a cross FRF", "tool.x/tool.x")
+    q = tmp_path / "plain.csv"
+    q.write_text(csv_text(f, sdof(f)))
+    assert run(capsys, "lobes", "--frf", q, *LOBES)[0] == 0

@@ -201,6 +201,17 @@ def measured_plant(
 
 
 def _driving_point(frf: FRF, coordinates: Sequence[str] | None) -> FRF:
+    named = (frf.outputs[0], frf.inputs[0]) != (
+        "response",
+        "reference",
+    )  # the readers' names of an unnamed FRF
+    if frf.data.shape[:2] == (1, 1) and named and frf.outputs[0] != frf.inputs[0]:
+        # the response at one named coordinate to a force at another: the cut feeds back at one point
+        raise InputError(
+            f"{frf.source}: the lobes need a driving-point FRF (response and force at the same coordinate);"
+            f" this one is {frf.outputs[0]}/{frf.inputs[0]}, a cross FRF: give the {frf.outputs[0]}/"
+            f"{frf.outputs[0]} (or {frf.inputs[0]}/{frf.inputs[0]}) measurement"
+        )
     if coordinates is None:
         if frf.data.shape[:2] == (1, 1):
             return frf
