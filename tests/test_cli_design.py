@@ -187,3 +187,24 @@ def test_active_velocity_feedback_from_the_command_line(capsys, tmp_path, tool):
 def test_active_bad_input(capsys, tool, extra, words):
     code, _, err = run(capsys, "active", tool, "--speed", "3000", "15000", "--points", "10", *extra)
     assert_clean_error(code, err, *words)
+
+
+def test_lobes_of_a_model_with_actuators_are_the_controlled_structure_s(capsys, tmp_path):
+    """Review: `lobes` ignored [[actuator]] (the bare tool's limit, one
+    failed check).  An ideal collocated velocity feedback g at the tip is a
+    damper: the 1-DOF tool with c + g, whose smallest limit is the closed
+    form 2 k zeta (1 + zeta) / K_f per b_ref (Tlusty), zeta = (c + g) /
+    (2 sqrt(k m)); the speed range holds lobes down to that minimum."""
+    g = 300.0
+    p = tmp_path / "act.toml"
+    p.write_text(
+        turning_text(mass=M, stiffness=K, damping=C, Kf=KF)
+        + '\n[[actuator]]\nid = "d"\nsensor = "tip"\nsensor_direction = "x"\nvelocity_gain = 300.0\n'
+    )
+    code, out, err = run(capsys, "lobes", str(p), "--speed", "1000", "6000", "--width-max", "50")
+    assert code == 0, err
+    zeta = (C + g) / (2 * np.sqrt(K * M))
+    b_min = 2 * K * zeta * (1 + zeta) / KF * 1e3  # mm (width_ref 1 mm: K_f per metre of width)
+    line = next(ln for ln in out.splitlines() if "absolute minimum" in ln)
+    # the D-subdivision's minimum: exact to its root finding (rtol ~1e-9), printed to 4 digits
+    assert f"{b_min:.4g} mm" in line, (line, b_min)
