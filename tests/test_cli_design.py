@@ -208,3 +208,17 @@ def test_lobes_of_a_model_with_actuators_are_the_controlled_structure_s(capsys, 
     line = next(ln for ln in out.splitlines() if "absolute minimum" in ln)
     # the D-subdivision's minimum: exact to its root finding (rtol ~1e-9), printed to 4 digits
     assert f"{b_min:.4g} mm" in line, (line, b_min)
+
+
+def test_sensitivity_with_no_limit_below_the_ceiling_is_refused(capsys, tmp_path, tool):
+    """Review: a ceiling below every limit ranked nothing (all NaN) with exit
+    0 and wrote the file.  The tool's smallest limit at any speed is the
+    closed form 2 k zeta (1 + zeta) / K_f = 0.31 mm: below a 0.2 mm ceiling
+    there is nothing to differentiate -- one line, status 2, no file."""
+    out = tmp_path / "s.csv"
+    code, _, err = run(
+        capsys, "sensitivity", tool, "--speed", "1000", "6000", "--width-max", "0.2", "--out", str(out)
+    )
+    assert_clean_error(code, err, "no limit below the width ceiling 0.2 mm", "raise the ceiling")
+    assert not out.exists()
+    assert 2 * K * ZETA * (1 + ZETA) / KF > 0.2e-3  # the oracle: the limit lies above the ceiling

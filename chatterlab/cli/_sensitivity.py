@@ -7,10 +7,11 @@ the process's unit; the derivatives in SI (m per unit of the field)."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any
 
-from ..errors import check_count
+from ..errors import InputError, check_count
 from ..io._files import DATA_SUFFIXES, PLOT_SUFFIXES
 from ._common import model_args, outputs, write_result
 from ._design_common import (
@@ -86,6 +87,11 @@ def _run(args: argparse.Namespace, outs: Any) -> int:
         width_max=wmax,
         terms=args.terms,
     )
+    if args.limit == "minimum" and not math.isfinite(float(s.minimum["width"])):
+        raise InputError(
+            f"{model.source}: no limit below --width-max {wmax * 1e3:.4g} mm in the speed range: nothing to"
+            " rank by its minimum; raise --width-max, or rank by --limit absolute"
+        )
     print(s.table(by=args.by, limit=args.limit, count=count))
     n = len(s.fields)
     if n > count:

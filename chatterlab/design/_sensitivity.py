@@ -308,6 +308,11 @@ def sensitivity(
     }
     L = loop_matrices(model, **kw)
     lim = limits_of(diagram, L, speeds=per_speed)
+    if lim.minimum is None and lim.absolute is None:
+        raise InputError(
+            f"{model.source}: no limit below the width ceiling {width_max * 1e3:.4g} mm, at these speeds or"
+            " any other: there is no limit to differentiate; raise the ceiling (width_max=, --width-max)"
+        )
     nf = len(paths)
     d_lim = np.full((nf, speeds.size), np.nan)
     d_min, d_abs, e_min, e_abs = (np.full(nf, np.nan) for _ in range(4))
