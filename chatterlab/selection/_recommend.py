@@ -63,7 +63,7 @@ LINE_POINTS_MAX = 6000
 SEED_ROUNDS = 3
 #: claims of a lobe diagram (LobeDiagram.CLAIMS) that establish nothing at a speed: no boundary in a band
 #: not proven, contradicted by a check, the zeroth-order approximation (its flip lobes are missing)
-_UNTRUSTED = (2, 3, 6)
+UNTRUSTED_CLAIMS = (2, 3, 6)
 
 
 def check_margin(margin: Any) -> float:
@@ -143,7 +143,7 @@ def stable_width(d: Any) -> tuple[np.ndarray, np.ndarray]:
     band not proven complete, or contradicted by a check)."""
     b = np.asarray(d.b_lim, float)
     claim = np.asarray(d.claim)
-    trust = ~np.isin(claim, _UNTRUSTED)
+    trust = ~np.isin(claim, UNTRUSTED_CLAIMS)
     ceiling = ~np.isfinite(b) & trust
     out = np.where(np.isfinite(b), b, float(d.width_max))
     return np.where(trust, out, np.nan), ceiling

@@ -191,7 +191,7 @@ class ProbabilisticLobes(Result):
                 sob[f"chatter@{k}"] = sobol_indices(
                     ind[:, 0], ind[:, 1], np.moveaxis(ind[:, 2:], 1, 0), level
                 )
-        from ..selection._recommend import _UNTRUSTED  # the claims that establish nothing (one place)
+        from ..selection._recommend import UNTRUSTED_CLAIMS  # the claims that establish nothing (one place)
 
         ver = data["verified"][..., 0]
         claim = data["claim"]
@@ -220,7 +220,7 @@ class ProbabilisticLobes(Result):
             seed=design.seed,
             distributions=tuple(space.describe()),
             n_contradicted=int(np.sum(np.any(claim == 3, axis=-1))),
-            n_undetermined=int(np.sum(np.any(np.isin(claim, _UNTRUSTED), axis=-1))),
+            n_undetermined=int(np.sum(np.any(np.isin(claim, UNTRUSTED_CLAIMS), axis=-1))),
             n_unverified=int(np.sum(ver == 0)),
             n_checked=int(np.sum(np.isfinite(ver))),
             evaluations=int(np.prod(ver.shape)),
