@@ -43,6 +43,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import Result
+from ..io._files import note_input
 
 __all__ = ["DampingFit", "fit_process_damping", "read_cuts", "RESULTS"]
 
@@ -151,8 +152,6 @@ def read_cuts(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     a header with ``speed``, ``width_mm``, ``result`` and optionally
     ``sigma_mm``; ``#`` starts a comment.  Returns speed (as written, the
     process's unit), width (m), result, sigma (m, nan where not given)."""
-    from ..io._files import note_input
-
     p = Path(path)
     note_input(p)  # an input of the running command: never one of its outputs
     try:

@@ -200,12 +200,13 @@ def measured_plant(
     return Plant(H, np.zeros(0, complex), P, V, O, None, measured_band=band, grid=np.asarray(sub.omega))
 
 
+#: the (output, input) names the FRF readers give a single FRF whose coordinates the file does not name
+_UNNAMED = ("response", "reference")
+
+
 def _driving_point(frf: FRF, coordinates: Sequence[str] | None) -> FRF:
-    named = (frf.outputs[0], frf.inputs[0]) != (
-        "response",
-        "reference",
-    )  # the readers' names of an unnamed FRF
-    if frf.data.shape[:2] == (1, 1) and named and frf.outputs[0] != frf.inputs[0]:
+    pair = (frf.outputs[0], frf.inputs[0])
+    if frf.data.shape[:2] == (1, 1) and pair != _UNNAMED and pair[0] != pair[1]:
         # the response at one named coordinate to a force at another: the cut feeds back at one point
         raise InputError(
             f"{frf.source}: the lobes need a driving-point FRF (response and force at the same coordinate);"
